@@ -1,0 +1,85 @@
+# Third-party dependencies, all from Debian 12 packages (scripts/setup.sh installs them).
+#
+# Targets made available here:
+#   Eigen3::Eigen          linear algebra (engine)
+#   drillbif::sundials     CVODES + serial N_Vector + dense SUNMatrix/SUNLinearSolver (engine)
+#   protobuf::libprotobuf  protobuf::protoc                                  (proto/)
+#   CLI11::CLI11           command line parsing                              (client/)
+#   GTest::gtest_main GTest::gmock                                           (tests/)
+#   benchmark::benchmark                                                     (bench/)
+#   drillbif::grpc         gRPC C++ (grpc++), DRILLBIF_GRPC_CPP_PLUGIN       (service, later)
+#   spdlog::spdlog         logging                                           (service, later)
+#   SQLite::SQLite3        store                                             (service, later)
+# The engine links only Eigen and SUNDIALS (see /work/shared/ARCHITECTURE.md).
+
+# --- Eigen -------------------------------------------------------------------------------------
+find_package(Eigen3 3.3 REQUIRED CONFIG)
+
+# --- SUNDIALS ----------------------------------------------------------------------------------
+# Debian's libsundials-dev ships SUNDIALSConfig.cmake (6.4.1); use it when it loads, otherwise
+# fall back to plain find_library. The engine uses the SUNDIALS >= 6 API (SUNContext).
+find_package(SUNDIALS 6 CONFIG QUIET)
+add_library(drillbif::sundials INTERFACE IMPORTED GLOBAL)
+if(SUNDIALS_FOUND AND TARGET SUNDIALS::cvodes AND TARGET SUNDIALS::nvecserial
+   AND TARGET SUNDIALS::sunmatrixdense AND TARGET SUNDIALS::sunlinsoldense)
+  target_link_libraries(drillbif::sundials INTERFACE SUNDIALS::cvodes SUNDIALS::nvecserial
+                        SUNDIALS::sunmatrixdense SUNDIALS::sunlinsoldense)
+  set(DRILLBIF_SUNDIALS_HOW "CMake config (${SUNDIALS_DIR})")
+else()
+  find_path(DRILLBIF_SUNDIALS_INCLUDE_DIR NAMES cvodes/cvodes.h REQUIRED)
+  set(_drillbif_sundials_libs)
+  foreach(_lib sundials_cvodes sundials_nvecserial sundials_sunmatrixdense sundials_sunlinsoldense)
+    find_library(DRILLBIF_${_lib}_LIBRARY NAMES ${_lib} REQUIRED)
+    list(APPEND _drillbif_sundials_libs "${DRILLBIF_${_lib}_LIBRARY}")
+  endforeach()
+  target_include_directories(drillbif::sundials INTERFACE "${DRILLBIF_SUNDIALS_INCLUDE_DIR}")
+  target_link_libraries(drillbif::sundials INTERFACE ${_drillbif_sundials_libs})
+  file(STRINGS "${DRILLBIF_SUNDIALS_INCLUDE_DIR}/sundials/sundials_config.h" _version_line
+       REGEX "^#define SUNDIALS_VERSION \"[0-9.]+")
+  string(REGEX MATCH "[0-9]+\\.[0-9]+\\.[0-9]+" SUNDIALS_VERSION "${_version_line}")
+  if(SUNDIALS_VERSION VERSION_LESS 6)
+    message(FATAL_ERROR "drillbif needs SUNDIALS >= 6, found '${SUNDIALS_VERSION}'")
+  endif()
+  set(DRILLBIF_SUNDIALS_HOW "find_library (${_drillbif_sundials_libs})")
+endif()
+message(STATUS "drillbif: SUNDIALS ${SUNDIALS_VERSION} via ${DRILLBIF_SUNDIALS_HOW}")
+
+# --- Protobuf ----------------------------------------------------------------------------------
+find_package(Protobuf REQUIRED)
+
+# --- Command line, tests, benchmarks -----------------------------------------------------------
+find_package(CLI11 REQUIRED CONFIG)
+if(DRILLBIF_BUILD_TESTS)
+  find_package(GTest REQUIRED CONFIG)
+  include(GoogleTest)
+endif()
+if(DRILLBIF_BUILD_BENCH)
+  find_package(benchmark REQUIRED CONFIG)
+endif()
+
+# --- Service dependencies (found now, linked by server/ in a later issue) ----------------------
+# gRPC: Debian 12 ships gRPCConfig.cmake (1.51); fall back to pkg-config grpc++ if it is missing
+# or does not load.
+find_package(gRPC CONFIG QUIET)
+add_library(drillbif::grpc INTERFACE IMPORTED GLOBAL)
+if(gRPC_FOUND AND TARGET gRPC::grpc++)
+  target_link_libraries(drillbif::grpc INTERFACE gRPC::grpc++)
+  if(TARGET gRPC::grpc_cpp_plugin)
+    set(DRILLBIF_GRPC_CPP_PLUGIN "$<TARGET_FILE:gRPC::grpc_cpp_plugin>")
+  endif()
+  set(DRILLBIF_GRPC_HOW "CMake config (${gRPC_DIR})")
+else()
+  find_package(PkgConfig REQUIRED)
+  pkg_check_modules(DRILLBIF_GRPCPP REQUIRED IMPORTED_TARGET grpc++)
+  target_link_libraries(drillbif::grpc INTERFACE PkgConfig::DRILLBIF_GRPCPP)
+  set(gRPC_VERSION "${DRILLBIF_GRPCPP_VERSION}")
+  set(DRILLBIF_GRPC_HOW "pkg-config grpc++")
+endif()
+if(NOT DRILLBIF_GRPC_CPP_PLUGIN)
+  find_program(DRILLBIF_GRPC_CPP_PLUGIN_PROGRAM grpc_cpp_plugin REQUIRED)
+  set(DRILLBIF_GRPC_CPP_PLUGIN "${DRILLBIF_GRPC_CPP_PLUGIN_PROGRAM}")
+endif()
+message(STATUS "drillbif: gRPC ${gRPC_VERSION} via ${DRILLBIF_GRPC_HOW}")
+
+find_package(spdlog REQUIRED CONFIG)
+find_package(SQLite3 REQUIRED)

@@ -1,0 +1,90 @@
+// Propagator: advances a hybrid model's state within one mode, either for a fixed time (FlowMap) or
+// until the first guard of the mode fires (Advance). Two implementations check each other:
+//   ExactPropagator  closed-form / matrix-exponential flows of linear modes with harmonic forcing;
+//   CvodePropagator  SUNDIALS CVODES for any smooth vector field.
+// A propagator never jumps: mode switching is the simulator's job.
+#ifndef DRILLBIF_FLOW_PROPAGATOR_H_
+#define DRILLBIF_FLOW_PROPAGATOR_H_
+
+#include <memory>
+#include <string>
+
+#include "drillbif/common/status.h"
+#include "drillbif/common/types.h"
+#include "drillbif/model/hybrid_model.h"
+
+namespace drillbif {
+
+// What a FlowMap call should compute besides the state.
+struct FlowRequest {
+  bool state_jacobian = false;  // d x(t) / d x0
+  bool param_jacobian = false;  // d x(t) / d params
+};
+
+// x(t) = phi_m(t, x0; params) and its derivatives. d x / d t is the vector field at x(t).
+struct FlowResult {
+  Status status;
+  StateVector x;             // phase component not wrapped (s0 + omega t)
+  StateMatrix state_jacobian;  // filled when requested
+  ParamMatrix param_jacobian;  // filled when requested
+};
+
+// One call of Advance: flow `mode` from x0 for at most t_max.
+struct AdvanceRequest {
+  int mode = 0;
+  StateVector x0;
+  double t_max = 0.0;            // duration limit (e.g. time to the next Poincare section)
+  bool measures = false;         // accumulate the model's measures over the segment
+  // Samples of the trajectory every `sample_dt` (0: none). Appended to AdvanceResult::samples.
+  double sample_dt = 0.0;
+};
+
+enum class AdvanceEnd {
+  kTimeLimit,  // reached t_max with no event
+  kEvent,      // guard `guard` fired at `duration` <= t_max
+  kFailed,     // see status
+};
+
+struct TrajectorySample {
+  double t = 0.0;  // time since the segment start
+  StateVector x;
+};
+
+struct AdvanceResult {
+  Status status;
+  AdvanceEnd end = AdvanceEnd::kFailed;
+  int guard = -1;            // index into model.guards(mode) when end == kEvent
+  bool tangential = false;   // the event is a grazing contact: h reached 0 with dh/dt ~ 0
+  double duration = 0.0;     // time flowed
+  StateVector x;             // state at the end (phase not wrapped)
+  MeasureVector measures;    // increments over the segment, when requested
+  std::vector<TrajectorySample> samples;
+  int evaluations = 0;       // flow or right-hand-side evaluations spent
+};
+
+// Options shared by both propagators' event location.
+struct EventOptions {
+  // An event fires when the guard comes within this distance of zero (absolute, in the guard's
+  // units; the drifting oscillator's guards are O(1)). Grazes deeper than this are always detected;
+  // near misses wider than this never fire.
+  double tolerance = 1e-12;
+  // Relative accuracy of event times (Newton polish stops below this times max(1, t)).
+  double time_rtol = 1e-14;
+  // Safety cap on location iterations in one segment, against pathological models.
+  int max_iterations = 100000;
+
+  Status Validate() const;
+};
+
+class Propagator {
+ public:
+  virtual ~Propagator() = default;
+  virtual std::string_view name() const = 0;
+  virtual FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
+                             const FlowRequest& request) = 0;
+  virtual AdvanceResult Advance(const AdvanceRequest& request, const Params& params) = 0;
+};
+
+}  // namespace drillbif
+
+#endif  // DRILLBIF_FLOW_PROPAGATOR_H_

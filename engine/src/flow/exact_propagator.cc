@@ -1,0 +1,151 @@
+#include "drillbif/flow/exact_propagator.h"
+
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include "common/gauss_legendre.h"
+#include "flow/safe_event_locator.h"
+
+namespace drillbif {
+
+Status ExactOptions::Validate() const {
+  if (!(quadrature_panel_fraction > 0.0 && quadrature_panel_fraction <= 1.0)) {
+    return InvalidArgument("quadrature_panel_fraction must be in (0, 1]");
+  }
+  return events.Validate();
+}
+
+ExactPropagator::ExactPropagator(const HybridModel& model, ExactOptions options)
+    : model_(model),
+      linear_(dynamic_cast<const LinearForm*>(&model)),
+      closed_(options.use_closed_form ? dynamic_cast<const ClosedFormFlow*>(&model) : nullptr),
+      options_(options) {}
+
+bool ExactPropagator::Supports(const HybridModel& model) {
+  return dynamic_cast<const LinearForm*>(&model) != nullptr;
+}
+
+void ExactPropagator::StateAt(int mode, const StateVector& x0, double t, const Params& params,
+                              StateVector* x, StateMatrix* jac) const {
+  if (closed_) {
+    closed_->Flow(mode, x0, t, params, x, jac);
+    return;
+  }
+  // z(t) = expm(A t) z0; the phase advances exactly: s = s0 + omega t.
+  const int n = model_.state_dim(), ps = model_.phase_index();
+  Eigen::VectorXd z0;
+  Eigen::MatrixXd a;
+  linear_->ToAugmented(x0, params, &z0);
+  linear_->AugmentedMatrix(mode, params, &a);
+  const Eigen::MatrixXd e = (a * t).exp();
+  const Eigen::VectorXd z = e * z0;
+  x->resize(n);
+  // Augmented rows 0..n-2 are the state without its phase, in state order.
+  for (int i = 0, r = 0; i < n; ++i) {
+    (*x)[i] = (i == ps) ? x0[ps] + model_.ForcingFrequency(params) * t : z[r++];
+  }
+  if (jac) {
+    jac->setZero(n, n);
+    const int m = n - 1;  // cos and sin of the phase sit at augmented rows m, m + 1
+    for (int i = 0, r = 0; i < n; ++i) {
+      if (i == ps) {
+        (*jac)(i, ps) = 1.0;
+        continue;
+      }
+      for (int j = 0, c = 0; j < n; ++j) {
+        // d z / d s0 = E (0, ..., -sin, cos, 0).
+        (*jac)(i, j) = (j == ps) ? -e(r, m) * z0[m + 1] + e(r, m + 1) * z0[m] : e(r, c++);
+      }
+      ++r;
+    }
+  }
+}
+
+FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t,
+                                    const Params& params, const FlowRequest& request) {
+  FlowResult out;
+  StateAt(mode, x0, t, params, &out.x,
+          request.state_jacobian ? &out.state_jacobian : nullptr);
+  if (request.param_jacobian) {
+    // Van Loan: expm([[A, dA], [0, A]] t) has d expm(A t) / dk in its upper right block.
+    const int n = model_.state_dim(), ps = model_.phase_index(), np = model_.num_params();
+    const int m = linear_->augmented_dim();
+    Eigen::VectorXd z0, dz0;
+    Eigen::MatrixXd a, da;
+    linear_->ToAugmented(x0, params, &z0);
+    linear_->AugmentedMatrix(mode, params, &a);
+    const Eigen::MatrixXd e = (a * t).exp();
+    ParamMatrix fp;
+    model_.ParamJacobian(mode, x0, params, &fp);  // its phase row is d omega / d params
+    out.param_jacobian.setZero(n, np);
+    Eigen::MatrixXd block(2 * m, 2 * m);
+    for (int k = 0; k < np; ++k) {
+      linear_->AugmentedMatrixDerivative(mode, params, k, &da);
+      linear_->AugmentedInitialDerivative(x0, params, k, &dz0);
+      Eigen::VectorXd dz = e * dz0;
+      if (!da.isZero(0.0)) {
+        block.setZero();
+        block.topLeftCorner(m, m) = a;
+        block.topRightCorner(m, m) = da;
+        block.bottomRightCorner(m, m) = a;
+        const Eigen::MatrixXd big = (block * t).exp();
+        dz += big.topRightCorner(m, m) * z0;
+      }
+      for (int i = 0, r = 0; i < n; ++i) {
+        out.param_jacobian(i, k) = (i == ps) ? fp(ps, k) * t : dz[r++];
+      }
+    }
+  }
+  if (!out.x.allFinite()) out.status = Internal("exact flow produced a non-finite state");
+  return out;
+}
+
+AdvanceResult ExactPropagator::Advance(const AdvanceRequest& request, const Params& params) {
+  AdvanceResult out;
+  const int mode = request.mode;
+  auto state_at = [&](double t, StateVector* x) { StateAt(mode, request.x0, t, params, x, nullptr); };
+  internal::LocatedEvent ev = internal::LocateFirstEvent(model_, mode, params, request.x0,
+                                                         request.t_max, options_.events, state_at);
+  out.status = ev.status;
+  out.end = ev.end;
+  out.guard = ev.guard;
+  out.tangential = ev.tangential;
+  out.duration = ev.t;
+  out.x = ev.x;
+  out.evaluations = ev.evaluations;
+  if (!out.status.ok()) return out;
+  if (!out.x.allFinite()) {
+    out.end = AdvanceEnd::kFailed;
+    out.status = Internal("exact flow produced a non-finite state in mode " +
+                          std::string(model_.mode_name(mode)));
+    return out;
+  }
+  if (request.measures) {
+    if (closed_) {
+      out.measures = closed_->MeasureIncrements(mode, request.x0, out.duration, params);
+    } else {
+      const double panel = options_.quadrature_panel_fraction *
+                           std::min(model_.TimeScale(mode, params),
+                                    1.0 / model_.ForcingFrequency(params));
+      StateVector x;
+      const MeasureVector zero = MeasureVector::Zero(model_.measure_names().size());
+      out.measures = internal::IntegrateGaussLegendre(
+          [&](double tau) {
+            state_at(tau, &x);
+            return MeasureVector(model_.MeasureRates(mode, x, params));
+          },
+          out.duration, panel, zero);
+    }
+  }
+  if (request.sample_dt > 0.0) {
+    for (int k = 0; k * request.sample_dt < out.duration; ++k) {
+      TrajectorySample s;
+      s.t = k * request.sample_dt;
+      state_at(s.t, &s.x);
+      out.samples.push_back(s);
+    }
+    out.samples.push_back({out.duration, out.x});
+  }
+  return out;
+}
+
+}  // namespace drillbif

@@ -1,0 +1,418 @@
+// DriftingOscillator: description, validation, vector fields, Jacobians, guards, jumps, measures
+// and the augmented linear form. The closed-form flows are in drifting_oscillator_flow.cc.
+#include "drillbif/model/drifting_oscillator.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace drillbif {
+namespace {
+
+std::string Num(double v) {
+  std::ostringstream os;
+  os.precision(17);
+  os << v;
+  return os.str();
+}
+
+}  // namespace
+
+DriftingOscillator::DriftingOscillator()
+    : state_names_{"p", "y", "q", "s"},
+      param_names_{"a", "b", "omega", "xi", "g", "phi0"},
+      measure_names_{"drift", "power"},
+      guards_{{{"impact", "Pi"}},
+              {{"progression", "l1"}, {"separation", "l2"}},
+              {{"stick", "l1"}}} {}
+
+Params DriftingOscillator::MakeParams(double a, double b, double omega, double xi, double g,
+                                      double phi0) {
+  Params p(6);
+  p << a, b, omega, xi, g, phi0;
+  return p;
+}
+
+double DriftingOscillator::ContactForce(const StateVector& x, const Params& params) {
+  return 2.0 * params[kXi] * x[kY] + x[kQ];
+}
+
+const std::vector<std::string>& DriftingOscillator::state_names() const { return state_names_; }
+const std::vector<std::string>& DriftingOscillator::param_names() const { return param_names_; }
+const std::vector<std::string>& DriftingOscillator::measure_names() const {
+  return measure_names_;
+}
+const std::vector<GuardSpec>& DriftingOscillator::guards(int mode) const { return guards_[mode]; }
+
+std::string_view DriftingOscillator::mode_name(int mode) const {
+  switch (mode) {
+    case kNoContact: return "NC";
+    case kContact: return "CwoP";
+    case kProgression: return "CwP";
+  }
+  return "?";
+}
+
+Status DriftingOscillator::ValidateParams(const Params& params) const {
+  if (params.size() != 6) {
+    return InvalidArgument("drifting_oscillator takes 6 parameters (a, b, omega, xi, g, phi0), got " +
+                           std::to_string(params.size()));
+  }
+  for (int i = 0; i < 6; ++i) {
+    if (!std::isfinite(params[i])) {
+      return InvalidArgument("parameter " + param_names_[i] + " must be finite (got " +
+                             Num(params[i]) + ")");
+    }
+  }
+  auto need = [&](int i, bool ok, const char* rule) -> Status {
+    if (ok) return Status::Ok();
+    return InvalidArgument("parameter " + param_names_[i] + " must be " + rule + " (got " +
+                           Num(params[i]) + ")");
+  };
+  for (const Status& s : {need(kA, params[kA] >= 0.0, ">= 0 (forcing amplitude)"),
+                          need(kB, params[kB] >= 0.0, ">= 0 (static force)"),
+                          need(kOmega, params[kOmega] > 0.0, "> 0 (forcing frequency)"),
+                          need(kXi, params[kXi] > 0.0, "> 0 (damping ratio of the slider)"),
+                          need(kG, params[kG] > 0.0, "> 0 (gap)")}) {
+    if (!s.ok()) return s;
+  }
+  return Status::Ok();
+}
+
+Status DriftingOscillator::ValidateState(const StateVector& x, const Params& params,
+                                         double tol) const {
+  if (x.size() != 4) {
+    return InvalidArgument("state must have 4 components (p, y, q, s), got " +
+                           std::to_string(x.size()));
+  }
+  for (int i = 0; i < 4; ++i) {
+    if (!std::isfinite(x[i])) {
+      return InvalidArgument("state component " + state_names_[i] + " must be finite (got " +
+                             Num(x[i]) + ")");
+    }
+  }
+  if (x[kQ] < -tol || x[kQ] > 1.0 + tol) {
+    return InvalidArgument("state component q = " + Num(x[kQ]) +
+                           " is outside the invariant set 0 <= q <= 1");
+  }
+  if (x[kP] > x[kQ] + params[kG] + tol) {
+    return InvalidArgument("state component p = " + Num(x[kP]) +
+                           " is outside the invariant set p <= q + g = " +
+                           Num(x[kQ] + params[kG]));
+  }
+  return Status::Ok();
+}
+
+int DriftingOscillator::ModeAt(const StateVector& x, const Params& params) const {
+  // Contact within rounding of the gap: closer than 1e-14 relative to the positions involved.
+  const double h = x[kQ] + params[kG] - x[kP];
+  const double scale = 1.0 + std::abs(x[kP]);
+  if (h > 1e-14 * scale) return kNoContact;
+  const double f = ContactForce(x, params);
+  if (f > 1.0) return kProgression;
+  if (f == 1.0) {
+    // On l1 the force's rate is the same in both contact modes; progression continues if rising.
+    const double df = 2.0 * params[kXi] * (params[kA] * std::cos(x[kS] + params[kPhi0]) +
+                                           params[kB] - 1.0) +
+                      (1.0 - x[kQ]) / (2.0 * params[kXi]);
+    return df >= 0.0 ? kProgression : kContact;
+  }
+  if (f > 0.0) return kContact;
+  return kNoContact;
+}
+
+void DriftingOscillator::VectorField(int mode, const StateVector& x, const Params& params,
+                                     StateVector* dx) const {
+  const double xi = params[kXi];
+  const double force = params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB];
+  dx->resize(4);
+  switch (mode) {
+    case kNoContact:
+      (*dx)[kP] = x[kY];
+      (*dx)[kY] = force;
+      (*dx)[kQ] = -x[kQ] / (2.0 * xi);
+      break;
+    case kContact:
+      (*dx)[kP] = x[kY];
+      (*dx)[kY] = force - (2.0 * xi * x[kY] + x[kQ]);
+      (*dx)[kQ] = x[kY];
+      break;
+    default:  // kProgression
+      (*dx)[kP] = (1.0 - x[kQ]) / (2.0 * xi);
+      (*dx)[kY] = force - 1.0;
+      (*dx)[kQ] = (1.0 - x[kQ]) / (2.0 * xi);
+      break;
+  }
+  (*dx)[kS] = params[kOmega];
+}
+
+void DriftingOscillator::StateJacobian(int mode, const StateVector& x, const Params& params,
+                                       StateMatrix* jac) const {
+  const double xi = params[kXi];
+  jac->setZero(4, 4);
+  (*jac)(kY, kS) = -params[kA] * std::sin(x[kS] + params[kPhi0]);
+  switch (mode) {
+    case kNoContact:
+      (*jac)(kP, kY) = 1.0;
+      (*jac)(kQ, kQ) = -1.0 / (2.0 * xi);
+      break;
+    case kContact:
+      (*jac)(kP, kY) = 1.0;
+      (*jac)(kY, kY) = -2.0 * xi;
+      (*jac)(kY, kQ) = -1.0;
+      (*jac)(kQ, kY) = 1.0;
+      break;
+    default:
+      (*jac)(kP, kQ) = -1.0 / (2.0 * xi);
+      (*jac)(kQ, kQ) = -1.0 / (2.0 * xi);
+      break;
+  }
+}
+
+void DriftingOscillator::ParamJacobian(int mode, const StateVector& x, const Params& params,
+                                       ParamMatrix* jac) const {
+  const double xi = params[kXi];
+  const double theta = x[kS] + params[kPhi0];
+  jac->setZero(4, 6);
+  (*jac)(kY, kA) = std::cos(theta);
+  (*jac)(kY, kB) = 1.0;
+  (*jac)(kY, kPhi0) = -params[kA] * std::sin(theta);
+  (*jac)(kS, kOmega) = 1.0;
+  switch (mode) {
+    case kNoContact:
+      (*jac)(kQ, kXi) = x[kQ] / (2.0 * xi * xi);
+      break;
+    case kContact:
+      (*jac)(kY, kXi) = -2.0 * x[kY];
+      break;
+    default:
+      (*jac)(kP, kXi) = (x[kQ] - 1.0) / (2.0 * xi * xi);
+      (*jac)(kQ, kXi) = (x[kQ] - 1.0) / (2.0 * xi * xi);
+      break;
+  }
+}
+
+GuardValue DriftingOscillator::Guard(int mode, int guard, const StateVector& x,
+                                     const Params& params) const {
+  const double xi = params[kXi], a = params[kA], b = params[kB], w = params[kOmega];
+  const double theta = x[kS] + params[kPhi0];
+  const double c = std::cos(theta), s = std::sin(theta);
+  GuardValue v;
+  switch (mode) {
+    case kNoContact: {
+      // h = q + g - p; h' = q' - y = -q/(2 xi) - y; h'' = q/(4 xi^2) - (a cos + b).
+      v.h = x[kQ] + params[kG] - x[kP];
+      v.dh = -x[kQ] / (2.0 * xi) - x[kY];
+      v.ddh = x[kQ] / (4.0 * xi * xi) - (a * c + b);
+      return v;
+    }
+    case kContact: {
+      // F = 2 xi y + q; F' = 2 xi (a cos + b - F) + y; F'' = 2 xi (-a w sin - F') + y'.
+      const double f = ContactForce(x, params);
+      const double dy = a * c + b - f;
+      const double df = 2.0 * xi * dy + x[kY];
+      const double ddf = 2.0 * xi * (-a * w * s - df) + dy;
+      if (guard == kProgressionStart) {
+        v.h = 1.0 - f, v.dh = -df, v.ddh = -ddf;
+      } else {
+        v.h = f, v.dh = df, v.ddh = ddf;
+      }
+      return v;
+    }
+    default: {
+      // h = F - 1; F' = 2 xi (a cos + b - 1) + q' with q' = (1 - q)/(2 xi);
+      // F'' = -2 xi a w sin + q'' with q'' = -q'/(2 xi).
+      const double dq = (1.0 - x[kQ]) / (2.0 * xi);
+      v.h = ContactForce(x, params) - 1.0;
+      v.dh = 2.0 * xi * (a * c + b - 1.0) + dq;
+      v.ddh = -2.0 * xi * a * w * s - dq / (2.0 * xi);
+      return v;
+    }
+  }
+}
+
+StateRow DriftingOscillator::GuardGradient(int mode, int guard, const StateVector& /*x*/,
+                                           const Params& params) const {
+  StateRow g = StateRow::Zero(4);
+  const double xi = params[kXi];
+  if (mode == kNoContact) {
+    g[kP] = -1.0, g[kQ] = 1.0;
+  } else {
+    const double sign = (mode == kContact && guard == kProgressionStart) ? -1.0 : 1.0;
+    g[kY] = sign * 2.0 * xi, g[kQ] = sign;
+  }
+  return g;
+}
+
+ParamVector DriftingOscillator::GuardParamGradient(int mode, int guard, const StateVector& x,
+                                                   const Params& /*params*/) const {
+  ParamVector g = ParamVector::Zero(6);
+  if (mode == kNoContact) {
+    g[kG] = 1.0;
+  } else {
+    const double sign = (mode == kContact && guard == kProgressionStart) ? -1.0 : 1.0;
+    g[kXi] = sign * 2.0 * x[kY];
+  }
+  return g;
+}
+
+double DriftingOscillator::GuardCurvatureBound(int mode, int /*guard*/, const StateVector& x,
+                                               const Params& params) const {
+  const double xi = params[kXi], a = params[kA], b = params[kB], w = params[kOmega];
+  double bound = 0.0;
+  switch (mode) {
+    case kNoContact:
+      // |h''| <= |q|/(4 xi^2) + a + b, and |q| decays monotonically in free flight.
+      bound = std::abs(x[kQ]) / (4.0 * xi * xi) + a + b;
+      break;
+    case kContact: {
+      // F = F_p + F_h: F_p the harmonic steady state, F_h = c . delta with delta' = A delta,
+      // A = [[0, 1], [-1, -2 xi]] on (q, y), c = (1, 2 xi). |F_p''| <= w^2 a |1 + 2 i xi w| |K|,
+      // K = 1/(1 - w^2 + 2 i xi w); |F_h''| = |(A^2)^T c . delta| <= |(A^2)^T c| |delta(0)|
+      // because |delta|^2 is non-increasing: d/dt (q^2 + y^2) = -4 xi y^2 <= 0.
+      const double re = 1.0 - w * w, im = 2.0 * xi * w;
+      const double k_abs = 1.0 / std::hypot(re, im);
+      const double fp_amp = w * w * a * std::hypot(1.0, im) * k_abs;
+      // Steady state at this phase: q_p = b + a Re(K e^{i theta}), y_p = a Re(i w K e^{i theta}).
+      const double theta = x[kS] + params[kPhi0];
+      const double kr = re * k_abs * k_abs, ki = -im * k_abs * k_abs;  // K = kr + i ki
+      const double c = std::cos(theta), s = std::sin(theta);
+      const double qp = b + a * (kr * c - ki * s);
+      const double yp = a * w * (-kr * s - ki * c);
+      const double dq = x[kQ] - qp, dy = x[kY] - yp;
+      const double atc = std::hypot(4.0 * xi * xi - 1.0, 8.0 * xi * xi * xi - 4.0 * xi);
+      bound = fp_amp + atc * std::hypot(dq, dy);
+      break;
+    }
+    default:
+      // |F''| <= 2 xi a w + |1 - q|/(4 xi^2), and |1 - q| decays monotonically in progression.
+      bound = 2.0 * xi * a * w + std::abs(1.0 - x[kQ]) / (4.0 * xi * xi);
+      break;
+  }
+  // Rounding in the terms above is relative 1e-15 at most; a 1e-12 relative margin covers it.
+  return bound * (1.0 + 1e-12) + 1e-300;
+}
+
+Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
+                                    const Params& params) const {
+  Transition t;
+  t.x = x;
+  t.jacobian = StateMatrix::Identity(4, 4);
+  switch (mode) {
+    case kNoContact: {
+      const double f = ContactForce(x, params);
+      t.next_mode = f >= 1.0 ? kProgression : (f > 0.0 ? kContact : kNoContact);
+      break;
+    }
+    case kContact:
+      t.next_mode = guard == kProgressionStart ? kProgression : kNoContact;
+      break;
+    default:
+      t.next_mode = kContact;
+      break;
+  }
+  return t;
+}
+
+MeasureVector DriftingOscillator::MeasureRates(int mode, const StateVector& x,
+                                               const Params& params) const {
+  const double xi = params[kXi];
+  MeasureVector r = MeasureVector::Zero(2);
+  switch (mode) {
+    case kNoContact:
+      r[kPower] = x[kQ] * x[kQ] / (2.0 * xi);
+      break;
+    case kContact:
+      r[kPower] = 2.0 * xi * x[kY] * x[kY];
+      break;
+    default:
+      r[kDrift] = (ContactForce(x, params) - 1.0) / (2.0 * xi);
+      r[kPower] = (x[kQ] - 1.0) * (x[kQ] - 1.0) / (2.0 * xi);
+      break;
+  }
+  return r;
+}
+
+double DriftingOscillator::TimeScale(int mode, const Params& params) const {
+  const double xi = params[kXi], w = params[kOmega];
+  switch (mode) {
+    case kNoContact:
+      return 1.0 / std::max(w, 1.0);
+    case kContact: {
+      // Largest |eigenvalue| of [[0, 1], [-1, -2 xi]]: 1 if xi <= 1, xi + sqrt(xi^2 - 1) otherwise.
+      const double lam = xi <= 1.0 ? 1.0 : xi + std::sqrt(xi * xi - 1.0);
+      return 1.0 / std::max(w, lam);
+    }
+    default:
+      return 1.0 / std::max({w, 1.0, 1.0 / (2.0 * xi)});
+  }
+}
+
+// ---- LinearForm: z = (p, y, q, cos(s + phi0), sin(s + phi0), 1) ----
+
+void DriftingOscillator::ToAugmented(const StateVector& x, const Params& params,
+                                     Eigen::VectorXd* z) const {
+  const double theta = x[kS] + params[kPhi0];
+  z->resize(6);
+  *z << x[kP], x[kY], x[kQ], std::cos(theta), std::sin(theta), 1.0;
+}
+
+void DriftingOscillator::AugmentedMatrix(int mode, const Params& params,
+                                         Eigen::MatrixXd* a) const {
+  const double xi = params[kXi];
+  a->setZero(6, 6);
+  (*a)(1, 3) = params[kA];
+  (*a)(1, 5) = params[kB];
+  (*a)(3, 4) = -params[kOmega];
+  (*a)(4, 3) = params[kOmega];
+  switch (mode) {
+    case kNoContact:
+      (*a)(0, 1) = 1.0;
+      (*a)(2, 2) = -1.0 / (2.0 * xi);
+      break;
+    case kContact:
+      (*a)(0, 1) = 1.0;
+      (*a)(1, 1) = -2.0 * xi;
+      (*a)(1, 2) = -1.0;
+      (*a)(2, 1) = 1.0;
+      break;
+    default:
+      (*a)(0, 2) = (*a)(2, 2) = -1.0 / (2.0 * xi);
+      (*a)(0, 5) = (*a)(2, 5) = 1.0 / (2.0 * xi);
+      (*a)(1, 5) = params[kB] - 1.0;
+      break;
+  }
+}
+
+void DriftingOscillator::AugmentedMatrixDerivative(int mode, const Params& params, int k,
+                                                   Eigen::MatrixXd* da) const {
+  const double xi = params[kXi];
+  da->setZero(6, 6);
+  switch (k) {
+    case kA: (*da)(1, 3) = 1.0; break;
+    case kB: (*da)(1, 5) = 1.0; break;
+    case kOmega: (*da)(3, 4) = -1.0, (*da)(4, 3) = 1.0; break;
+    case kXi:
+      if (mode == kNoContact) {
+        (*da)(2, 2) = 1.0 / (2.0 * xi * xi);
+      } else if (mode == kContact) {
+        (*da)(1, 1) = -2.0;
+      } else {
+        (*da)(0, 2) = (*da)(2, 2) = 1.0 / (2.0 * xi * xi);
+        (*da)(0, 5) = (*da)(2, 5) = -1.0 / (2.0 * xi * xi);
+      }
+      break;
+    default: break;  // g and phi0 do not enter A
+  }
+}
+
+void DriftingOscillator::AugmentedInitialDerivative(const StateVector& x, const Params& params,
+                                                    int k, Eigen::VectorXd* dz) const {
+  dz->setZero(6);
+  if (k == kPhi0) {
+    const double theta = x[kS] + params[kPhi0];
+    (*dz)[3] = -std::sin(theta);
+    (*dz)[4] = std::cos(theta);
+  }
+}
+
+}  // namespace drillbif
