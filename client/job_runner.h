@@ -1,0 +1,42 @@
+// The job runner: the one boundary between the API (drillbif.v1 request and result protos) and the
+// engine. A request is validated and converted into engine options, the engine runs, and its result
+// is converted back into a result proto. No command line and no I/O here, so that the service can
+// reuse it as is.
+//
+// Errors: an invalid request (a parameter outside its domain, an unknown swept parameter, a bad
+// option, an inadmissible initial state) is an INVALID_ARGUMENT status whose message names the
+// offending field. A run that starts and then fails or is cancelled is not an error: it is a result
+// with status "FAILED" or "CANCELLED", a message and whatever was computed before it stopped.
+#ifndef DRILLBIF_CLIENT_JOB_RUNNER_H_
+#define DRILLBIF_CLIENT_JOB_RUNNER_H_
+
+#include "drillbif/common/status.h"
+#include "drillbif/simulate/simulator.h"
+#include "drillbif/v1/simulate.pb.h"
+#include "drillbif/v1/sweep.pb.h"
+
+namespace drillbif::client {
+
+// Limits on what one request may make the engine hold in memory (see the proto comments).
+inline constexpr long long kMaxSamplePeriods = 10'000'000;     // SimulateRequest.sample_periods
+inline constexpr long long kMaxTrajectoryPoints = 10'000'000;  // per simulation
+inline constexpr long long kMaxSweepSamples = 10'000'000;      // Poincare samples of one sweep
+inline constexpr int kMaxSweepThreads = 512;
+
+// Whether this build's engine has the CVODE propagator (Propagator CVODE); without it a CVODE
+// request fails with UNIMPLEMENTED.
+bool HaveCvode();
+
+// Runs a simulation. `progress` (optional) receives the fraction done in [0, 1] from the calling
+// thread and returns false to cancel (the result is then CANCELLED, with partial outputs).
+StatusOr<v1::SimulateResult> RunSimulate(const v1::SimulateRequest& request,
+                                         const ProgressCallback& progress = {});
+
+// Runs a parameter sweep. `progress` (optional) is called from the calling thread about every
+// 50 ms with the fraction of grid values done, and returns false to cancel.
+StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
+                                   const ProgressCallback& progress = {});
+
+}  // namespace drillbif::client
+
+#endif  // DRILLBIF_CLIENT_JOB_RUNNER_H_
