@@ -7,16 +7,6 @@
 
 namespace drillbif::internal {
 
-// sin(x) / x.
-inline double Sinc(double x) { return x == 0.0 ? 1.0 : std::sin(x) / x; }
-
-// (1 - cos x) / x^2 = 2 sin^2(x/2) / x^2: the half-angle form has no cancellation.
-inline double OneMinusCosOverSq(double x) {
-  if (x == 0.0) return 0.5;
-  const double s = std::sin(0.5 * x) / x;
-  return 2.0 * s * s;
-}
-
 // (x - sin x) / x^3. Taylor series below |x| = 0.5 (the x^14 term is < 1e-16 relative there);
 // above, the direct form loses at most a factor 6/x^2 <= 25 of precision (about 5e-15 relative).
 inline double XMinusSinOverCube(double x) {

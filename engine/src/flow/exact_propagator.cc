@@ -103,8 +103,26 @@ AdvanceResult ExactPropagator::Advance(const AdvanceRequest& request, const Para
   AdvanceResult out;
   const int mode = request.mode;
   auto state_at = [&](double t, StateVector* x) { StateAt(mode, request.x0, t, params, x, nullptr); };
-  internal::LocatedEvent ev = internal::LocateFirstEvent(model_, mode, params, request.x0,
-                                                         request.t_max, options_.events, state_at);
+  internal::LocatedEvent ev;
+  if (closed_) {
+    PreparedSegment seg;
+    closed_->PrepareSegment(mode, request.x0, params, &seg);
+    ev = internal::LocateFirstEvent(model_, mode, request.t_max, options_.events,
+                                    [&](double t, SegmentPoint* p) {
+                                      closed_->EvaluateSegment(seg, t, params, true, p);
+                                    });
+  } else {
+    const int n_guards = static_cast<int>(model_.guards(mode).size());
+    ev = internal::LocateFirstEvent(model_, mode, request.t_max, options_.events,
+                                    [&](double t, SegmentPoint* p) {
+                                      state_at(t, &p->x);
+                                      for (int i = 0; i < n_guards; ++i) {
+                                        p->guards[i] = model_.Guard(mode, i, p->x, params);
+                                        p->bounds[i] =
+                                            model_.GuardCurvatureBound(mode, i, p->x, params);
+                                      }
+                                    });
+  }
   out.status = ev.status;
   out.end = ev.end;
   out.guard = ev.guard;

@@ -19,7 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <vector>
+#include <utility>
 
 #include "drillbif/flow/propagator.h"
 #include "drillbif/model/hybrid_model.h"
@@ -54,42 +54,67 @@ inline bool MovesInto(const GuardValue& g, double tol) {
   return g.dh < 0.0;
 }
 
-// Finds the first event of `mode` in [0, t_max]. state_at(t, &x) gives the exact state at time t
-// from the segment start x0 (state_at(0) == x0).
-template <typename StateAt>
-LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, const Params& params,
-                              const StateVector& x0, double t_max, const EventOptions& opt,
-                              const StateAt& state_at) {
+// Polishes the root of a function v(t) (with v' and v'' known) in the bracket [lo, hi] where
+// v(lo) > 0 >= v(hi): Halley steps from the regula-falsi point, kept inside the shrinking bracket
+// (a step leaving it falls back to the bracket's secant point). Converges cubically near a simple
+// root; stops when the step is below rtol * max(1, t). value(t, &v, &dv, &ddv) evaluates.
+// Returns the last evaluated time (the best estimate) and counts evaluations.
+template <typename Value>
+double PolishRoot(double lo, double v_lo, double hi, double v_hi, double rtol, const Value& value,
+                  int* evaluations) {
+  auto secant = [&] {
+    return v_lo - v_hi > 0.0 ? lo + (hi - lo) * (v_lo / (v_lo - v_hi)) : 0.5 * (lo + hi);
+  };
+  double t = secant();
+  for (int k = 0; k < 100; ++k) {
+    double v, dv, ddv;
+    value(t, &v, &dv, &ddv);
+    ++*evaluations;
+    if (v == 0.0) return t;
+    if (v > 0.0) {
+      lo = t, v_lo = v;
+    } else {
+      hi = t, v_hi = v;
+    }
+    const double denom = 2.0 * dv * dv - v * ddv;
+    double next = denom != 0.0 ? t - 2.0 * v * dv / denom : t - v / dv;
+    if (!(next > lo && next < hi)) next = secant();
+    const double step = std::abs(next - t);
+    if (step <= rtol * std::max(1.0, std::abs(t)) || hi - lo <= rtol * std::max(1.0, hi)) break;
+    t = next;
+  }
+  return t;
+}
+
+// Finds the first event of `mode` in [0, t_max]. eval(t, &point) gives the exact state at time t
+// from the segment start (eval(0) is the start), with every guard and its curvature bound.
+template <typename Eval>
+LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
+                              const EventOptions& opt, const Eval& eval) {
   const int n = static_cast<int>(model.guards(mode).size());
   const double tol = opt.tolerance;
   LocatedEvent out;
-  GuardValue g[8];
-  bool departing[8] = {};
+  SegmentPoint cur, next, probe;
+  GuardValue* g = cur.guards;
+  bool departing[kMaxGuards] = {};
   double t = 0.0;
-  StateVector x = x0;
+  eval(0.0, &cur);
+  out.evaluations = 1;
   for (int i = 0; i < n; ++i) {
-    g[i] = model.Guard(mode, i, x, params);
     if (g[i].h <= tol) {
       if (MovesInto(g[i], tol)) {
-        out.end = AdvanceEnd::kEvent, out.guard = i, out.t = 0.0, out.x = x0;
+        out.end = AdvanceEnd::kEvent, out.guard = i, out.t = 0.0, out.x = cur.x;
         out.tangential = g[i].h > 0.0 || std::abs(g[i].dh) * std::abs(g[i].dh) <= 2.0 * tol;
         return out;
       }
       departing[i] = true;
     }
   }
-  if (n == 0) {
-    state_at(t_max, &out.x);
-    out.t = t_max, out.evaluations = 1;
-    return out;
-  }
-
-  StateVector xn;
-  GuardValue gn[8];
+  GuardValue* gn = next.guards;
   for (int iter = 0; iter < opt.max_iterations; ++iter) {
     double step = t_max - t;
     for (int i = 0; i < n && step > 0.0; ++i) {
-      const double m = model.GuardCurvatureBound(mode, i, x, params);
+      const double m = cur.bounds[i];
       double tau;
       if (departing[i]) {
         // Out of the band first; in sqrt(4 tol / m) the guard cannot fall more than 2 tol.
@@ -105,54 +130,40 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, const Params& 
       step = std::min(step, tau);
     }
     const double tn = (t_max - t <= step) ? t_max : t + step;
-    state_at(tn, &xn);
+    eval(tn, &next);
     ++out.evaluations;
 
     int best = -1;
     double best_t = std::numeric_limits<double>::infinity();
     bool best_tangential = false;
     for (int i = 0; i < n; ++i) {
-      gn[i] = model.Guard(mode, i, xn, params);
       double ti = -1.0;
       bool tangential = false;
       const bool crossed = gn[i].h <= 0.0 && !(departing[i] && gn[i].h > -tol);
       if (crossed && g[i].h > 0.0) {
-        // Safeguarded Newton on h over the bracket [t, tn].
-        double lo = t, hi = tn, tk = tn;
-        GuardValue gk = gn[i];
-        StateVector xk;
-        for (int k = 0; k < 200; ++k) {
-          double next = tk - gk.h / gk.dh;
-          if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-          const bool done = std::abs(next - tk) <= opt.time_rtol * std::max(1.0, tk);
-          tk = next;
-          state_at(tk, &xk);
-          ++out.evaluations;
-          gk = model.Guard(mode, i, xk, params);
-          if (gk.h > 0.0) lo = tk; else hi = tk;
-          if (gk.h == 0.0 || done || hi - lo <= opt.time_rtol * std::max(1.0, hi)) break;
-        }
-        ti = tk;
+        // The unique root of h in [t, tn] (monotone there, or tn at the safe step's end).
+        ti = PolishRoot(
+            t, g[i].h, tn, gn[i].h, opt.time_rtol,
+            [&](double tk, double* v, double* dv, double* ddv) {
+              eval(tk, &probe);
+              *v = probe.guards[i].h, *dv = probe.guards[i].dh, *ddv = probe.guards[i].ddh;
+            },
+            &out.evaluations);
       } else if (crossed) {
         ti = t;  // a departing guard fell through the band within one step: fire at its start
       } else if (!departing[i] && gn[i].h <= tol && gn[i].dh >= 0.0) {
-        // Turned back inside the band: a tangential contact at the minimum, where h' = 0.
+        // Turned back inside the band: a tangential contact at the minimum, where h' = 0 (the
+        // root of -h', falling through zero in [t, tn]; without a sign change, tn itself).
         tangential = true;
         if (g[i].dh < 0.0) {
-          double lo = t, hi = tn, tk = 0.5 * (t + tn);
-          StateVector xk;
-          for (int k = 0; k < 200; ++k) {
-            state_at(tk, &xk);
-            ++out.evaluations;
-            const GuardValue gk = model.Guard(mode, i, xk, params);
-            if (gk.dh < 0.0) lo = tk; else hi = tk;
-            double next = gk.ddh > 0.0 ? tk - gk.dh / gk.ddh : 0.5 * (lo + hi);
-            if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-            const bool done = std::abs(next - tk) <= opt.time_rtol * std::max(1.0, tk);
-            tk = next;
-            if (done || hi - lo <= opt.time_rtol * std::max(1.0, hi)) break;
-          }
-          ti = tk;
+          ti = PolishRoot(
+              t, -g[i].dh, tn, -gn[i].dh, opt.time_rtol,
+              [&](double tk, double* v, double* dv, double* ddv) {
+                eval(tk, &probe);
+                *v = -probe.guards[i].dh, *dv = -probe.guards[i].ddh;
+                *ddv = 0.0;  // h''' is not known: Newton steps
+              },
+              &out.evaluations);
         } else {
           ti = tn;
         }
@@ -163,15 +174,17 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, const Params& 
     if (best >= 0) {
       out.end = AdvanceEnd::kEvent, out.guard = best, out.tangential = best_tangential;
       out.t = best_t;
-      state_at(best_t, &out.x);
+      eval(best_t, &probe);
+      out.x = probe.x;
       ++out.evaluations;
       return out;
     }
     t = tn;
-    x = xn;
-    std::copy(gn, gn + n, g);
+    std::swap(cur, next);
+    g = cur.guards;
+    gn = next.guards;
     if (t >= t_max) {
-      out.end = AdvanceEnd::kTimeLimit, out.t = t_max, out.x = x;
+      out.end = AdvanceEnd::kTimeLimit, out.t = t_max, out.x = cur.x;
       return out;
     }
   }

@@ -2,6 +2,8 @@
 // and the augmented linear form. The closed-form flows are in drifting_oscillator_flow.cc.
 #include "drillbif/model/drifting_oscillator.h"
 
+#include "model/drifting_oscillator_internal.h"
+
 #include <cmath>
 #include <sstream>
 
@@ -193,41 +195,10 @@ void DriftingOscillator::ParamJacobian(int mode, const StateVector& x, const Par
 
 GuardValue DriftingOscillator::Guard(int mode, int guard, const StateVector& x,
                                      const Params& params) const {
-  const double xi = params[kXi], a = params[kA], b = params[kB], w = params[kOmega];
   const double theta = x[kS] + params[kPhi0];
-  const double c = std::cos(theta), s = std::sin(theta);
-  GuardValue v;
-  switch (mode) {
-    case kNoContact: {
-      // h = q + g - p; h' = q' - y = -q/(2 xi) - y; h'' = q/(4 xi^2) - (a cos + b).
-      v.h = x[kQ] + params[kG] - x[kP];
-      v.dh = -x[kQ] / (2.0 * xi) - x[kY];
-      v.ddh = x[kQ] / (4.0 * xi * xi) - (a * c + b);
-      return v;
-    }
-    case kContact: {
-      // F = 2 xi y + q; F' = 2 xi (a cos + b - F) + y; F'' = 2 xi (-a w sin - F') + y'.
-      const double f = ContactForce(x, params);
-      const double dy = a * c + b - f;
-      const double df = 2.0 * xi * dy + x[kY];
-      const double ddf = 2.0 * xi * (-a * w * s - df) + dy;
-      if (guard == kProgressionStart) {
-        v.h = 1.0 - f, v.dh = -df, v.ddh = -ddf;
-      } else {
-        v.h = f, v.dh = df, v.ddh = ddf;
-      }
-      return v;
-    }
-    default: {
-      // h = F - 1; F' = 2 xi (a cos + b - 1) + q' with q' = (1 - q)/(2 xi);
-      // F'' = -2 xi a w sin + q'' with q'' = -q'/(2 xi).
-      const double dq = (1.0 - x[kQ]) / (2.0 * xi);
-      v.h = ContactForce(x, params) - 1.0;
-      v.dh = 2.0 * xi * (a * c + b - 1.0) + dq;
-      v.ddh = -2.0 * xi * a * w * s - dq / (2.0 * xi);
-      return v;
-    }
-  }
+  GuardValue g[2];
+  internal::OscillatorGuards(mode, x, std::cos(theta), std::sin(theta), params, g);
+  return g[guard];
 }
 
 StateRow DriftingOscillator::GuardGradient(int mode, int guard, const StateVector& /*x*/,
@@ -257,39 +228,19 @@ ParamVector DriftingOscillator::GuardParamGradient(int mode, int guard, const St
 
 double DriftingOscillator::GuardCurvatureBound(int mode, int /*guard*/, const StateVector& x,
                                                const Params& params) const {
-  const double xi = params[kXi], a = params[kA], b = params[kB], w = params[kOmega];
-  double bound = 0.0;
   switch (mode) {
     case kNoContact:
-      // |h''| <= |q|/(4 xi^2) + a + b, and |q| decays monotonically in free flight.
-      bound = std::abs(x[kQ]) / (4.0 * xi * xi) + a + b;
-      break;
+      return internal::NoContactBound(x[kQ], params);
     case kContact: {
-      // F = F_p + F_h: F_p the harmonic steady state, F_h = c . delta with delta' = A delta,
-      // A = [[0, 1], [-1, -2 xi]] on (q, y), c = (1, 2 xi). |F_p''| <= w^2 a |1 + 2 i xi w| |K|,
-      // K = 1/(1 - w^2 + 2 i xi w); |F_h''| = |(A^2)^T c . delta| <= |(A^2)^T c| |delta(0)|
-      // because |delta|^2 is non-increasing: d/dt (q^2 + y^2) = -4 xi y^2 <= 0.
-      const double re = 1.0 - w * w, im = 2.0 * xi * w;
-      const double k_abs = 1.0 / std::hypot(re, im);
-      const double fp_amp = w * w * a * std::hypot(1.0, im) * k_abs;
-      // Steady state at this phase: q_p = b + a Re(K e^{i theta}), y_p = a Re(i w K e^{i theta}).
+      const internal::ContactGain k = internal::MakeContactGain(params);
       const double theta = x[kS] + params[kPhi0];
-      const double kr = re * k_abs * k_abs, ki = -im * k_abs * k_abs;  // K = kr + i ki
-      const double c = std::cos(theta), s = std::sin(theta);
-      const double qp = b + a * (kr * c - ki * s);
-      const double yp = a * w * (-kr * s - ki * c);
-      const double dq = x[kQ] - qp, dy = x[kY] - yp;
-      const double atc = std::hypot(4.0 * xi * xi - 1.0, 8.0 * xi * xi * xi - 4.0 * xi);
-      bound = fp_amp + atc * std::hypot(dq, dy);
-      break;
+      double qp, yp;
+      internal::ContactSteadyState(k, std::cos(theta), std::sin(theta), params, &qp, &yp);
+      return internal::ContactBound(k, x[kQ] - qp, x[kY] - yp);
     }
     default:
-      // |F''| <= 2 xi a w + |1 - q|/(4 xi^2), and |1 - q| decays monotonically in progression.
-      bound = 2.0 * xi * a * w + std::abs(1.0 - x[kQ]) / (4.0 * xi * xi);
-      break;
+      return internal::ProgressionBound(x[kQ], params);
   }
-  // Rounding in the terms above is relative 1e-15 at most; a 1e-12 relative margin covers it.
-  return bound * (1.0 + 1e-12) + 1e-300;
 }
 
 Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
@@ -299,8 +250,24 @@ Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
   t.jacobian = StateMatrix::Identity(4, 4);
   switch (mode) {
     case kNoContact: {
-      const double f = ContactForce(x, params);
-      t.next_mode = f >= 1.0 ? kProgression : (f > 0.0 ? kContact : kNoContact);
+      // The event fires on Pi: place the state on it exactly (p = q + g), so that the rounding of a
+      // long free flight (|p| up to 1e3 or more) does not leave the contact phase off its manifold;
+      // d p_after / d q = 1 replaces d p_after / d p = 1 there.
+      t.x[kP] = x[kQ] + params[kG];
+      t.jacobian(kP, kP) = 0.0;
+      t.jacobian(kP, kQ) = 1.0;
+      const double f = ContactForce(t.x, params);
+      if (f >= 1.0) {
+        t.next_mode = kProgression;
+      } else if (f > kForceTolerance) {
+        t.next_mode = kContact;
+      } else {
+        // A grazing impact (F ~ 0): contact only if the force is about to rise.
+        const double df = 2.0 * params[kXi] *
+                              (params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB] - f) +
+                          x[kY];
+        t.next_mode = df > 0.0 ? kContact : kNoContact;
+      }
       break;
     }
     case kContact:

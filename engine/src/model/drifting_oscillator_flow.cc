@@ -1,5 +1,6 @@
-// Closed-form flows of the drifting oscillator's three linear modes, with d x(t) / d x0, and the
-// measures' increments. Notation: theta0 = s0 + phi0, x = omega t.
+// Closed-form flows of the drifting oscillator's three linear modes, with d x(t) / d x0, prepared
+// segments for fast repeated evaluation, and the measures' increments.
+// Notation: theta0 = s0 + phi0, x = omega t, theta = theta0 + x.
 //
 // Forcing integrals (all free of 1/omega, hence exact and robust as omega t -> 0):
 //   I1 = int_0^t cos(theta0 + w tau) dtau       = t [cos th0 sinc(x) - sin th0 x C2(x)]
@@ -7,39 +8,26 @@
 //   J1 = int_0^t sin(theta0 + w tau) dtau       = t [sin th0 sinc(x) + cos th0 x C2(x)]
 //   J2 = int_0^t J1                             = t^2 [sin th0 C2(x) + cos th0 x S3(x)]
 // with C2 = (1 - cos x)/x^2, S3 = (x - sin x)/x^3; dI1/dtheta0 = -J1, dI2/dtheta0 = -J2.
+// One sincos of x/2 gives sin x = 2 sin(x/2) cos(x/2), cos x = 1 - 2 sin^2(x/2), C2 without
+// cancellation, and cos, sin of theta by rotating those of theta0.
 //
-// Contact (CwoP) on u = (q, y): u' = A u + (0, a cos theta + b), A = [[0, 1], [-1, -2 xi]].
-// Steady state u_p: q_p = b + a Re(K e^{i theta}), y_p = q_p', K = 1/(1 - w^2 + 2 i xi w)
-// (never singular since xi > 0). Homogeneous part: expm(A t) = e^{-xi t}[C I + S (A + xi I)] with
+// Contact (CwoP): u = (q, y) = u_p(theta) + expm(A t) (u0 - u_p(theta0)), u_p the harmonic steady
+// state (drifting_oscillator_internal.h). expm(A t) = e^{-xi t}[C I + S (A + xi I)] with
 // (A + xi I)^2 = (xi^2 - 1) I, C = cos(mu t), S = sin(mu t)/mu, mu^2 = 1 - xi^2; analytic in mu^2,
 // so one series covers xi = 1 (repeated root) and its neighbourhood, cosh/sinh cover xi > 1.
 #include <cmath>
-#include <complex>
 
 #include "common/gauss_legendre.h"
 #include "common/small_arg.h"
 #include "drillbif/model/drifting_oscillator.h"
+#include "model/drifting_oscillator_internal.h"
 
 namespace drillbif {
 namespace {
 
-using internal::OneMinusCosOverSq;
-using internal::Sinc;
 using internal::XMinusSinOverCube;
 
-struct ForcingIntegrals {
-  double i1, i2, j1, j2;
-};
-
-ForcingIntegrals Integrals(double theta0, double omega, double t) {
-  const double x = omega * t;
-  const double c = std::cos(theta0), s = std::sin(theta0);
-  const double sc = Sinc(x), c2 = OneMinusCosOverSq(x), s3 = XMinusSinOverCube(x);
-  return {t * (c * sc - s * x * c2), t * t * (c * c2 - s * x * s3), t * (s * sc + c * x * c2),
-          t * t * (s * c2 + c * x * s3)};
-}
-
-// expm(A t) for A = [[0, 1], [-1, -2 xi]], returned as e^{-xi t} C and e^{-xi t} S.
+// expm(A t) for A = [[0, 1], [-1, -2 xi]] as e^{-xi t} C and e^{-xi t} S.
 struct DampedExp {
   double ec, es;
 };
@@ -71,80 +59,164 @@ DampedExp DampedOscillatorExp(double xi, double t) {
   return {0.5 * (slow + fast), 0.5 * (slow - fast) / nu};
 }
 
-struct SteadyState {
-  double q, y, dq_dtheta, dy_dtheta;
+// Layout of PreparedSegment::c.
+enum : int {
+  kCos0 = 0,    // cos theta0
+  kSin0,        // sin theta0
+  kDq0,         // contact: q0 - q_p(theta0)
+  kDy0,         // contact: y0 - y_p(theta0)
+  kGainKr,      // contact: ContactGain
+  kGainKi,
+  kGainSteady,
+  kGainTransient,
 };
 
-// u_p at phase theta and its derivative with respect to theta.
-SteadyState ContactSteadyState(const Params& prm, double theta) {
+internal::ContactGain GainOf(const PreparedSegment& seg) {
+  return {seg.c[kGainKr], seg.c[kGainKi], seg.c[kGainSteady], seg.c[kGainTransient]};
+}
+
+// The state at time t of a prepared segment plus the intermediate quantities that the guards and
+// the Jacobian reuse.
+struct Core {
+  StateVector x;
+  double ct, st;               // cos, sin of theta(t)
+  double sinc, c2, s3, xw;     // NC, CwP: functions of x = w t
+  double decay;                // NC: e^{-t/(2 xi)}; CwP: expm1(-t/(2 xi))
+  double e00, e01, e10, e11;   // CwoP: expm(A t)
+  double dq, dy;               // CwoP: transient u - u_p at t
+};
+
+void EvaluateCore(const PreparedSegment& seg, double t, const Params& prm, Core* k) {
   using DO = DriftingOscillator;
-  const double a = prm[DO::kA], w = prm[DO::kOmega], xi = prm[DO::kXi];
-  const std::complex<double> k = 1.0 / std::complex<double>(1.0 - w * w, 2.0 * xi * w);
-  const std::complex<double> e = std::polar(1.0, theta);
-  const std::complex<double> ke = k * e, ike = std::complex<double>(0.0, 1.0) * ke;
-  // q_p = b + a Re(K e), y_p = a w Re(i K e); d/dtheta multiplies K e by i.
-  return {prm[DO::kB] + a * ke.real(), a * w * ike.real(), a * ike.real(), -a * w * ke.real()};
+  const double a = prm[DO::kA], b = prm[DO::kB], w = prm[DO::kOmega], xi = prm[DO::kXi];
+  const StateVector& x0 = seg.x0;
+  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
+  const double xw = w * t;
+  k->xw = xw;
+  k->x.resize(4);
+  k->x[DO::kS] = x0[DO::kS] + xw;
+  if (seg.mode == DO::kContact) {
+    const double sx = std::sin(xw), cx = std::cos(xw);
+    k->ct = c0 * cx - s0 * sx;
+    k->st = s0 * cx + c0 * sx;
+    const DampedExp ex = DampedOscillatorExp(xi, t);
+    // expm(A t) = ec I + es (A + xi I), A + xi I = [[xi, 1], [-1, -xi]].
+    k->e00 = ex.ec + ex.es * xi, k->e01 = ex.es, k->e10 = -ex.es, k->e11 = ex.ec - ex.es * xi;
+    k->dq = k->e00 * seg.c[kDq0] + k->e01 * seg.c[kDy0];
+    k->dy = k->e10 * seg.c[kDq0] + k->e11 * seg.c[kDy0];
+    double qp, yp;
+    internal::ContactSteadyState(GainOf(seg), k->ct, k->st, prm, &qp, &yp);
+    k->x[DO::kQ] = qp + k->dq;
+    k->x[DO::kY] = yp + k->dy;
+    k->x[DO::kP] = k->x[DO::kQ] + (x0[DO::kP] - x0[DO::kQ]);  // p - q is constant in contact
+    return;
+  }
+  const double sh = std::sin(0.5 * xw), ch = std::cos(0.5 * xw);
+  const double sx = 2.0 * sh * ch, cx = 1.0 - 2.0 * sh * sh;
+  k->ct = c0 * cx - s0 * sx;
+  k->st = s0 * cx + c0 * sx;
+  k->sinc = xw == 0.0 ? 1.0 : sx / xw;
+  k->c2 = xw == 0.0 ? 0.5 : 2.0 * (sh / xw) * (sh / xw);
+  k->s3 = XMinusSinOverCube(xw);
+  const double i1 = t * (c0 * k->sinc - s0 * xw * k->c2);
+  const double i2 = t * t * (c0 * k->c2 - s0 * xw * k->s3);
+  if (seg.mode == DO::kNoContact) {
+    k->decay = std::exp(-t / (2.0 * xi));
+    k->x[DO::kP] = x0[DO::kP] + x0[DO::kY] * t + 0.5 * b * t * t + a * i2;
+    k->x[DO::kY] = x0[DO::kY] + b * t + a * i1;
+    k->x[DO::kQ] = x0[DO::kQ] * k->decay;
+  } else {
+    k->decay = std::expm1(-t / (2.0 * xi));
+    k->x[DO::kQ] = x0[DO::kQ] + (x0[DO::kQ] - 1.0) * k->decay;
+    k->x[DO::kP] = k->x[DO::kQ] + (x0[DO::kP] - x0[DO::kQ]);
+    k->x[DO::kY] = x0[DO::kY] + (b - 1.0) * t + a * i1;
+  }
 }
 
 }  // namespace
 
+void DriftingOscillator::PrepareSegment(int mode, const StateVector& x0, const Params& params,
+                                        PreparedSegment* seg) const {
+  seg->mode = mode;
+  seg->x0 = x0;
+  const double theta0 = x0[kS] + params[kPhi0];
+  seg->c[kCos0] = std::cos(theta0);
+  seg->c[kSin0] = std::sin(theta0);
+  if (mode == kContact) {
+    const internal::ContactGain k = internal::MakeContactGain(params);
+    double qp, yp;
+    internal::ContactSteadyState(k, seg->c[kCos0], seg->c[kSin0], params, &qp, &yp);
+    seg->c[kDq0] = x0[kQ] - qp;
+    seg->c[kDy0] = x0[kY] - yp;
+    seg->c[kGainKr] = k.kr, seg->c[kGainKi] = k.ki;
+    seg->c[kGainSteady] = k.steady_bound, seg->c[kGainTransient] = k.transient_gain;
+  }
+}
+
+void DriftingOscillator::EvaluateSegment(const PreparedSegment& seg, double t,
+                                         const Params& params, bool with_guards,
+                                         SegmentPoint* point) const {
+  Core k;
+  EvaluateCore(seg, t, params, &k);
+  point->x = k.x;
+  if (!with_guards) return;
+  internal::OscillatorGuards(seg.mode, k.x, k.ct, k.st, params, point->guards);
+  switch (seg.mode) {
+    case kNoContact:
+      point->bounds[0] = internal::NoContactBound(k.x[kQ], params);
+      break;
+    case kContact:
+      point->bounds[0] = point->bounds[1] = internal::ContactBound(GainOf(seg), k.dq, k.dy);
+      break;
+    default:
+      point->bounds[0] = internal::ProgressionBound(k.x[kQ], params);
+      break;
+  }
+}
+
 void DriftingOscillator::Flow(int mode, const StateVector& x0, double t, const Params& params,
                               StateVector* x, StateMatrix* jac) const {
-  const double a = params[kA], b = params[kB], w = params[kOmega], xi = params[kXi];
-  const double theta0 = x0[kS] + params[kPhi0];
-  x->resize(4);
-  (*x)[kS] = x0[kS] + w * t;
-  if (jac) {
-    jac->setIdentity(4, 4);
-  }
+  PreparedSegment seg;
+  PrepareSegment(mode, x0, params, &seg);
+  Core k;
+  EvaluateCore(seg, t, params, &k);
+  *x = k.x;
+  if (!jac) return;
+  jac->setIdentity(4, 4);
+  const double a = params[kA];
+  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
+  // J1 = -dI1/dtheta0 and J2 = -dI2/dtheta0 (see the header comment).
+  const double j1 = t * (s0 * k.sinc + c0 * k.xw * k.c2);
+  const double j2 = t * t * (s0 * k.c2 + c0 * k.xw * k.s3);
   switch (mode) {
-    case kNoContact: {
-      const ForcingIntegrals f = Integrals(theta0, w, t);
-      const double e = std::exp(-t / (2.0 * xi));
-      (*x)[kP] = x0[kP] + x0[kY] * t + 0.5 * b * t * t + a * f.i2;
-      (*x)[kY] = x0[kY] + b * t + a * f.i1;
-      (*x)[kQ] = x0[kQ] * e;
-      if (jac) {
-        (*jac)(kP, kY) = t;
-        (*jac)(kP, kS) = -a * f.j2;
-        (*jac)(kY, kS) = -a * f.j1;
-        (*jac)(kQ, kQ) = e;
-      }
+    case kNoContact:
+      (*jac)(kP, kY) = t;
+      (*jac)(kP, kS) = -a * j2;
+      (*jac)(kY, kS) = -a * j1;
+      (*jac)(kQ, kQ) = k.decay;
       return;
-    }
     case kContact: {
-      const DampedExp ex = DampedOscillatorExp(xi, t);
-      // expm(A t) = ec I + es (A + xi I), A + xi I = [[xi, 1], [-1, -xi]].
-      const double e00 = ex.ec + ex.es * xi, e01 = ex.es, e10 = -ex.es, e11 = ex.ec - ex.es * xi;
-      const SteadyState u0 = ContactSteadyState(params, theta0);
-      const SteadyState u1 = ContactSteadyState(params, theta0 + w * t);
-      const double dq0 = x0[kQ] - u0.q, dy0 = x0[kY] - u0.y;
-      (*x)[kQ] = u1.q + e00 * dq0 + e01 * dy0;
-      (*x)[kY] = u1.y + e10 * dq0 + e11 * dy0;
-      (*x)[kP] = x0[kP] + ((*x)[kQ] - x0[kQ]);  // p - q is constant in contact
-      if (jac) {
-        const double dq_ds = u1.dq_dtheta - (e00 * u0.dq_dtheta + e01 * u0.dy_dtheta);
-        const double dy_ds = u1.dy_dtheta - (e10 * u0.dq_dtheta + e11 * u0.dy_dtheta);
-        (*jac)(kQ, kQ) = e00, (*jac)(kQ, kY) = e01, (*jac)(kQ, kS) = dq_ds;
-        (*jac)(kY, kQ) = e10, (*jac)(kY, kY) = e11, (*jac)(kY, kS) = dy_ds;
-        (*jac)(kP, kQ) = e00 - 1.0, (*jac)(kP, kY) = e01, (*jac)(kP, kS) = dq_ds;
-      }
+      // d u / d s0 = d u_p(theta)/d theta - expm(A t) d u_p(theta0)/d theta, where
+      // d q_p / d theta = y_p / w and d y_p / d theta = -w (q_p - b).
+      const internal::ContactGain g = GainOf(seg);
+      const double w = params[kOmega];
+      double qp0, yp0, qp1, yp1;
+      internal::ContactSteadyState(g, c0, s0, params, &qp0, &yp0);
+      internal::ContactSteadyState(g, k.ct, k.st, params, &qp1, &yp1);
+      const double dq0 = yp0 / w, dy0 = -w * (qp0 - params[kB]);
+      const double dq1 = yp1 / w, dy1 = -w * (qp1 - params[kB]);
+      const double dq_ds = dq1 - (k.e00 * dq0 + k.e01 * dy0);
+      const double dy_ds = dy1 - (k.e10 * dq0 + k.e11 * dy0);
+      (*jac)(kQ, kQ) = k.e00, (*jac)(kQ, kY) = k.e01, (*jac)(kQ, kS) = dq_ds;
+      (*jac)(kY, kQ) = k.e10, (*jac)(kY, kY) = k.e11, (*jac)(kY, kS) = dy_ds;
+      (*jac)(kP, kQ) = k.e00 - 1.0, (*jac)(kP, kY) = k.e01, (*jac)(kP, kS) = dq_ds;
       return;
     }
-    default: {
-      const ForcingIntegrals f = Integrals(theta0, w, t);
-      const double em1 = std::expm1(-t / (2.0 * xi));
-      const double dq = (x0[kQ] - 1.0) * em1;  // q(t) - q0
-      (*x)[kQ] = x0[kQ] + dq;
-      (*x)[kP] = x0[kP] + dq;
-      (*x)[kY] = x0[kY] + (b - 1.0) * t + a * f.i1;
-      if (jac) {
-        (*jac)(kQ, kQ) = 1.0 + em1;
-        (*jac)(kP, kQ) = em1;
-        (*jac)(kY, kS) = -a * f.j1;
-      }
+    default:
+      (*jac)(kQ, kQ) = 1.0 + k.decay;
+      (*jac)(kP, kQ) = k.decay;
+      (*jac)(kY, kS) = -a * j1;
       return;
-    }
   }
 }
 
@@ -160,11 +232,13 @@ MeasureVector DriftingOscillator::MeasureIncrements(int mode, const StateVector&
     case kContact: {
       // w' = 2 xi y^2: no short closed form; Gauss-Legendre on panels of half the time scale.
       const double panel = 0.5 * std::min(TimeScale(kContact, params), 1.0 / params[kOmega]);
-      StateVector x;
+      PreparedSegment seg;
+      PrepareSegment(kContact, x0, params, &seg);
+      Core k;
       m[kPower] = internal::IntegrateGaussLegendre(
           [&](double tau) {
-            Flow(kContact, x0, tau, params, &x, nullptr);
-            return 2.0 * xi * x[kY] * x[kY];
+            EvaluateCore(seg, tau, params, &k);
+            return 2.0 * xi * k.x[kY] * k.x[kY];
           },
           t, panel, 0.0);
       return m;
@@ -172,10 +246,13 @@ MeasureVector DriftingOscillator::MeasureIncrements(int mode, const StateVector&
     default: {
       // v' = y - p' (the bit moves at y, p is relative to the slider bottom), so
       // int v' = int y - (p(t) - p0) with int y = y0 t + (b - 1) t^2/2 + a I2.
-      const ForcingIntegrals f = Integrals(x0[kS] + params[kPhi0], params[kOmega], t);
-      const double em1 = std::expm1(-t / (2.0 * xi));
-      const double int_y = x0[kY] * t + 0.5 * (params[kB] - 1.0) * t * t + params[kA] * f.i2;
-      m[kDrift] = int_y - (x0[kQ] - 1.0) * em1;
+      PreparedSegment seg;
+      PrepareSegment(kProgression, x0, params, &seg);
+      Core k;
+      EvaluateCore(seg, t, params, &k);
+      const double i2 = t * t * (seg.c[kCos0] * k.c2 - seg.c[kSin0] * k.xw * k.s3);
+      const double int_y = x0[kY] * t + 0.5 * (params[kB] - 1.0) * t * t + params[kA] * i2;
+      m[kDrift] = int_y - (x0[kQ] - 1.0) * k.decay;
       // w' = (q-1)^2/(2 xi) = -d/dt ((q-1)^2/2).
       m[kPower] = -0.5 * (x0[kQ] - 1.0) * (x0[kQ] - 1.0) * std::expm1(-t / xi);
       return m;

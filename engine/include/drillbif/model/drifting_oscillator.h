@@ -11,8 +11,9 @@
 //   NC:   "impact"       h = q + g - p     (surface Pi)
 //   CwoP: "progression"  h = 1 - F         (surface l1),  "separation"  h = F  (surface l2)
 //   CwP:  "stick"        h = F - 1         (surface l1)
-// Jump maps are the identity; after an impact the next mode is CwP if F >= 1, CwoP if 0 < F < 1 and
-// NC if F <= 0 (a grazing touch). Measures: "drift" (v' = (F - 1)/(2 xi) in CwP, else 0; its mean
+// Jump maps are the identity, except that an impact places the state exactly on Pi (p = q + g);
+// after an impact the next mode is CwP if F >= 1, CwoP if 0 < F < 1 and NC if F ~ 0 with F falling
+// (a grazing touch). Measures: "drift" (v' = (F - 1)/(2 xi) in CwP, else 0; its mean
 // is the ROP) and "power" (w' = q^2/(2 xi) in NC, 2 xi y^2 in CwoP, (q-1)^2/(2 xi) in CwP; its
 // mean is Pc).
 #ifndef DRILLBIF_MODEL_DRIFTING_OSCILLATOR_H_
@@ -30,6 +31,10 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
   enum Measure : int { kDrift = 0, kPower = 1 };
   // Guard indices within each mode's guard list.
   enum Guard : int { kImpact = 0, kProgressionStart = 0, kSeparation = 1, kProgressionEnd = 0 };
+
+  // Contact forces within this of 0 at an impact count as a grazing touch (the guards' event
+  // tolerance, EventOptions::tolerance, is of the same order).
+  static constexpr double kForceTolerance = 1e-12;
 
   DriftingOscillator();
 
@@ -83,6 +88,10 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
   // ClosedFormFlow.
   void Flow(int mode, const StateVector& x0, double t, const Params& params, StateVector* x,
             StateMatrix* jac) const override;
+  void PrepareSegment(int mode, const StateVector& x0, const Params& params,
+                      PreparedSegment* segment) const override;
+  void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,
+                       bool with_guards, SegmentPoint* point) const override;
   MeasureVector MeasureIncrements(int mode, const StateVector& x0, double t,
                                   const Params& params) const override;
 

@@ -49,7 +49,7 @@ struct GuardSpec {
 // What happens when a guard fires: the mode the flow continues in and the state after the jump.
 struct Transition {
   int next_mode = 0;
-  StateVector x;        // state after the jump map (the identity for the drifting oscillator)
+  StateVector x;        // state after the jump map
   StateMatrix jacobian; // d x_after / d x_before of the jump map (without the saltation term)
 };
 
@@ -146,6 +146,25 @@ class LinearForm {
                                           Eigen::VectorXd* dz) const = 0;
 };
 
+// Maximum number of guards of one mode.
+inline constexpr int kMaxGuards = 8;
+
+// Everything event location needs at one time of a segment: the state, every guard of the mode
+// with its time derivatives, and every guard's curvature bound (HybridModel::GuardCurvatureBound).
+struct SegmentPoint {
+  StateVector x;
+  GuardValue guards[kMaxGuards];
+  double bounds[kMaxGuards];
+};
+
+// Constants of one segment (a mode and a start state), computed once and reused for every time
+// evaluated in it. Opaque storage: its meaning belongs to the model that filled it.
+struct PreparedSegment {
+  int mode = 0;
+  StateVector x0;
+  double c[24];
+};
+
 // Optional interface of models that know their flows in closed form. The exact propagator prefers
 // it to the matrix exponential (much cheaper; the two are checked against each other in tests).
 class ClosedFormFlow {
@@ -154,6 +173,13 @@ class ClosedFormFlow {
   // x(t) from x0 in `mode` (phase not wrapped: s0 + omega t), and d x(t) / d x0 when jac != null.
   virtual void Flow(int mode, const StateVector& x0, double t, const Params& params,
                     StateVector* x, StateMatrix* jac) const = 0;
+  // Precomputes the constants of the segment from x0 in `mode`.
+  virtual void PrepareSegment(int mode, const StateVector& x0, const Params& params,
+                              PreparedSegment* segment) const = 0;
+  // The state at time t of a prepared segment and, when with_guards, its guards and bounds
+  // (the same values as Flow, Guard and GuardCurvatureBound give, sharing their common work).
+  virtual void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,
+                               bool with_guards, SegmentPoint* point) const = 0;
   // The measures' increments over [0, t] from x0 in `mode`.
   virtual MeasureVector MeasureIncrements(int mode, const StateVector& x0, double t,
                                           const Params& params) const = 0;
