@@ -23,9 +23,10 @@ inline constexpr long long kMaxTrajectoryPoints = 10'000'000;  // per simulation
 inline constexpr long long kMaxSweepSamples = 10'000'000;      // Poincare samples of one sweep
 inline constexpr int kMaxSweepThreads = 512;
 
-// Whether this build's engine has the CVODE propagator (Propagator CVODE); without it a CVODE
-// request fails with UNIMPLEMENTED.
-bool HaveCvode();
+
+// The outputs a simulate request asks for: its `outputs`, or measures and Poincare samples when
+// unset.
+v1::SimulateRequest::Outputs EffectiveOutputs(const v1::SimulateRequest& request);
 
 // Runs a simulation. `progress` (optional) receives the fraction done in [0, 1] from the calling
 // thread and returns false to cancel (the result is then CANCELLED, with partial outputs).

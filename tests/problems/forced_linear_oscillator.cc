@@ -95,21 +95,26 @@ StateVector ForcedLinearOscillator::ExactState(const StateVector& x0, double t, 
 double ForcedLinearOscillator::FirstUpCrossing(const StateVector& x0, double level, double t_end,
                                                const Params& params, double dt_grid) {
   auto g = [&](double t) { return ExactState(x0, t, params)[kX] - level; };
+  auto v = [&](double t) { return ExactState(x0, t, params)[kV]; };
   double t0 = 0.0;
   double g0 = g(t0);
-  while (t0 < t_end) {
+  while (t0 < t_end && g0 < 0.0) {
     const double t1 = std::min(t_end, t0 + dt_grid);
     const double g1 = g(t1);
-    if (g0 < 0.0 && g1 >= 0.0) return Bisect(g, t0, t1);
+    if (g1 >= 0.0) return Bisect(g, t0, t1);
+    // A dip narrower than the grid: look at the maximum inside the cell.
+    if (v(t0) > 0.0 && v(t1) <= 0.0) {
+      const double tm = Bisect(v, t0, t1);
+      if (g(tm) >= 0.0) return Bisect(g, t0, tm);
+    }
     t0 = t1;
     g0 = g1;
   }
-  return -1.0;
+  return g0 >= 0.0 ? 0.0 : -1.0;
 }
 
-bool ForcedLinearOscillator::FirstMaximum(const StateVector& x0, double t_end,
-                                          const Params& params, double* t_max, double* x_max,
-                                          double dt_grid) {
+bool ForcedLinearOscillator::FirstMaximum(const StateVector& x0, double t_end, const Params& params,
+                                          double* t_max, double* x_max, double dt_grid) {
   auto v = [&](double t) { return ExactState(x0, t, params)[kV]; };
   double t0 = 0.0;
   double v0 = v(t0);
@@ -146,8 +151,8 @@ Status ForcedLinearOscillator::ValidateParams(const Params& p) const {
     return InvalidArgument("omega must be > 0 (got " + std::to_string(p[kOmega]) + ")");
   }
   if (p[kRestitution] < 0.0 || p[kRestitution] > 1.0) {
-    return InvalidArgument("restitution must be in [0, 1] (got " +
-                           std::to_string(p[kRestitution]) + ")");
+    return InvalidArgument("restitution must be in [0, 1] (got " + std::to_string(p[kRestitution]) +
+                           ")");
   }
   const double a = 1.0 - p[kOmega] * p[kOmega];
   const double b = 2.0 * p[kZeta] * p[kOmega];
@@ -190,8 +195,8 @@ void ForcedLinearOscillator::StateJacobian(int /*mode*/, const StateVector& x, c
   (*jac)(kV, kS) = -p[kAmplitude] * std::sin(x[kS]);
 }
 
-void ForcedLinearOscillator::ParamJacobian(int /*mode*/, const StateVector& x,
-                                           const Params& /*p*/, ParamMatrix* jac) const {
+void ForcedLinearOscillator::ParamJacobian(int /*mode*/, const StateVector& x, const Params& /*p*/,
+                                           ParamMatrix* jac) const {
   jac->setZero(3, 5);
   (*jac)(kV, kZeta) = -2.0 * x[kV];
   (*jac)(kV, kAmplitude) = std::cos(x[kS]);
@@ -280,13 +285,18 @@ void ForcedLinearOscillator::AugmentedMatrixDerivative(int /*mode*/, const Param
                                                        Eigen::MatrixXd* da) const {
   da->setZero(5, 5);
   switch (k) {
-    case kZeta: (*da)(1, 1) = -2.0; break;
-    case kAmplitude: (*da)(1, 2) = 1.0; break;
+    case kZeta:
+      (*da)(1, 1) = -2.0;
+      break;
+    case kAmplitude:
+      (*da)(1, 2) = 1.0;
+      break;
     case kOmega:
       (*da)(2, 3) = -1.0;
       (*da)(3, 2) = 1.0;
       break;
-    default: break;
+    default:
+      break;
   }
 }
 
@@ -306,6 +316,22 @@ void ForcedLinearOscillator::Flow(int /*mode*/, const StateVector& x0, double t,
   jac->topLeftCorner<2, 2>() = phi;
   jac->block<2, 1>(0, kS) = SteadyPrime(p, x0[kS] + p[kOmega] * t) - phi * SteadyPrime(p, x0[kS]);
   (*jac)(kS, kS) = 1.0;
+}
+
+void ForcedLinearOscillator::PrepareSegment(int mode, const StateVector& x0,
+                                            const Params& /*params*/,
+                                            PreparedSegment* segment) const {
+  segment->mode = mode;
+  segment->x0 = x0;
+}
+
+void ForcedLinearOscillator::EvaluateSegment(const PreparedSegment& segment, double t,
+                                             const Params& params, bool with_guards,
+                                             SegmentPoint* point) const {
+  point->x = ExactState(segment.x0, t, params);
+  if (!with_guards) return;
+  point->guards[kWallGuard] = Guard(segment.mode, kWallGuard, point->x, params);
+  point->bounds[kWallGuard] = GuardCurvatureBound(segment.mode, kWallGuard, point->x, params);
 }
 
 MeasureVector ForcedLinearOscillator::MeasureIncrements(int /*mode*/, const StateVector& x0,

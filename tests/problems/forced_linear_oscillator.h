@@ -1,11 +1,11 @@
 // A canonical test problem with a known answer: the forced, damped, linear oscillator with a wall,
 //   x'' + 2 zeta x' + x = A cos(s),   s' = omega,
 // state (x, v, s) with v = x'. One mode ("free"), one guard "wall": h = w - x (the mode is valid
-// while x < w; the event fires when x reaches the wall w from below). The jump is a Newtonian impact
-// with restitution r: v -> -r v, staying in the same mode (the jump Jacobian is diag(1, -r, 1)).
-// Measures: "displacement" (rate v, increment x(t) - x0) and "position_integral" (rate x, increment
-// A/omega (sin s(t) - sin s0) - 2 zeta (x(t) - x0) - (v(t) - v0), from integrating the equation of
-// motion), both known in closed form.
+// while x < w; the event fires when x reaches the wall w from below). The jump is a Newtonian
+// impact with restitution r: v -> -r v, staying in the same mode (jump Jacobian diag(1, -r, 1)).
+// Measures: "displacement" (rate v, increment x(t) - x0) and "position_integral" (rate x,
+// increment A/omega (sin s(t) - sin s0) - 2 zeta (x(t) - x0) - (v(t) - v0), from integrating the
+// equation of motion), both known in closed form.
 //
 // Closed form (0 <= zeta < 1): x = x_p + x_h with the steady state
 //   x_p(s) = R cos(s - delta),  R = A / sqrt((1 - omega^2)^2 + (2 zeta omega)^2),
@@ -44,8 +44,10 @@ class ForcedLinearOscillator final : public HybridModel, public LinearForm, publ
   static double PhaseLag(const Params& params);
   // The state at time t from x0 (phase not wrapped).
   static StateVector ExactState(const StateVector& x0, double t, const Params& params);
-  // The first time in (0, t_end] at which x reaches `level` from below, by bracketing on a grid
-  // of step dt_grid and bisection on the closed form to machine precision; negative if none.
+  // The first time in [0, t_end] at which x reaches `level` from below (0 if x0 is at or above
+  // it), by bracketing on a grid of step dt_grid (looking at the maxima inside each cell, so that
+  // shallow grazes are not stepped over) and bisection on the closed form to adjacent doubles;
+  // negative if none.
   static double FirstUpCrossing(const StateVector& x0, double level, double t_end,
                                 const Params& params, double dt_grid = 1e-3);
   // The first local maximum of x in (0, t_end] (v = 0, v decreasing) and its time, by bisection
@@ -72,7 +74,7 @@ class ForcedLinearOscillator final : public HybridModel, public LinearForm, publ
                      StateMatrix* jac) const override;
   void ParamJacobian(int mode, const StateVector& x, const Params& params,
                      ParamMatrix* jac) const override;
-  const std::vector<GuardSpec>& guards(int mode) const override { return guards_; }
+  const std::vector<GuardSpec>& guards(int /*mode*/) const override { return guards_; }
   GuardValue Guard(int mode, int guard, const StateVector& x, const Params& params) const override;
   StateRow GuardGradient(int mode, int guard, const StateVector& x,
                          const Params& params) const override;
@@ -97,6 +99,11 @@ class ForcedLinearOscillator final : public HybridModel, public LinearForm, publ
   // ClosedFormFlow.
   void Flow(int mode, const StateVector& x0, double t, const Params& params, StateVector* x,
             StateMatrix* jac) const override;
+  // A prepared segment only records the mode and x0: the closed form is cheap enough.
+  void PrepareSegment(int mode, const StateVector& x0, const Params& params,
+                      PreparedSegment* segment) const override;
+  void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,
+                       bool with_guards, SegmentPoint* point) const override;
   MeasureVector MeasureIncrements(int mode, const StateVector& x0, double t,
                                   const Params& params) const override;
 

@@ -1,0 +1,324 @@
+#include "client/job_runner.h"
+
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <memory>
+#include <new>
+#include <string>
+#include <utility>
+
+#include "drillbif/flow/exact_propagator.h"
+#include "drillbif/model/drifting_oscillator.h"
+#include "drillbif/simulate/sweep.h"
+#include "drillbif/version.h"
+
+#include "drillbif/flow/cvode_propagator.h"
+
+namespace drillbif::client {
+namespace {
+
+using Osc = DriftingOscillator;
+
+// The model is stateless once built; one shared instance serves every job and thread.
+const Osc& Model() {
+  static const Osc model;
+  return model;
+}
+
+// Shortest decimal form of a double, for messages.
+std::string Num(double v) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), v);
+  return ec == std::errc() ? std::string(buf, end) : std::string("?");
+}
+
+double Seconds(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// ---- proto -> engine -------------------------------------------------------------------------
+
+// Unset fields keep the reference values of DriftingOscillator::MakeParams().
+Params ToEngineParams(const v1::ModelParams& m) {
+  Params p = Osc::MakeParams();
+  if (m.has_a()) p[Osc::kA] = m.a();
+  if (m.has_b()) p[Osc::kB] = m.b();
+  if (m.has_omega()) p[Osc::kOmega] = m.omega();
+  if (m.has_xi()) p[Osc::kXi] = m.xi();
+  if (m.has_g()) p[Osc::kG] = m.g();
+  if (m.has_phi0()) p[Osc::kPhi0] = m.phi0();
+  return p;
+}
+
+StateVector ToEngineState(bool has_state, const v1::State& s) {
+  if (!has_state) return DefaultInitialState(Model());
+  StateVector x(4);
+  x << s.p(), s.y(), s.q(), s.s();
+  return x;
+}
+
+// ---- engine -> proto -------------------------------------------------------------------------
+
+v1::Mode ToProtoMode(int mode) {
+  switch (mode) {
+    case Osc::kNoContact:
+      return v1::NO_CONTACT;
+    case Osc::kContact:
+      return v1::CONTACT;
+    case Osc::kProgression:
+      return v1::PROGRESSION;
+  }
+  return v1::MODE_UNSPECIFIED;
+}
+
+void ToProto(const PoincareSample& in, v1::PoincarePoint* out) {
+  out->set_period(in.period);
+  out->set_mode(ToProtoMode(in.mode));
+  out->set_p(in.x[Osc::kP]);
+  out->set_y(in.x[Osc::kY]);
+  out->set_q(in.x[Osc::kQ]);
+}
+
+v1::SimulateResult ToProto(const SimulationResult& r, const SimulationOptions& options) {
+  const Osc& model = Model();
+  v1::SimulateResult out;
+  out.set_status(TerminationName(r.termination));
+  if (!r.status.ok()) out.set_message(r.status.message());
+  if (r.termination == Termination::kCompleted && options.outputs.measures &&
+      static_cast<int>(r.measure_means.size()) > Osc::kPower) {
+    out.set_rop(r.measure_means[Osc::kDrift]);
+    out.set_power(r.measure_means[Osc::kPower]);
+  }
+  out.mutable_poincare()->Reserve(static_cast<int>(r.poincare.size()));
+  for (const PoincareSample& smp : r.poincare) ToProto(smp, out.add_poincare());
+  for (const EventRecord& e : r.events) {
+    v1::Event* pe = out.add_events();
+    pe->set_period(e.period);
+    pe->set_s(e.s);
+    pe->set_t(e.t);
+    const GuardSpec& guard = model.guards(e.from_mode)[e.guard];
+    pe->set_surface(guard.surface);
+    pe->set_guard(guard.name);
+    pe->set_from_mode(ToProtoMode(e.from_mode));
+    pe->set_to_mode(ToProtoMode(e.to_mode));
+    pe->set_tangential(e.tangential);
+    pe->set_p(e.x[Osc::kP]);
+    pe->set_y(e.x[Osc::kY]);
+    pe->set_q(e.x[Osc::kQ]);
+  }
+  for (size_t i = 0; i < r.period_modes.size(); ++i) {
+    v1::PeriodModes* pm = out.add_period_modes();
+    pm->set_period(options.transient_periods + static_cast<int>(i));
+    for (int mode : r.period_modes[i]) pm->add_modes(ToProtoMode(mode));
+  }
+  out.mutable_trajectory()->Reserve(static_cast<int>(r.trajectory.size()));
+  for (const TrajectoryPoint& tp : r.trajectory) {
+    v1::TrajectoryPoint* pt = out.add_trajectory();
+    pt->set_t(tp.t);
+    pt->set_mode(ToProtoMode(tp.mode));
+    pt->set_p(tp.x[Osc::kP]);
+    pt->set_y(tp.x[Osc::kY]);
+    pt->set_q(tp.x[Osc::kQ]);
+    pt->set_s(tp.x[Osc::kS]);
+  }
+  out.set_segments(r.segments);
+  out.set_events_total(r.events_total);
+  out.set_evaluations(r.evaluations);
+  out.set_engine_version(EngineVersion());
+  return out;
+}
+
+// ---- validation and propagators --------------------------------------------------------------
+
+// Options of a simulation from a request; the engine's own defaults fill unset fields.
+StatusOr<SimulationOptions> ToSimulationOptions(const v1::SimulateRequest& request) {
+  SimulationOptions options;
+  if (request.has_transient_periods()) options.transient_periods = request.transient_periods();
+  if (request.has_sample_periods()) options.sample_periods = request.sample_periods();
+  const v1::SimulateRequest::Outputs o = EffectiveOutputs(request);
+  options.outputs.measures = o.measures();
+  options.outputs.poincare = o.poincare();
+  options.outputs.events = o.events();
+  options.outputs.modes = o.modes();
+  options.outputs.trajectory_dt = o.trajectory_dt();
+  if (!o.measures() && !o.poincare() && !o.events() && !o.modes() && o.trajectory_dt() == 0.0) {
+    return InvalidArgument(
+        "outputs: nothing requested (set measures, poincare, events, modes or trajectory_dt, "
+        "or leave outputs unset for measures and poincare)");
+  }
+  if (Status s = options.Validate(); !s.ok()) return s;
+  if (options.sample_periods > kMaxSamplePeriods) {
+    return InvalidArgument("sample_periods must be <= " + std::to_string(kMaxSamplePeriods) +
+                           ", got " + std::to_string(options.sample_periods));
+  }
+  return options;
+}
+
+// Trajectory points a run would record: about window length / dt (plus one per segment).
+Status CheckTrajectorySize(const SimulationOptions& options, const Params& params) {
+  const double dt = options.outputs.trajectory_dt;
+  if (dt <= 0.0) return Status::Ok();
+  const double window = options.sample_periods * kTwoPi / Model().ForcingFrequency(params);
+  const double points = window / dt;
+  if (!(points <= static_cast<double>(kMaxTrajectoryPoints))) {
+    return InvalidArgument("trajectory_dt = " + Num(dt) + " would record about " +
+                           std::to_string(static_cast<long long>(std::min(points, 1e18))) +
+                           " trajectory points (at most " + std::to_string(kMaxTrajectoryPoints) +
+                           "); raise trajectory_dt or lower sample_periods");
+  }
+  return Status::Ok();
+}
+
+StatusOr<std::unique_ptr<Propagator>> MakePropagator(const v1::SimulateRequest& request) {
+  switch (request.propagator()) {
+    case v1::PROPAGATOR_UNSPECIFIED:
+    case v1::EXACT:
+      return std::unique_ptr<Propagator>(std::make_unique<ExactPropagator>(Model()));
+    case v1::CVODE: {
+      CvodeOptions options;
+      if (request.has_cvode_rtol()) options.rtol = request.cvode_rtol();
+      if (Status s = options.Validate(); !s.ok()) {
+        return InvalidArgument("cvode_rtol: " + s.message());
+      }
+      return std::unique_ptr<Propagator>(std::make_unique<CvodePropagator>(Model(), options));
+    }
+    default:
+      break;
+  }
+  return InvalidArgument("propagator: unknown value " + std::to_string(request.propagator()));
+}
+
+StatusOr<SweepOptions> ToSweepOptions(const v1::SweepRequest& request) {
+  SweepOptions options;
+  options.param = request.param();
+  options.min = request.min();
+  options.max = request.max();
+  if (request.has_steps()) options.steps = request.steps();
+  switch (request.direction()) {
+    case v1::SweepRequest::DIRECTION_UNSPECIFIED:
+    case v1::SweepRequest::UP:
+      options.direction = SweepDirection::kUp;
+      break;
+    case v1::SweepRequest::DOWN:
+      options.direction = SweepDirection::kDown;
+      break;
+    case v1::SweepRequest::BOTH:
+      options.direction = SweepDirection::kBoth;
+      break;
+    default:
+      return InvalidArgument("direction: unknown value " + std::to_string(request.direction()));
+  }
+  if (request.has_transient_periods()) options.transient_periods = request.transient_periods();
+  if (request.has_sample_periods()) options.sample_periods = request.sample_periods();
+  options.threads = request.threads();
+  if (Status s = options.Validate(); !s.ok()) return s;
+  if (options.threads > kMaxSweepThreads) {
+    return InvalidArgument("threads must be <= " + std::to_string(kMaxSweepThreads) + ", got " +
+                           std::to_string(options.threads));
+  }
+  const long long directions = options.direction == SweepDirection::kBoth ? 2 : 1;
+  const long long samples =
+      static_cast<long long>(options.steps) * options.sample_periods * directions;
+  if (samples > kMaxSweepSamples) {
+    return InvalidArgument("steps * sample_periods * directions = " + std::to_string(samples) +
+                           " Poincare samples, more than the " + std::to_string(kMaxSweepSamples) +
+                           " one sweep may record");
+  }
+  return options;
+}
+
+void ToProto(const SweepPoint& in, bool sweep_cancelled, v1::SweepPoint* out) {
+  out->set_value(in.value);
+  // A grid value the workers never reached keeps the engine's initial kFailed with no message.
+  if (sweep_cancelled && in.termination == Termination::kFailed && in.message.empty()) {
+    out->set_status(TerminationName(Termination::kCancelled));
+    out->set_message("not reached before the sweep was cancelled");
+    return;
+  }
+  out->set_status(TerminationName(in.termination));
+  out->set_message(in.message);
+  out->mutable_samples()->Reserve(static_cast<int>(in.samples.size()));
+  for (const PoincareSample& smp : in.samples) ToProto(smp, out->add_samples());
+}
+
+}  // namespace
+
+v1::SimulateRequest::Outputs EffectiveOutputs(const v1::SimulateRequest& request) {
+  if (request.has_outputs()) return request.outputs();
+  const SimulationOutputs defaults;
+  v1::SimulateRequest::Outputs outputs;
+  outputs.set_measures(defaults.measures);
+  outputs.set_poincare(defaults.poincare);
+  outputs.set_events(defaults.events);
+  outputs.set_modes(defaults.modes);
+  outputs.set_trajectory_dt(defaults.trajectory_dt);
+  return outputs;
+}
+
+StatusOr<v1::SimulateResult> RunSimulate(const v1::SimulateRequest& request,
+                                         const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const Osc& model = Model();
+  StatusOr<SimulationOptions> options = ToSimulationOptions(request);
+  if (!options.ok()) return options.status();
+  const Params params = ToEngineParams(request.params());
+  if (Status s = model.ValidateParams(params); !s.ok()) return s;
+  const StateVector x0 = ToEngineState(request.has_initial_state(), request.initial_state());
+  if (Status s = model.ValidateState(x0, params, options->state_tolerance); !s.ok()) return s;
+  if (Status s = CheckTrajectorySize(*options, params); !s.ok()) return s;
+  StatusOr<std::unique_ptr<Propagator>> propagator = MakePropagator(request);
+  if (!propagator.ok()) return propagator.status();
+
+  try {
+    const SimulationResult r = Simulate(model, **propagator, params, x0, *options, progress);
+    v1::SimulateResult out = ToProto(r, *options);
+    out.set_wall_seconds(Seconds(start));
+    return out;
+  } catch (const std::bad_alloc&) {
+    return Internal("out of memory while simulating");
+  } catch (const std::exception& e) {
+    return Internal(std::string("simulation failed: ") + e.what());
+  }
+}
+
+StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
+                                   const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const Osc& model = Model();
+  StatusOr<SweepOptions> options = ToSweepOptions(request);
+  if (!options.ok()) return options.status();
+  const Params params = ToEngineParams(request.params());
+  const StateVector x0 = ToEngineState(request.has_initial_state(), request.initial_state());
+  const PropagatorFactory make_propagator = [&model] {
+    return std::unique_ptr<Propagator>(std::make_unique<ExactPropagator>(model));
+  };
+
+  try {
+    const SweepResult r = Sweep(model, make_propagator, params, x0, *options, progress);
+    // Sweep validates everything (parameter name, range ends, initial state) before it starts;
+    // once started it always completes or is cancelled, single values failing on their own.
+    if (r.termination == Termination::kFailed) {
+      return r.status.ok() ? Internal("sweep failed without a reason") : r.status;
+    }
+    const bool cancelled = r.termination == Termination::kCancelled;
+    v1::SweepResult out;
+    out.set_status(TerminationName(r.termination));
+    if (!r.status.ok()) out.set_message(r.status.message());
+    for (const SweepPoint& pt : r.up) ToProto(pt, cancelled, out.add_up());
+    for (const SweepPoint& pt : r.down) ToProto(pt, cancelled, out.add_down());
+    out.set_periods_total(r.periods_total);
+    out.set_events_total(r.events_total);
+    out.set_engine_version(EngineVersion());
+    out.set_wall_seconds(Seconds(start));
+    return out;
+  } catch (const std::bad_alloc&) {
+    return Internal("out of memory while sweeping");
+  } catch (const std::exception& e) {
+    return Internal(std::string("sweep failed: ") + e.what());
+  }
+}
+
+}  // namespace drillbif::client

@@ -1,0 +1,376 @@
+// drillctl: the command line client. Flags become a request proto, the job runner runs it (in this
+// process with --local; the gRPC service comes later) and the result proto is printed as JSON or
+// CSV.
+//
+// Exit codes: 0 completed; 1 the run failed (the partial result is still printed); 2 invalid
+// input (bad flags or parameter values), nothing run; 130 interrupted (Ctrl-C), partial result
+// printed.
+#include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <string>
+
+#include "client/job_runner.h"
+#include "client/output.h"
+#include "client/progress_bar.h"
+#include "drillbif/flow/cvode_propagator.h"
+#include "drillbif/model/drifting_oscillator.h"
+#include "drillbif/simulate/simulator.h"
+#include "drillbif/simulate/sweep.h"
+#include "drillbif/version.h"
+
+namespace drillbif::client {
+namespace {
+
+constexpr int kExitFailed = 1;
+constexpr int kExitUsage = 2;
+constexpr int kExitInterrupted = 130;
+
+volatile std::sig_atomic_t g_interrupted = 0;
+
+extern "C" void OnInterrupt(int) { g_interrupted = 1; }
+
+// Ctrl-C cancels the run through the progress callback (the partial result is printed); a second
+// Ctrl-C kills the process (SA_RESETHAND restores the default action).
+void InstallInterruptHandler() {
+  struct sigaction action {};
+  action.sa_handler = OnInterrupt;
+  action.sa_flags = SA_RESETHAND;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+}
+
+int Error(const std::string& message, int code) {
+  std::cerr << "drillctl: " << message << "\n";
+  return code;
+}
+
+// Invalid input of any kind exits 2; anything else (internal errors) exits 1.
+int ErrorStatus(const Status& status) {
+  switch (status.code()) {
+    case StatusCode::kInvalidArgument:
+    case StatusCode::kNotFound:
+    case StatusCode::kOutOfRange:
+    case StatusCode::kFailedPrecondition:
+    case StatusCode::kUnimplemented:
+      return Error("invalid input: " + status.message(), kExitUsage);
+    default:
+      return Error(status.ToString(), kExitFailed);
+  }
+}
+
+struct GlobalFlags {
+  bool local = false;
+  std::string format = "json";
+  std::string output;  // empty: stdout
+  bool compact = false;
+};
+
+struct ModelFlags {
+  // Defaults: the engine's reference values (MODEL.md).
+  Params reference = DriftingOscillator::MakeParams();
+  double a = reference[DriftingOscillator::kA];
+  double b = reference[DriftingOscillator::kB];
+  double omega = reference[DriftingOscillator::kOmega];
+  double xi = reference[DriftingOscillator::kXi];
+  double g = reference[DriftingOscillator::kG];
+  double phi0 = reference[DriftingOscillator::kPhi0];
+  // Initial state.
+  double p0 = 0.0, y0 = 0.0, q0 = 0.0, s0 = 0.0;
+  int transient = SimulationOptions().transient_periods;
+  int samples = SimulationOptions().sample_periods;
+};
+
+struct SimulateFlags {
+  bool measures = false, poincare = false, events = false, modes = false;
+  double trajectory_dt = 0.0;
+  std::string propagator = "exact";
+  double rtol = CvodeOptions().rtol;
+  std::vector<CLI::Option*> output_options;
+  CLI::Option* rtol_option = nullptr;
+};
+
+struct SweepFlags {
+  std::string param;
+  double min = 0.0, max = 0.0;
+  int steps = SweepOptions().steps;
+  std::string direction = "up";
+  int threads = 0;
+};
+
+// Accepts finite numbers > 0.
+CLI::Validator PositiveDouble() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(text, v) || !(v > 0.0) || !std::isfinite(v)) {
+          return "must be a number > 0, got " + text;
+        }
+        return {};
+      },
+      "POSITIVE");
+}
+
+void AddModelFlags(CLI::App* cmd, ModelFlags* m) {
+  const std::string g = "Model (dimensionless)";
+  cmd->add_option("--a", m->a, "Forcing amplitude, >= 0")->group(g)->capture_default_str();
+  cmd->add_option("--b", m->b, "Static force (weight on bit), >= 0")
+      ->group(g)
+      ->capture_default_str();
+  cmd->add_option("--omega", m->omega, "Forcing frequency, > 0")->group(g)->capture_default_str();
+  cmd->add_option("--xi", m->xi, "Damping ratio of the slider, > 0")
+      ->group(g)
+      ->capture_default_str();
+  cmd->add_option("--g", m->g, "Gap between bit and slider, > 0")->group(g)->capture_default_str();
+  cmd->add_option("--phi0", m->phi0, "Forcing phase (radians)")->group(g)->capture_default_str();
+  const std::string s = "Initial state";
+  cmd->add_option("--p0", m->p0, "Bit position")->group(s)->capture_default_str();
+  cmd->add_option("--y0", m->y0, "Bit velocity")->group(s)->capture_default_str();
+  cmd->add_option("--q0", m->q0, "Slider-top position, in [0, 1]")->group(s)->capture_default_str();
+  cmd->add_option("--s0", m->s0, "Forcing phase (radians)")->group(s)->capture_default_str();
+  const std::string r = "Run";
+  cmd->add_option("--transient", m->transient, "Forcing periods discarded first")
+      ->group(r)
+      ->check(CLI::Range(0, std::numeric_limits<int>::max()))
+      ->capture_default_str();
+  cmd->add_option("--samples", m->samples, "Forcing periods sampled (Poincare section s = 0)")
+      ->group(r)
+      ->check(CLI::Range(1, std::numeric_limits<int>::max()))
+      ->capture_default_str();
+}
+
+v1::ModelParams ToProtoParams(const ModelFlags& m) {
+  v1::ModelParams p;
+  p.set_a(m.a);
+  p.set_b(m.b);
+  p.set_omega(m.omega);
+  p.set_xi(m.xi);
+  p.set_g(m.g);
+  p.set_phi0(m.phi0);
+  return p;
+}
+
+v1::State ToProtoState(const ModelFlags& m) {
+  v1::State s;
+  s.set_p(m.p0);
+  s.set_y(m.y0);
+  s.set_q(m.q0);
+  s.set_s(m.s0);
+  return s;
+}
+
+// Writes the text to --output (or stdout). False, with a message on stderr, if writing failed.
+bool Write(const GlobalFlags& flags, const std::string& text) {
+  if (flags.output.empty()) {
+    std::cout << text << std::flush;
+    if (std::cout) return true;
+    Error("cannot write the result to stdout", kExitFailed);
+    return false;
+  }
+  std::ofstream file(flags.output, std::ios::binary | std::ios::trunc);
+  file << text;
+  file.close();
+  if (file) return true;
+  Error("cannot write the result to " + flags.output + ": " + std::strerror(errno), kExitFailed);
+  return false;
+}
+
+// Exit code and stderr note for a run's final status.
+int Finish(const std::string& status, const std::string& message) {
+  if (status == "COMPLETED") return 0;
+  if (status == "CANCELLED") return Error("interrupted: " + message, kExitInterrupted);
+  return Error("run " + status + ": " + message, kExitFailed);
+}
+
+int RunSimulateCommand(const GlobalFlags& global, const ModelFlags& m, const SimulateFlags& f) {
+  v1::SimulateRequest request;
+  *request.mutable_params() = ToProtoParams(m);
+  *request.mutable_initial_state() = ToProtoState(m);
+  request.set_transient_periods(m.transient);
+  request.set_sample_periods(m.samples);
+  bool any_output = false;
+  for (const CLI::Option* opt : f.output_options) any_output = any_output || opt->count() > 0;
+  if (any_output) {
+    v1::SimulateRequest::Outputs* o = request.mutable_outputs();
+    o->set_measures(f.measures);
+    o->set_poincare(f.poincare);
+    o->set_events(f.events);
+    o->set_modes(f.modes);
+    o->set_trajectory_dt(f.trajectory_dt);
+  }
+  request.set_propagator(f.propagator == "cvode" ? v1::CVODE : v1::EXACT);
+  if (f.rtol_option->count() > 0) request.set_cvode_rtol(f.rtol);
+
+  SimulateTable table = SimulateTable::kNone;
+  if (global.format == "csv") {
+    StatusOr<SimulateTable> t = CsvTableFor(EffectiveOutputs(request));
+    if (!t.ok()) return Error(t.status().message(), kExitUsage);
+    table = *t;
+  }
+
+  StatusOr<v1::SimulateResult> result = [&] {
+    ProgressBar bar(stderr, IsTerminal(stderr));
+    return RunSimulate(request, [&bar](double fraction) {
+      bar.Update(fraction);
+      return g_interrupted == 0;
+    });
+  }();
+  if (!result.ok()) return ErrorStatus(result.status());
+
+  std::string text;
+  if (global.format == "csv") {
+    text = SimulateResultToCsv(*result, table);
+  } else {
+    StatusOr<std::string> json = ToJson(*result, !global.compact);
+    if (!json.ok()) return ErrorStatus(json.status());
+    text = *json;
+  }
+  if (!Write(global, text)) return kExitFailed;
+  return Finish(result->status(), result->message());
+}
+
+int RunSweepCommand(const GlobalFlags& global, const ModelFlags& m, const SweepFlags& f) {
+  v1::SweepRequest request;
+  *request.mutable_params() = ToProtoParams(m);
+  *request.mutable_initial_state() = ToProtoState(m);
+  request.set_transient_periods(m.transient);
+  request.set_sample_periods(m.samples);
+  request.set_param(f.param);
+  request.set_min(f.min);
+  request.set_max(f.max);
+  request.set_steps(f.steps);
+  request.set_direction(f.direction == "down"   ? v1::SweepRequest::DOWN
+                        : f.direction == "both" ? v1::SweepRequest::BOTH
+                                                : v1::SweepRequest::UP);
+  request.set_threads(f.threads);
+
+  StatusOr<v1::SweepResult> result = [&] {
+    ProgressBar bar(stderr, IsTerminal(stderr));
+    return RunSweep(request, [&bar](double fraction) {
+      bar.Update(fraction);
+      return g_interrupted == 0;
+    });
+  }();
+  if (!result.ok()) return ErrorStatus(result.status());
+
+  std::string text;
+  if (global.format == "csv") {
+    text = SweepResultToCsv(*result);
+  } else {
+    StatusOr<std::string> json = ToJson(*result, !global.compact);
+    if (!json.ok()) return ErrorStatus(json.status());
+    text = *json;
+  }
+  if (!Write(global, text)) return kExitFailed;
+  return Finish(result->status(), result->message());
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"drillctl: bifurcation analysis of the drifting impact oscillator", "drillctl"};
+  app.set_version_flag("--version", EngineVersion());
+  app.require_subcommand(1);
+  app.fallthrough();  // global flags may also follow the subcommand
+  app.footer(
+      "Exit codes: 0 completed, 1 run failed (partial result printed), 2 invalid input, "
+      "130 interrupted.");
+
+  GlobalFlags global;
+  app.add_flag("--local", global.local,
+               "Run the engine in this process (required until the server exists)");
+  app.add_option("--format", global.format, "Output format: json or csv")
+      ->check(CLI::IsMember({"json", "csv"}))
+      ->capture_default_str();
+  app.add_option("--output,-o", global.output, "Write the result to FILE (default: stdout)")
+      ->option_text("FILE");
+  app.add_flag("--compact", global.compact, "JSON on one line (default: indented)");
+
+  ModelFlags model;
+  SimulateFlags sim;
+  CLI::App* simulate = app.add_subcommand(
+      "simulate",
+      "Simulate N transient periods, then report the sampled window (default: rop, power and "
+      "the Poincare samples of 100 periods after a 500-period transient)");
+  AddModelFlags(simulate, &model);
+  const std::string out = "Outputs (none given: --measures --poincare; any given: exactly those)";
+  sim.output_options = {
+      simulate->add_flag("--measures", sim.measures, "Mean ROP and dissipated power")->group(out),
+      simulate->add_flag("--poincare", sim.poincare, "State at each section s = 0")->group(out),
+      simulate->add_flag("--events", sim.events, "Event log (impacts, switches, grazings)")
+          ->group(out),
+      simulate->add_flag("--modes", sim.modes, "Modes visited in each period")->group(out),
+      simulate
+          ->add_option("--trajectory-dt", sim.trajectory_dt,
+                       "Sample the trajectory every DT (dimensionless time)")
+          ->check(PositiveDouble())
+          ->option_text("DT")
+          ->group(out)};
+  simulate->add_option("--propagator", sim.propagator, "Numerical method: exact or cvode")
+      ->check(CLI::IsMember({"exact", "cvode"}))
+      ->capture_default_str()
+      ->group("Method");
+  sim.rtol_option =
+      simulate->add_option("--rtol", sim.rtol, "Relative tolerance of --propagator cvode")
+          ->capture_default_str()
+          ->group("Method");
+
+  SweepFlags sw;
+  CLI::App* sweep = app.add_subcommand(
+      "sweep",
+      "Brute-force bifurcation diagram: Poincare samples over a grid of one parameter, each "
+      "value starting from the last state of the previous one");
+  sweep->add_option("--param", sw.param, "Swept parameter: a, b, omega, xi, g or phi0")
+      ->required()
+      ->group("Sweep");
+  sweep->add_option("--min", sw.min, "First value of the grid")->required()->group("Sweep");
+  sweep->add_option("--max", sw.max, "Last value of the grid")->required()->group("Sweep");
+  sweep->add_option("--steps", sw.steps, "Number of values, endpoints included")
+      ->capture_default_str()
+      ->group("Sweep");
+  sweep->add_option("--direction", sw.direction, "up, down or both (hysteresis)")
+      ->check(CLI::IsMember({"up", "down", "both"}))
+      ->capture_default_str()
+      ->group("Sweep");
+  sweep->add_option("--threads", sw.threads, "Worker threads (0: one per core)")
+      ->capture_default_str()
+      ->group("Sweep");
+  AddModelFlags(sweep, &model);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);  // prints help, version or the error
+    return code == 0 ? 0 : kExitUsage;
+  }
+  if (!global.local) {
+    return Error("server mode not implemented yet; use --local", kExitUsage);
+  }
+  // Fail on an unwritable --output before computing anything.
+  if (!global.output.empty()) {
+    std::ofstream probe(global.output, std::ios::binary | std::ios::app);
+    if (!probe) {
+      return Error("cannot open --output " + global.output + ": " + std::strerror(errno),
+                   kExitUsage);
+    }
+  }
+  InstallInterruptHandler();
+  if (simulate->parsed()) return RunSimulateCommand(global, model, sim);
+  return RunSweepCommand(global, model, sw);
+}
+
+}  // namespace
+}  // namespace drillbif::client
+
+int main(int argc, char** argv) {
+  try {
+    return drillbif::client::Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << "drillctl: internal error: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,203 @@
+#include "client/output.h"
+
+#include <google/protobuf/util/json_util.h>
+
+#include <charconv>
+#include <string_view>
+
+namespace drillbif::client {
+namespace {
+
+// Shortest decimal form that reads back to the same double ("0.1", "-60.184375812345678").
+void AppendNumber(double v, std::string* out) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), v);
+  out->append(buf, ec == std::errc() ? end : buf);
+}
+
+void AppendInt(long long v, std::string* out) { out->append(std::to_string(v)); }
+
+// Appends one CSV row: fields joined by commas, End() closes the line.
+class Row {
+ public:
+  explicit Row(std::string* out) : out_(out) {}
+  void End() { out_->push_back('\n'); }
+  Row& Str(std::string_view s) {
+    Sep();
+    out_->append(s);
+    return *this;
+  }
+  Row& Num(double v) {
+    Sep();
+    AppendNumber(v, out_);
+    return *this;
+  }
+  Row& Int(long long v) {
+    Sep();
+    AppendInt(v, out_);
+    return *this;
+  }
+
+ private:
+  void Sep() {
+    if (!first_) out_->push_back(',');
+    first_ = false;
+  }
+  std::string* out_;
+  bool first_ = true;
+};
+
+std::string_view ModeName(int mode) { return v1::Mode_Name(static_cast<v1::Mode>(mode)); }
+
+// A comment line "# text"; newlines in the text become spaces to keep it one line.
+void AppendComment(std::string_view text, std::string* out) {
+  out->append("# ");
+  for (char c : text) out->push_back(c == '\n' || c == '\r' ? ' ' : c);
+  out->push_back('\n');
+}
+
+// "# status=FAILED" and "# message=..." when a run did not complete.
+void AppendStatus(const std::string& status, const std::string& message, std::string* out) {
+  if (status == "COMPLETED") return;
+  AppendComment("status=" + status, out);
+  AppendComment("message=" + message, out);
+}
+
+}  // namespace
+
+StatusOr<std::string> ToJson(const google::protobuf::Message& message, bool pretty) {
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = pretty;
+  options.always_print_primitive_fields = true;
+  options.preserve_proto_field_names = false;
+  std::string json;
+  const auto status = google::protobuf::util::MessageToJsonString(message, &json, options);
+  if (!status.ok()) return Internal("cannot print the result as JSON: " + status.ToString());
+  if (json.empty() || json.back() != '\n') json.push_back('\n');
+  return json;
+}
+
+StatusOr<SimulateTable> CsvTableFor(const v1::SimulateRequest::Outputs& outputs) {
+  SimulateTable table = SimulateTable::kNone;
+  int tables = 0;
+  if (outputs.poincare()) table = SimulateTable::kPoincare, ++tables;
+  if (outputs.events()) table = SimulateTable::kEvents, ++tables;
+  if (outputs.modes()) table = SimulateTable::kModes, ++tables;
+  if (outputs.trajectory_dt() > 0.0) table = SimulateTable::kTrajectory, ++tables;
+  if (tables > 1) {
+    return InvalidArgument(
+        "CSV holds one table: request at most one of Poincare samples, events, modes and "
+        "trajectory with it (or use JSON)");
+  }
+  return table;
+}
+
+std::string SimulateResultToCsv(const v1::SimulateResult& result, SimulateTable table) {
+  std::string out;
+  AppendStatus(result.status(), result.message(), &out);
+  if (result.has_rop()) {
+    std::string line = "rop=";
+    AppendNumber(result.rop(), &line);
+    AppendComment(line, &out);
+  }
+  if (result.has_power()) {
+    std::string line = "power=";
+    AppendNumber(result.power(), &line);
+    AppendComment(line, &out);
+  }
+  switch (table) {
+    case SimulateTable::kNone:
+      break;
+    case SimulateTable::kPoincare:
+      out.append("period,mode,p,y,q\n");
+      for (const v1::PoincarePoint& pt : result.poincare()) {
+        Row(&out)
+            .Int(pt.period())
+            .Str(ModeName(pt.mode()))
+            .Num(pt.p())
+            .Num(pt.y())
+            .Num(pt.q())
+            .End();
+      }
+      break;
+    case SimulateTable::kEvents:
+      out.append("period,s,t,surface,guard,from_mode,to_mode,tangential,p,y,q\n");
+      for (const v1::Event& e : result.events()) {
+        Row(&out)
+            .Int(e.period())
+            .Num(e.s())
+            .Num(e.t())
+            .Str(e.surface())
+            .Str(e.guard())
+            .Str(ModeName(e.from_mode()))
+            .Str(ModeName(e.to_mode()))
+            .Str(e.tangential() ? "true" : "false")
+            .Num(e.p())
+            .Num(e.y())
+            .Num(e.q())
+            .End();
+      }
+      break;
+    case SimulateTable::kModes:
+      out.append("period,modes\n");
+      for (const v1::PeriodModes& pm : result.period_modes()) {
+        std::string modes;
+        for (int m : pm.modes()) modes.append(modes.empty() ? "" : " ").append(ModeName(m));
+        Row(&out).Int(pm.period()).Str(modes).End();
+      }
+      break;
+    case SimulateTable::kTrajectory:
+      out.append("t,mode,p,y,q,s\n");
+      for (const v1::TrajectoryPoint& tp : result.trajectory()) {
+        Row(&out)
+            .Num(tp.t())
+            .Str(ModeName(tp.mode()))
+            .Num(tp.p())
+            .Num(tp.y())
+            .Num(tp.q())
+            .Num(tp.s())
+            .End();
+      }
+      break;
+  }
+  return out;
+}
+
+std::string SweepResultToCsv(const v1::SweepResult& result) {
+  std::string out;
+  AppendStatus(result.status(), result.message(), &out);
+  auto failures = [&](std::string_view direction,
+                      const google::protobuf::RepeatedPtrField<v1::SweepPoint>& points) {
+    for (const v1::SweepPoint& pt : points) {
+      if (pt.status() == "COMPLETED") continue;
+      std::string line(direction);
+      line.append(" value=");
+      AppendNumber(pt.value(), &line);
+      line.append(" status=").append(pt.status()).append(" message=").append(pt.message());
+      AppendComment(line, &out);
+    }
+  };
+  failures("up", result.up());
+  failures("down", result.down());
+  out.append("direction,value,period,p,y,q\n");
+  auto rows = [&](std::string_view direction,
+                  const google::protobuf::RepeatedPtrField<v1::SweepPoint>& points) {
+    for (const v1::SweepPoint& pt : points) {
+      for (const v1::PoincarePoint& s : pt.samples()) {
+        Row(&out)
+            .Str(direction)
+            .Num(pt.value())
+            .Int(s.period())
+            .Num(s.p())
+            .Num(s.y())
+            .Num(s.q())
+            .End();
+      }
+    }
+  };
+  rows("up", result.up());
+  rows("down", result.down());
+  return out;
+}
+
+}  // namespace drillbif::client

@@ -1,0 +1,44 @@
+// Formatting of results for drillctl: JSON (protobuf's canonical JSON mapping, lowerCamelCase
+// field names, every field printed) and CSV (one table per output, comment lines for scalars).
+#ifndef DRILLBIF_CLIENT_OUTPUT_H_
+#define DRILLBIF_CLIENT_OUTPUT_H_
+
+#include <google/protobuf/message.h>
+
+#include <string>
+
+#include "drillbif/common/status.h"
+#include "drillbif/v1/simulate.pb.h"
+#include "drillbif/v1/sweep.pb.h"
+
+namespace drillbif::client {
+
+// A message as JSON with the default (lowerCamelCase) names, enums by name and fields at their
+// default values printed too (so that "rop": 0 shows). Indented when `pretty`, else one line.
+// Ends with a newline.
+StatusOr<std::string> ToJson(const google::protobuf::Message& message, bool pretty);
+
+// The table a simulate CSV holds: a CSV file has one table, so at most one of these outputs may be
+// requested with it. Measures (rop, power) come as "# name=value" comment lines before the table.
+enum class SimulateTable { kNone, kPoincare, kEvents, kModes, kTrajectory };
+
+// The table for the outputs a request asks for; INVALID_ARGUMENT if they need more than one.
+StatusOr<SimulateTable> CsvTableFor(const v1::SimulateRequest::Outputs& outputs);
+
+// Simulate result as CSV: "# rop=..." and "# power=..." when measured ("# status=..." and
+// "# message=..." first when the run did not complete), then the table with a header row:
+//   kPoincare    period,mode,p,y,q
+//   kEvents      period,s,t,surface,guard,from_mode,to_mode,tangential,p,y,q
+//   kModes       period,modes            (modes separated by spaces)
+//   kTrajectory  t,mode,p,y,q,s
+// Numbers are printed in the shortest form that reads back to the same double.
+std::string SimulateResultToCsv(const v1::SimulateResult& result, SimulateTable table);
+
+// Sweep result as CSV: "# status=..." lines when the sweep or single values did not complete, then
+//   direction,value,period,p,y,q
+// one row per Poincare sample, the up sweep first.
+std::string SweepResultToCsv(const v1::SweepResult& result);
+
+}  // namespace drillbif::client
+
+#endif  // DRILLBIF_CLIENT_OUTPUT_H_
