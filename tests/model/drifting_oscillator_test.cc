@@ -161,6 +161,30 @@ TEST_P(ParameterSetTest, GuardCurvatureBoundHoldsAlongTheFlow) {
   }
 }
 
+// The impact jump places the state on Pi (p = q + g); its Jacobian against finite differences of
+// the jump map, at states on and off the surface (differences are exact here: the map is affine).
+TEST_P(ParameterSetTest, JumpJacobianMatchesFiniteDifferences) {
+  DO model;
+  const Params& prm = GetParam().params;
+  std::mt19937 rng(6);
+  for (int mode = 0; mode < 3; ++mode) {
+    for (int guard = 0; guard < static_cast<int>(model.guards(mode).size()); ++guard) {
+      const StateVector x = RandomState(DO::kContact, prm, rng);
+      const Transition t = model.Jump(mode, guard, x, prm);
+      for (int j = 0; j < 4; ++j) {
+        StateVector xp = x, xm = x;
+        xp[j] += kFdStep, xm[j] -= kFdStep;
+        const StateVector fp = model.Jump(mode, guard, xp, prm).x;
+        const StateVector fm = model.Jump(mode, guard, xm, prm).x;
+        for (int i = 0; i < 4; ++i) {
+          EXPECT_NEAR(t.jacobian(i, j), (fp[i] - fm[i]) / (2 * kFdStep), 1e-9)
+              << "mode " << mode << " guard " << guard << " d x" << i << "/d x" << j;
+        }
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(DriftingOscillator, ParameterSetTest,
                          ::testing::ValuesIn(testing::HardParameterSets()),
                          [](const auto& test_info) { return test_info.param.name; });
