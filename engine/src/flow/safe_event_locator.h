@@ -5,10 +5,11 @@
 //     h(t + tau) >= h + h' tau - M tau^2 / 2 =: L(tau),
 // so no root lies in [t, t + tau_safe) where tau_safe is the positive root of L. Where h' < 0,
 // h is strictly decreasing on [t, t + |h'|/M], so a sign change there brackets the unique root.
-// Each step goes as far as every guard allows; a crossing is polished by safeguarded Newton on h
-// (quadratic convergence, bisection fallback), an approach that turns back within the tolerance
-// band is a tangential (grazing) event located at the extremum by Newton on h'. No crossing or
-// touch deeper than EventOptions::tolerance can be stepped over.
+// Each step goes as far as every guard allows; a crossing is polished by safeguarded Halley on h
+// (cubic convergence, secant fallback); an approach seen at a step end to turn back within the
+// tolerance band is a tangential (grazing) event located at the extremum by Newton on h'. No
+// crossing, however shallow, can be stepped over (the parabola stays positive inside each step);
+// a touch that stays within (0, tolerance] strictly inside a step may go unreported.
 //
 // Start of a segment (the state may sit on a surface after a jump): a guard with h <= tolerance is
 // "into" (fires at once, duration 0) when its local parabola h + h' tau + h'' tau^2/2 does not leave

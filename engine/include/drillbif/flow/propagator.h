@@ -64,9 +64,10 @@ struct AdvanceResult {
 
 // Options shared by both propagators' event location.
 struct EventOptions {
-  // An event fires when the guard comes within this distance of zero (absolute, in the guard's
-  // units; the drifting oscillator's guards are O(1)). Grazes deeper than this are always detected;
-  // near misses wider than this never fire.
+  // Grazing resolution (absolute, in the guard's units; the drifting oscillator's guards are O(1)):
+  // every crossing (h reaching 0) is found, however shallow; an approach that turns back with
+  // 0 < h <= tolerance at a step end fires as a tangential event at the extremum, one that turns
+  // back inside a step may not; an approach that turns back at h > tolerance never fires.
   double tolerance = 1e-12;
   // Relative accuracy of event times (Newton polish stops below this times max(1, t)).
   double time_rtol = 1e-14;
