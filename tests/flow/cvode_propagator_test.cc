@@ -16,7 +16,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <ostream>
 #include <stdexcept>
+#include <string>
 
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/model/drifting_oscillator.h"
@@ -690,6 +692,111 @@ TEST(CvodeDriftingOscillatorTest, FindsTheImpactFromRestLikeTheExactPropagator) 
   EXPECT_LE(std::abs(model.Guard(req.mode, c.guard, c.x, p).h), 1e-10);
   ASSERT_EQ(c.measures.size(), e.measures.size());
   EXPECT_LE((c.measures - e.measures).cwiseAbs().maxCoeff(), 1e-7);
+}
+
+// Free flights that start on Pi, from states long simulations reached (hex literals: the failures
+// depended on the last bits). At a separation F = 0, so the next flight starts with the impact
+// guard h = q + g - p and its rate h' = -F / (2 xi) both at rounding level. CVODE cannot give a
+// direction to a root function that is zero to rounding at a root it has just returned (cvRcheck2:
+// CV_ILL_INPUT "Root found at and very near t"); each of these used to fail that way within 1e-10
+// time units. Both propagators must instead fly to the section with no event, to the same state.
+struct SurfaceStartCase {
+  const char* name;
+  double xi;
+  StateVector x0;
+  bool measures;  // the quadrature changes CVODE's steps, and which start failed
+};
+
+void PrintTo(const SurfaceStartCase& c, std::ostream* os) { *os << c.name; }
+
+class CvodeSurfaceStartTest : public ::testing::TestWithParam<SurfaceStartCase> {};
+
+TEST_P(CvodeSurfaceStartTest, FliesToTheSectionLikeTheExactPropagator) {
+  const DriftingOscillator model;
+  Params p = model.DefaultParams();
+  p[DriftingOscillator::kXi] = GetParam().xi;
+  AdvanceRequest req;
+  req.mode = DriftingOscillator::kNoContact;
+  req.x0 = GetParam().x0;
+  req.t_max = (kTwoPi - req.x0[DriftingOscillator::kS]) / p[DriftingOscillator::kOmega];
+  req.measures = GetParam().measures;
+  const CvodeOptions o;  // the defaults, as the simulator uses them
+  CvodePropagator cvode(model, o);
+  ExactPropagator exact(model);
+  const AdvanceResult c = cvode.Advance(req, p);
+  const AdvanceResult e = exact.Advance(req, p);
+  ASSERT_TRUE(c.status.ok()) << c.status.ToString();
+  ASSERT_TRUE(e.status.ok()) << e.status.ToString();
+  ASSERT_EQ(e.end, AdvanceEnd::kTimeLimit);
+  ASSERT_EQ(c.end, AdvanceEnd::kTimeLimit);
+  EXPECT_EQ(c.duration, req.t_max);
+  // One flight of ~41 time units: CVODE's global error stays within K = 100 local tolerances
+  // rtol |x| + atol (the error model of tests/simulate/propagator_agreement_test.cc).
+  const double xmax = 1.0 + e.x.cwiseAbs().maxCoeff();
+  EXPECT_LE((c.x - e.x).cwiseAbs().maxCoeff(), 100.0 * (o.rtol * xmax + o.atol));
+  if (req.measures) {
+    ASSERT_EQ(c.measures.size(), e.measures.size());
+    EXPECT_LE((c.measures - e.measures).cwiseAbs().maxCoeff(),
+              100.0 * (o.rtol * (1.0 + e.measures.cwiseAbs().maxCoeff()) + o.atol));
+  }
+}
+
+StateVector NoContactState(double p, double y, double q, double s) {
+  StateVector x(4);
+  x << p, y, q, s;
+  return x;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AfterSeparation, CvodeSurfaceStartTest,
+    ::testing::Values(
+        // Reference parameters, period 445 from rest: h = 7e-16 (inside the band, departing) and
+        // h' = -1.1e-16, so that h has a minimum at t = 1.2e-17, where h' is exactly zero and stays
+        // so for longer than CVODE's root separation ttol ~ 1e-20.
+        SurfaceStartCase{"DepartingWithARoundingLevelMinimum", 0.05,
+                         NoContactState(0x1.cee53848d997cp-4, -0x1.dc381ff4a99b3p-1,
+                                        0x1.7cf9b32a2149p-4, 0x1.14edfad51d842p+1),
+                         false},
+        // The same 2e-12 lower: h = 2e-12 is above the band, so the guard takes part from the
+        // start, and the same minimum at t = 1.2e-17 is a near miss (h > tolerance) to step past.
+        SurfaceStartCase{"NearMissJustAboveTheBand", 0.05,
+                         NoContactState(0x1.cee53848b6689p-4, -0x1.dc381ff4a99b3p-1,
+                                        0x1.7cf9b32a2149p-4, 0x1.14edfad51d842p+1),
+                         false},
+        // xi = 0.5, period 518 from rest: h = 0 exactly and h' = 3.3e-15: h stays zero to
+        // rounding for ~1e-10 time units.
+        SurfaceStartCase{"ExactlyOnTheSurfaceAtXiOneHalf", 0.5,
+                         NoContactState(0x1.12c45f331abc1p-4, -0x1.81b1b428c4f2p-5,
+                                        0x1.81b1b428c4d45p-5, 0x1.1637e16e7ef0cp+1),
+                         true}),
+    [](const auto& test_info) { return std::string(test_info.param.name); });
+
+// A guard that starts on its surface, leaves the band for a moment (peak 5e-11 from the wall,
+// above the tolerance 1e-12, at t = |v| / |x''| = 1e-5) and comes back is a crossing at the
+// return, 2 |v| / |x''| = 2e-5, as in the exact propagator: masking its root functions while it is
+// inside the band must neither hide the return nor fire at the start.
+TEST(CvodeAdvanceTest, LeavingTheBandBrieflyAndComingBackIsACrossing) {
+  const FLO model;
+  const Params p = FLO::MakeParams(0.1, 2.0, 0.8, 1.0, 0.8);  // x'' = 2 cos s - x - 0.2 v = 1 here
+  const double v = 1e-5;
+  AdvanceRequest req;
+  req.x0 = FLO::MakeState(1.0, -v, 0.0);  // on the wall, moving away
+  req.t_max = 5.0;
+  const CvodeOptions o = Options(1e-12);
+  CvodePropagator cvode(model, o);
+  ExactPropagator exact(model);
+  const AdvanceResult c = cvode.Advance(req, p);
+  const AdvanceResult e = exact.Advance(req, p);
+  ASSERT_TRUE(c.status.ok()) << c.status.ToString();
+  ASSERT_TRUE(e.status.ok()) << e.status.ToString();
+  ASSERT_EQ(e.end, AdvanceEnd::kEvent);
+  ASSERT_EQ(c.end, AdvanceEnd::kEvent);
+  EXPECT_EQ(c.guard, FLO::kWallGuard);
+  EXPECT_NEAR(e.duration, 2.0 * v, 1e-3 * v);  // x'' = 1 to within 1e-5 over the excursion
+  // The return crosses the wall at speed v: the error bound on x at that time moves the crossing
+  // by at most GlobalBound / v (5e-6 here, a quarter of the return time, and past the peak).
+  EXPECT_NEAR(c.duration, e.duration, GlobalBound(o, e.duration, 1.0) / v);
+  EXPECT_GT(c.duration, v);
 }
 
 }  // namespace

@@ -29,9 +29,21 @@
 //    the minima inside the band.
 //  - Start: a guard with h(x0) <= tolerance fires at once (duration 0) when its local parabola
 //    moves into h < 0 (internal::MovesInto, shared with the exact propagator); otherwise it is
-//    leaving the surface (the usual situation right after the simulator applied its jump) and its
-//    roots are ignored until h > tolerance at a step end. If it falls below -tolerance instead, it
-//    fires at the start of that step.
+//    leaving the surface (the usual situation right after the simulator applied its jump): it is
+//    disarmed until h > tolerance at a step end. If it falls below -tolerance instead, it fires at
+//    the start of that step.
+//  - A disarmed guard's root functions are masked while it is inside the band: g_2i = max(h, tol)
+//    and g_2i+1 = (h > tol ? h' : 1), which have no roots there and equal h and h' where it leaves,
+//    so that CVODE's values at the step end where it is armed are the true ones. Handing CVODE the
+//    raw functions instead fails: right after a separation (F = 0) the drifting oscillator's
+//    impact guard starts with h and h' = -F / (2 xi) both at rounding level, so that h' (or h)
+//    has a "root" within ~1e-17 of the start; CVODE returns it, and on the next call finds the
+//    function exactly zero at that root and again ttol = 100 u (|t| + |step|) ~ 1e-20 later, and
+//    stops with CV_ILL_INPUT (cvRcheck2, "Root found at and very near t"). A root reported for a
+//    masked function (h came back down through tol inside the step) arms the guard but is not an
+//    event. Root values are never exactly zero either (NonZero), which rules that failure out for
+//    armed guards too, e.g. a rounding-level minimum of h just above the band, a near miss that
+//    CVode must step past.
 #include "drillbif/flow/cvode_propagator.h"
 
 #include <cvodes/cvodes.h>
@@ -88,6 +100,19 @@ StateVector ToState(N_Vector v, int n) { return Eigen::Map<const Eigen::VectorXd
 void FromState(const StateVector& x, N_Vector v) {
   Eigen::Map<Eigen::VectorXd>(MutableData(v), x.size()) = x;
 }
+
+// A root function value that is never exactly zero: an exact zero counts as positive. CVODE cannot
+// tell the direction of a root function that is exactly zero at a root it just returned and again
+// ttol = 100 u (|t| + |step|) later (cvRcheck2: CV_ILL_INPUT "Root found at and very near t"),
+// which happens whenever the function is zero to rounding over such an interval: near t = 0 ttol
+// is ~1e-20, and h' = 0 + O(u) holds over ~1e-17 at an extremum of h at the segment start. Seen
+// as positive, a zero is never a root by itself: a decreasing h is found where it turns negative,
+// an increasing h' where it turns positive (t moves by at most the rounding band of the function).
+// The stand-in is far below any meaningful value but not tiny enough for CVODE's sign tests
+// glo * ghi < 0 to underflow to zero (which breaks its root bracket): its product with any value
+// above 1e-158 is a normal double.
+constexpr double kZeroStandIn = 1e-150;
+inline double NonZero(double v) { return v != 0.0 ? v : kZeroStandIn; }
 
 bool Finite(const GuardValue& g) {
   return std::isfinite(g.h) && std::isfinite(g.dh) && std::isfinite(g.ddh);
@@ -186,7 +211,10 @@ struct CvodePropagator::Impl {
   std::string last_error;      // last message of CVODES's error handler
   std::string callback_error;  // exception text from a model callback
 
-  std::vector<char> armed;  // per guard, Advance
+  // Per guard, Advance: whether its roots are events (false while a guard that started on its
+  // surface is still inside the band; the Roots callback masks its functions then), and the same
+  // during the step just returned (before this return armed any guard).
+  std::vector<char> armed, armed_before;
 
   // ---- SUNDIALS callbacks (C linkage compatible, never throw) ----
   // A non-finite value from the model is unrecoverable: retrying with smaller steps would only
@@ -237,11 +265,14 @@ struct CvodePropagator::Impl {
     return -1;
   }
 
+  // Root functions (see "Root functions" in the file comment): h and h' of armed guards; a
+  // departing guard's are masked while it is inside the band, and no value is ever exactly zero.
   static int Roots(double /*t*/, N_Vector yv, double* gout, void* data) {
     auto* self = static_cast<Impl*>(data);
     try {
       const StateVector x = ToState(yv, self->dim);
       const int ng = self->active_guards;
+      const double tol = self->options.events.tolerance;
       for (int i = ng; i < self->num_roots / 2; ++i) gout[2 * i] = gout[2 * i + 1] = 1.0;
       for (int i = 0; i < ng; ++i) {
         const GuardValue g = self->model.Guard(self->active_mode, i, x, self->active_params);
@@ -249,8 +280,13 @@ struct CvodePropagator::Impl {
           self->callback_error = "guard " + std::to_string(i) + " is not finite";
           return -1;
         }
-        gout[2 * i] = g.h;
-        gout[2 * i + 1] = g.dh;
+        double gh = g.h, gdh = g.dh;
+        if (!self->armed[i] && !(g.h > tol)) {
+          gh = tol;   // max(h, tol): no root, and equal to h where the guard leaves the band
+          gdh = 1.0;  // no root of h' in the direction sought (increasing)
+        }
+        gout[2 * i] = NonZero(gh);
+        gout[2 * i + 1] = NonZero(gdh);
       }
       return 0;
     } catch (const std::exception& e) {
@@ -833,10 +869,24 @@ AdvanceResult CvodePropagator::Impl::RunAdvance(const AdvanceRequest& request,
 
     // Guards that started on their surface take part once they have left the band; one that
     // falls through it instead fires at the start of the step (as in the exact propagator).
+    // A root of a masked function means that the guard left the band inside the step (h' then
+    // had a root with h > tol, or h came back down through tol): it is armed here too. Roots
+    // reported at this return for a guard armed only now came from its masked functions and
+    // are not events (skipped below).
+    if (flag == CV_ROOT_RETURN) {
+      const int rflag = CVodeGetRootInfo(mem, roots_found.data());
+      if (rflag != CV_SUCCESS) {
+        fail(Fail(rflag, "CVodeGetRootInfo"));
+        return res;
+      }
+    }
+    armed_before.assign(armed.begin(), armed.end());
     for (int i = 0; i < ng; ++i) {
       if (armed[i]) continue;
       const double h = model.Guard(mode, i, x, params).h;
-      if (h > tol) {
+      const bool masked_root =
+          flag == CV_ROOT_RETURN && (roots_found[2 * i] != 0 || roots_found[2 * i + 1] != 0);
+      if (h > tol || (masked_root && h >= -tol)) {
         armed[i] = 1;
       } else if (h < -tol) {
         StateVector xp;
@@ -856,13 +906,8 @@ AdvanceResult CvodePropagator::Impl::RunAdvance(const AdvanceRequest& request,
                       std::to_string(options.events.max_iterations) + " root returns"));
         return res;
       }
-      const int rflag = CVodeGetRootInfo(mem, roots_found.data());
-      if (rflag != CV_SUCCESS) {
-        fail(Fail(rflag, "CVodeGetRootInfo"));
-        return res;
-      }
       for (int i = 0; i < ng; ++i) {
-        if (!armed[i]) continue;
+        if (!armed_before[i]) continue;
         const bool crossing = roots_found[2 * i] < 0;     // h decreasing through 0
         const bool minimum = roots_found[2 * i + 1] > 0;  // h' increasing through 0
         if (!crossing && !minimum) continue;
