@@ -20,7 +20,7 @@ PropagatorFactory Exact(const DO& model) {
 
 SweepOptions Small(double min, double max, int steps, SweepDirection direction) {
   SweepOptions o;
-  o.param = "b";
+  o.param = std::string("b");  // not = "b": GCC 12 warns falsely (-Wrestrict, GCC bug 105329)
   o.min = min, o.max = max, o.steps = steps, o.direction = direction;
   o.transient_periods = 200;
   o.sample_periods = 5;
