@@ -188,6 +188,30 @@ int Finish(const std::string& status, const std::string& message) {
   return Error("run " + status + ": " + message, kExitFailed);
 }
 
+// Runs a job with a progress bar on stderr (Ctrl-C cancels), then prints its result as JSON or,
+// with --format csv, as to_csv formats it. Returns the exit code.
+template <typename Run, typename ToCsv>
+int RunAndPrint(const GlobalFlags& global, const Run& run, const ToCsv& to_csv) {
+  auto result = [&] {
+    ProgressBar bar(stderr, IsTerminal(stderr));
+    return run([&bar](double fraction) {
+      bar.Update(fraction);
+      return g_interrupted == 0;
+    });
+  }();
+  if (!result.ok()) return ErrorStatus(result.status());
+  std::string text;
+  if (global.format == "csv") {
+    text = to_csv(*result);
+  } else {
+    StatusOr<std::string> json = ToJson(*result, !global.compact);
+    if (!json.ok()) return ErrorStatus(json.status());
+    text = *json;
+  }
+  if (!Write(global, text)) return kExitFailed;
+  return Finish(result->status(), result->message());
+}
+
 int RunSimulateCommand(const GlobalFlags& global, const ModelFlags& m, const SimulateFlags& f) {
   v1::SimulateRequest request;
   *request.mutable_params() = ToProtoParams(m);
@@ -214,25 +238,9 @@ int RunSimulateCommand(const GlobalFlags& global, const ModelFlags& m, const Sim
     table = *t;
   }
 
-  StatusOr<v1::SimulateResult> result = [&] {
-    ProgressBar bar(stderr, IsTerminal(stderr));
-    return RunSimulate(request, [&bar](double fraction) {
-      bar.Update(fraction);
-      return g_interrupted == 0;
-    });
-  }();
-  if (!result.ok()) return ErrorStatus(result.status());
-
-  std::string text;
-  if (global.format == "csv") {
-    text = SimulateResultToCsv(*result, table);
-  } else {
-    StatusOr<std::string> json = ToJson(*result, !global.compact);
-    if (!json.ok()) return ErrorStatus(json.status());
-    text = *json;
-  }
-  if (!Write(global, text)) return kExitFailed;
-  return Finish(result->status(), result->message());
+  return RunAndPrint(
+      global, [&](const ProgressCallback& progress) { return RunSimulate(request, progress); },
+      [table](const v1::SimulateResult& r) { return SimulateResultToCsv(r, table); });
 }
 
 int RunSweepCommand(const GlobalFlags& global, const ModelFlags& m, const SweepFlags& f) {
@@ -250,25 +258,9 @@ int RunSweepCommand(const GlobalFlags& global, const ModelFlags& m, const SweepF
                                                 : v1::SweepRequest::UP);
   request.set_threads(f.threads);
 
-  StatusOr<v1::SweepResult> result = [&] {
-    ProgressBar bar(stderr, IsTerminal(stderr));
-    return RunSweep(request, [&bar](double fraction) {
-      bar.Update(fraction);
-      return g_interrupted == 0;
-    });
-  }();
-  if (!result.ok()) return ErrorStatus(result.status());
-
-  std::string text;
-  if (global.format == "csv") {
-    text = SweepResultToCsv(*result);
-  } else {
-    StatusOr<std::string> json = ToJson(*result, !global.compact);
-    if (!json.ok()) return ErrorStatus(json.status());
-    text = *json;
-  }
-  if (!Write(global, text)) return kExitFailed;
-  return Finish(result->status(), result->message());
+  return RunAndPrint(
+      global, [&](const ProgressCallback& progress) { return RunSweep(request, progress); },
+      [](const v1::SweepResult& r) { return SweepResultToCsv(r); });
 }
 
 int Main(int argc, char** argv) {

@@ -62,39 +62,35 @@ GrazingCase GrazeImpact(double depth) {
   return c;
 }
 
-GrazingCase GrazeProgression(double depth) {
+namespace {
+
+// A contact phase (CwoP) from (q0, y0) whose guard `guard` has its minimum near t_guess, tuned by
+// the initial velocity to reach `depth`.
+GrazingCase GrazeInContact(int guard, double q0, double y0, double t_guess, double depth) {
   DriftingOscillator model;
   GrazingCase c;
   c.mode = DriftingOscillator::kContact;
-  c.guard = DriftingOscillator::kProgressionStart;
+  c.guard = guard;
   c.params = DriftingOscillator::MakeParams();
-  // In contact q oscillates about b with unit frequency: from q = 0.5 moving up at 0.77 the force
-  // peaks near 1 after about a quarter period.
   c.x0 = StateVector::Zero(4);
-  c.x0 << 0.5 + 0.02, 0.77, 0.5, 0.0;
-  double t;
-  GuardMinimum(model, c.mode, c.guard, c.params, c.x0, 0.8, &t);
-  c.t_touch = t;
+  c.x0 << q0 + c.params[DriftingOscillator::kG], y0, q0, 0.0;
+  GuardMinimum(model, c.mode, c.guard, c.params, c.x0, t_guess, &c.t_touch);
   Tune(model, &c, DriftingOscillator::kY, depth);
   c.t_end = c.t_touch + 0.5;
   return c;
 }
 
+}  // namespace
+
+// In contact q oscillates about b with unit frequency: from q = 0.5 moving up at 0.77 the force
+// peaks near 1 after about a quarter period.
+GrazingCase GrazeProgression(double depth) {
+  return GrazeInContact(DriftingOscillator::kProgressionStart, 0.5, 0.77, 0.8, depth);
+}
+
+// From q = 0.15 moving down at 0.15 the force dips near 0 after about a quarter period.
 GrazingCase GrazeSeparation(double depth) {
-  DriftingOscillator model;
-  GrazingCase c;
-  c.mode = DriftingOscillator::kContact;
-  c.guard = DriftingOscillator::kSeparation;
-  c.params = DriftingOscillator::MakeParams();
-  // From q = 0.15 moving down at 0.15 the force dips near 0 after about a quarter period.
-  c.x0 = StateVector::Zero(4);
-  c.x0 << 0.15 + 0.02, -0.15, 0.15, 0.0;
-  double t;
-  GuardMinimum(model, c.mode, c.guard, c.params, c.x0, 1.2, &t);
-  c.t_touch = t;
-  Tune(model, &c, DriftingOscillator::kY, depth);
-  c.t_end = c.t_touch + 0.5;
-  return c;
+  return GrazeInContact(DriftingOscillator::kSeparation, 0.15, -0.15, 1.2, depth);
 }
 
 }  // namespace drillbif::testing
