@@ -113,8 +113,9 @@ void BM_SweepB(benchmark::State& state) {
   o.threads = static_cast<int>(state.range(0));
   SweepResult r;
   for (auto _ : state) {
-    r = Sweep(model, [&model] { return std::make_unique<ExactPropagator>(model); },
-              testing::ReferenceParams(), DefaultInitialState(model), o);
+    r = Sweep(
+        model, [&model] { return std::make_unique<ExactPropagator>(model); },
+        testing::ReferenceParams(), DefaultInitialState(model), o);
     benchmark::DoNotOptimize(r.up.data());
   }
   long long failed = 0;

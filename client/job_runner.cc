@@ -10,12 +10,11 @@
 #include <string>
 #include <utility>
 
+#include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/model/drifting_oscillator.h"
 #include "drillbif/simulate/sweep.h"
 #include "drillbif/version.h"
-
-#include "drillbif/flow/cvode_propagator.h"
 
 namespace drillbif::client {
 namespace {

@@ -23,7 +23,6 @@ inline constexpr long long kMaxTrajectoryPoints = 10'000'000;  // per simulation
 inline constexpr long long kMaxSweepSamples = 10'000'000;      // Poincare samples of one sweep
 inline constexpr int kMaxSweepThreads = 512;
 
-
 // The outputs a simulate request asks for: its `outputs`, or measures and Poincare samples when
 // unset.
 v1::SimulateRequest::Outputs EffectiveOutputs(const v1::SimulateRequest& request);

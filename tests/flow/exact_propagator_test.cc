@@ -41,9 +41,9 @@ TEST_P(ExactFlowTest, ClosedFormMatchesMatrixExponential) {
   ExactOptions by_expm;
   by_expm.use_closed_form = false;
   ExactPropagator closed(model), expm(model, by_expm);
-  const std::vector<StateVector> starts = {
-      (StateVector(4) << -3.0, 0.7, 0.4, 0.3).finished(), ContactState(0.3, 0.6, 2.0, prm),
-      ContactState(0.9, -0.2, 5.0, prm)};
+  const std::vector<StateVector> starts = {(StateVector(4) << -3.0, 0.7, 0.4, 0.3).finished(),
+                                           ContactState(0.3, 0.6, 2.0, prm),
+                                           ContactState(0.9, -0.2, 5.0, prm)};
   Eigen::MatrixXd a;
   for (int mode = 0; mode < 3; ++mode) {
     model.AugmentedMatrix(mode, prm, &a);

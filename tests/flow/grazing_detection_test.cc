@@ -58,15 +58,14 @@ TEST_P(GrazingDetectionTest, IgnoresANearMissOfTenNanometres) {
   EXPECT_EQ(r.end, AdvanceEnd::kTimeLimit);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    SurfacesAndPropagators, GrazingDetectionTest,
-    ::testing::Values(Case{"Pi_exact", testing::GrazeImpact, false},
-                      Case{"l1_exact", testing::GrazeProgression, false},
-                      Case{"l2_exact", testing::GrazeSeparation, false},
-                      Case{"Pi_cvode", testing::GrazeImpact, true},
-                      Case{"l1_cvode", testing::GrazeProgression, true},
-                      Case{"l2_cvode", testing::GrazeSeparation, true}),
-    [](const auto& test_info) { return test_info.param.name; });
+INSTANTIATE_TEST_SUITE_P(SurfacesAndPropagators, GrazingDetectionTest,
+                         ::testing::Values(Case{"Pi_exact", testing::GrazeImpact, false},
+                                           Case{"l1_exact", testing::GrazeProgression, false},
+                                           Case{"l2_exact", testing::GrazeSeparation, false},
+                                           Case{"Pi_cvode", testing::GrazeImpact, true},
+                                           Case{"l1_cvode", testing::GrazeProgression, true},
+                                           Case{"l2_cvode", testing::GrazeSeparation, true}),
+                         [](const auto& test_info) { return test_info.param.name; });
 
 }  // namespace
 }  // namespace drillbif

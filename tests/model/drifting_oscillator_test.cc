@@ -29,8 +29,8 @@ StateVector RandomState(int mode, const Params& prm, std::mt19937& rng) {
   x[DO::kQ] = u(rng);
   x[DO::kY] = 2.0 * u(rng) - 1.0;
   x[DO::kS] = kTwoPi * u(rng);
-  x[DO::kP] = mode == DO::kNoContact ? x[DO::kQ] + prm[DO::kG] - 2.0 * u(rng)
-                                     : x[DO::kQ] + prm[DO::kG];
+  x[DO::kP] =
+      mode == DO::kNoContact ? x[DO::kQ] + prm[DO::kG] - 2.0 * u(rng) : x[DO::kQ] + prm[DO::kG];
   return x;
 }
 
@@ -94,8 +94,9 @@ TEST_P(ParameterSetTest, GuardGradientsMatchFiniteDifferences) {
       for (int j = 0; j < 4; ++j) {
         StateVector xp = x, xm = x;
         xp[j] += kFdStep, xm[j] -= kFdStep;
-        const double fd = (model.Guard(mode, guard, xp, prm).h -
-                           model.Guard(mode, guard, xm, prm).h) / (2 * kFdStep);
+        const double fd =
+            (model.Guard(mode, guard, xp, prm).h - model.Guard(mode, guard, xm, prm).h) /
+            (2 * kFdStep);
         EXPECT_NEAR(grad[j], fd, FdTol(fd)) << "mode " << mode << " guard " << guard;
       }
       const ParamVector pgrad = model.GuardParamGradient(mode, guard, x, prm);
@@ -103,8 +104,8 @@ TEST_P(ParameterSetTest, GuardGradientsMatchFiniteDifferences) {
         const double h = kFdStep * (prm[k] != 0.0 ? std::abs(prm[k]) : 1.0);
         Params pp = prm, pm = prm;
         pp[k] += h, pm[k] -= h;
-        const double fd = (model.Guard(mode, guard, x, pp).h -
-                           model.Guard(mode, guard, x, pm).h) / (2 * h);
+        const double fd =
+            (model.Guard(mode, guard, x, pp).h - model.Guard(mode, guard, x, pm).h) / (2 * h);
         EXPECT_NEAR(pgrad[k], fd, FdTol(fd)) << "mode " << mode << " guard " << guard;
       }
     }
@@ -153,8 +154,8 @@ TEST_P(ParameterSetTest, GuardCurvatureBoundHoldsAlongTheFlow) {
         for (int k = 0; k <= 4000; ++k) {
           model.Flow(mode, x0, horizon * k / 4000.0, prm, &x, nullptr);
           const double ddh = model.Guard(mode, guard, x, prm).ddh;
-          ASSERT_LE(std::abs(ddh), bound) << "mode " << mode << " guard " << guard << " t "
-                                          << horizon * k / 4000.0;
+          ASSERT_LE(std::abs(ddh), bound)
+              << "mode " << mode << " guard " << guard << " t " << horizon * k / 4000.0;
         }
       }
     }
@@ -198,12 +199,11 @@ TEST(DriftingOscillatorValidation, NamesEachInvalidParameter) {
   };
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
-  for (const Case& c : {Case{DO::kXi, 0.0, "xi"}, Case{DO::kXi, -0.1, "xi"},
-                        Case{DO::kOmega, 0.0, "omega"}, Case{DO::kOmega, -1.0, "omega"},
-                        Case{DO::kA, -0.01, "a"}, Case{DO::kB, -0.01, "b"},
-                        Case{DO::kG, 0.0, "g"}, Case{DO::kG, -1.0, "g"},
-                        Case{DO::kA, nan, "a"}, Case{DO::kB, inf, "b"},
-                        Case{DO::kPhi0, nan, "phi0"}, Case{DO::kOmega, -inf, "omega"}}) {
+  for (const Case& c :
+       {Case{DO::kXi, 0.0, "xi"}, Case{DO::kXi, -0.1, "xi"}, Case{DO::kOmega, 0.0, "omega"},
+        Case{DO::kOmega, -1.0, "omega"}, Case{DO::kA, -0.01, "a"}, Case{DO::kB, -0.01, "b"},
+        Case{DO::kG, 0.0, "g"}, Case{DO::kG, -1.0, "g"}, Case{DO::kA, nan, "a"},
+        Case{DO::kB, inf, "b"}, Case{DO::kPhi0, nan, "phi0"}, Case{DO::kOmega, -inf, "omega"}}) {
     Params p = model.DefaultParams();
     p[c.index] = c.value;
     const Status s = model.ValidateParams(p);
@@ -227,10 +227,10 @@ TEST(DriftingOscillatorValidation, RejectsStatesOutsideTheInvariantSet) {
     double value;
     const char* needle;
   };
-  for (const Case& c : {Case{DO::kQ, -0.1, "q"}, Case{DO::kQ, 1.5, "q"},
-                        Case{DO::kP, 0.5, "p <= q + g"},
-                        Case{DO::kY, std::numeric_limits<double>::quiet_NaN(), "y"},
-                        Case{DO::kS, std::numeric_limits<double>::infinity(), "s"}}) {
+  for (const Case& c :
+       {Case{DO::kQ, -0.1, "q"}, Case{DO::kQ, 1.5, "q"}, Case{DO::kP, 0.5, "p <= q + g"},
+        Case{DO::kY, std::numeric_limits<double>::quiet_NaN(), "y"},
+        Case{DO::kS, std::numeric_limits<double>::infinity(), "s"}}) {
     StateVector bad = x;
     bad[c.index] = c.value;
     const Status s = model.ValidateState(bad, prm, 1e-12);

@@ -24,7 +24,9 @@ using DO = DriftingOscillator;
 // on the perturbed trajectory, inherit that error divided by the guard's rate (O(1) here).
 constexpr double kRtol = 1e-10;
 constexpr double kAtol = 1e-12;
-double CvodeTolerance(double magnitude) { return 100.0 * (kRtol * magnitude + kAtol) / (1 - 0.087); }
+double CvodeTolerance(double magnitude) {
+  return 100.0 * (kRtol * magnitude + kAtol) / (1 - 0.087);
+}
 
 CvodeOptions TightCvode() {
   CvodeOptions o;

@@ -180,9 +180,9 @@ TEST(BadInput, EachInvalidParameterFailsWithAMessageNamingIt) {
     double value;
     const char* name;
   };
-  for (const Case& c : {Case{DO::kXi, 0.0, "xi"}, Case{DO::kOmega, -0.1, "omega"},
-                        Case{DO::kA, -1.0, "a"}, Case{DO::kB, -1.0, "b"}, Case{DO::kG, 0.0, "g"},
-                        Case{DO::kPhi0, nan, "phi0"}}) {
+  for (const Case& c :
+       {Case{DO::kXi, 0.0, "xi"}, Case{DO::kOmega, -0.1, "omega"}, Case{DO::kA, -1.0, "a"},
+        Case{DO::kB, -1.0, "b"}, Case{DO::kG, 0.0, "g"}, Case{DO::kPhi0, nan, "phi0"}}) {
     Params p = testing::ReferenceParams();
     p[c.index] = c.value;
     const SimulationResult r = Simulate(model, prop, p, DefaultInitialState(model), {});
@@ -220,13 +220,12 @@ TEST(Cancellation, ProgressCallbackStopsTheRun) {
   SimulationOptions opt;
   opt.transient_periods = 1000;
   int calls = 0;
-  const SimulationResult r =
-      Simulate(model, prop, testing::ReferenceParams(), DefaultInitialState(model), opt,
-               [&](double fraction) {
-                 EXPECT_GE(fraction, 0.0);
-                 EXPECT_LE(fraction, 1.0);
-                 return ++calls < 3;
-               });
+  const SimulationResult r = Simulate(model, prop, testing::ReferenceParams(),
+                                      DefaultInitialState(model), opt, [&](double fraction) {
+                                        EXPECT_GE(fraction, 0.0);
+                                        EXPECT_LE(fraction, 1.0);
+                                        return ++calls < 3;
+                                      });
   EXPECT_EQ(r.termination, Termination::kCancelled);
   EXPECT_EQ(r.status.code(), StatusCode::kCancelled);
   EXPECT_EQ(calls, 3);

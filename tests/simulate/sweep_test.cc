@@ -132,9 +132,8 @@ TEST(Sweep, ProgressCanCancel) {
   DO model;
   SweepOptions o = Small(0.0, 0.2, 400, SweepDirection::kBoth);
   o.transient_periods = 500;
-  const SweepResult r =
-      Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o,
-            [](double) { return false; });
+  const SweepResult r = Sweep(model, Exact(model), testing::ReferenceParams(),
+                              DefaultInitialState(model), o, [](double) { return false; });
   EXPECT_EQ(r.termination, Termination::kCancelled);
   EXPECT_EQ(r.status.code(), StatusCode::kCancelled);
 }

@@ -13,9 +13,9 @@ namespace drillbif::internal {
 inline constexpr double kGl10Nodes[5] = {0.1488743389816312108848260, 0.4333953941292471907992659,
                                          0.6794095682990244062343274, 0.8650633666889845107320967,
                                          0.9739065285171717200779640};
-inline constexpr double kGl10Weights[5] = {
-    0.2955242247147528701738930, 0.2692667193099963550912269, 0.2190863625159820439955349,
-    0.1494513491505805931457763, 0.0666713443086881375935688};
+inline constexpr double kGl10Weights[5] = {0.2955242247147528701738930, 0.2692667193099963550912269,
+                                           0.2190863625159820439955349, 0.1494513491505805931457763,
+                                           0.0666713443086881375935688};
 
 // Integral of f over [0, t]; f(tau) returns a value supporting + and * by double (double or an
 // Eigen vector). `zero` is the additive identity of that type.

@@ -60,11 +60,10 @@ void ExactPropagator::StateAt(int mode, const StateVector& x0, double t, const P
   }
 }
 
-FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t,
-                                    const Params& params, const FlowRequest& request) {
+FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, const Params& params,
+                                    const FlowRequest& request) {
   FlowResult out;
-  StateAt(mode, x0, t, params, &out.x,
-          request.state_jacobian ? &out.state_jacobian : nullptr);
+  StateAt(mode, x0, t, params, &out.x, request.state_jacobian ? &out.state_jacobian : nullptr);
   if (request.param_jacobian) {
     // Van Loan: expm([[A, dA], [0, A]] t) has d expm(A t) / dk in its upper right block.
     const int n = model_.state_dim(), ps = model_.phase_index(), np = model_.num_params();
@@ -102,26 +101,26 @@ FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t,
 AdvanceResult ExactPropagator::Advance(const AdvanceRequest& request, const Params& params) {
   AdvanceResult out;
   const int mode = request.mode;
-  auto state_at = [&](double t, StateVector* x) { StateAt(mode, request.x0, t, params, x, nullptr); };
+  auto state_at = [&](double t, StateVector* x) {
+    StateAt(mode, request.x0, t, params, x, nullptr);
+  };
   internal::LocatedEvent ev;
   if (closed_) {
     PreparedSegment seg;
     closed_->PrepareSegment(mode, request.x0, params, &seg);
-    ev = internal::LocateFirstEvent(model_, mode, request.t_max, options_.events,
-                                    [&](double t, SegmentPoint* p) {
-                                      closed_->EvaluateSegment(seg, t, params, true, p);
-                                    });
+    ev = internal::LocateFirstEvent(
+        model_, mode, request.t_max, options_.events,
+        [&](double t, SegmentPoint* p) { closed_->EvaluateSegment(seg, t, params, true, p); });
   } else {
     const int n_guards = static_cast<int>(model_.guards(mode).size());
-    ev = internal::LocateFirstEvent(model_, mode, request.t_max, options_.events,
-                                    [&](double t, SegmentPoint* p) {
-                                      state_at(t, &p->x);
-                                      for (int i = 0; i < n_guards; ++i) {
-                                        p->guards[i] = model_.Guard(mode, i, p->x, params);
-                                        p->bounds[i] =
-                                            model_.GuardCurvatureBound(mode, i, p->x, params);
-                                      }
-                                    });
+    ev = internal::LocateFirstEvent(
+        model_, mode, request.t_max, options_.events, [&](double t, SegmentPoint* p) {
+          state_at(t, &p->x);
+          for (int i = 0; i < n_guards; ++i) {
+            p->guards[i] = model_.Guard(mode, i, p->x, params);
+            p->bounds[i] = model_.GuardCurvatureBound(mode, i, p->x, params);
+          }
+        });
   }
   out.status = ev.status;
   out.end = ev.end;
@@ -141,9 +140,9 @@ AdvanceResult ExactPropagator::Advance(const AdvanceRequest& request, const Para
     if (closed_) {
       out.measures = closed_->MeasureIncrements(mode, request.x0, out.duration, params);
     } else {
-      const double panel = options_.quadrature_panel_fraction *
-                           std::min(model_.TimeScale(mode, params),
-                                    1.0 / model_.ForcingFrequency(params));
+      const double panel =
+          options_.quadrature_panel_fraction *
+          std::min(model_.TimeScale(mode, params), 1.0 / model_.ForcingFrequency(params));
       StateVector x;
       const MeasureVector zero = MeasureVector::Zero(model_.measure_names().size());
       out.measures = internal::IntegrateGaussLegendre(

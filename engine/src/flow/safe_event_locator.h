@@ -12,8 +12,8 @@
 // a touch that stays within (0, tolerance] strictly inside a step may go unreported.
 //
 // Start of a segment (the state may sit on a surface after a jump): a guard with h <= tolerance is
-// "into" (fires at once, duration 0) when its local parabola h + h' tau + h'' tau^2/2 does not leave
-// the band h <= tolerance, else "departing": ignored until h > tolerance.
+// "into" (fires at once, duration 0) when its local parabola h + h' tau + h'' tau^2/2 does not
+// leave the band h <= tolerance, else "departing": ignored until h > tolerance.
 #ifndef DRILLBIF_FLOW_SAFE_EVENT_LOCATOR_H_
 #define DRILLBIF_FLOW_SAFE_EVENT_LOCATOR_H_
 

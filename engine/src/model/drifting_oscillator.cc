@@ -2,10 +2,10 @@
 // and the augmented linear form. The closed-form flows are in drifting_oscillator_flow.cc.
 #include "drillbif/model/drifting_oscillator.h"
 
-#include "model/drifting_oscillator_internal.h"
-
 #include <cmath>
 #include <sstream>
+
+#include "model/drifting_oscillator_internal.h"
 
 namespace drillbif {
 namespace {
@@ -23,9 +23,8 @@ DriftingOscillator::DriftingOscillator()
     : state_names_{"p", "y", "q", "s"},
       param_names_{"a", "b", "omega", "xi", "g", "phi0"},
       measure_names_{"drift", "power"},
-      guards_{{{"impact", "Pi"}},
-              {{"progression", "l1"}, {"separation", "l2"}},
-              {{"stick", "l1"}}} {}
+      guards_{
+          {{"impact", "Pi"}}, {{"progression", "l1"}, {"separation", "l2"}}, {{"stick", "l1"}}} {}
 
 Params DriftingOscillator::MakeParams(double a, double b, double omega, double xi, double g,
                                       double phi0) {
@@ -40,24 +39,26 @@ double DriftingOscillator::ContactForce(const StateVector& x, const Params& para
 
 const std::vector<std::string>& DriftingOscillator::state_names() const { return state_names_; }
 const std::vector<std::string>& DriftingOscillator::param_names() const { return param_names_; }
-const std::vector<std::string>& DriftingOscillator::measure_names() const {
-  return measure_names_;
-}
+const std::vector<std::string>& DriftingOscillator::measure_names() const { return measure_names_; }
 const std::vector<GuardSpec>& DriftingOscillator::guards(int mode) const { return guards_[mode]; }
 
 std::string_view DriftingOscillator::mode_name(int mode) const {
   switch (mode) {
-    case kNoContact: return "NC";
-    case kContact: return "CwoP";
-    case kProgression: return "CwP";
+    case kNoContact:
+      return "NC";
+    case kContact:
+      return "CwoP";
+    case kProgression:
+      return "CwP";
   }
   return "?";
 }
 
 Status DriftingOscillator::ValidateParams(const Params& params) const {
   if (params.size() != 6) {
-    return InvalidArgument("drifting_oscillator takes 6 parameters (a, b, omega, xi, g, phi0), got " +
-                           std::to_string(params.size()));
+    return InvalidArgument(
+        "drifting_oscillator takes 6 parameters (a, b, omega, xi, g, phi0), got " +
+        std::to_string(params.size()));
   }
   for (int i = 0; i < 6; ++i) {
     if (!std::isfinite(params[i])) {
@@ -98,8 +99,7 @@ Status DriftingOscillator::ValidateState(const StateVector& x, const Params& par
   }
   if (x[kP] > x[kQ] + params[kG] + tol) {
     return InvalidArgument("state component p = " + Num(x[kP]) +
-                           " is outside the invariant set p <= q + g = " +
-                           Num(x[kQ] + params[kG]));
+                           " is outside the invariant set p <= q + g = " + Num(x[kQ] + params[kG]));
   }
   return Status::Ok();
 }
@@ -113,9 +113,9 @@ int DriftingOscillator::ModeAt(const StateVector& x, const Params& params) const
   if (f > 1.0) return kProgression;
   if (f == 1.0) {
     // On l1 the force's rate is the same in both contact modes; progression continues if rising.
-    const double df = 2.0 * params[kXi] * (params[kA] * std::cos(x[kS] + params[kPhi0]) +
-                                           params[kB] - 1.0) +
-                      (1.0 - x[kQ]) / (2.0 * params[kXi]);
+    const double df =
+        2.0 * params[kXi] * (params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB] - 1.0) +
+        (1.0 - x[kQ]) / (2.0 * params[kXi]);
     return df >= 0.0 ? kProgression : kContact;
   }
   if (f > 0.0) return kContact;
@@ -263,9 +263,9 @@ Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
         t.next_mode = kContact;
       } else {
         // A grazing impact (F ~ 0): contact only if the force is about to rise.
-        const double df = 2.0 * params[kXi] *
-                              (params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB] - f) +
-                          x[kY];
+        const double df =
+            2.0 * params[kXi] * (params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB] - f) +
+            x[kY];
         t.next_mode = df > 0.0 ? kContact : kNoContact;
       }
       break;
@@ -323,8 +323,7 @@ void DriftingOscillator::ToAugmented(const StateVector& x, const Params& params,
   *z << x[kP], x[kY], x[kQ], std::cos(theta), std::sin(theta), 1.0;
 }
 
-void DriftingOscillator::AugmentedMatrix(int mode, const Params& params,
-                                         Eigen::MatrixXd* a) const {
+void DriftingOscillator::AugmentedMatrix(int mode, const Params& params, Eigen::MatrixXd* a) const {
   const double xi = params[kXi];
   a->setZero(6, 6);
   (*a)(1, 3) = params[kA];
@@ -355,9 +354,15 @@ void DriftingOscillator::AugmentedMatrixDerivative(int mode, const Params& param
   const double xi = params[kXi];
   da->setZero(6, 6);
   switch (k) {
-    case kA: (*da)(1, 3) = 1.0; break;
-    case kB: (*da)(1, 5) = 1.0; break;
-    case kOmega: (*da)(3, 4) = -1.0, (*da)(4, 3) = 1.0; break;
+    case kA:
+      (*da)(1, 3) = 1.0;
+      break;
+    case kB:
+      (*da)(1, 5) = 1.0;
+      break;
+    case kOmega:
+      (*da)(3, 4) = -1.0, (*da)(4, 3) = 1.0;
+      break;
     case kXi:
       if (mode == kNoContact) {
         (*da)(2, 2) = 1.0 / (2.0 * xi * xi);
@@ -368,7 +373,8 @@ void DriftingOscillator::AugmentedMatrixDerivative(int mode, const Params& param
         (*da)(0, 5) = (*da)(2, 5) = -1.0 / (2.0 * xi * xi);
       }
       break;
-    default: break;  // g and phi0 do not enter A
+    default:
+      break;  // g and phi0 do not enter A
   }
 }
 

@@ -61,11 +61,11 @@ DampedExp DampedOscillatorExp(double xi, double t) {
 
 // Layout of PreparedSegment::c.
 enum : int {
-  kCos0 = 0,    // cos theta0
-  kSin0,        // sin theta0
-  kDq0,         // contact: q0 - q_p(theta0)
-  kDy0,         // contact: y0 - y_p(theta0)
-  kGainKr,      // contact: ContactGain
+  kCos0 = 0,  // cos theta0
+  kSin0,      // sin theta0
+  kDq0,       // contact: q0 - q_p(theta0)
+  kDy0,       // contact: y0 - y_p(theta0)
+  kGainKr,    // contact: ContactGain
   kGainKi,
   kGainSteady,
   kGainTransient,
@@ -79,11 +79,11 @@ internal::ContactGain GainOf(const PreparedSegment& seg) {
 // the Jacobian reuse.
 struct Core {
   StateVector x;
-  double ct, st;               // cos, sin of theta(t)
-  double sinc, c2, s3, xw;     // NC, CwP: functions of x = w t
-  double decay;                // NC: e^{-t/(2 xi)}; CwP: expm1(-t/(2 xi))
-  double e00, e01, e10, e11;   // CwoP: expm(A t)
-  double dq, dy;               // CwoP: transient u - u_p at t
+  double ct, st;              // cos, sin of theta(t)
+  double sinc, c2, s3, xw;    // NC, CwP: functions of x = w t
+  double decay;               // NC: e^{-t/(2 xi)}; CwP: expm1(-t/(2 xi))
+  double e00, e01, e10, e11;  // CwoP: expm(A t)
+  double dq, dy;              // CwoP: transient u - u_p at t
 };
 
 void EvaluateCore(const PreparedSegment& seg, double t, const Params& prm, Core* k) {
@@ -153,9 +153,8 @@ void DriftingOscillator::PrepareSegment(int mode, const StateVector& x0, const P
   }
 }
 
-void DriftingOscillator::EvaluateSegment(const PreparedSegment& seg, double t,
-                                         const Params& params, bool with_guards,
-                                         SegmentPoint* point) const {
+void DriftingOscillator::EvaluateSegment(const PreparedSegment& seg, double t, const Params& params,
+                                         bool with_guards, SegmentPoint* point) const {
   Core k;
   EvaluateCore(seg, t, params, &k);
   point->x = k.x;

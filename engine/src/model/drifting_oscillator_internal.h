@@ -59,8 +59,7 @@ inline double NoContactBound(double q, const Params& prm) {
 // CwP: |F''| <= 2 xi a w + |1 - q|/(4 xi^2), and |1 - q| decays monotonically in progression.
 inline double ProgressionBound(double q, const Params& prm) {
   const double xi = prm[DO::kXi];
-  return SafeBound(2.0 * xi * prm[DO::kA] * prm[DO::kOmega] +
-                   std::abs(1.0 - q) / (4.0 * xi * xi));
+  return SafeBound(2.0 * xi * prm[DO::kA] * prm[DO::kOmega] + std::abs(1.0 - q) / (4.0 * xi * xi));
 }
 
 // Contact (CwoP) on u = (q, y): u' = A u + (0, a cos theta + b), A = [[0, 1], [-1, -2 xi]].

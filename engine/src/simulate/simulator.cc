@@ -23,9 +23,12 @@ Status SimulationOptions::Validate() const {
 
 const char* TerminationName(Termination t) {
   switch (t) {
-    case Termination::kCompleted: return "COMPLETED";
-    case Termination::kCancelled: return "CANCELLED";
-    case Termination::kFailed: return "FAILED";
+    case Termination::kCompleted:
+      return "COMPLETED";
+    case Termination::kCancelled:
+      return "CANCELLED";
+    case Termination::kFailed:
+      return "FAILED";
   }
   return "?";
 }
@@ -89,9 +92,8 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
     ++r.segments;
     r.evaluations += adv.evaluations;
     if (adv.end == AdvanceEnd::kFailed) {
-      return Fail(std::move(r), Status(adv.status.code(),
-                                       adv.status.message() + " (period " +
-                                           std::to_string(period) + ")"));
+      return Fail(std::move(r), Status(adv.status.code(), adv.status.message() + " (period " +
+                                                              std::to_string(period) + ")"));
     }
     if (req.measures) sums += adv.measures;
     if (req.sample_dt > 0.0) {
@@ -116,7 +118,8 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
         e.x[ps] = s_event;
         r.events.push_back(std::move(e));
       }
-      if (in_window && out.modes && tr.next_mode != mode) r.period_modes.back().push_back(tr.next_mode);
+      if (in_window && out.modes && tr.next_mode != mode)
+        r.period_modes.back().push_back(tr.next_mode);
       mode = tr.next_mode;
       x = tr.x;
       if (++events_this_period > options.max_events_per_period) {

@@ -70,9 +70,8 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
   const bool up = options.direction != SweepDirection::kDown;
   const bool down = options.direction != SweepDirection::kUp;
   const int directions = (up ? 1 : 0) + (down ? 1 : 0);
-  const int threads = options.threads > 0
-                          ? options.threads
-                          : std::max(1u, std::thread::hardware_concurrency());
+  const int threads =
+      options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
   const int chunks =
       std::clamp(options.chunks > 0 ? options.chunks : std::max(1, threads / directions), 1, n);
 

@@ -58,8 +58,8 @@ const char* StatusCodeName(StatusCode code);
 template <typename T>
 class StatusOr {
  public:
-  StatusOr(T value) : value_(std::move(value)) {}                      // NOLINT: implicit by design
-  StatusOr(Status status) : status_(std::move(status)) {}              // NOLINT: implicit by design
+  StatusOr(T value) : value_(std::move(value)) {}          // NOLINT: implicit by design
+  StatusOr(Status status) : status_(std::move(status)) {}  // NOLINT: implicit by design
   bool ok() const { return status_.ok(); }
   const Status& status() const { return status_; }
   const T& value() const& { return *value_; }

@@ -8,8 +8,8 @@
 
 namespace drillbif {
 
-inline constexpr int kMaxStateDim = 8;   // continuous state, including the forcing phase
-inline constexpr int kMaxParams = 12;    // model parameters
+inline constexpr int kMaxStateDim = 8;  // continuous state, including the forcing phase
+inline constexpr int kMaxParams = 12;   // model parameters
 inline constexpr double kTwoPi = 6.283185307179586476925286766559;
 
 using StateVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxStateDim, 1>;

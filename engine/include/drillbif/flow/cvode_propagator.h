@@ -20,10 +20,10 @@
 namespace drillbif {
 
 struct CvodeOptions {
-  double rtol = 1e-10;        // relative tolerance of the state (and of quadratures, sensitivities)
-  double atol = 1e-12;        // absolute tolerance, all components
-  bool bdf = false;           // false: Adams-Moulton (non-stiff, cheaper); true: BDF (stiff)
-  long max_steps = 1000000;   // internal steps per call before giving up
+  double rtol = 1e-10;       // relative tolerance of the state (and of quadratures, sensitivities)
+  double atol = 1e-12;       // absolute tolerance, all components
+  bool bdf = false;          // false: Adams-Moulton (non-stiff, cheaper); true: BDF (stiff)
+  long max_steps = 1000000;  // internal steps per call before giving up
   // Upper bound on the internal step as a fraction of the model's TimeScale (so that the root
   // functions h and dh/dt are resolved between steps). <= 0: no bound.
   double max_step_fraction = 0.5;

@@ -24,7 +24,7 @@ struct FlowRequest {
 // x(t) = phi_m(t, x0; params) and its derivatives. d x / d t is the vector field at x(t).
 struct FlowResult {
   Status status;
-  StateVector x;             // phase component not wrapped (s0 + omega t)
+  StateVector x;               // phase component not wrapped (s0 + omega t)
   StateMatrix state_jacobian;  // filled when requested
   ParamMatrix param_jacobian;  // filled when requested
 };
@@ -33,8 +33,8 @@ struct FlowResult {
 struct AdvanceRequest {
   int mode = 0;
   StateVector x0;
-  double t_max = 0.0;            // duration limit (e.g. time to the next Poincare section)
-  bool measures = false;         // accumulate the model's measures over the segment
+  double t_max = 0.0;     // duration limit (e.g. time to the next Poincare section)
+  bool measures = false;  // accumulate the model's measures over the segment
   // Samples of the trajectory every `sample_dt` (0: none). Appended to AdvanceResult::samples.
   double sample_dt = 0.0;
 };
@@ -53,13 +53,13 @@ struct TrajectorySample {
 struct AdvanceResult {
   Status status;
   AdvanceEnd end = AdvanceEnd::kFailed;
-  int guard = -1;            // index into model.guards(mode) when end == kEvent
-  bool tangential = false;   // the event is a grazing contact: h reached 0 with dh/dt ~ 0
-  double duration = 0.0;     // time flowed
-  StateVector x;             // state at the end (phase not wrapped)
-  MeasureVector measures;    // increments over the segment, when requested
+  int guard = -1;           // index into model.guards(mode) when end == kEvent
+  bool tangential = false;  // the event is a grazing contact: h reached 0 with dh/dt ~ 0
+  double duration = 0.0;    // time flowed
+  StateVector x;            // state at the end (phase not wrapped)
+  MeasureVector measures;   // increments over the segment, when requested
   std::vector<TrajectorySample> samples;
-  int evaluations = 0;       // flow or right-hand-side evaluations spent
+  int evaluations = 0;  // flow or right-hand-side evaluations spent
 };
 
 // Options shared by both propagators' event location.

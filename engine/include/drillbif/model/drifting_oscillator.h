@@ -1,11 +1,12 @@
-// The drifting impact oscillator (Pavlovskaia, Wiercigroch et al.; bifurcation study by Paez Chavez,
-// Pavlovskaia and Wiercigroch, Nonlinear Dynamics 2014). See shared MODEL.md for the physics.
+// The drifting impact oscillator (Pavlovskaia, Wiercigroch et al.; bifurcation study by Paez
+// Chavez, Pavlovskaia and Wiercigroch, Nonlinear Dynamics 2014). See shared MODEL.md for the
+// physics.
 //
 // State x = (p, y, q, s): bit position and slider-top position relative to the slider bottom, bit
 // velocity, forcing phase s = omega t. Contact force F = 2 xi y + q. Parameters (a, b, omega, xi,
 // g, phi0). Modes:
-//   NC    no contact                 p' = y,               y' = a cos(s+phi0) + b,     q' = -q/(2 xi)
-//   CwoP  contact, no progression    p' = y,               y' = a cos(s+phi0) + b - F, q' = y
+//   NC    no contact                 p' = y,               y' = a cos(s+phi0) + b,     q' = -q/(2
+//   xi) CwoP  contact, no progression    p' = y,               y' = a cos(s+phi0) + b - F, q' = y
 //   CwP   contact with progression   p' = -(q-1)/(2 xi),   y' = a cos(s+phi0) + b - 1, q' = p'
 // and s' = omega everywhere. Guards (mode valid while h > 0; the event fires at h = 0):
 //   NC:   "impact"       h = q + g - p     (surface Pi)

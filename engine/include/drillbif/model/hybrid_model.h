@@ -1,4 +1,5 @@
-// HybridModel: the abstraction of a piecewise-smooth (hybrid) dynamical system with harmonic forcing.
+// HybridModel: the abstraction of a piecewise-smooth (hybrid) dynamical system with harmonic
+// forcing.
 //
 // A model has
 //  - a continuous state x of dimension n whose component phase_index() is the forcing phase s,
@@ -49,8 +50,8 @@ struct GuardSpec {
 // What happens when a guard fires: the mode the flow continues in and the state after the jump.
 struct Transition {
   int next_mode = 0;
-  StateVector x;        // state after the jump map
-  StateMatrix jacobian; // d x_after / d x_before of the jump map (without the saltation term)
+  StateVector x;         // state after the jump map
+  StateMatrix jacobian;  // d x_after / d x_before of the jump map (without the saltation term)
 };
 
 // Rates of the measures accumulated along a trajectory (see HybridModel::MeasureRates).
@@ -110,12 +111,14 @@ class HybridModel {
   // the flow stays in the mode). Must be finite and positive.
   virtual double GuardCurvatureBound(int mode, int guard, const StateVector& x,
                                      const Params& params) const = 0;
-  virtual Transition Jump(int mode, int guard, const StateVector& x, const Params& params) const = 0;
+  virtual Transition Jump(int mode, int guard, const StateVector& x,
+                          const Params& params) const = 0;
 
   // ---- measures ----
   virtual const std::vector<std::string>& measure_names() const = 0;
   // Rates (time derivatives) of the measures in a mode at x.
-  virtual MeasureVector MeasureRates(int mode, const StateVector& x, const Params& params) const = 0;
+  virtual MeasureVector MeasureRates(int mode, const StateVector& x,
+                                     const Params& params) const = 0;
 
   // ---- time scales ----
   // The shortest intrinsic time scale of a mode (1 / largest rate), used to bound integrator steps
@@ -171,8 +174,8 @@ class ClosedFormFlow {
  public:
   virtual ~ClosedFormFlow() = default;
   // x(t) from x0 in `mode` (phase not wrapped: s0 + omega t), and d x(t) / d x0 when jac != null.
-  virtual void Flow(int mode, const StateVector& x0, double t, const Params& params,
-                    StateVector* x, StateMatrix* jac) const = 0;
+  virtual void Flow(int mode, const StateVector& x0, double t, const Params& params, StateVector* x,
+                    StateMatrix* jac) const = 0;
   // Precomputes the constants of the segment from x0 in `mode`.
   virtual void PrepareSegment(int mode, const StateVector& x0, const Params& params,
                               PreparedSegment* segment) const = 0;

@@ -24,11 +24,11 @@ using ProgressCallback = std::function<bool(double fraction)>;
 
 // What a simulation reports. Everything is off unless asked, except as defaulted here.
 struct SimulationOutputs {
-  bool measures = true;         // means of the model's measures (ROP, Pc) over the window
-  bool poincare = true;         // the state at each section s = 0 (mod 2 pi) in the window
-  bool events = false;          // the event log of the window
-  bool modes = false;           // the sequence of modes of each period of the window
-  double trajectory_dt = 0.0;   // > 0: states every trajectory_dt in each segment of the window
+  bool measures = true;        // means of the model's measures (ROP, Pc) over the window
+  bool poincare = true;        // the state at each section s = 0 (mod 2 pi) in the window
+  bool events = false;         // the event log of the window
+  bool modes = false;          // the sequence of modes of each period of the window
+  double trajectory_dt = 0.0;  // > 0: states every trajectory_dt in each segment of the window
 };
 
 struct SimulationOptions {
@@ -53,32 +53,32 @@ struct PoincareSample {
 };
 
 struct EventRecord {
-  int period = 0;          // forcing period (0-based) in which the event happened
-  double s = 0.0;          // forcing phase at the event, in [0, 2 pi)
-  double t = 0.0;          // time since the start of the run
-  int guard = 0;           // index in the from-mode's guard list
+  int period = 0;  // forcing period (0-based) in which the event happened
+  double s = 0.0;  // forcing phase at the event, in [0, 2 pi)
+  double t = 0.0;  // time since the start of the run
+  int guard = 0;   // index in the from-mode's guard list
   int from_mode = 0;
   int to_mode = 0;
-  bool tangential = false; // a grazing contact rather than a transversal crossing
+  bool tangential = false;  // a grazing contact rather than a transversal crossing
   StateVector x;
 };
 
 struct TrajectoryPoint {
   double t = 0.0;  // time since the start of the run
   int mode = 0;
-  StateVector x;   // s wrapped to [0, 2 pi)
+  StateVector x;  // s wrapped to [0, 2 pi)
 };
 
 struct SimulationResult {
   Termination termination = Termination::kFailed;
-  Status status;                       // why, when not completed
+  Status status;  // why, when not completed
   // Means over the window: measures[k] / window length (k as in HybridModel::measure_names()).
   std::vector<double> measure_means;
   std::vector<PoincareSample> poincare;
   std::vector<EventRecord> events;
   std::vector<std::vector<int>> period_modes;  // one list per window period, from s = 0
   std::vector<TrajectoryPoint> trajectory;
-  StateVector final_state;             // state at the end of the run (s = 0)
+  StateVector final_state;  // state at the end of the run (s = 0)
   int final_mode = 0;
   // Counters.
   long long segments = 0;

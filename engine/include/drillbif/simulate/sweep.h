@@ -21,15 +21,15 @@ namespace drillbif {
 enum class SweepDirection { kUp, kDown, kBoth };
 
 struct SweepOptions {
-  std::string param;              // name of the swept parameter
-  double min = 0.0;               // first value (up sweep)
-  double max = 0.0;               // last value (up sweep); > min
-  int steps = 1000;               // number of values, endpoints included (>= 2)
+  std::string param;  // name of the swept parameter
+  double min = 0.0;   // first value (up sweep)
+  double max = 0.0;   // last value (up sweep); > min
+  int steps = 1000;   // number of values, endpoints included (>= 2)
   SweepDirection direction = SweepDirection::kUp;
-  int transient_periods = 500;    // per value
-  int sample_periods = 100;       // Poincare samples per value
-  int threads = 0;                // worker threads; 0: the number of cores
-  int chunks = 0;                 // pieces per direction; 0: threads / directions (at least 1)
+  int transient_periods = 500;  // per value
+  int sample_periods = 100;     // Poincare samples per value
+  int threads = 0;              // worker threads; 0: the number of cores
+  int chunks = 0;               // pieces per direction; 0: threads / directions (at least 1)
   int chunk_start_transient_factor = 4;  // transient multiplier at a chunk's first value
 
   Status Validate() const;
@@ -38,15 +38,15 @@ struct SweepOptions {
 struct SweepPoint {
   double value = 0.0;
   Termination termination = Termination::kFailed;
-  std::string message;            // why, when not completed
+  std::string message;  // why, when not completed
   std::vector<PoincareSample> samples;
 };
 
 struct SweepResult {
   Termination termination = Termination::kFailed;
   Status status;
-  std::vector<SweepPoint> up;     // ascending values, when swept up
-  std::vector<SweepPoint> down;   // descending values, when swept down
+  std::vector<SweepPoint> up;    // ascending values, when swept up
+  std::vector<SweepPoint> down;  // descending values, when swept down
   long long events_total = 0;
   long long periods_total = 0;
 };
