@@ -247,6 +247,8 @@ Transition ForcedLinearOscillator::Jump(int /*mode*/, int /*guard*/, const State
   tr.x[kV] = -p[kRestitution] * x[kV];
   tr.jacobian = StateMatrix::Identity(3, 3);
   tr.jacobian(kV, kV) = -p[kRestitution];
+  tr.param_jacobian = ParamMatrix::Zero(3, p.size());
+  tr.param_jacobian(kV, kRestitution) = -x[kV];
   return tr;
 }
 

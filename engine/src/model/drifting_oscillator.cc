@@ -248,6 +248,7 @@ Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
   Transition t;
   t.x = x;
   t.jacobian = StateMatrix::Identity(4, 4);
+  t.param_jacobian = ParamMatrix::Zero(4, 6);
   switch (mode) {
     case kNoContact: {
       // The event fires on Pi: place the state on it exactly (p = q + g), so that the rounding of a
@@ -256,6 +257,7 @@ Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
       t.x[kP] = x[kQ] + params[kG];
       t.jacobian(kP, kP) = 0.0;
       t.jacobian(kP, kQ) = 1.0;
+      t.param_jacobian(kP, kG) = 1.0;
       const double f = ContactForce(t.x, params);
       if (f >= 1.0) {
         t.next_mode = kProgression;

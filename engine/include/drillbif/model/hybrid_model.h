@@ -52,6 +52,7 @@ struct Transition {
   int next_mode = 0;
   StateVector x;         // state after the jump map
   StateMatrix jacobian;  // d x_after / d x_before of the jump map (without the saltation term)
+  ParamMatrix param_jacobian;  // d x_after / d params at fixed x_before
 };
 
 // Rates of the measures accumulated along a trajectory (see HybridModel::MeasureRates).

@@ -1,0 +1,142 @@
+#include "orbit/orbit_bvp.h"
+
+namespace drillbif::internal {
+
+OrbitBvp::OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param)
+    : model_(model),
+      propagator_(propagator),
+      signature_(std::move(signature)),
+      param_(param),
+      d_(model.state_dim() - 1),
+      ps_(model.phase_index()) {}
+
+Eigen::VectorXd OrbitBvp::Pack(const PeriodicOrbit& orbit) const {
+  Eigen::VectorXd x(size());
+  for (int i = 0; i < segments(); ++i) {
+    for (int j = 0, r = 0; j <= d_; ++j) {
+      if (j != ps_) x[i * (d_ + 1) + r++] = orbit.starts[i][j];
+    }
+    x[i * (d_ + 1) + d_] = orbit.durations[i];
+  }
+  return x;
+}
+
+void OrbitBvp::Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOrbit* orbit) const {
+  const double omega = model_.ForcingFrequency(params);
+  orbit->signature = signature_;
+  orbit->params = params;
+  orbit->starts.resize(segments());
+  orbit->durations.resize(segments());
+  double elapsed = 0.0;
+  for (int i = 0; i < segments(); ++i) {
+    StateVector& s = orbit->starts[i];
+    s.resize(d_ + 1);
+    for (int j = 0, r = 0; j <= d_; ++j) {
+      s[j] = (j == ps_) ? omega * elapsed : x[i * (d_ + 1) + r++];
+    }
+    orbit->durations[i] = x[i * (d_ + 1) + d_];
+    elapsed += orbit->durations[i];
+  }
+}
+
+Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
+                          Eigen::MatrixXd* gx, Eigen::VectorXd* gp) const {
+  const int k = segments(), n = d_ + 1, m = size();
+  const double omega = model_.ForcingFrequency(params);
+  const bool want_p = gp != nullptr && param_ >= 0;
+  // d omega / d param: the phase row of the vector field's parameter Jacobian (s' = omega).
+  double domega = 0.0;
+  if (want_p) {
+    ParamMatrix fp;
+    model_.ParamJacobian(signature_.segments[0].mode, StateVector::Zero(n), params, &fp);
+    domega = fp(ps_, param_);
+  }
+  PeriodicOrbit orbit;
+  Unpack(x, params, &orbit);
+  g->setZero(m);
+  if (gx) gx->setZero(m, m);
+  if (gp) gp->setZero(m);
+
+  // Derivatives of a segment's end state with respect to X (n x m) and the parameter (n).
+  Eigen::MatrixXd dend(n, m);
+  Eigen::VectorXd dend_p(n);
+  double elapsed = 0.0;
+  for (int i = 0; i < k; ++i) {
+    const SegmentSpec& seg = signature_.segments[i];
+    const int col = i * (d_ + 1);
+    FlowRequest req;
+    req.state_jacobian = gx != nullptr;
+    req.param_jacobian = want_p;
+    const FlowResult fr =
+        propagator_.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], params, req);
+    if (!fr.status.ok()) return fr.status;
+    const StateVector& xe = fr.x;
+    if (gx) {
+      StateVector f;
+      model_.VectorField(seg.mode, xe, params, &f);
+      dend.setZero();
+      for (int j = 0, r = 0; j < n; ++j) {
+        if (j == ps_) continue;
+        dend.col(col + r++) = fr.state_jacobian.col(j);
+      }
+      dend.col(col + d_) = f;
+      // The start phase s_i = omega * sum_{j<i} tau_j.
+      for (int jseg = 0; jseg < i; ++jseg) {
+        dend.col(jseg * (d_ + 1) + d_) += omega * fr.state_jacobian.col(ps_);
+      }
+    }
+    if (want_p) {
+      dend_p = fr.param_jacobian.col(param_) + fr.state_jacobian.col(ps_) * (domega * elapsed);
+    }
+    const int row = i * (d_ + 1);
+    if (seg.guard >= 0) {
+      // Event condition, then continuity through the jump into the next segment's start.
+      (*g)[row] = model_.Guard(seg.mode, seg.guard, xe, params).h;
+      const StateRow grad = model_.GuardGradient(seg.mode, seg.guard, xe, params);
+      if (gx) gx->row(row) = grad * dend;
+      if (want_p) {
+        (*gp)[row] = grad.dot(dend_p.transpose()) +
+                     model_.GuardParamGradient(seg.mode, seg.guard, xe, params)[param_];
+      }
+      const Transition tr = model_.Jump(seg.mode, seg.guard, xe, params);
+      const Eigen::MatrixXd jdend = gx ? Eigen::MatrixXd(tr.jacobian * dend) : Eigen::MatrixXd();
+      const Eigen::VectorXd jdend_p =
+          want_p ? Eigen::VectorXd(tr.jacobian * dend_p + tr.param_jacobian.col(param_))
+                 : Eigen::VectorXd();
+      const int next = (i + 1) * (d_ + 1);
+      for (int j = 0, r = 0; j < n; ++j) {
+        if (j == ps_) continue;
+        (*g)[row + 1 + r] = x[next + r] - tr.x[j];
+        if (gx) {
+          gx->row(row + 1 + r) = -jdend.row(j);
+          (*gx)(row + 1 + r, next + r) += 1.0;
+        }
+        if (want_p) (*gp)[row + 1 + r] = -jdend_p[j];
+        ++r;
+      }
+    } else {
+      // Periodicity back to the first segment's start, then the phase condition.
+      for (int j = 0, r = 0; j < n; ++j) {
+        if (j == ps_) continue;
+        (*g)[row + r] = x[r] - xe[j];
+        if (gx) {
+          gx->row(row + r) = -dend.row(j);
+          (*gx)(row + r, r) += 1.0;
+        }
+        if (want_p) (*gp)[row + r] = -dend_p[j];
+        ++r;
+      }
+      double total = 0.0;
+      for (int jseg = 0; jseg < k; ++jseg) total += orbit.durations[jseg];
+      (*g)[row + d_] = total - kTwoPi * signature_.periods / omega;
+      if (gx) {
+        for (int jseg = 0; jseg < k; ++jseg) (*gx)(row + d_, jseg * (d_ + 1) + d_) = 1.0;
+      }
+      if (want_p) (*gp)[row + d_] = kTwoPi * signature_.periods / (omega * omega) * domega;
+    }
+    elapsed += orbit.durations[i];
+  }
+  return Status::Ok();
+}
+
+}  // namespace drillbif::internal

@@ -1,0 +1,43 @@
+// The multi-segment boundary-value system of a periodic orbit (see orbit/periodic_orbit.h for the
+// unknowns and conditions): residual, Jacobian in the unknowns, and derivative in one parameter.
+// Shared by the orbit solver and the continuation.
+#ifndef DRILLBIF_ORBIT_ORBIT_BVP_H_
+#define DRILLBIF_ORBIT_ORBIT_BVP_H_
+
+#include <Eigen/Dense>
+
+#include "drillbif/flow/propagator.h"
+#include "drillbif/orbit/periodic_orbit.h"
+
+namespace drillbif::internal {
+
+class OrbitBvp {
+ public:
+  // `param`: index of the parameter whose derivative Evaluate() can give (-1: none).
+  OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param);
+
+  const Signature& signature() const { return signature_; }
+  // Number of unknowns (= number of conditions): k (d + 1) with k segments, d = state_dim - 1.
+  int size() const { return segments() * (d_ + 1); }
+  int segments() const { return static_cast<int>(signature_.segments.size()); }
+
+  // X from an orbit of this signature, and back (the phases s_i follow from the durations).
+  Eigen::VectorXd Pack(const PeriodicOrbit& orbit) const;
+  void Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOrbit* orbit) const;
+
+  // G(X; params), and when non-null dG/dX and dG/dparams[param]. INTERNAL if a flow fails.
+  Status Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
+                  Eigen::MatrixXd* gx, Eigen::VectorXd* gp) const;
+
+ private:
+  const HybridModel& model_;
+  Propagator& propagator_;
+  Signature signature_;
+  int param_;
+  int d_;   // reduced state dimension
+  int ps_;  // phase index
+};
+
+}  // namespace drillbif::internal
+
+#endif  // DRILLBIF_ORBIT_ORBIT_BVP_H_

@@ -1,0 +1,233 @@
+#include "drillbif/orbit/periodic_orbit.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "orbit/orbit_bvp.h"
+
+namespace drillbif {
+
+Status OrbitSolverOptions::Validate() const {
+  if (!(tolerance > 0.0 && tolerance < 1e-2)) {
+    return InvalidArgument("orbit solver tolerance must be in (0, 1e-2)");
+  }
+  if (max_iterations < 1) return InvalidArgument("orbit solver max_iterations must be >= 1");
+  return Status::Ok();
+}
+
+const char* SolveStatusName(SolveStatus s) {
+  switch (s) {
+    case SolveStatus::kConverged:
+      return "CONVERGED";
+    case SolveStatus::kNoConvergence:
+      return "NO_CONVERGENCE";
+    case SolveStatus::kFailed:
+      return "FAILED";
+  }
+  return "?";
+}
+
+OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
+                             const OrbitSolverOptions& options, PeriodicOrbit* orbit) {
+  OrbitSolveSummary summary;
+  for (const Status& s : {options.Validate(), ValidateSignature(model, orbit->signature),
+                          model.ValidateParams(orbit->params)}) {
+    if (!s.ok()) {
+      summary.message = s.message();
+      return summary;
+    }
+  }
+  internal::OrbitBvp bvp(model, propagator, orbit->signature, -1);
+  Eigen::VectorXd x = bvp.Pack(*orbit), g;
+  Eigen::MatrixXd gx;
+  for (summary.iterations = 1; summary.iterations <= options.max_iterations; ++summary.iterations) {
+    if (Status s = bvp.Evaluate(x, orbit->params, &g, &gx, nullptr); !s.ok()) {
+      summary.message = s.message();
+      return summary;
+    }
+    const Eigen::VectorXd step = gx.colPivHouseholderQr().solve(-g);
+    if (!step.allFinite()) {
+      summary.message = "singular Newton system";
+      return summary;
+    }
+    x += step;
+    if (step.lpNorm<Eigen::Infinity>() <= options.tolerance * (1.0 + x.lpNorm<Eigen::Infinity>())) {
+      break;
+    }
+  }
+  if (Status s = bvp.Evaluate(x, orbit->params, &g, nullptr, nullptr); !s.ok()) {
+    summary.message = s.message();
+    return summary;
+  }
+  bvp.Unpack(x, orbit->params, orbit);
+  summary.residual = g.lpNorm<Eigen::Infinity>();
+  if (summary.iterations > options.max_iterations) {
+    summary.iterations = options.max_iterations;
+    summary.status = SolveStatus::kNoConvergence;
+    summary.message = "Newton did not converge in " + std::to_string(options.max_iterations) +
+                      " iterations (residual " + std::to_string(summary.residual) + ")";
+    return summary;
+  }
+  summary.status = SolveStatus::kConverged;
+  return summary;
+}
+
+Stability OrbitStability(const HybridModel& model, Propagator& propagator,
+                         const PeriodicOrbit& orbit) {
+  const int n = model.state_dim(), ps = model.phase_index(), k = orbit.durations.size();
+  Eigen::MatrixXd m = Eigen::MatrixXd::Identity(n, n);
+  FlowRequest req;
+  req.state_jacobian = true;
+  for (int i = 0; i < k; ++i) {
+    const SegmentSpec& seg = orbit.signature.segments[i];
+    const FlowResult fr =
+        propagator.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], orbit.params, req);
+    m = fr.state_jacobian * m;
+    if (seg.guard < 0) continue;
+    // Saltation: S = DR + (f+ - DR f-) grad h / (grad h . f-).
+    StateVector f_minus, f_plus;
+    model.VectorField(seg.mode, fr.x, orbit.params, &f_minus);
+    const Transition tr = model.Jump(seg.mode, seg.guard, fr.x, orbit.params);
+    model.VectorField(orbit.signature.segments[i + 1].mode, tr.x, orbit.params, &f_plus);
+    const StateRow grad = model.GuardGradient(seg.mode, seg.guard, fr.x, orbit.params);
+    const Eigen::VectorXd jump_f = tr.jacobian * f_minus;
+    const Eigen::MatrixXd salt = Eigen::MatrixXd(tr.jacobian) +
+                                 (Eigen::VectorXd(f_plus) - jump_f) * grad / grad.dot(f_minus);
+    m = salt * m;
+  }
+  Stability st;
+  st.monodromy.resize(n - 1, n - 1);
+  for (int i = 0, r = 0; i < n; ++i) {
+    if (i == ps) continue;
+    for (int j = 0, c = 0; j < n; ++j) {
+      if (j != ps) st.monodromy(r, c++) = m(i, j);
+    }
+    ++r;
+  }
+  const Eigen::VectorXcd mu = st.monodromy.eigenvalues();
+  st.stable = true;
+  for (int i = 0; i < mu.size(); ++i) {
+    // Structural zeros: the contact manifold's normal direction and fully decayed components;
+    // rounding leaves them at ~1e-16 times the monodromy's norm.
+    if (std::abs(mu[i]) <= 1e-12 * std::max(1.0, st.monodromy.norm())) {
+      ++st.structural_zeros;
+      continue;
+    }
+    st.multipliers.push_back(mu[i]);
+    st.stable = st.stable && std::abs(mu[i]) < 1.0;
+  }
+  std::sort(st.multipliers.begin(), st.multipliers.end(),
+            [](auto a, auto b) { return std::abs(a) > std::abs(b); });
+  return st;
+}
+
+std::vector<double> OrbitMeasures(const HybridModel& model, Propagator& propagator,
+                                  const PeriodicOrbit& orbit) {
+  const auto* closed = dynamic_cast<const ClosedFormFlow*>(&model);
+  MeasureVector sum = MeasureVector::Zero(model.measure_names().size());
+  double period = 0.0;
+  for (size_t i = 0; i < orbit.durations.size(); ++i) {
+    const int mode = orbit.signature.segments[i].mode;
+    if (closed) {
+      sum += closed->MeasureIncrements(mode, orbit.starts[i], orbit.durations[i], orbit.params);
+    } else {
+      AdvanceRequest req;
+      req.mode = mode, req.x0 = orbit.starts[i], req.t_max = orbit.durations[i];
+      req.measures = true;
+      sum += propagator.Advance(req, orbit.params).measures;
+    }
+    period += orbit.durations[i];
+  }
+  std::vector<double> means;
+  for (int j = 0; j < sum.size(); ++j) means.push_back(sum[j] / period);
+  return means;
+}
+
+Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
+                              const PeriodicOrbit& orbit) {
+  Admissibility a;
+  for (size_t i = 0; i < orbit.durations.size(); ++i) {
+    const SegmentSpec& seg = orbit.signature.segments[i];
+    const double tau = orbit.durations[i];
+    if (!(tau > 0.0)) {
+      a = {false, static_cast<int>(i), -1,
+           "segment " + std::to_string(i) + " (" + std::string(model.mode_name(seg.mode)) +
+               ") has duration " + std::to_string(tau) + " <= 0"};
+      return a;
+    }
+    // No guard may fire before the segment's end; the terminating one fires at tau itself, so
+    // look up to a relative 1e-9 before it (its guard is then ~1e-9 tau |h'| > tolerance).
+    AdvanceRequest req;
+    req.mode = seg.mode, req.x0 = orbit.starts[i], req.t_max = tau * (1.0 - 1e-9);
+    const AdvanceResult r = propagator.Advance(req, orbit.params);
+    if (r.end == AdvanceEnd::kEvent) {
+      a = {false, static_cast<int>(i), r.guard,
+           "segment " + std::to_string(i) + " (" + std::string(model.mode_name(seg.mode)) +
+               ") crosses " + model.guards(seg.mode)[r.guard].surface +
+               " at t = " + std::to_string(r.duration) + " of " + std::to_string(tau)};
+      return a;
+    }
+  }
+  return a;
+}
+
+StatusOr<PeriodicOrbit> OrbitFromSimulation(const HybridModel& model, Propagator& propagator,
+                                            const Params& params, const StateVector& x0,
+                                            const GuessOptions& options) {
+  SimulationOptions settle;
+  settle.transient_periods = std::max(0, options.transient_periods - 1);
+  settle.sample_periods = 1;
+  settle.outputs = SimulationOutputs{false, false, false, false, 0.0};
+  const SimulationResult first = Simulate(model, propagator, params, x0, settle);
+  if (first.termination != Termination::kCompleted) return first.status;
+  SimulationOptions look;
+  look.transient_periods = 0;
+  look.sample_periods = options.max_period;
+  look.outputs = SimulationOutputs{false, true, true, false, 0.0};
+  const SimulationResult r = Simulate(model, propagator, params, first.final_state, look);
+  if (r.termination != Termination::kCompleted) return r.status;
+
+  const StateVector& start = first.final_state;
+  int n = 0;
+  double closest = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < static_cast<int>(r.poincare.size()) && n == 0; ++k) {
+    const double dist = (r.poincare[k].x - start).lpNorm<Eigen::Infinity>() /
+                        (1.0 + start.lpNorm<Eigen::Infinity>());
+    closest = std::min(closest, dist);
+    if (dist <= options.return_tolerance) n = k + 1;
+  }
+  if (n == 0) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "no periodic orbit of period <= " + std::to_string(options.max_period) +
+                      " found after " + std::to_string(options.transient_periods) +
+                      " transient periods (closest return: " + std::to_string(closest) +
+                      " relative); the start is not near a periodic orbit, or the motion is "
+                      "chaotic");
+  }
+  const int ps = model.phase_index();
+  const double omega = model.ForcingFrequency(params);
+  PeriodicOrbit orbit;
+  orbit.params = params;
+  orbit.signature.periods = n;
+  int mode = first.final_mode;
+  StateVector seg_start = start;
+  double t0 = 0.0;
+  for (const EventRecord& e : r.events) {
+    if (e.period >= n) break;
+    if (e.from_mode == e.to_mode) continue;  // a touch that changes nothing is no segment end
+    orbit.signature.segments.push_back({mode, e.guard});
+    orbit.starts.push_back(seg_start);
+    orbit.durations.push_back(e.t - t0);
+    seg_start = model.Jump(e.from_mode, e.guard, e.x, params).x;
+    seg_start[ps] = omega * e.t;
+    t0 = e.t;
+    mode = e.to_mode;
+  }
+  orbit.signature.segments.push_back({mode, -1});
+  orbit.starts.push_back(seg_start);
+  orbit.durations.push_back(kTwoPi * n / omega - t0);
+  return orbit;
+}
+
+}  // namespace drillbif

@@ -1,0 +1,42 @@
+#include "drillbif/orbit/signature.h"
+
+namespace drillbif {
+
+std::string SignatureString(const HybridModel& model, const Signature& signature) {
+  std::string out;
+  for (const SegmentSpec& s : signature.segments) {
+    if (!out.empty()) out += ' ';
+    out += model.mode_name(s.mode);
+    out += s.guard >= 0 ? ">" + model.guards(s.mode)[s.guard].surface : "|";
+  }
+  if (signature.periods > 1) out += " x" + std::to_string(signature.periods);
+  return out;
+}
+
+std::vector<std::string> SignatureModes(const HybridModel& model, const Signature& signature) {
+  std::vector<std::string> modes;
+  for (const SegmentSpec& s : signature.segments) modes.emplace_back(model.mode_name(s.mode));
+  return modes;
+}
+
+Status ValidateSignature(const HybridModel& model, const Signature& signature) {
+  if (signature.periods < 1) return InvalidArgument("signature periods must be >= 1");
+  if (signature.segments.empty()) return InvalidArgument("signature has no segment");
+  const int k = static_cast<int>(signature.segments.size());
+  for (int i = 0; i < k; ++i) {
+    const SegmentSpec& s = signature.segments[i];
+    if (s.mode < 0 || s.mode >= model.num_modes()) {
+      return InvalidArgument("signature segment " + std::to_string(i) + ": no mode " +
+                             std::to_string(s.mode));
+    }
+    const bool last = i == k - 1;
+    if (last != (s.guard < 0) || s.guard >= static_cast<int>(model.guards(s.mode).size())) {
+      return InvalidArgument("signature segment " + std::to_string(i) +
+                             (last ? ": the last segment must end at the section"
+                                   : ": must end on a guard of its mode"));
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace drillbif
