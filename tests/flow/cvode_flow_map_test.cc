@@ -293,6 +293,7 @@ class PoisonedOscillator final : public HybridModel {
   Transition Jump(int m, int g, const StateVector& x, const Params& p) const override {
     return base_.Jump(m, g, x, p);
   }
+  int ModeAcross(int m, int g) const override { return base_.ModeAcross(m, g); }
   const std::vector<std::string>& measure_names() const override { return base_.measure_names(); }
   MeasureVector MeasureRates(int m, const StateVector& x, const Params& p) const override {
     return base_.MeasureRates(m, x, p);

@@ -83,6 +83,7 @@ class ForcedLinearOscillator final : public HybridModel, public LinearForm, publ
   double GuardCurvatureBound(int mode, int guard, const StateVector& x,
                              const Params& params) const override;
   Transition Jump(int mode, int guard, const StateVector& x, const Params& params) const override;
+  int ModeAcross(int /*mode*/, int /*guard*/) const override { return 0; }
   const std::vector<std::string>& measure_names() const override { return measure_names_; }
   MeasureVector MeasureRates(int mode, const StateVector& x, const Params& params) const override;
   double TimeScale(int mode, const Params& params) const override;

@@ -282,6 +282,14 @@ Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
   return t;
 }
 
+int DriftingOscillator::ModeAcross(int mode, int guard) const {
+  switch (mode) {
+    case kNoContact: return kContact;  // an impact that is not tangential starts contact
+    case kContact: return guard == kProgressionStart ? kProgression : kNoContact;
+    default: return kContact;
+  }
+}
+
 MeasureVector DriftingOscillator::MeasureRates(int mode, const StateVector& x,
                                                const Params& params) const {
   const double xi = params[kXi];

@@ -147,26 +147,32 @@ std::vector<double> OrbitMeasures(const HybridModel& model, Propagator& propagat
 Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
                               const PeriodicOrbit& orbit) {
   Admissibility a;
+  // A vanished segment first: it explains the guard crossings of its neighbours (past a grazing
+  // point the fixed-signature branch re-crosses the surface inside the adjacent segments).
+  for (size_t i = 0; i < orbit.durations.size(); ++i) {
+    const double tau = orbit.durations[i];
+    if (!(tau > 0.0)) {
+      const int mode = orbit.signature.segments[i].mode;
+      return {false, static_cast<int>(i), -1,
+              "segment " + std::to_string(i) + " (" + std::string(model.mode_name(mode)) +
+                  ") has duration " + std::to_string(tau) + " <= 0"};
+    }
+  }
   for (size_t i = 0; i < orbit.durations.size(); ++i) {
     const SegmentSpec& seg = orbit.signature.segments[i];
     const double tau = orbit.durations[i];
-    if (!(tau > 0.0)) {
-      a = {false, static_cast<int>(i), -1,
-           "segment " + std::to_string(i) + " (" + std::string(model.mode_name(seg.mode)) +
-               ") has duration " + std::to_string(tau) + " <= 0"};
-      return a;
-    }
-    // No guard may fire before the segment's end; the terminating one fires at tau itself, so
-    // look up to a relative 1e-9 before it (its guard is then ~1e-9 tau |h'| > tolerance).
+    // No guard may fire before the segment's end. The terminating one fires at tau itself: an
+    // event of it within a relative 1e-6 of tau is the segment's own end (a crossing cannot fall
+    // back through the surface in so short a time without touching it tangentially there).
     AdvanceRequest req;
-    req.mode = seg.mode, req.x0 = orbit.starts[i], req.t_max = tau * (1.0 - 1e-9);
+    req.mode = seg.mode, req.x0 = orbit.starts[i], req.t_max = tau;
     const AdvanceResult r = propagator.Advance(req, orbit.params);
-    if (r.end == AdvanceEnd::kEvent) {
-      a = {false, static_cast<int>(i), r.guard,
-           "segment " + std::to_string(i) + " (" + std::string(model.mode_name(seg.mode)) +
-               ") crosses " + model.guards(seg.mode)[r.guard].surface +
-               " at t = " + std::to_string(r.duration) + " of " + std::to_string(tau)};
-      return a;
+    const bool own_end = r.guard == seg.guard && r.duration >= tau * (1.0 - 1e-6);
+    if (r.end == AdvanceEnd::kEvent && !own_end) {
+      return {false, static_cast<int>(i), r.guard,
+              "segment " + std::to_string(i) + " (" + std::string(model.mode_name(seg.mode)) +
+                  ") crosses " + model.guards(seg.mode)[r.guard].surface +
+                  " at t = " + std::to_string(r.duration) + " of " + std::to_string(tau)};
     }
   }
   return a;

@@ -73,6 +73,7 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
   double GuardCurvatureBound(int mode, int guard, const StateVector& x,
                              const Params& params) const override;
   Transition Jump(int mode, int guard, const StateVector& x, const Params& params) const override;
+  int ModeAcross(int mode, int guard) const override;
   const std::vector<std::string>& measure_names() const override;
   MeasureVector MeasureRates(int mode, const StateVector& x, const Params& params) const override;
   double TimeScale(int mode, const Params& params) const override;

@@ -114,6 +114,9 @@ class HybridModel {
                                      const Params& params) const = 0;
   virtual Transition Jump(int mode, int guard, const StateVector& x,
                           const Params& params) const = 0;
+  // The mode a transversal crossing of `guard` enters from `mode` (at a grazing touch Jump may
+  // stay in `mode`; this is the mode on the guard's other side).
+  virtual int ModeAcross(int mode, int guard) const = 0;
 
   // ---- measures ----
   virtual const std::vector<std::string>& measure_names() const = 0;

@@ -1,0 +1,110 @@
+// One-parameter continuation of periodic orbits with detection, location and signature switching.
+//
+// Pseudo-arclength (Keller): on the branch G(X, lambda) = 0 of the orbit's boundary-value system
+// (orbit/periodic_orbit.h) a step predicts Y + h t along the unit tangent t of Y = (X, lambda) and
+// corrects by Newton on [G; t . (Y - Y_pred)] = 0 with the bordered Jacobian [G_X G_lambda; t^T].
+// The step h adapts to the corrector's iteration count (target_iterations), and a failed or
+// out-of-bounds step is retried shorter.
+//
+// Test functions, evaluated at every accepted point; a sign change between two points is located
+// by a safeguarded secant (Illinois) on the arclength, each trial point corrected onto the branch,
+// until the parameter is known to locate_tolerance:
+//   fold (LP)             t_lambda, the parameter component of the tangent
+//   period doubling (PD)  Re prod (mu_i + 1) over the nontrivial Floquet multipliers
+//   Neimark-Sacker (NS)   Re prod_{i<j} (mu_i mu_j - 1), reported when the pair is complex
+//   branch point (BP)     det [G_X G_lambda; t^T]
+//   ROP / Pc maximum      d ROP / ds along the tangent (Pc where the orbit never progresses)
+//   grazing, vanishing    a segment's duration, or the interior minimum of a guard of a segment,
+//                         crossing zero (found by the admissibility check of every point)
+// At a located grazing point the signature changes: a vanished segment is removed (and equal
+// neighbours merged); a guard touching zero inside a segment splits it around a new zero-length
+// segment of the mode across that guard. Continuation goes on with the new signature, so every
+// reported point is admissible.
+#ifndef DRILLBIF_CONTINUATION_CONTINUATION_H_
+#define DRILLBIF_CONTINUATION_CONTINUATION_H_
+
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "drillbif/orbit/periodic_orbit.h"
+
+namespace drillbif {
+
+enum class SpecialPointKind {
+  kFold,
+  kPeriodDoubling,
+  kNeimarkSacker,
+  kBranchPoint,
+  kGrazingL1,
+  kGrazingL2,
+  kGrazingPi,
+  kSignatureChange,
+  kRopMax,
+  kPowerMax,
+};
+const char* SpecialPointKindName(SpecialPointKind kind);  // "FOLD", "PERIOD_DOUBLING", ...
+
+// A point of a branch.
+struct ContinuationPoint {
+  double value = 0.0;            // the continuation parameter
+  PeriodicOrbit orbit;           // parameters, signature, segments
+  std::vector<double> measures;  // means over the orbit: ROP, Pc
+  Stability stability;           // multipliers, stable flag
+  double period = 0.0;           // 2 pi n / omega
+};
+
+struct SpecialPoint {
+  SpecialPointKind kind = SpecialPointKind::kFold;
+  ContinuationPoint point;  // the orbit at the located point
+  std::string detail;       // e.g. the signature before and after a switch
+};
+
+enum class ContinuationDirection { kIncreasing, kDecreasing, kBoth };
+
+struct ContinuationOptions {
+  std::string param;                                      // name of the continuation parameter
+  double min = -std::numeric_limits<double>::infinity();  // parameter bounds: stop there
+  double max = std::numeric_limits<double>::infinity();
+  ContinuationDirection direction = ContinuationDirection::kBoth;
+  double initial_step = 0.05;       // arclength of the first step (units of X and lambda)
+  double min_step = 1e-7;           // a step that must shrink below this fails the branch
+  double max_step = 2.0;            // longest step
+  int target_iterations = 3;        // corrector iterations aimed for; the step adapts
+  int max_iterations = 8;           // more fails the step (it is retried shorter)
+  int max_steps = 2000;             // per direction
+  double tolerance = 1e-11;         // corrector: scaled Newton step
+  double locate_tolerance = 1e-10;  // special points: parameter bracket width
+  bool locate = true;               // detect and locate special points
+  bool switch_signatures = true;    // at grazing, switch and go on (else stop there)
+
+  Status Validate() const;
+};
+
+struct ContinuationSummary {
+  Termination termination = Termination::kFailed;
+  Status status;
+  std::string message;
+  int steps = 0;
+  int rejected_steps = 0;
+  int newton_iterations = 0;
+};
+
+struct ContinuationResult {
+  std::vector<ContinuationPoint> points;     // along the branch, in increasing arclength
+  std::vector<SpecialPoint> special_points;  // in the order found
+  ContinuationSummary summary;
+};
+
+// Receives each accepted point and the fraction of the step budget used; false cancels.
+using ContinuationCallback = std::function<bool(const ContinuationPoint&, double fraction)>;
+
+// Continues the branch through `start` (a solved, admissible orbit).
+ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
+                            const PeriodicOrbit& start, const ContinuationOptions& options,
+                            const ContinuationCallback& callback = {});
+
+}  // namespace drillbif
+
+#endif  // DRILLBIF_CONTINUATION_CONTINUATION_H_

@@ -1,0 +1,377 @@
+#include "continuation/branch_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "continuation/signature_switch.h"
+
+namespace drillbif::internal {
+namespace {
+
+double Sign(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
+
+}  // namespace
+
+BranchTracer::BranchTracer(const HybridModel& model, Propagator& propagator,
+                           const ContinuationOptions& options, int param)
+    : model_(model), propagator_(propagator), options_(options), param_(param) {}
+
+Params BranchTracer::ParamsAt(double value) const {
+  Params p = base_;
+  p[param_] = value;
+  return p;
+}
+
+Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_start,
+                          ContinuationResult* result) {
+  base_ = start.params;
+  bvp_ = std::make_unique<OrbitBvp>(model_, propagator_, start.signature, param_);
+  y_.resize(m() + 1);
+  y_.head(m()) = bvp_->Pack(start);
+  y_[m()] = start.params[param_];
+  Vec prev = Vec::Zero(m() + 1);
+  prev[m()] = sign > 0 ? 1.0 : -1.0;
+  double det = 0.0;
+  if (!Tangent(y_, prev, &t_, &det)) return Internal("no tangent at the start orbit");
+  point_ = MakePoint(y_);
+  tests_ = Tests(y_, t_, det, point_);
+  h_ = options_.initial_step;
+  if (record_start) result->points.push_back(point_);
+  return Status::Ok();
+}
+
+bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations) {
+  *y = y_pred;
+  Vec g, gp;
+  Eigen::MatrixXd gx, a(m() + 1, m() + 1);
+  Vec r(m() + 1);
+  for (int it = 1; it <= options_.max_iterations; ++it) {
+    const Params prm = ParamsAt((*y)[m()]);
+    if (!model_.ValidateParams(prm).ok()) return false;
+    if (!bvp_->Evaluate(y->head(m()), prm, &g, &gx, &gp).ok()) return false;
+    a.topLeftCorner(m(), m()) = gx;
+    a.topRightCorner(m(), 1) = gp;
+    a.bottomRows(1) = dir.transpose();
+    r.head(m()) = g;
+    r[m()] = dir.dot(*y - y_pred);
+    const Vec step = a.partialPivLu().solve(-r);
+    if (!step.allFinite()) return false;
+    *y += step;
+    ++newton_;
+    if (step.lpNorm<Eigen::Infinity>() <=
+        options_.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>())) {
+      *iterations = it;
+      return model_.ValidateParams(ParamsAt((*y)[m()])).ok();
+    }
+  }
+  return false;
+}
+
+bool BranchTracer::Tangent(const Vec& y, const Vec& prev, Vec* t, double* det) {
+  Vec g, gp;
+  Eigen::MatrixXd gx, a(m() + 1, m() + 1);
+  if (!bvp_->Evaluate(y.head(m()), ParamsAt(y[m()]), &g, &gx, &gp).ok()) return false;
+  a.topLeftCorner(m(), m()) = gx;
+  a.topRightCorner(m(), 1) = gp;
+  a.bottomRows(1) = prev.transpose();
+  Vec e = Vec::Zero(m() + 1);
+  e[m()] = 1.0;
+  *t = a.partialPivLu().solve(e);
+  if (!t->allFinite() || t->norm() == 0.0) return false;
+  t->normalize();
+  if (t->dot(prev) < 0.0) *t = -*t;
+  a.bottomRows(1) = t->transpose();
+  *det = Sign(a.partialPivLu().determinant());
+  return true;
+}
+
+ContinuationPoint BranchTracer::MakePoint(const Vec& y) const {
+  ContinuationPoint p;
+  p.value = y[m()];
+  bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &p.orbit);
+  p.measures = OrbitMeasures(model_, propagator_, p.orbit);
+  p.stability = OrbitStability(model_, propagator_, p.orbit);
+  p.period = kTwoPi * p.orbit.signature.periods / model_.ForcingFrequency(p.orbit.params);
+  return p;
+}
+
+double BranchTracer::Measure(const Vec& y, int index) const {
+  PeriodicOrbit o;
+  bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &o);
+  return OrbitMeasures(model_, propagator_, o)[index];
+}
+
+TestValues BranchTracer::Tests(const Vec& y, const Vec& t, double det,
+                               const ContinuationPoint& p) const {
+  TestValues v;
+  v.fold = t[m()];
+  v.branch_point = det;
+  std::complex<double> pd = 1.0, ns = 1.0;
+  const auto& mu = p.stability.multipliers;
+  v.nontrivial = static_cast<int>(mu.size());
+  for (size_t i = 0; i < mu.size(); ++i) {
+    pd *= mu[i] + 1.0;
+    if (std::abs(mu[i].imag()) > 1e-12 * std::abs(mu[i])) v.complex_pair = true;
+    for (size_t j = i + 1; j < mu.size(); ++j) ns *= mu[i] * mu[j] - 1.0;
+  }
+  v.period_doubling = pd.real();
+  v.neimark_sacker = ns.real();
+  // d measure / ds: Richardson-extrapolated central differences along t (truncation ~eps^4, so
+  // eps = 1e-3 in the units of Y leaves ~1e-12 of error, rounding ~1e-13).
+  v.power = p.measures[0] == 0.0;
+  const int index = v.power ? 1 : 0;
+  auto central = [&](double eps) {
+    return (Measure(y + eps * t, index) - Measure(y - eps * t, index)) / (2.0 * eps);
+  };
+  constexpr double kEps = 1e-3;
+  v.slope = (4.0 * central(0.5 * kEps) - central(kEps)) / 3.0;
+  return v;
+}
+
+bool BranchTracer::PointAt(double sigma, Vec* y) {
+  int iterations = 0;
+  return Correct(y_ + sigma * t_, t_, y, &iterations);
+}
+
+bool BranchTracer::Locate(double h, double psi0, double psi1,
+                          const std::function<double(const Vec&)>& psi, bool stationary,
+                          Vec* y_root) {
+  // Illinois: regula falsi that halves the stale end's value, superlinear and bracketing.
+  double a = 0.0, fa = psi0, b = h, fb = psi1;
+  double lambda_a = y_[m()], lambda_b = lambda_a;
+  int side = 0;
+  Vec y;
+  bool have = false;
+  for (int it = 0; it < 100; ++it) {
+    double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
+    if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
+    if (!PointAt(sigma, &y)) {
+      sigma = 0.5 * (a + b);
+      if (!PointAt(sigma, &y)) return have;
+    }
+    have = true;
+    *y_root = y;
+    const double f = psi(y);
+    if (f == 0.0) return true;
+    if (Sign(f) == Sign(fa)) {
+      a = sigma, fa = f, lambda_a = y[m()];
+      if (side == -1) fb *= 0.5;
+      side = -1;
+    } else {
+      b = sigma, fb = f, lambda_b = y[m()];
+      if (side == +1) fa *= 0.5;
+      side = +1;
+    }
+    const bool narrow = b - a <= 1e-14 * std::max(1.0, h);
+    const bool located =
+        stationary
+            ? b - a <= 1e-9 * std::max(1.0, h)
+            : (side != 0 && std::abs(lambda_b - lambda_a) <= options_.locate_tolerance && it > 0);
+    if (narrow || located) return true;
+  }
+  return have;
+}
+
+void BranchTracer::AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
+                              ContinuationResult* result) const {
+  SpecialPoint sp;
+  sp.kind = kind;
+  sp.point = MakePoint(y);
+  sp.detail = std::move(detail);
+  result->special_points.push_back(std::move(sp));
+}
+
+void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, ContinuationResult* result) {
+  const TestValues& t0 = tests_;
+  Vec y;
+  auto tests_at = [&](const Vec& yy) {
+    Vec t;
+    double det = 0.0;
+    Tangent(yy, t_, &t, &det);
+    return Tests(yy, t, det, MakePoint(yy));
+  };
+  if (Sign(t0.fold) != Sign(t1.fold)) {
+    if (Locate(
+            h, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y)) {
+      AddSpecial(SpecialPointKind::kFold, y, "", result);
+    }
+  }
+  if (Sign(t0.period_doubling) != Sign(t1.period_doubling) && t0.nontrivial == t1.nontrivial) {
+    if (Locate(
+            h, t0.period_doubling, t1.period_doubling,
+            [&](const Vec& yy) { return tests_at(yy).period_doubling; }, false, &y)) {
+      AddSpecial(SpecialPointKind::kPeriodDoubling, y, "", result);
+    }
+  }
+  if (Sign(t0.neimark_sacker) != Sign(t1.neimark_sacker) && t0.nontrivial == t1.nontrivial &&
+      t0.nontrivial >= 2 && (t0.complex_pair || t1.complex_pair)) {
+    if (Locate(
+            h, t0.neimark_sacker, t1.neimark_sacker,
+            [&](const Vec& yy) { return tests_at(yy).neimark_sacker; }, false, &y) &&
+        tests_at(y).complex_pair) {
+      AddSpecial(SpecialPointKind::kNeimarkSacker, y, "", result);
+    }
+  }
+  if (Sign(t0.branch_point) != Sign(t1.branch_point) && t0.branch_point != 0.0) {
+    // det changes sign without passing zero continuously: locate on the sign alone.
+    if (Locate(
+            h, t0.branch_point, t1.branch_point,
+            [&](const Vec& yy) { return tests_at(yy).branch_point; }, false, &y)) {
+      AddSpecial(SpecialPointKind::kBranchPoint, y, "", result);
+    }
+  }
+  if (t0.power == t1.power && t0.slope > 0.0 && t1.slope < 0.0) {
+    if (Locate(
+            h, t0.slope, t1.slope, [&](const Vec& yy) { return tests_at(yy).slope; }, false, &y)) {
+      AddSpecial(t0.power ? SpecialPointKind::kPowerMax : SpecialPointKind::kRopMax, y, "", result);
+    }
+  }
+}
+
+bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
+                                ContinuationResult* result) {
+  auto psi = [&](const Vec& yy) {
+    PeriodicOrbit o;
+    bvp_->Unpack(yy.head(m()), ParamsAt(yy[m()]), &o);
+    return ViolationTestFunction(model_, propagator_, o, violation);
+  };
+  const double psi0 = psi(y_);
+  Vec y1;
+  if (!PointAt(h, &y1)) return false;
+  const double psi1 = psi(y1);
+  Vec y_star;
+  // The parameter is stationary at a grazing point where a segment vanishes (the fixed-signature
+  // branch folds back there, with b - b* ~ tau^2), so bracket the root in arclength.
+  if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h, psi0, psi1, psi, true, &y_star)) {
+    return false;
+  }
+  // Special points of the old signature before the grazing point.
+  Vec t_star;
+  double det = 0.0;
+  if (!Tangent(y_star, t_, &t_star, &det)) return false;
+  const ContinuationPoint at_graze = MakePoint(y_star);
+  if (options_.locate) {
+    // Up to just before the grazing point: the fixed-signature branch folds back at a vanishing
+    // segment, and that fold belongs to no physical orbit, so it must not be reported.
+    const double sigma = t_.dot(y_star - y_) * (1.0 - 1e-6);
+    Vec y_before, t_before;
+    double det_before = 0.0;
+    if (PointAt(sigma, &y_before) && Tangent(y_before, t_, &t_before, &det_before)) {
+      TestValues before = Tests(y_before, t_before, det_before, MakePoint(y_before));
+      before.fold = tests_.fold;  // the fixed-signature branch's fold here is not physical
+      DetectSpecialPoints(sigma, before, result);
+    }
+  }
+  const SwitchedOrbit sw = SwitchSignature(model_, propagator_, at_graze.orbit, violation);
+  SpecialPoint sp;
+  sp.kind = sw.kind;
+  sp.point = at_graze;
+  sp.detail = sw.detail;
+  result->special_points.push_back(sp);
+  result->points.push_back(at_graze);
+  if (!options_.switch_signatures) {
+    Finish(Termination::kCompleted, "stopped at " + std::string(SpecialPointKindName(sw.kind)) +
+                                        " (signature switching is off)");
+    return false;
+  }
+  // Go on with the new signature from the same point, in the same parameter direction.
+  // Keep the parameter direction of the last regular point: at a vanishing segment the tangent at
+  // the grazing point is the fake fold's, with an arbitrary parameter component.
+  const double direction = Sign(t_[m()]) != 0.0 ? Sign(t_[m()]) : Sign(t_star[m()]);
+  const double value = y_star[m()];  // m() changes with the signature below
+  bvp_ = std::make_unique<OrbitBvp>(model_, propagator_, sw.orbit.signature, param_);
+  Vec y(m() + 1);
+  y.head(m()) = bvp_->Pack(sw.orbit);
+  y[m()] = value;
+  Vec fix = Vec::Zero(m() + 1);
+  fix[m()] = 1.0;
+  int iterations = 0;
+  if (!Correct(y, fix, &y_, &iterations)) {
+    Finish(Termination::kFailed, "could not solve the orbit of the new signature " +
+                                     SignatureString(model_, sw.orbit.signature));
+    return false;
+  }
+  Vec prev = Vec::Zero(m() + 1);
+  prev[m()] = direction;
+  if (!Tangent(y_, prev, &t_, &det)) return false;
+  point_ = MakePoint(y_);
+  tests_ = Tests(y_, t_, det, point_);
+  return true;
+}
+
+void BranchTracer::Finish(Termination termination, std::string message) {
+  termination_ = termination;
+  message_ = std::move(message);
+}
+
+bool BranchTracer::Step(ContinuationResult* result) {
+  if (steps_ >= options_.max_steps) {
+    Finish(Termination::kCompleted, "reached max_steps");
+    return false;
+  }
+  while (true) {
+    Vec y1;
+    int iterations = 0;
+    if (!Correct(y_ + h_ * t_, t_, &y1, &iterations)) {
+      ++rejected_;
+      h_ *= 0.5;
+      if (h_ < options_.min_step) {
+        Finish(Termination::kFailed, "the corrector failed down to min_step at " +
+                                         model_.param_names()[param_] + " = " +
+                                         std::to_string(y_[m()]));
+        return false;
+      }
+      continue;
+    }
+    const double h = h_;
+    // Adapt the next step to the corrector's effort.
+    const double factor = iterations <= options_.target_iterations - 1  ? 1.6
+                          : iterations > options_.target_iterations + 1 ? 0.6
+                                                                        : 1.0;
+    h_ = std::clamp(h_ * factor, options_.min_step, options_.max_step);
+    ++steps_;
+
+    const double value = y1[m()];
+    const double bound = value > options_.max ? options_.max : options_.min;
+    const bool outside = value > options_.max || value < options_.min;
+    ContinuationPoint p1 = MakePoint(y1);
+    const Admissibility adm = CheckAdmissible(model_, propagator_, p1.orbit);
+    if (!adm.admissible && !outside) {
+      if (!CrossGrazing(h, adm, result)) {
+        if (termination_ == Termination::kCompleted && message_.empty()) {
+          Finish(Termination::kFailed, "could not locate or cross: " + adm.message);
+        }
+        return false;
+      }
+      return true;
+    }
+    if (outside) {
+      // Land on the bound exactly (the parameter is monotone over one short step).
+      Vec y_b;
+      if (Locate(
+              h, y_[m()] - bound, value - bound, [&](const Vec& yy) { return yy[m()] - bound; },
+              false, &y_b)) {
+        result->points.push_back(MakePoint(y_b));
+      }
+      Finish(Termination::kCompleted,
+             "reached " + model_.param_names()[param_] + " = " + std::to_string(bound));
+      return false;
+    }
+    Vec t1;
+    double det = 0.0;
+    if (!Tangent(y1, t_, &t1, &det)) {
+      Finish(Termination::kFailed, "no tangent");
+      return false;
+    }
+    const TestValues tests1 = Tests(y1, t1, det, p1);
+    if (options_.locate) DetectSpecialPoints(h, tests1, result);
+    y_ = y1;
+    t_ = t1;
+    point_ = std::move(p1);
+    tests_ = tests1;
+    result->points.push_back(point_);
+    return true;
+  }
+}
+
+}  // namespace drillbif::internal

@@ -1,0 +1,93 @@
+// The steppable core of one-parameter continuation in one direction (see
+// continuation/continuation.h for the method): Init at a solved orbit, then Step until it returns
+// false. Each Step appends the accepted point, and any special point located on the way, to a
+// ContinuationResult.
+#ifndef DRILLBIF_CONTINUATION_BRANCH_TRACER_H_
+#define DRILLBIF_CONTINUATION_BRANCH_TRACER_H_
+
+#include <Eigen/Dense>
+#include <functional>
+#include <memory>
+
+#include "drillbif/continuation/continuation.h"
+#include "orbit/orbit_bvp.h"
+
+namespace drillbif::internal {
+
+// Test function values at one point of the branch.
+struct TestValues {
+  double fold = 0.0;  // parameter component of the unit tangent
+  double period_doubling = 0.0;
+  double neimark_sacker = 0.0;
+  bool complex_pair = false;  // the nontrivial multipliers include a complex pair
+  int nontrivial = 0;         // number of nontrivial multipliers
+  double branch_point = 0.0;  // sign of det [G_X G_lambda; t^T]
+  double slope = 0.0;         // d measure / ds along the tangent
+  bool power = false;         // the measure is Pc (the orbit has no progression: ROP = 0)
+};
+
+class BranchTracer {
+ public:
+  BranchTracer(const HybridModel& model, Propagator& propagator, const ContinuationOptions& options,
+               int param);
+
+  // Starts at `start` (solved, admissible), heading towards increasing (sign > 0) or decreasing
+  // parameter values. Appends the start point to `result` when `record_start`.
+  Status Init(const PeriodicOrbit& start, int sign, bool record_start, ContinuationResult* result);
+  // One continuation step. False when the branch has ended; then termination() and message() say
+  // why.
+  bool Step(ContinuationResult* result);
+
+  Termination termination() const { return termination_; }
+  const std::string& message() const { return message_; }
+  int steps() const { return steps_; }
+  int rejected() const { return rejected_; }
+  int newton_iterations() const { return newton_; }
+
+ private:
+  using Vec = Eigen::VectorXd;
+
+  Params ParamsAt(double value) const;
+  int m() const { return bvp_->size(); }
+  // Newton on [G; dir . (y - y_pred)] = 0 from y_pred.
+  bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations);
+  // Unit tangent at y oriented along `prev` (same size), and det of the bordered matrix with it.
+  bool Tangent(const Vec& y, const Vec& prev, Vec* t, double* det);
+  ContinuationPoint MakePoint(const Vec& y) const;
+  double Measure(const Vec& y, int index) const;
+  TestValues Tests(const Vec& y, const Vec& t, double det, const ContinuationPoint& p) const;
+  // The point at arclength sigma in [0, h] of the current step (predicted along t_, corrected).
+  bool PointAt(double sigma, Vec* y);
+  // Locates a root of psi between the current point (sigma 0, value psi0) and sigma = h (psi1).
+  // `stationary`: the parameter is stationary at the root (a fold), so the bracket is shrunk in
+  // arclength rather than stopped on the parameter's spread.
+  bool Locate(double h, double psi0, double psi1, const std::function<double(const Vec&)>& psi,
+              bool stationary, Vec* y_root);
+  // Detects sign changes of the test functions between the current point and (y1, tests1) at
+  // arclength h, and appends the located special points.
+  void DetectSpecialPoints(double h, const TestValues& tests1, ContinuationResult* result);
+  void AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
+                  ContinuationResult* result) const;
+  // Handles an inadmissible corrected point at arclength h: locates the grazing, records it and
+  // switches the signature. False when the branch cannot go on.
+  bool CrossGrazing(double h, const Admissibility& violation, ContinuationResult* result);
+  void Finish(Termination termination, std::string message);
+
+  const HybridModel& model_;
+  Propagator& propagator_;
+  const ContinuationOptions& options_;
+  int param_;
+  Params base_;
+  std::unique_ptr<OrbitBvp> bvp_;
+  Vec y_, t_;       // current point (X, lambda) and unit tangent
+  double h_ = 0.0;  // next step length
+  ContinuationPoint point_;
+  TestValues tests_;
+  int steps_ = 0, rejected_ = 0, newton_ = 0;
+  Termination termination_ = Termination::kCompleted;
+  std::string message_;
+};
+
+}  // namespace drillbif::internal
+
+#endif  // DRILLBIF_CONTINUATION_BRANCH_TRACER_H_

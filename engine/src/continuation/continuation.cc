@@ -1,0 +1,128 @@
+#include "drillbif/continuation/continuation.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "continuation/branch_tracer.h"
+
+namespace drillbif {
+
+const char* SpecialPointKindName(SpecialPointKind kind) {
+  switch (kind) {
+    case SpecialPointKind::kFold:
+      return "FOLD";
+    case SpecialPointKind::kPeriodDoubling:
+      return "PERIOD_DOUBLING";
+    case SpecialPointKind::kNeimarkSacker:
+      return "NEIMARK_SACKER";
+    case SpecialPointKind::kBranchPoint:
+      return "BRANCH_POINT";
+    case SpecialPointKind::kGrazingL1:
+      return "GRAZING_L1";
+    case SpecialPointKind::kGrazingL2:
+      return "GRAZING_L2";
+    case SpecialPointKind::kGrazingPi:
+      return "GRAZING_PI";
+    case SpecialPointKind::kSignatureChange:
+      return "SIGNATURE_CHANGE";
+    case SpecialPointKind::kRopMax:
+      return "ROP_MAX";
+    case SpecialPointKind::kPowerMax:
+      return "POWER_MAX";
+  }
+  return "?";
+}
+
+Status ContinuationOptions::Validate() const {
+  if (param.empty()) return InvalidArgument("param: the continuation parameter must be named");
+  if (std::isnan(min) || std::isnan(max) || !(max > min)) {
+    return InvalidArgument("the parameter range is empty: need min < max (got min = " +
+                           std::to_string(min) + ", max = " + std::to_string(max) + ")");
+  }
+  if (!(initial_step > 0.0 && min_step > 0.0 && max_step >= min_step && std::isfinite(max_step))) {
+    return InvalidArgument("steps: need 0 < min_step <= max_step < inf and initial_step > 0");
+  }
+  if (target_iterations < 1 || max_iterations < target_iterations) {
+    return InvalidArgument("need 1 <= target_iterations <= max_iterations");
+  }
+  if (max_steps < 1) return InvalidArgument("max_steps must be >= 1");
+  if (!(tolerance > 0.0) || !(locate_tolerance > 0.0)) {
+    return InvalidArgument("tolerance and locate_tolerance must be > 0");
+  }
+  return Status::Ok();
+}
+
+ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
+                            const PeriodicOrbit& start, const ContinuationOptions& options,
+                            const ContinuationCallback& callback) {
+  ContinuationResult result;
+  ContinuationSummary& sum = result.summary;
+  auto fail = [&](Status s) {
+    sum.termination = Termination::kFailed;
+    sum.status = s;
+    sum.message = s.message();
+    return result;
+  };
+  if (Status s = options.Validate(); !s.ok()) return fail(s);
+  StatusOr<int> param = model.ParamIndex(options.param);
+  if (!param.ok()) return fail(Status(StatusCode::kInvalidArgument, param.status().message()));
+  if (Status s = ValidateSignature(model, start.signature); !s.ok()) return fail(s);
+  if (Status s = model.ValidateParams(start.params); !s.ok()) return fail(s);
+  const double value = start.params[*param];
+  if (value < options.min || value > options.max) {
+    return fail(InvalidArgument("the start orbit's " + options.param + " = " +
+                                std::to_string(value) + " is outside [min, max]"));
+  }
+  const Admissibility adm = CheckAdmissible(model, propagator, start);
+  if (!adm.admissible) {
+    return fail(Status(StatusCode::kFailedPrecondition,
+                       "the start orbit is not admissible: " + adm.message));
+  }
+
+  std::vector<int> signs;
+  if (options.direction != ContinuationDirection::kDecreasing) signs.push_back(+1);
+  if (options.direction != ContinuationDirection::kIncreasing) signs.push_back(-1);
+  std::vector<ContinuationPoint> backward;
+  std::vector<std::string> endings;
+  sum.termination = Termination::kCompleted;
+  bool cancelled = false;
+  for (size_t d = 0; d < signs.size() && !cancelled; ++d) {
+    internal::BranchTracer tracer(model, propagator, options, *param);
+    ContinuationResult part;
+    if (Status s = tracer.Init(start, signs[d], d == 0, &part); !s.ok()) return fail(s);
+    while (tracer.Step(&part)) {
+      if (callback && !callback(part.points.back(),
+                                (d + double(tracer.steps()) / options.max_steps) / signs.size())) {
+        cancelled = true;
+        break;
+      }
+    }
+    sum.steps += tracer.steps();
+    sum.rejected_steps += tracer.rejected();
+    sum.newton_iterations += tracer.newton_iterations();
+    const char* way = signs[d] > 0 ? "increasing" : "decreasing";
+    endings.push_back(std::string(way) + ": " + (cancelled ? "cancelled" : tracer.message()));
+    if (tracer.termination() == Termination::kFailed) sum.termination = Termination::kFailed;
+    auto& specials = result.special_points;
+    specials.insert(specials.end(), part.special_points.begin(), part.special_points.end());
+    if (signs[d] > 0) {
+      result.points = std::move(part.points);
+    } else {
+      backward = std::move(part.points);
+    }
+  }
+  // Branch order: the decreasing part reversed, then the start and the increasing part.
+  std::reverse(backward.begin(), backward.end());
+  backward.insert(backward.end(), result.points.begin(), result.points.end());
+  result.points = std::move(backward);
+  for (const std::string& e : endings) sum.message += (sum.message.empty() ? "" : "; ") + e;
+  if (cancelled) {
+    sum.termination = Termination::kCancelled;
+    sum.status = Status(StatusCode::kCancelled, "continuation cancelled");
+  } else if (sum.termination == Termination::kFailed) {
+    sum.status = Internal(sum.message);
+  }
+  return result;
+}
+
+}  // namespace drillbif

@@ -1,0 +1,135 @@
+#include "continuation/signature_switch.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace drillbif::internal {
+namespace {
+
+// The kind of a grazing named after the surface the orbit touches (the drifting oscillator's Pi,
+// l1, l2); SIGNATURE_CHANGE for a segment that vanishes without a tangency.
+SpecialPointKind KindOfSurface(const std::string& surface) {
+  if (surface == "l1") return SpecialPointKind::kGrazingL1;
+  if (surface == "l2") return SpecialPointKind::kGrazingL2;
+  if (surface == "Pi") return SpecialPointKind::kGrazingPi;
+  return SpecialPointKind::kSignatureChange;
+}
+
+// A segment vanishes between the event that starts it and the one that ends it. Entered and left
+// through the same surface, the orbit touches that surface (a CwP phase between two l1 events:
+// l1 grazing). A free flight between separation and impact vanishes when the separation becomes
+// tangential (l2); a contact phase between impact and separation when the impact does (Pi).
+// Anything else (a contact phase between impact and progression: the force at impact reaches the
+// threshold) is a signature change without grazing.
+SpecialPointKind KindOfVanishing(const HybridModel& model, const Signature& sig, int i) {
+  const int k = static_cast<int>(sig.segments.size());
+  const SegmentSpec& seg = sig.segments[i];
+  const SegmentSpec& prev = sig.segments[(i + k - 1) % k];
+  if (seg.guard < 0 || prev.guard < 0) return SpecialPointKind::kSignatureChange;
+  const std::string& in = model.guards(prev.mode)[prev.guard].surface;
+  const std::string& out = model.guards(seg.mode)[seg.guard].surface;
+  if (in == out) return KindOfSurface(in);
+  if (in == "l2" && out == "Pi") return SpecialPointKind::kGrazingL2;
+  if (in == "Pi" && out == "l2") return SpecialPointKind::kGrazingPi;
+  return SpecialPointKind::kSignatureChange;
+}
+
+}  // namespace
+
+GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagator,
+                                 const PeriodicOrbit& orbit, int segment, int guard) {
+  const int mode = orbit.signature.segments[segment].mode;
+  const StateVector& x0 = orbit.starts[segment];
+  const double tau = orbit.durations[segment];
+  const Params& prm = orbit.params;
+  auto at = [&](double t) {
+    return model.Guard(mode, guard, propagator.FlowMap(mode, x0, t, prm, {}).x, prm);
+  };
+  constexpr int kSamples = 64;
+  double h[kSamples + 1];
+  for (int j = 0; j <= kSamples; ++j) h[j] = at(tau * j / kSamples).h;
+  GuardMinimum best, sampled;
+  for (int j = 1; j < kSamples; ++j) {
+    if (h[j] < sampled.h) sampled = {tau * j / kSamples, h[j]};
+  }
+  for (int j = 1; j < kSamples; ++j) {
+    if (!(h[j] <= h[j - 1] && h[j] <= h[j + 1])) continue;
+    // Newton on h' from the sampled minimum, kept inside its neighbouring samples.
+    const double lo = tau * (j - 1) / kSamples, hi = tau * (j + 1) / kSamples;
+    double t = tau * j / kSamples;
+    GuardValue g = at(t);
+    for (int it = 0; it < 30 && g.ddh > 0.0; ++it) {
+      const double next = std::clamp(t - g.dh / g.ddh, lo, hi);
+      const bool done = std::abs(next - t) <= 1e-15 * std::max(1.0, tau);
+      t = next;
+      g = at(t);
+      if (done) break;
+    }
+    if (g.h < best.h) best = {t, g.h};
+  }
+  return std::isfinite(best.h) ? best : sampled;
+}
+
+double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
+                             const PeriodicOrbit& orbit, const Admissibility& violation) {
+  if (violation.guard < 0) return orbit.durations[violation.segment];
+  return SegmentGuardMinimum(model, propagator, orbit, violation.segment, violation.guard).h;
+}
+
+SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
+                              const PeriodicOrbit& orbit, const Admissibility& violation) {
+  SwitchedOrbit out;
+  out.orbit = orbit;
+  PeriodicOrbit& o = out.orbit;
+  std::vector<SegmentSpec>& segs = o.signature.segments;
+  const int i = violation.segment;
+  if (violation.guard < 0) {
+    // Remove the vanished segment; merge its neighbours when they are in the same mode (both
+    // inside the period: across the section they stay two segments).
+    out.kind = KindOfVanishing(model, orbit.signature, i);
+    const int k = static_cast<int>(segs.size());
+    if (i > 0 && i < k - 1 && segs[i - 1].mode == segs[i + 1].mode) {
+      segs[i - 1].guard = segs[i + 1].guard;
+      o.durations[i - 1] += o.durations[i] + o.durations[i + 1];
+      segs.erase(segs.begin() + i, segs.begin() + i + 2);
+      o.starts.erase(o.starts.begin() + i, o.starts.begin() + i + 2);
+      o.durations.erase(o.durations.begin() + i, o.durations.begin() + i + 2);
+    } else {
+      if (i > 0) {
+        segs[i - 1].guard = segs[i].guard;
+        o.durations[i - 1] += o.durations[i];
+      } else if (k > 1) {
+        o.durations[1] += o.durations[0];
+        o.starts[1] = o.starts[0];
+      }
+      segs.erase(segs.begin() + i);
+      o.starts.erase(o.starts.begin() + i);
+      o.durations.erase(o.durations.begin() + i);
+    }
+  } else {
+    // Split segment i at the touch: (m > guard) (m2 > back) (m > old end), m2 = the mode across.
+    const SegmentSpec seg = segs[i];
+    const int m2 = model.ModeAcross(seg.mode, violation.guard);
+    int back = -1;
+    for (int g = 0; g < static_cast<int>(model.guards(m2).size()); ++g) {
+      if (model.ModeAcross(m2, g) == seg.mode) back = g;
+    }
+    out.kind = KindOfSurface(model.guards(seg.mode)[violation.guard].surface);
+    // The touching time: the guard's interior minimum.
+    const StateVector x0 = o.starts[i];
+    const double tau = o.durations[i];
+    const double t_touch = SegmentGuardMinimum(model, propagator, orbit, i, violation.guard).t;
+    StateVector xt = propagator.FlowMap(seg.mode, x0, t_touch, o.params, {}).x;
+    const StateVector x_across = model.Jump(seg.mode, violation.guard, xt, o.params).x;
+    segs[i].guard = violation.guard;
+    segs.insert(segs.begin() + i + 1, {{m2, back}, {seg.mode, seg.guard}});
+    o.durations[i] = t_touch;
+    o.durations.insert(o.durations.begin() + i + 1, {0.0, tau - t_touch});
+    o.starts.insert(o.starts.begin() + i + 1, {x_across, x_across});
+  }
+  out.detail =
+      SignatureString(model, orbit.signature) + " -> " + SignatureString(model, o.signature);
+  return out;
+}
+
+}  // namespace drillbif::internal

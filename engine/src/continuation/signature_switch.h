@@ -1,0 +1,44 @@
+// Signature switching at grazing points: what an admissibility violation means, the test function
+// that locates it, and the orbit with the new signature at the located point.
+#ifndef DRILLBIF_CONTINUATION_SIGNATURE_SWITCH_H_
+#define DRILLBIF_CONTINUATION_SIGNATURE_SWITCH_H_
+
+#include <limits>
+#include <string>
+
+#include "drillbif/continuation/continuation.h"
+
+namespace drillbif::internal {
+
+// The lowest interior local minimum over (0, tau) of guard `guard` along segment `segment`:
+// dense samples, each sampled local minimum refined by Newton on h' to the stationary point
+// (a smooth function of the orbit near a touch). Endpoint values do not count: the segment
+// starts or ends on some guards by construction. Without an interior local minimum, the smallest
+// interior sample stands in (positive while admissible, so it still brackets a later touch).
+struct GuardMinimum {
+  double t = 0.0;
+  double h = std::numeric_limits<double>::infinity();
+};
+GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagator,
+                                 const PeriodicOrbit& orbit, int segment, int guard);
+
+// The test function of a violation found by CheckAdmissible: positive while admissible, zero at
+// the grazing point. (-1 guard: the segment's duration; else the guard's interior minimum.)
+double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
+                             const PeriodicOrbit& orbit, const Admissibility& violation);
+
+struct SwitchedOrbit {
+  PeriodicOrbit orbit;    // same state, new signature
+  SpecialPointKind kind;  // GRAZING_L1 / L2 / PI, or SIGNATURE_CHANGE
+  std::string detail;     // "NC>Pi CwoP>l1 ... -> NC>Pi CwoP>l2 NC|"
+};
+
+// The orbit at a located grazing point, re-expressed in the signature that continues past it:
+// a vanished segment removed (equal neighbours merged), or a segment split around a new
+// zero-length segment of the mode across the touching guard.
+SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
+                              const PeriodicOrbit& orbit, const Admissibility& violation);
+
+}  // namespace drillbif::internal
+
+#endif  // DRILLBIF_CONTINUATION_SIGNATURE_SWITCH_H_
