@@ -263,39 +263,55 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
     }
   }
   const SwitchedOrbit sw = SwitchSignature(model_, propagator_, at_graze.orbit, violation);
-  SpecialPoint sp;
-  sp.kind = sw.kind;
-  sp.point = at_graze;
-  sp.detail = sw.detail;
-  result->special_points.push_back(sp);
+  if (!sw.representation_only) {
+    SpecialPoint sp;
+    sp.kind = sw.kind;
+    sp.point = at_graze;
+    sp.detail = sw.detail;
+    result->special_points.push_back(sp);
+  }
   result->points.push_back(at_graze);
-  if (!options_.switch_signatures) {
+  if (!options_.switch_signatures && !sw.representation_only) {
     Finish(Termination::kCompleted, "stopped at " + std::string(SpecialPointKindName(sw.kind)) +
                                         " (signature switching is off)");
     return false;
   }
-  // Go on with the new signature from the same point, in the same parameter direction.
-  // Keep the parameter direction of the last regular point: at a vanishing segment the tangent at
-  // the grazing point is the fake fold's, with an arbitrary parameter component.
-  const double direction = Sign(t_[m()]) != 0.0 ? Sign(t_[m()]) : Sign(t_star[m()]);
+  // Go on with the new signature from the same point.
   const double value = y_star[m()];  // m() changes with the signature below
+  const double direction = Sign(t_[m()]);
   bvp_ = std::make_unique<OrbitBvp>(model_, propagator_, sw.orbit.signature, param_);
   Vec y(m() + 1);
   y.head(m()) = bvp_->Pack(sw.orbit);
   y[m()] = value;
-  Vec fix = Vec::Zero(m() + 1);
-  fix[m()] = 1.0;
+  Vec fix = Vec::Zero(m() + 1), prev = Vec::Zero(m() + 1);
+  if (sw.new_segment < 0) {
+    // A segment was removed: the new system is regular here (the touch is inside a segment).
+    // Solve at the same parameter and keep the parameter direction of the last regular point (at
+    // a vanishing segment the tangent at the grazing point is the fake fold's, with an arbitrary
+    // parameter component).
+    fix[m()] = 1.0;
+    prev[m()] = direction;
+  } else {
+    // A segment was inserted with zero duration: its duration grows like sqrt(|lambda -
+    // lambda*|), so the new system folds exactly here. Step off the grazing point along that
+    // duration: fix it at a small kGrazeStep (lambda free), then go on where it grows.
+    constexpr double kGrazeStep = 1e-3;
+    const int col =
+        sw.new_segment * (bvp_->size() / bvp_->segments()) + (bvp_->size() / bvp_->segments() - 1);
+    y[col] = kGrazeStep;
+    fix[col] = 1.0;
+    prev[col] = 1.0;
+  }
   int iterations = 0;
   if (!Correct(y, fix, &y_, &iterations)) {
     Finish(Termination::kFailed, "could not solve the orbit of the new signature " +
                                      SignatureString(model_, sw.orbit.signature));
     return false;
   }
-  Vec prev = Vec::Zero(m() + 1);
-  prev[m()] = direction;
   if (!Tangent(y_, prev, &t_, &det)) return false;
   point_ = MakePoint(y_);
   tests_ = Tests(y_, t_, det, point_);
+  h_ = std::max(options_.min_step, std::min(h_, options_.initial_step));
   return true;
 }
 
@@ -316,6 +332,17 @@ bool BranchTracer::Step(ContinuationResult* result) {
       ++rejected_;
       h_ *= 0.5;
       if (h_ < options_.min_step) {
+        // A branch that runs off to infinity as the parameter tends to a bound (the drifting
+        // oscillator's period-1 orbit as b -> 0) stalls next to it: count that as reaching it.
+        const double near = 1e-6 * (options_.max - options_.min);
+        const double to_bound = t_[m()] < 0.0 ? y_[m()] - options_.min : options_.max - y_[m()];
+        if (std::isfinite(near) && to_bound <= near) {
+          Finish(Termination::kCompleted,
+                 "approached " + model_.param_names()[param_] + " = " +
+                     std::to_string(t_[m()] < 0.0 ? options_.min : options_.max) +
+                     " (the branch is unbounded there)");
+          return false;
+        }
         Finish(Termination::kFailed, "the corrector failed down to min_step at " +
                                          model_.param_names()[param_] + " = " +
                                          std::to_string(y_[m()]));

@@ -83,25 +83,45 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
   PeriodicOrbit& o = out.orbit;
   std::vector<SegmentSpec>& segs = o.signature.segments;
   const int i = violation.segment;
-  if (violation.guard < 0) {
-    // Remove the vanished segment; merge its neighbours when they are in the same mode (both
-    // inside the period: across the section they stay two segments).
+  const int k = static_cast<int>(segs.size());
+  if (violation.guard < 0 && i == 0 && k > 1) {
+    // The first segment vanished: its ending event reached the section and moves into the
+    // previous period. Rotate: the last segment now ends on that event, and a zero-length segment
+    // of the mode it enters runs on to the section. A change of representation, not of the orbit.
+    out.representation_only = true;
+    out.kind = SpecialPointKind::kSignatureChange;
+    segs.back().guard = segs[0].guard;
+    segs.push_back({segs[1].mode, -1});
+    o.starts.push_back(o.starts[1]);
+    o.durations.push_back(0.0);
+    segs.erase(segs.begin());
+    o.starts.erase(o.starts.begin());
+    o.durations.erase(o.durations.begin());
+  } else if (violation.guard < 0 && i == k - 1 && k > 1) {
+    // The last segment vanished: the event before it reached the section and moves into the next
+    // period. Rotate the other way: a zero-length first segment ends on that event.
+    out.representation_only = true;
+    out.kind = SpecialPointKind::kSignatureChange;
+    const SegmentSpec before = segs[k - 2];
+    segs.insert(segs.begin(), before);
+    o.starts.insert(o.starts.begin(), o.starts[k - 1]);
+    o.durations.insert(o.durations.begin(), 0.0);
+    segs[k - 1].guard = -1;  // the old segment k - 2, shifted by one
+    segs.pop_back();
+    o.starts.pop_back();
+    o.durations.pop_back();
+  } else if (violation.guard < 0) {
+    // Remove the vanished interior segment; merge its neighbours when they are in the same mode.
     out.kind = KindOfVanishing(model, orbit.signature, i);
-    const int k = static_cast<int>(segs.size());
-    if (i > 0 && i < k - 1 && segs[i - 1].mode == segs[i + 1].mode) {
+    if (segs[i - 1].mode == segs[i + 1].mode) {
       segs[i - 1].guard = segs[i + 1].guard;
       o.durations[i - 1] += o.durations[i] + o.durations[i + 1];
       segs.erase(segs.begin() + i, segs.begin() + i + 2);
       o.starts.erase(o.starts.begin() + i, o.starts.begin() + i + 2);
       o.durations.erase(o.durations.begin() + i, o.durations.begin() + i + 2);
     } else {
-      if (i > 0) {
-        segs[i - 1].guard = segs[i].guard;
-        o.durations[i - 1] += o.durations[i];
-      } else if (k > 1) {
-        o.durations[1] += o.durations[0];
-        o.starts[1] = o.starts[0];
-      }
+      segs[i - 1].guard = segs[i].guard;
+      o.durations[i - 1] += o.durations[i];
       segs.erase(segs.begin() + i);
       o.starts.erase(o.starts.begin() + i);
       o.durations.erase(o.durations.begin() + i);
@@ -126,6 +146,7 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
     o.durations[i] = t_touch;
     o.durations.insert(o.durations.begin() + i + 1, {0.0, tau - t_touch});
     o.starts.insert(o.starts.begin() + i + 1, {x_across, x_across});
+    out.new_segment = i + 1;
   }
   out.detail =
       SignatureString(model, orbit.signature) + " -> " + SignatureString(model, o.signature);

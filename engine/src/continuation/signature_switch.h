@@ -30,7 +30,11 @@ double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
 struct SwitchedOrbit {
   PeriodicOrbit orbit;    // same state, new signature
   SpecialPointKind kind;  // GRAZING_L1 / L2 / PI, or SIGNATURE_CHANGE
-  std::string detail;     // "NC>Pi CwoP>l1 ... -> NC>Pi CwoP>l2 NC|"
+  int new_segment = -1;   // index of the inserted zero-length segment (-1: one was removed)
+  // An event crossed the Poincare section: the signature is rotated, the orbit is the same kind
+  // (no special point to report).
+  bool representation_only = false;
+  std::string detail;  // "NC>Pi CwoP>l1 ... -> NC>Pi CwoP>l2 NC|"
 };
 
 // The orbit at a located grazing point, re-expressed in the signature that continues past it:
