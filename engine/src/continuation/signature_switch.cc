@@ -73,6 +73,10 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
 double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
                              const PeriodicOrbit& orbit, const Admissibility& violation) {
   if (violation.guard < 0) return orbit.durations[violation.segment];
+  if (violation.at_start) {
+    const SegmentSpec& seg = orbit.signature.segments[violation.segment];
+    return model.Guard(seg.mode, violation.guard, orbit.starts[violation.segment], orbit.params).h;
+  }
   return SegmentGuardMinimum(model, propagator, orbit, violation.segment, violation.guard).h;
 }
 
@@ -126,6 +130,21 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
       o.starts.erase(o.starts.begin() + i);
       o.durations.erase(o.durations.begin() + i);
     }
+  } else if (violation.at_start) {
+    // The segment's guard fires at its very start (e.g. the force at impact fell below the
+    // progression threshold): a zero-length segment of the mode across that guard now comes first,
+    // ending where the old segment begins.
+    const SegmentSpec seg = segs[i];
+    const int m2 = model.ModeAcross(seg.mode, violation.guard);
+    int back = -1;
+    for (int g = 0; g < static_cast<int>(model.guards(m2).size()); ++g) {
+      if (model.ModeAcross(m2, g) == seg.mode) back = g;
+    }
+    out.kind = SpecialPointKind::kSignatureChange;
+    segs.insert(segs.begin() + i, {m2, back});
+    o.starts.insert(o.starts.begin() + i, o.starts[i]);
+    o.durations.insert(o.durations.begin() + i, 0.0);
+    out.new_segment = i;
   } else {
     // Split segment i at the touch: (m > guard) (m2 > back) (m > old end), m2 = the mode across.
     const SegmentSpec seg = segs[i];

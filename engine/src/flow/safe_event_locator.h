@@ -45,8 +45,10 @@ inline double SafeStep(double h, double dh, double m) {
   return root - dh > 0.0 ? 2.0 * h / (root - dh) : std::numeric_limits<double>::infinity();
 }
 
-// Whether a guard starting inside the band (h <= tol) moves into h < 0 at once.
+// Whether a guard starting at h <= tol fires at once: below the band the state is outside the
+// mode's domain; inside it, when the guard moves into h < 0.
 inline bool MovesInto(const GuardValue& g, double tol) {
+  if (g.h < -tol) return true;
   if (g.ddh < 0.0) {
     const double peak = g.h + (g.dh > 0.0 ? g.dh * g.dh / (2.0 * -g.ddh) : 0.0);
     return peak <= tol;

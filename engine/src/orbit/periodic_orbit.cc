@@ -153,7 +153,7 @@ Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
     const double tau = orbit.durations[i];
     if (!(tau > 0.0)) {
       const int mode = orbit.signature.segments[i].mode;
-      return {false, static_cast<int>(i), -1,
+      return {false, static_cast<int>(i), -1, false,
               "segment " + std::to_string(i) + " (" + std::string(model.mode_name(mode)) +
                   ") has duration " + std::to_string(tau) + " <= 0"};
     }
@@ -169,7 +169,7 @@ Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
     const AdvanceResult r = propagator.Advance(req, orbit.params);
     const bool own_end = r.guard == seg.guard && r.duration >= tau * (1.0 - 1e-6);
     if (r.end == AdvanceEnd::kEvent && !own_end) {
-      return {false, static_cast<int>(i), r.guard,
+      return {false, static_cast<int>(i), r.guard, r.duration == 0.0,
               "segment " + std::to_string(i) + " (" + std::string(model.mode_name(seg.mode)) +
                   ") crosses " + model.guards(seg.mode)[r.guard].surface +
                   " at t = " + std::to_string(r.duration) + " of " + std::to_string(tau)};

@@ -54,6 +54,7 @@ struct Admissibility {
   // segment's duration is not positive).
   int segment = -1;
   int guard = -1;
+  bool at_start = false;  // the guard fires at once at the segment's start
   std::string message;
 };
 
