@@ -162,12 +162,16 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
       if (side == +1) fa *= 0.5;
       side = +1;
     }
+    // Located: the parameter bracketed to locate_tolerance (or, where it is stationary, the
+    // arclength to 1e-9 of the step) and the test function itself below kValueTolerance, so the
+    // defining condition holds even where it varies fast (multipliers near a grazing).
+    constexpr double kValueTolerance = 1e-10;
     const bool narrow = b - a <= 1e-14 * std::max(1.0, h);
-    const bool located =
+    const bool bracketed =
         stationary
             ? b - a <= 1e-9 * std::max(1.0, h)
             : (side != 0 && std::abs(lambda_b - lambda_a) <= options_.locate_tolerance && it > 0);
-    if (narrow || located) return true;
+    if (narrow || (bracketed && std::abs(f) <= kValueTolerance)) return true;
   }
   return have;
 }
@@ -270,7 +274,7 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
     sp.detail = sw.detail;
     result->special_points.push_back(sp);
   }
-  result->points.push_back(at_graze);
+  if (!sw.representation_only) result->points.push_back(at_graze);
   if (!options_.switch_signatures && !sw.representation_only) {
     Finish(Termination::kCompleted, "stopped at " + std::string(SpecialPointKindName(sw.kind)) +
                                         " (signature switching is off)");
@@ -304,6 +308,17 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
   }
   int iterations = 0;
   if (!Correct(y, fix, &y_, &iterations)) {
+    if (sw.orbit.signature.segments.size() == 1) {
+      // No event left: the motion beyond never impacts (NC|: no periodic orbit unless the mean
+      // force vanishes) or never separates (pure contact, whose p - q offset no jump fixes: this
+      // boundary-value formulation does not cover it yet). The branch ends here.
+      Finish(Termination::kCompleted,
+             "the branch ends at " + std::string(SpecialPointKindName(sw.kind)) + " " +
+                 model_.param_names()[param_] + " = " + std::to_string(value) +
+                 ": beyond it the orbit would be " + SignatureString(model_, sw.orbit.signature) +
+                 ", a motion without events");
+      return false;
+    }
     Finish(Termination::kFailed, "could not solve the orbit of the new signature " +
                                      SignatureString(model_, sw.orbit.signature));
     return false;

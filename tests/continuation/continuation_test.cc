@@ -1,0 +1,264 @@
+// One-parameter continuation of the drifting oscillator's period-1 orbit: MODEL.md's table for the
+// b-continuation, the defining conditions of located points, admissibility of every point,
+// stability against direct simulation, hard cases and invalid requests.
+#include "drillbif/continuation/continuation.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "drillbif/flow/exact_propagator.h"
+#include "problems/drifting_reference.h"
+
+namespace drillbif {
+namespace {
+
+using DO = DriftingOscillator;
+
+PeriodicOrbit StartOrbit(const DO& model, Propagator& prop, const Params& params) {
+  StatusOr<PeriodicOrbit> guess =
+      OrbitFromSimulation(model, prop, params, DefaultInitialState(model));
+  EXPECT_TRUE(guess.ok()) << guess.status().ToString();
+  PeriodicOrbit orbit = *guess;
+  EXPECT_EQ(SolveOrbit(model, prop, {}, &orbit).status, SolveStatus::kConverged);
+  return orbit;
+}
+
+ContinuationResult ContinueInB(double a) {
+  DO model;
+  ExactPropagator prop(model);
+  Params prm = testing::ReferenceParams();
+  prm[DO::kA] = a;
+  ContinuationOptions opt;
+  opt.param = "b";
+  opt.min = 0.0;
+  opt.max = 0.2;
+  return Continue(model, prop, StartOrbit(model, prop, prm), opt);
+}
+
+// The b-continuation at the reference a = 0.3, computed once for the tests below.
+const ContinuationResult& ReferenceBranch() {
+  static const ContinuationResult r = ContinueInB(0.3);
+  return r;
+}
+
+// The first special point of a kind whose parameter lies in [lo, hi].
+const SpecialPoint* Find(const ContinuationResult& r, SpecialPointKind kind, double lo, double hi) {
+  for (const SpecialPoint& s : r.special_points) {
+    if (s.kind == kind && s.point.value >= lo && s.point.value <= hi) return &s;
+  }
+  return nullptr;
+}
+
+// MODEL.md's table, independent-computation column (8 significant digits), to 1e-6 relative.
+TEST(BContinuation, ReproducesThePublishedTable) {
+  const ContinuationResult& r = ReferenceBranch();
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  struct Row {
+    SpecialPointKind kind;
+    double b;
+  };
+  for (const Row& row :
+       {Row{SpecialPointKind::kRopMax, 0.16381677}, Row{SpecialPointKind::kFold, 0.16715050},
+        Row{SpecialPointKind::kPeriodDoubling, 0.11001173},
+        Row{SpecialPointKind::kGrazingL1, 0.02772417}}) {
+    const SpecialPoint* s = Find(r, row.kind, row.b * 0.99, row.b * 1.01);
+    ASSERT_NE(s, nullptr) << SpecialPointKindName(row.kind) << " near b = " << row.b;
+    EXPECT_NEAR(s->point.value, row.b, 1e-6 * row.b) << SpecialPointKindName(row.kind);
+  }
+  const SpecialPoint* rop_max = Find(r, SpecialPointKind::kRopMax, 0.16, 0.165);
+  ASSERT_NE(rop_max, nullptr);
+  EXPECT_NEAR(rop_max->point.measures[DO::kDrift], 0.53873914, 1e-6 * 0.53873914);
+}
+
+// Down through the l1 grazing to b = 0, where the period-1 orbit runs off (the period-adding
+// cascade accumulates there): below the grazing the orbit never progresses (ROP = 0) and Pc is
+// the measure.
+TEST(BContinuation, GoesThroughTheL1GrazingDownToZeroWithPcAsTheMeasure) {
+  const ContinuationResult& r = ReferenceBranch();
+  ASSERT_FALSE(r.points.empty());
+  EXPECT_LT(r.points.front().value, 1e-5);
+  int below = 0;
+  for (const ContinuationPoint& p : r.points) {
+    if (p.value >= 0.0277 || p.value < 1e-4) continue;
+    ++below;
+    EXPECT_EQ(p.measures[DO::kDrift], 0.0) << "b = " << p.value;
+    EXPECT_GT(p.measures[DO::kPower], 0.0) << "b = " << p.value;
+    EXPECT_EQ(SignatureString(DO(), p.orbit.signature), "NC>Pi CwoP>l2 NC|");
+  }
+  EXPECT_GT(below, 10);
+  const SpecialPoint* graze = Find(r, SpecialPointKind::kGrazingL1, 0.02, 0.03);
+  ASSERT_NE(graze, nullptr);
+  EXPECT_NE(graze->detail.find("-> NC>Pi CwoP>l2 NC|"), std::string::npos) << graze->detail;
+}
+
+// Each located point satisfies its defining condition: a multiplier at +1 (fold) or -1 (period
+// doubling) to 1e-9, the vanished segment's duration at zero (grazing) to 1e-9. The location
+// brackets the parameter to 1e-10 (fold: the arclength to 1e-9 of the step), and the multiplier
+// moves by O(1) per unit of parameter or arclength there, so 1e-9 is what the location promises.
+TEST(BContinuation, LocatedPointsSatisfyTheirDefiningConditions) {
+  const ContinuationResult& r = ReferenceBranch();
+  int checked = 0;
+  for (const SpecialPoint& s : r.special_points) {
+    const auto& mu = s.point.stability.multipliers;
+    auto closest = [&](double target) {
+      double d = std::numeric_limits<double>::infinity();
+      for (const auto& m : mu) d = std::min(d, std::abs(m - target));
+      return d;
+    };
+    switch (s.kind) {
+      case SpecialPointKind::kFold:
+        EXPECT_LE(closest(1.0), 1e-9) << "fold at b = " << s.point.value;
+        ++checked;
+        break;
+      case SpecialPointKind::kPeriodDoubling:
+        EXPECT_LE(closest(-1.0), 1e-9) << "PD at b = " << s.point.value;
+        ++checked;
+        break;
+      case SpecialPointKind::kGrazingL1: {
+        const auto& d = s.point.orbit.durations;
+        EXPECT_LE(*std::min_element(d.begin(), d.end(),
+                                    [](double x, double y) { return std::abs(x) < std::abs(y); }) *
+                      1.0,
+                  1e-9);
+        ++checked;
+        break;
+      }
+      default:
+        break;
+    }
+  }
+  EXPECT_GE(checked, 3);
+}
+
+// Every reported point is admissible: positive durations, and no guard vanishes inside a segment
+// (the points at a grazing lie on the boundary and are excluded).
+TEST(BContinuation, EveryPointIsAdmissible) {
+  DO model;
+  ExactPropagator prop(model);
+  const ContinuationResult& r = ReferenceBranch();
+  std::vector<double> grazing;
+  for (const SpecialPoint& s : r.special_points) grazing.push_back(s.point.value);
+  for (const ContinuationPoint& p : r.points) {
+    const bool at_graze = std::any_of(grazing.begin(), grazing.end(),
+                                      [&](double g) { return std::abs(g - p.value) < 1e-9; });
+    if (at_graze) continue;
+    const Admissibility a = CheckAdmissible(model, prop, p.orbit);
+    EXPECT_TRUE(a.admissible) << "b = " << p.value << ": " << a.message;
+  }
+}
+
+// Stability agrees with direct simulation: from the orbit's section state perturbed by 1e-7, a
+// stable orbit's deviation shrinks over 10 periods and an unstable one's grows (the largest
+// multiplier's modulus to the 10th power; points with it within 10% of 1 are skipped, where 10
+// periods cannot tell).
+TEST(BContinuation, StabilityAgreesWithDirectSimulation) {
+  DO model;
+  ExactPropagator prop(model);
+  const ContinuationResult& r = ReferenceBranch();
+  std::vector<const ContinuationPoint*> chosen;
+  for (const ContinuationPoint& p : r.points) {
+    if (p.orbit.signature.periods != 1 || p.stability.multipliers.empty()) continue;
+    const double mu = std::abs(p.stability.multipliers[0]);
+    const double dmin = *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
+    if (std::abs(mu - 1.0) < 0.1 || dmin < 1e-2) continue;
+    chosen.push_back(&p);
+  }
+  ASSERT_GE(chosen.size(), 20u);
+  int stable = 0, unstable = 0;
+  for (int k = 0; k < 20; ++k) {
+    const ContinuationPoint& p = *chosen[k * chosen.size() / 20];
+    StateVector x = p.orbit.starts[0];
+    x[DO::kY] += 1e-7;
+    SimulationOptions opt;
+    opt.transient_periods = 0;
+    opt.sample_periods = 10;
+    opt.outputs = SimulationOutputs{false, true, false, false, 0.0};
+    const SimulationResult s = Simulate(model, prop, p.orbit.params, x, opt);
+    ASSERT_EQ(s.termination, Termination::kCompleted);
+    const double d = (s.poincare.back().x - p.orbit.starts[0]).head(3).norm();
+    if (p.stability.stable) {
+      EXPECT_LT(d, 1e-7) << "stable orbit at b = " << p.value;
+      ++stable;
+    } else {
+      EXPECT_GT(d, 1e-7) << "unstable orbit at b = " << p.value;
+      ++unstable;
+    }
+  }
+  EXPECT_GT(stable, 0);
+  EXPECT_GT(unstable, 0);
+}
+
+// The same picture at a = 0.28 and 0.32 (MODEL.md): ROP maximum below the fold, period doubling
+// below the maximum, the l1 grazing below that, and the branch reaches b = 0.
+TEST(BContinuation, SamePictureAtNeighbouringAmplitudes) {
+  for (double a : {0.28, 0.32}) {
+    const ContinuationResult r = ContinueInB(a);
+    ASSERT_EQ(r.summary.termination, Termination::kCompleted) << "a = " << a;
+    const SpecialPoint* fold = Find(r, SpecialPointKind::kFold, 0.12, 0.2);
+    const SpecialPoint* rop = Find(r, SpecialPointKind::kRopMax, 0.12, 0.2);
+    const SpecialPoint* pd = Find(r, SpecialPointKind::kPeriodDoubling, 0.05, 0.15);
+    const SpecialPoint* graze = Find(r, SpecialPointKind::kGrazingL1, 0.0, 0.06);
+    ASSERT_TRUE(fold && rop && pd && graze) << "a = " << a;
+    EXPECT_LT(rop->point.value, fold->point.value);
+    EXPECT_LT(pd->point.value, rop->point.value);
+    EXPECT_LT(graze->point.value, pd->point.value);
+    EXPECT_LT(r.points.front().value, 1e-5);
+  }
+}
+
+// Hard case: a = 5, where the impact goes straight into progression and, as b falls, a contact
+// phase appears between impact and progression before the l1 grazing.
+TEST(Continuation, LargeAmplitudeSwitchesSignatureTwiceOnTheWayDown) {
+  DO model;
+  ExactPropagator prop(model);
+  Params prm = testing::ReferenceParams();
+  prm[DO::kA] = 5.0;
+  ContinuationOptions opt;
+  opt.param = "b";
+  opt.min = 0.0;
+  opt.max = 0.3;
+  const ContinuationResult r = Continue(model, prop, StartOrbit(model, prop, prm), opt);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  const SpecialPoint* change = Find(r, SpecialPointKind::kSignatureChange, 0.0, 0.3);
+  const SpecialPoint* graze = Find(r, SpecialPointKind::kGrazingL1, 0.0, 0.3);
+  ASSERT_TRUE(change && graze);
+  EXPECT_NE(change->detail.find("NC>Pi CwP>l1 CwoP>l2 NC| -> NC>Pi CwoP>l1 CwP>l1"),
+            std::string::npos)
+      << change->detail;
+  EXPECT_LT(graze->point.value, change->point.value);
+}
+
+TEST(Continuation, InvalidRequestsAreClearErrors) {
+  DO model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start = StartOrbit(model, prop, testing::ReferenceParams());
+  struct Case {
+    std::string param;
+    double min, max;
+    const char* needle;
+  };
+  for (const Case& c : {Case{"zeta", 0.0, 1.0, "zeta"}, Case{"b", 0.2, 0.1, "empty"},
+                        Case{"b", 0.2, 0.3, "outside"}}) {
+    ContinuationOptions opt;
+    opt.param = c.param;
+    opt.min = c.min;
+    opt.max = c.max;
+    const ContinuationResult r = Continue(model, prop, start, opt);
+    EXPECT_EQ(r.summary.termination, Termination::kFailed);
+    EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument) << c.param;
+    EXPECT_NE(r.summary.message.find(c.needle), std::string::npos) << r.summary.message;
+  }
+  PeriodicOrbit broken = start;
+  broken.durations[2] = -0.1;  // a negative-duration segment: not an admissible orbit
+  ContinuationOptions opt;
+  opt.param = "b";
+  opt.min = 0.0;
+  opt.max = 0.2;
+  const ContinuationResult r = Continue(model, prop, broken, opt);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kFailedPrecondition);
+}
+
+}  // namespace
+}  // namespace drillbif
