@@ -101,6 +101,11 @@ class ForcedLinearOscillator final : public HybridModel, public LinearForm, publ
   void Flow(int mode, const StateVector& x0, double t, const Params& params, StateVector* x,
             StateMatrix* jac) const override;
   // A prepared segment only records the mode and x0: the closed form is cheap enough.
+  bool FlowParamDerivative(int /*mode*/, const StateVector& /*x0*/, double /*t*/,
+                           const Params& /*params*/, int /*k*/,
+                           StateVector* /*dx*/) const override {
+    return false;  // the exact propagator's matrix exponential serves
+  }
   void PrepareSegment(int mode, const StateVector& x0, const Params& params,
                       PreparedSegment* segment) const override;
   void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,

@@ -78,6 +78,12 @@ FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, c
     out.param_jacobian.setZero(n, np);
     Eigen::MatrixXd block(2 * m, 2 * m);
     for (int k = 0; k < np; ++k) {
+      if (request.param >= 0 && k != request.param) continue;
+      StateVector dx;
+      if (closed_ && closed_->FlowParamDerivative(mode, x0, t, params, k, &dx)) {
+        out.param_jacobian.col(k) = dx;
+        continue;
+      }
       linear_->AugmentedMatrixDerivative(mode, params, k, &da);
       linear_->AugmentedInitialDerivative(x0, params, k, &dz0);
       Eigen::VectorXd dz = e * dz0;

@@ -219,6 +219,68 @@ void DriftingOscillator::Flow(int mode, const StateVector& x0, double t, const P
   }
 }
 
+// Closed-form d x(t) / d k: g never enters a flow; a and b enter linearly (NC, CwP: through the
+// forcing integrals; CwoP: through the steady state, u_p = (b, 0) + a w(theta), so
+// d u / d a = w(theta) - E w(theta0) and d u / d b = (1, 0) - E (1, 0)); phi0 shifts theta0 like
+// s0 does, without moving s; xi in the decaying q of NC and CwP. omega, and xi in CwoP, are left
+// to the matrix exponential.
+bool DriftingOscillator::FlowParamDerivative(int mode, const StateVector& x0, double t,
+                                             const Params& params, int k, StateVector* dx) const {
+  dx->setZero(4);
+  if (k == kG) return true;
+  if (k == kOmega || (k == kXi && mode == kContact)) return false;
+  if (k == kPhi0) {
+    StateVector x;
+    StateMatrix jac;
+    Flow(mode, x0, t, params, &x, &jac);
+    *dx = jac.col(kS);
+    (*dx)[kS] = 0.0;
+    return true;
+  }
+  PreparedSegment seg;
+  PrepareSegment(mode, x0, params, &seg);
+  Core core;
+  EvaluateCore(seg, t, params, &core);
+  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
+  const double i1 = t * (c0 * core.sinc - s0 * core.xw * core.c2);
+  const double i2 = t * t * (c0 * core.c2 - s0 * core.xw * core.s3);
+  const double xi = params[kXi];
+  switch (mode) {
+    case kNoContact:
+      if (k == kA) (*dx)[kP] = i2, (*dx)[kY] = i1;
+      if (k == kB) (*dx)[kP] = 0.5 * t * t, (*dx)[kY] = t;
+      // q = q0 e^{-t/(2 xi)}: d/dxi = q t / (2 xi^2).
+      if (k == kXi) (*dx)[kQ] = core.x[kQ] * t / (2.0 * xi * xi);
+      return true;
+    case kProgression:
+      if (k == kA) (*dx)[kY] = i1;
+      if (k == kB) (*dx)[kY] = t;
+      if (k == kXi) {
+        // q = 1 + (q0 - 1) e^{-t/(2 xi)}, p - q constant.
+        const double dq = (x0[kQ] - 1.0) * (1.0 + core.decay) * t / (2.0 * xi * xi);
+        (*dx)[kQ] = dq, (*dx)[kP] = dq;
+      }
+      return true;
+    default: {
+      double wq0, wy0, wq1, wy1;
+      if (k == kA) {
+        // w(theta) = d u_p / d a: the steady state of unit amplitude without the static force.
+        Params unit = params;
+        unit[kA] = 1.0, unit[kB] = 0.0;
+        const internal::ContactGain g = GainOf(seg);
+        internal::ContactSteadyState(g, c0, s0, unit, &wq0, &wy0);
+        internal::ContactSteadyState(g, core.ct, core.st, unit, &wq1, &wy1);
+      } else {
+        wq0 = wq1 = 1.0, wy0 = wy1 = 0.0;
+      }
+      (*dx)[kQ] = wq1 - (core.e00 * wq0 + core.e01 * wy0);
+      (*dx)[kY] = wy1 - (core.e10 * wq0 + core.e11 * wy0);
+      (*dx)[kP] = (*dx)[kQ];
+      return true;
+    }
+  }
+}
+
 MeasureVector DriftingOscillator::MeasureIncrements(int mode, const StateVector& x0, double t,
                                                     const Params& params) const {
   const double xi = params[kXi];

@@ -67,6 +67,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
     FlowRequest req;
     req.state_jacobian = gx != nullptr;
     req.param_jacobian = want_p;
+    req.param = param_;
     const FlowResult fr =
         propagator_.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], params, req);
     if (!fr.status.ok()) return fr.status;

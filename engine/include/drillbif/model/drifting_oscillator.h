@@ -90,6 +90,8 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
   // ClosedFormFlow.
   void Flow(int mode, const StateVector& x0, double t, const Params& params, StateVector* x,
             StateMatrix* jac) const override;
+  bool FlowParamDerivative(int mode, const StateVector& x0, double t, const Params& params, int k,
+                           StateVector* dx) const override;
   void PrepareSegment(int mode, const StateVector& x0, const Params& params,
                       PreparedSegment* segment) const override;
   void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,

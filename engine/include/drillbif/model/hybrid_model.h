@@ -180,6 +180,10 @@ class ClosedFormFlow {
   // x(t) from x0 in `mode` (phase not wrapped: s0 + omega t), and d x(t) / d x0 when jac != null.
   virtual void Flow(int mode, const StateVector& x0, double t, const Params& params, StateVector* x,
                     StateMatrix* jac) const = 0;
+  // d x(t) / d params[k] at fixed x0 and t in closed form, when the model has it for that
+  // parameter and mode (false: the caller falls back to the matrix exponential).
+  virtual bool FlowParamDerivative(int mode, const StateVector& x0, double t, const Params& params,
+                                   int k, StateVector* dx) const = 0;
   // Precomputes the constants of the segment from x0 in `mode`.
   virtual void PrepareSegment(int mode, const StateVector& x0, const Params& params,
                               PreparedSegment* segment) const = 0;
