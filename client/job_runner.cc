@@ -4,15 +4,19 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <complex>
 #include <exception>
 #include <memory>
 #include <new>
 #include <string>
 #include <utility>
 
+#include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/model/drifting_oscillator.h"
+#include "drillbif/orbit/periodic_orbit.h"
+#include "drillbif/orbit/signature.h"
 #include "drillbif/simulate/sweep.h"
 #include "drillbif/version.h"
 
@@ -243,6 +247,190 @@ void ToProto(const SweepPoint& in, bool sweep_cancelled, v1::SweepPoint* out) {
   for (const PoincareSample& smp : in.samples) ToProto(smp, out->add_samples());
 }
 
+// ---- continuation ----------------------------------------------------------------------------
+
+Status FailedPrecondition(std::string message) {
+  return Status(StatusCode::kFailedPrecondition, std::move(message));
+}
+
+// A step option must be a finite number > 0.
+Status CheckPositive(const char* field, double v) {
+  if (v > 0.0 && std::isfinite(v)) return Status::Ok();
+  return InvalidArgument(std::string(field) + " must be a finite number > 0, got " + Num(v));
+}
+
+// Continuation options from a request, the engine's defaults filling unset fields, each checked
+// so that the message names the request field. The parameter name and the range are checked
+// against the model by the caller.
+StatusOr<ContinuationOptions> ToContinuationOptions(const v1::ContinueRequest& request) {
+  ContinuationOptions options;
+  options.param = request.param();
+  options.min = request.min();
+  options.max = request.max();
+  switch (request.direction()) {
+    case v1::ContinueRequest::DIRECTION_UNSPECIFIED:
+    case v1::ContinueRequest::BOTH:
+      options.direction = ContinuationDirection::kBoth;
+      break;
+    case v1::ContinueRequest::INCREASING:
+      options.direction = ContinuationDirection::kIncreasing;
+      break;
+    case v1::ContinueRequest::DECREASING:
+      options.direction = ContinuationDirection::kDecreasing;
+      break;
+    default:
+      return InvalidArgument("direction: unknown value " + std::to_string(request.direction()));
+  }
+  if (request.has_initial_step()) options.initial_step = request.initial_step();
+  if (request.has_min_step()) options.min_step = request.min_step();
+  if (request.has_max_step()) options.max_step = request.max_step();
+  if (request.has_max_steps()) options.max_steps = request.max_steps();
+  if (request.has_target_iterations()) options.target_iterations = request.target_iterations();
+  if (request.has_locate_tolerance()) options.locate_tolerance = request.locate_tolerance();
+  if (request.has_switch_signatures()) options.switch_signatures = request.switch_signatures();
+
+  if (!std::isfinite(options.min) || !std::isfinite(options.max)) {
+    return InvalidArgument("min and max must be finite (got min = " + Num(options.min) +
+                           ", max = " + Num(options.max) + ")");
+  }
+  if (!(options.max > options.min)) {
+    return InvalidArgument("the range [min, max] is empty: max must be > min (got min = " +
+                           Num(options.min) + ", max = " + Num(options.max) + ")");
+  }
+  if (Status s = CheckPositive("initial_step", options.initial_step); !s.ok()) return s;
+  if (Status s = CheckPositive("min_step", options.min_step); !s.ok()) return s;
+  if (Status s = CheckPositive("max_step", options.max_step); !s.ok()) return s;
+  if (options.max_step < options.min_step) {
+    return InvalidArgument("max_step must be >= min_step (got max_step = " + Num(options.max_step) +
+                           ", min_step = " + Num(options.min_step) + ")");
+  }
+  if (options.max_steps < 1 || options.max_steps > kMaxContinuationSteps) {
+    return InvalidArgument("max_steps must be in [1, " + std::to_string(kMaxContinuationSteps) +
+                           "], got " + std::to_string(options.max_steps));
+  }
+  if (options.target_iterations < 1 || options.target_iterations > options.max_iterations) {
+    return InvalidArgument("target_iterations must be in [1, " +
+                           std::to_string(options.max_iterations) + "], got " +
+                           std::to_string(options.target_iterations));
+  }
+  if (Status s = CheckPositive("locate_tolerance", options.locate_tolerance); !s.ok()) return s;
+  // Whatever else the engine requires.
+  if (Status s = options.Validate(); !s.ok()) return s;
+  return options;
+}
+
+v1::ModelParams ToProtoParams(const Params& p) {
+  v1::ModelParams out;
+  out.set_a(p[Osc::kA]);
+  out.set_b(p[Osc::kB]);
+  out.set_omega(p[Osc::kOmega]);
+  out.set_xi(p[Osc::kXi]);
+  out.set_g(p[Osc::kG]);
+  out.set_phi0(p[Osc::kPhi0]);
+  return out;
+}
+
+void ToProto(const Stability& in, google::protobuf::RepeatedPtrField<v1::Multiplier>* out) {
+  out->Reserve(static_cast<int>(in.multipliers.size()));
+  for (const std::complex<double>& mu : in.multipliers) {
+    v1::Multiplier* m = out->Add();
+    m->set_re(mu.real());
+    m->set_im(mu.imag());
+    m->set_abs(std::abs(mu));
+  }
+}
+
+void ToProto(const Signature& in, google::protobuf::RepeatedField<int>* out) {
+  out->Reserve(static_cast<int>(in.segments.size()));
+  for (const SegmentSpec& seg : in.segments) out->Add(ToProtoMode(seg.mode));
+}
+
+// ROP and Pc of a point (0 if the engine did not measure them).
+double MeasureOf(const ContinuationPoint& pt, int index) {
+  return static_cast<int>(pt.measures.size()) > index ? pt.measures[index] : 0.0;
+}
+
+void ToProto(const ContinuationPoint& in, v1::BranchPoint* out) {
+  const Osc& model = Model();
+  *out->mutable_params() = ToProtoParams(in.orbit.params);
+  out->set_value(in.value);
+  out->set_rop(MeasureOf(in, Osc::kDrift));
+  out->set_power(MeasureOf(in, Osc::kPower));
+  out->set_period(in.period);
+  ToProto(in.stability, out->mutable_multipliers());
+  out->set_structural_zeros(in.stability.structural_zeros);
+  out->set_stable(in.stability.stable);
+  ToProto(in.orbit.signature, out->mutable_signature());
+  out->set_signature_text(SignatureString(model, in.orbit.signature));
+  out->mutable_durations()->Add(in.orbit.durations.begin(), in.orbit.durations.end());
+  if (!in.orbit.starts.empty()) {
+    const StateVector& x = in.orbit.starts.front();
+    out->set_p(x[Osc::kP]);
+    out->set_y(x[Osc::kY]);
+    out->set_q(x[Osc::kQ]);
+  }
+}
+
+void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
+  const Osc& model = Model();
+  // The proto's names are the engine's (SpecialPointKindName), so the mapping is by name.
+  v1::SpecialPoint::Kind kind = v1::SpecialPoint::KIND_UNSPECIFIED;
+  if (!v1::SpecialPoint::Kind_Parse(SpecialPointKindName(in.kind), &kind)) {
+    kind = v1::SpecialPoint::KIND_UNSPECIFIED;
+  }
+  out->set_kind(kind);
+  const ContinuationPoint& pt = in.point;
+  out->set_value(pt.value);
+  *out->mutable_params() = ToProtoParams(pt.orbit.params);
+  out->set_rop(MeasureOf(pt, Osc::kDrift));
+  out->set_power(MeasureOf(pt, Osc::kPower));
+  ToProto(pt.stability, out->mutable_multipliers());
+  out->set_stable(pt.stability.stable);
+  out->set_detail(in.detail);
+  ToProto(pt.orbit.signature, out->mutable_signature());
+  out->set_signature_text(SignatureString(model, pt.orbit.signature));
+}
+
+// The start orbit: simulation from x0, a period read off the Poincare returns, then Newton.
+// FAILED_PRECONDITION when there is none to be found from x0.
+StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
+                                   const StateVector& x0, int transient_periods) {
+  const Osc& model = Model();
+  GuessOptions guess;
+  guess.transient_periods = transient_periods;
+  StatusOr<PeriodicOrbit> orbit = OrbitFromSimulation(model, propagator, params, x0, guess);
+  if (!orbit.ok()) {
+    return FailedPrecondition(
+        "the start state is not near a periodic orbit: " + orbit.status().message() +
+        " (try another initial_state, more transient_periods, or a parameter value where the "
+        "motion is periodic)");
+  }
+  PeriodicOrbit solved = *orbit;
+  const OrbitSolveSummary summary = SolveOrbit(model, propagator, OrbitSolverOptions(), &solved);
+  if (summary.status != SolveStatus::kConverged) {
+    return FailedPrecondition(
+        "the start state is not near a periodic orbit: Newton on the period-" +
+        std::to_string(solved.signature.periods) + " orbit " +
+        SignatureString(model, orbit->signature) + " found by simulation did not converge (" +
+        SolveStatusName(summary.status) + ": " + summary.message + "); try more transient_periods");
+  }
+  return solved;
+}
+
+v1::ContinueResult ToProto(const ContinuationResult& r) {
+  v1::ContinueResult out;
+  out.set_status(TerminationName(r.summary.termination));
+  out.set_message(r.summary.message);
+  out.mutable_points()->Reserve(static_cast<int>(r.points.size()));
+  for (const ContinuationPoint& pt : r.points) ToProto(pt, out.add_points());
+  for (const SpecialPoint& sp : r.special_points) ToProto(sp, out.add_special_points());
+  out.set_steps(r.summary.steps);
+  out.set_rejected_steps(r.summary.rejected_steps);
+  out.set_newton_iterations(r.summary.newton_iterations);
+  out.set_engine_version(EngineVersion());
+  return out;
+}
+
 }  // namespace
 
 v1::SimulateRequest::Outputs EffectiveOutputs(const v1::SimulateRequest& request) {
@@ -317,6 +505,81 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
     return Internal("out of memory while sweeping");
   } catch (const std::exception& e) {
     return Internal(std::string("sweep failed: ") + e.what());
+  }
+}
+
+StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
+                                         const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const Osc& model = Model();
+  const Params params = ToEngineParams(request.params());
+  if (Status s = model.ValidateParams(params); !s.ok()) return s;
+  if (request.param().empty()) {
+    return InvalidArgument(
+        "param: the continuation parameter must be named (one of a, b, omega, xi, g, phi0)");
+  }
+  StatusOr<int> index = model.ParamIndex(request.param());
+  if (!index.ok()) return InvalidArgument("param: " + index.status().message());
+  StatusOr<ContinuationOptions> options = ToContinuationOptions(request);
+  if (!options.ok()) return options.status();
+  // Both ends must be valid values of the parameter (the branch may run up to them).
+  for (const auto& [field, v] : {std::pair{"min", options->min}, std::pair{"max", options->max}}) {
+    Params p = params;
+    p[*index] = v;
+    if (Status s = model.ValidateParams(p); !s.ok()) {
+      return InvalidArgument(std::string(field) + ": " + s.message());
+    }
+  }
+  const double value = params[*index];
+  if (value < options->min || value > options->max) {
+    return InvalidArgument("the start value of the continuation parameter, params." +
+                           request.param() + " = " + Num(value) + ", is outside [min, max] = [" +
+                           Num(options->min) + ", " + Num(options->max) + "]");
+  }
+  const int transient = request.has_transient_periods() ? request.transient_periods()
+                                                        : GuessOptions().transient_periods;
+  if (transient < 0) {
+    return InvalidArgument("transient_periods must be >= 0, got " + std::to_string(transient));
+  }
+  const StateVector x0 = ToEngineState(request.has_initial_state(), request.initial_state());
+  if (Status s = model.ValidateState(x0, params, SimulationOptions().state_tolerance); !s.ok()) {
+    return s;
+  }
+
+  try {
+    ExactPropagator propagator(model);
+    StatusOr<PeriodicOrbit> orbit = StartOrbit(propagator, params, x0, transient);
+    if (!orbit.ok()) return orbit.status();
+    // The search for the start orbit is not interruptible; honour a cancel that came meanwhile.
+    if (progress && !progress(0.0)) {
+      v1::ContinueResult out;
+      out.set_status(TerminationName(Termination::kCancelled));
+      out.set_message("cancelled before the continuation started");
+      out.set_engine_version(EngineVersion());
+      out.set_wall_seconds(Seconds(start));
+      return out;
+    }
+    ContinuationCallback callback;
+    if (progress) {
+      callback = [&progress](const ContinuationPoint&, double fraction) {
+        return progress(fraction);
+      };
+    }
+    const ContinuationResult r = Continue(model, propagator, *orbit, *options, callback);
+    // A start the engine refuses before the first step (e.g. an orbit that is not admissible) is
+    // an error of the request, not a result.
+    const StatusCode code = r.summary.status.code();
+    if (r.summary.termination == Termination::kFailed && r.points.empty() &&
+        (code == StatusCode::kInvalidArgument || code == StatusCode::kFailedPrecondition)) {
+      return r.summary.status;
+    }
+    v1::ContinueResult out = ToProto(r);
+    out.set_wall_seconds(Seconds(start));
+    return out;
+  } catch (const std::bad_alloc&) {
+    return Internal("out of memory while continuing");
+  } catch (const std::exception& e) {
+    return Internal(std::string("continuation failed: ") + e.what());
   }
 }
 

@@ -19,6 +19,7 @@
 #include "client/job_runner.h"
 #include "client/output.h"
 #include "client/progress_bar.h"
+#include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/model/drifting_oscillator.h"
 #include "drillbif/simulate/simulator.h"
@@ -104,6 +105,20 @@ struct SweepFlags {
   int threads = 0;
 };
 
+struct ContinueFlags {
+  std::string param;
+  double min = 0.0, max = 0.0;
+  std::string direction = "both";
+  ContinuationOptions defaults;
+  double initial_step = defaults.initial_step;
+  double min_step = defaults.min_step;
+  double max_step = defaults.max_step;
+  int max_steps = defaults.max_steps;
+  int target_iterations = defaults.target_iterations;
+  double locate_tolerance = defaults.locate_tolerance;
+  bool no_switch = false;
+};
+
 // Accepts finite numbers > 0.
 CLI::Validator PositiveDouble() {
   return CLI::Validator(
@@ -134,6 +149,10 @@ void AddModelFlags(CLI::App* cmd, ModelFlags* m) {
   cmd->add_option("--y0", m->y0, "Bit velocity")->group(s)->capture_default_str();
   cmd->add_option("--q0", m->q0, "Slider-top position, in [0, 1]")->group(s)->capture_default_str();
   cmd->add_option("--s0", m->s0, "Forcing phase (radians)")->group(s)->capture_default_str();
+}
+
+// --transient and --samples of a simulation (simulate, sweep).
+void AddRunFlags(CLI::App* cmd, ModelFlags* m) {
   const std::string r = "Run";
   cmd->add_option("--transient", m->transient, "Forcing periods discarded first")
       ->group(r)
@@ -263,6 +282,30 @@ int RunSweepCommand(const GlobalFlags& global, const ModelFlags& m, const SweepF
       [](const v1::SweepResult& r) { return SweepResultToCsv(r); });
 }
 
+int RunContinueCommand(const GlobalFlags& global, const ModelFlags& m, const ContinueFlags& f) {
+  v1::ContinueRequest request;
+  *request.mutable_params() = ToProtoParams(m);
+  *request.mutable_initial_state() = ToProtoState(m);
+  request.set_param(f.param);
+  request.set_min(f.min);
+  request.set_max(f.max);
+  request.set_direction(f.direction == "increasing"   ? v1::ContinueRequest::INCREASING
+                        : f.direction == "decreasing" ? v1::ContinueRequest::DECREASING
+                                                      : v1::ContinueRequest::BOTH);
+  request.set_initial_step(f.initial_step);
+  request.set_min_step(f.min_step);
+  request.set_max_step(f.max_step);
+  request.set_max_steps(f.max_steps);
+  request.set_target_iterations(f.target_iterations);
+  request.set_locate_tolerance(f.locate_tolerance);
+  request.set_switch_signatures(!f.no_switch);
+  request.set_transient_periods(m.transient);
+
+  return RunAndPrint(
+      global, [&](const ProgressCallback& progress) { return RunContinue(request, progress); },
+      [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
+}
+
 int Main(int argc, char** argv) {
   CLI::App app{"drillctl: bifurcation analysis of the drifting impact oscillator", "drillctl"};
   app.set_version_flag("--version", EngineVersion());
@@ -289,6 +332,7 @@ int Main(int argc, char** argv) {
       "Simulate N transient periods, then report the sampled window (default: rop, power and "
       "the Poincare samples of 100 periods after a 500-period transient)");
   AddModelFlags(simulate, &model);
+  AddRunFlags(simulate, &model);
   const std::string out = "Outputs (none given: --measures --poincare; any given: exactly those)";
   sim.output_options = {
       simulate->add_flag("--measures", sim.measures, "Mean ROP and dissipated power")->group(out),
@@ -332,6 +376,60 @@ int Main(int argc, char** argv) {
       ->capture_default_str()
       ->group("Sweep");
   AddModelFlags(sweep, &model);
+  AddRunFlags(sweep, &model);
+
+  ContinueFlags co;
+  CLI::App* cont = app.add_subcommand(
+      "continue",
+      "Numerical continuation of a periodic orbit in one parameter, with its folds, period "
+      "doublings, grazings and ROP maxima located; the start orbit is found by simulation from "
+      "the initial state at the model parameters");
+  const std::string c = "Continuation";
+  cont->add_option("--param", co.param, "Continuation parameter: a, b, omega, xi, g or phi0")
+      ->required()
+      ->group(c);
+  cont->add_option("--min", co.min, "Lower bound of the parameter")->required()->group(c);
+  cont->add_option("--max", co.max, "Upper bound of the parameter")->required()->group(c);
+  cont->add_option("--direction", co.direction,
+                   "Way the parameter moves on the first step: increasing, decreasing or both")
+      ->check(CLI::IsMember({"increasing", "decreasing", "both"}))
+      ->capture_default_str()
+      ->group(c);
+  cont->add_option("--initial-step", co.initial_step, "Arclength of the first step")
+      ->check(PositiveDouble())
+      ->capture_default_str()
+      ->group(c);
+  cont->add_option("--min-step", co.min_step, "Shortest step (shorter: the branch fails)")
+      ->check(PositiveDouble())
+      ->capture_default_str()
+      ->group(c);
+  cont->add_option("--max-step", co.max_step, "Longest step")
+      ->check(PositiveDouble())
+      ->capture_default_str()
+      ->group(c);
+  cont->add_option("--max-steps", co.max_steps, "Accepted steps per direction")
+      ->check(CLI::Range(1, kMaxContinuationSteps))
+      ->capture_default_str()
+      ->group(c);
+  cont->add_option("--target-iterations", co.target_iterations,
+                   "Corrector iterations the step length adapts to")
+      ->check(CLI::Range(1, co.defaults.max_iterations))
+      ->capture_default_str()
+      ->group(c);
+  cont->add_option("--locate-tolerance", co.locate_tolerance,
+                   "Special points located to this width in the parameter")
+      ->check(PositiveDouble())
+      ->capture_default_str()
+      ->group(c);
+  cont->add_flag("--no-switch", co.no_switch,
+                 "Stop a direction at its first grazing instead of switching signature")
+      ->group(c);
+  AddModelFlags(cont, &model);
+  cont->add_option("--transient", model.transient,
+                   "Forcing periods simulated before the start orbit is looked for")
+      ->group("Start orbit")
+      ->check(CLI::Range(0, std::numeric_limits<int>::max()))
+      ->capture_default_str();
 
   try {
     app.parse(argc, argv);
@@ -352,6 +450,7 @@ int Main(int argc, char** argv) {
   }
   InstallInterruptHandler();
   if (simulate->parsed()) return RunSimulateCommand(global, model, sim);
+  if (cont->parsed()) return RunContinueCommand(global, model, co);
   return RunSweepCommand(global, model, sw);
 }
 

@@ -2,6 +2,7 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <algorithm>
 #include <charconv>
 #include <string_view>
 
@@ -63,6 +64,30 @@ void AppendStatus(const std::string& status, const std::string& message, std::st
   AppendComment("message=" + message, out);
 }
 
+// Protobuf's JSON printer writes '<' and '>' as \u003c and \u003e (safe to embed in HTML);
+// drillctl prints them as themselves, so that signatures read as written ("NC>Pi CwoP>l1 ...").
+// The JSON value is the same. Backslashes occur only inside strings, and every other escape
+// sequence is copied whole, so an escaped backslash followed by "u003e" is left alone.
+std::string UnescapeAngleBrackets(const std::string& json) {
+  std::string out;
+  out.reserve(json.size());
+  for (size_t i = 0; i < json.size(); ++i) {
+    if (json[i] != '\\') {
+      out.push_back(json[i]);
+    } else if (json.compare(i, 6, "\\u003c") == 0 || json.compare(i, 6, "\\u003C") == 0) {
+      out.push_back('<');
+      i += 5;
+    } else if (json.compare(i, 6, "\\u003e") == 0 || json.compare(i, 6, "\\u003E") == 0) {
+      out.push_back('>');
+      i += 5;
+    } else {
+      out.push_back(json[i]);
+      if (i + 1 < json.size()) out.push_back(json[++i]);
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 StatusOr<std::string> ToJson(const google::protobuf::Message& message, bool pretty) {
@@ -73,6 +98,7 @@ StatusOr<std::string> ToJson(const google::protobuf::Message& message, bool pret
   std::string json;
   const auto status = google::protobuf::util::MessageToJsonString(message, &json, options);
   if (!status.ok()) return Internal("cannot print the result as JSON: " + status.ToString());
+  json = UnescapeAngleBrackets(json);
   if (json.empty() || json.back() != '\n') json.push_back('\n');
   return json;
 }
@@ -197,6 +223,39 @@ std::string SweepResultToCsv(const v1::SweepResult& result) {
   };
   rows("up", result.up());
   rows("down", result.down());
+  return out;
+}
+
+std::string ContinueResultToCsv(const v1::ContinueResult& result) {
+  std::string out;
+  AppendStatus(result.status(), result.message(), &out);
+  out.append("value,rop,power,period,stable,signature_text,mu_abs_max\n");
+  for (const v1::BranchPoint& pt : result.points()) {
+    double mu_abs_max = 0.0;
+    for (const v1::Multiplier& mu : pt.multipliers()) mu_abs_max = std::max(mu_abs_max, mu.abs());
+    Row(&out)
+        .Num(pt.value())
+        .Num(pt.rop())
+        .Num(pt.power())
+        .Num(pt.period())
+        .Str(pt.stable() ? "true" : "false")
+        .Str(pt.signature_text())
+        .Num(mu_abs_max)
+        .End();
+  }
+  for (const v1::SpecialPoint& sp : result.special_points()) {
+    std::string line = v1::SpecialPoint::Kind_Name(sp.kind());
+    line.append(" value=");
+    AppendNumber(sp.value(), &line);
+    line.append(" rop=");
+    AppendNumber(sp.rop(), &line);
+    line.append(" power=");
+    AppendNumber(sp.power(), &line);
+    line.append(" stable=").append(sp.stable() ? "true" : "false");
+    line.append(" signature=").append(sp.signature_text());
+    if (!sp.detail().empty()) line.append(" detail=").append(sp.detail());
+    AppendComment(line, &out);
+  }
   return out;
 }
 

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "drillbif/common/status.h"
+#include "drillbif/v1/continue.pb.h"
 #include "drillbif/v1/simulate.pb.h"
 #include "drillbif/v1/sweep.pb.h"
 
@@ -15,7 +16,8 @@ namespace drillbif::client {
 
 // A message as JSON with the default (lowerCamelCase) names, enums by name and fields at their
 // default values printed too (so that "rop": 0 shows). Indented when `pretty`, else one line.
-// Ends with a newline.
+// '<' and '>' are written as themselves, not as protobuf's \u003c and \u003e. Ends with a
+// newline.
 StatusOr<std::string> ToJson(const google::protobuf::Message& message, bool pretty);
 
 // The table a simulate CSV holds: a CSV file has one table, so at most one of these outputs may be
@@ -38,6 +40,13 @@ std::string SimulateResultToCsv(const v1::SimulateResult& result, SimulateTable 
 //   direction,value,period,p,y,q
 // one row per Poincare sample, the up sweep first.
 std::string SweepResultToCsv(const v1::SweepResult& result);
+
+// Continuation result as CSV: "# status=..." lines when it did not complete, then
+//   value,rop,power,period,stable,signature_text,mu_abs_max
+// one row per branch point in branch order (mu_abs_max: the largest |multiplier|, 0 when all are
+// structural zeros), then one comment line per special point in the order found:
+//   # FOLD value=0.16715050... rop=... power=... stable=false signature=... [detail=...]
+std::string ContinueResultToCsv(const v1::ContinueResult& result);
 
 }  // namespace drillbif::client
 

@@ -1,0 +1,323 @@
+// The continue job (ContinueRequest -> start orbit -> continuation -> ContinueResult): the
+// published fold and ROP maximum of MODEL.md's continuation in b, the branch points' contents,
+// the JSON and CSV forms, invalid requests as INVALID_ARGUMENT naming the field, a chaotic start
+// as FAILED_PRECONDITION, direction, step budget, signature switching off, and cancellation.
+#include <gmock/gmock.h>
+#include <google/protobuf/util/json_util.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include "client/job_runner.h"
+#include "client/output.h"
+
+namespace drillbif::client {
+namespace {
+
+using ::testing::HasSubstr;
+
+// Continuation of the reference orbit in b (a = 0.3, omega = 0.1), MODEL.md's table, published to
+// 8 digits by an independent computation.
+constexpr double kFoldB = 0.16715050;
+constexpr double kRopMaxB = 0.16381677;
+constexpr double kRopMaxRop = 0.53873914;
+constexpr double kGrazingL1B = 0.02772417;
+// The published values are rounded to 8 decimals (error <= 5e-9); the engine locates special
+// points to locate_tolerance = 1e-10 in b. 1e-8 covers both with a margin.
+constexpr double kPublishedTolerance = 1e-8;
+
+// The reference orbit's signature: NC -impact-> CwoP -progression-> CwP -stick-> CwoP
+// -separation-> NC -section.
+constexpr const char* kReferenceSignature = "NC>Pi CwoP>l1 CwP>l1 CwoP>l2 NC|";
+
+// b in [0.16, 0.17] from the stable period-1 orbit at b = 0.165, found by simulation from the
+// default initial state (p = y = q = s = 0): the decreasing direction passes the ROP maximum and
+// stops at 0.16; the increasing one turns at the fold onto the unstable branch and goes back down
+// to 0.16. About 60 ms.
+v1::ContinueRequest FoldRequest() {
+  v1::ContinueRequest request;
+  request.mutable_params()->set_b(0.165);
+  request.set_param("b");
+  request.set_min(0.16);
+  request.set_max(0.17);
+  return request;
+}
+
+// The fold run is shared by the tests that only read it.
+const v1::ContinueResult& FoldResult() {
+  static const v1::ContinueResult result = [] {
+    StatusOr<v1::ContinueResult> r = RunContinue(FoldRequest());
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    return r.ok() ? *r : v1::ContinueResult();
+  }();
+  return result;
+}
+
+// The special points of a kind.
+std::vector<v1::SpecialPoint> OfKind(const v1::ContinueResult& r, v1::SpecialPoint::Kind kind) {
+  std::vector<v1::SpecialPoint> out;
+  for (const v1::SpecialPoint& sp : r.special_points()) {
+    if (sp.kind() == kind) out.push_back(sp);
+  }
+  return out;
+}
+
+TEST(RunContinue, FindsThePublishedFoldAndRopMaximumInB) {
+  const v1::ContinueResult& r = FoldResult();
+  EXPECT_EQ(r.status(), "COMPLETED") << r.message();
+  const std::vector<v1::SpecialPoint> folds = OfKind(r, v1::SpecialPoint::FOLD);
+  ASSERT_EQ(folds.size(), 1u);
+  EXPECT_NEAR(folds[0].value(), kFoldB, kPublishedTolerance);
+  EXPECT_EQ(folds[0].params().b(), folds[0].value());
+  const std::vector<v1::SpecialPoint> maxima = OfKind(r, v1::SpecialPoint::ROP_MAX);
+  ASSERT_EQ(maxima.size(), 1u);
+  EXPECT_NEAR(maxima[0].value(), kRopMaxB, kPublishedTolerance);
+  EXPECT_NEAR(maxima[0].rop(), kRopMaxRop, kPublishedTolerance);
+  EXPECT_TRUE(maxima[0].stable());
+  // Nothing else happens on this stretch of the period-1 branch.
+  EXPECT_EQ(r.special_points_size(), 2);
+  for (const v1::SpecialPoint& sp : r.special_points()) {
+    EXPECT_EQ(sp.signature_text(), kReferenceSignature);
+    EXPECT_EQ(sp.signature_size(), 5);
+  }
+}
+
+TEST(RunContinue, FoldHasAMultiplierAtOne) {
+  // The period-1 orbit has one nontrivial multiplier (two structural zeros, MODEL.md); at a fold
+  // it is +1. It moves like sqrt(b_fold - b) along the branch, so a fold located to 1e-10 in b
+  // leaves it within about 1e-5 of 1 (the engine gets ~1e-14: it locates the zero of the
+  // tangent's b component, where the multiplier is exactly 1).
+  const std::vector<v1::SpecialPoint> folds = OfKind(FoldResult(), v1::SpecialPoint::FOLD);
+  ASSERT_EQ(folds.size(), 1u);
+  ASSERT_EQ(folds[0].multipliers_size(), 1);
+  EXPECT_NEAR(folds[0].multipliers(0).re(), 1.0, 1e-4);
+  EXPECT_EQ(folds[0].multipliers(0).im(), 0.0);
+}
+
+TEST(RunContinue, BranchPointsCarryTheOrbitAndItsStability) {
+  const v1::ContinueResult& r = FoldResult();
+  ASSERT_GT(r.points_size(), 10);
+  int stable = 0;
+  for (const v1::BranchPoint& pt : r.points()) {
+    // The branch stays in [min, max]; its ends are located on the bounds.
+    EXPECT_GE(pt.value(), 0.16 - 1e-12);
+    EXPECT_LE(pt.value(), 0.17 + 1e-12);
+    EXPECT_EQ(pt.params().b(), pt.value());
+    EXPECT_EQ(pt.params().a(), 0.3);
+    EXPECT_EQ(pt.params().omega(), 0.1);
+    EXPECT_TRUE(pt.params().has_xi() && pt.params().has_g() && pt.params().has_phi0());
+    EXPECT_NEAR(pt.period(), 2.0 * M_PI / 0.1, 1e-9);
+    EXPECT_EQ(pt.signature_text(), kReferenceSignature);
+    ASSERT_EQ(pt.signature_size(), 5);
+    EXPECT_EQ(pt.signature(0), v1::NO_CONTACT);
+    EXPECT_EQ(pt.signature(1), v1::CONTACT);
+    EXPECT_EQ(pt.signature(2), v1::PROGRESSION);
+    EXPECT_EQ(pt.signature(3), v1::CONTACT);
+    EXPECT_EQ(pt.signature(4), v1::NO_CONTACT);
+    ASSERT_EQ(pt.durations_size(), 5);
+    EXPECT_NEAR(std::accumulate(pt.durations().begin(), pt.durations().end(), 0.0), pt.period(),
+                1e-9);
+    EXPECT_EQ(pt.structural_zeros(), 2);
+    ASSERT_EQ(pt.multipliers_size(), 1);
+    const v1::Multiplier& mu = pt.multipliers(0);
+    EXPECT_DOUBLE_EQ(mu.abs(), std::hypot(mu.re(), mu.im()));
+    EXPECT_EQ(pt.stable(), mu.abs() < 1.0);
+    stable += pt.stable();
+    // The section state: free flight (p < q + g), slider relaxed.
+    EXPECT_LT(pt.p(), pt.q() + 0.02);
+    EXPECT_GT(pt.rop(), 0.4);
+    EXPECT_GT(pt.power(), 0.0);
+  }
+  // Both sides of the fold: the stable branch and the unstable one.
+  EXPECT_GT(stable, 0);
+  EXPECT_LT(stable, r.points_size());
+  EXPECT_GT(r.steps(), 0);
+  EXPECT_GT(r.newton_iterations(), 0);
+  EXPECT_GT(r.wall_seconds(), 0.0);
+  EXPECT_FALSE(r.engine_version().empty());
+}
+
+TEST(RunContinue, JsonHasTheDocumentedNamesAndReadsBack) {
+  const v1::ContinueResult& r = FoldResult();
+  const StatusOr<std::string> json = ToJson(r, false);
+  ASSERT_TRUE(json.ok()) << json.status().ToString();
+  for (const char* key :
+       {"\"points\":[", "\"specialPoints\":[", "\"kind\":\"FOLD\"", "\"kind\":\"ROP_MAX\"",
+        "\"rop\":", "\"power\":", "\"period\":", "\"multipliers\":[",
+        "\"stable\":", "\"signature\":[\"NO_CONTACT\"", "\"signatureText\":\"NC>Pi CwoP>l1",
+        "\"params\":{\"a\":0.3", "\"structuralZeros\":2", "\"newtonIterations\":"}) {
+    EXPECT_THAT(*json, HasSubstr(key));
+  }
+  // '>' printed as itself rather than \u003e, and still the same message when read back.
+  v1::ContinueResult back;
+  ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(*json, &back).ok());
+  EXPECT_EQ(back.SerializeAsString(), r.SerializeAsString());
+}
+
+TEST(RunContinue, CsvHasOneRowPerPointThenTheSpecialPoints) {
+  const v1::ContinueResult& r = FoldResult();
+  const std::string csv = ContinueResultToCsv(r);
+  std::vector<std::string> lines;
+  for (size_t at = 0, end; at < csv.size(); at = end + 1) {
+    end = csv.find('\n', at);
+    lines.push_back(csv.substr(at, end - at));
+  }
+  ASSERT_EQ(lines.size(), 1u + r.points_size() + r.special_points_size());
+  EXPECT_EQ(lines[0], "value,rop,power,period,stable,signature_text,mu_abs_max");
+  EXPECT_THAT(lines[1], HasSubstr(std::string(",") + kReferenceSignature + ","));
+  EXPECT_THAT(csv, HasSubstr("\n# FOLD value=0.16715"));
+  EXPECT_THAT(csv, HasSubstr("\n# ROP_MAX value=0.16381"));
+}
+
+TEST(RunContinue, UnknownParameterIsInvalidArgumentNamingIt) {
+  v1::ContinueRequest request = FoldRequest();
+  request.set_param("zeta");
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(r.status().message(), HasSubstr("zeta"));
+  EXPECT_THAT(r.status().message(), HasSubstr("param"));
+}
+
+TEST(RunContinue, EmptyRangeIsInvalidArgument) {
+  for (double max : {0.16, 0.15}) {
+    v1::ContinueRequest request = FoldRequest();
+    request.set_max(max);
+    const StatusOr<v1::ContinueResult> r = RunContinue(request);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_THAT(r.status().message(), HasSubstr("max must be > min"));
+  }
+}
+
+TEST(RunContinue, StartValueOutsideTheRangeIsInvalidArgument) {
+  v1::ContinueRequest request = FoldRequest();
+  request.mutable_params()->clear_b();  // the reference b = 0.15, below min = 0.16
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(r.status().message(), HasSubstr("params.b = 0.15"));
+}
+
+TEST(RunContinue, InvalidModelParametersAndOptionsAreInvalidArgument) {
+  struct Case {
+    const char* name;
+    void (*edit)(v1::ContinueRequest*);
+    const char* names;  // what the message must name
+  };
+  const Case cases[] = {
+      {"xi", [](v1::ContinueRequest* r) { r->mutable_params()->set_xi(-1.0); }, "xi"},
+      {"min below the domain", [](v1::ContinueRequest* r) { r->set_min(-0.1); }, "min"},
+      {"infinite max", [](v1::ContinueRequest* r) { r->set_max(INFINITY); }, "max"},
+      {"min_step", [](v1::ContinueRequest* r) { r->set_min_step(0.0); }, "min_step"},
+      {"max_step", [](v1::ContinueRequest* r) { r->set_max_step(1e-9); }, "max_step"},
+      {"max_steps", [](v1::ContinueRequest* r) { r->set_max_steps(0); }, "max_steps"},
+      {"target_iterations", [](v1::ContinueRequest* r) { r->set_target_iterations(99); },
+       "target_iterations"},
+      {"locate_tolerance", [](v1::ContinueRequest* r) { r->set_locate_tolerance(-1.0); },
+       "locate_tolerance"},
+      {"transient_periods", [](v1::ContinueRequest* r) { r->set_transient_periods(-1); },
+       "transient_periods"},
+      {"initial_state", [](v1::ContinueRequest* r) { r->mutable_initial_state()->set_q(2.0); },
+       "q"},
+      {"empty param", [](v1::ContinueRequest* r) { r->clear_param(); }, "param"},
+  };
+  for (const Case& c : cases) {
+    v1::ContinueRequest request = FoldRequest();
+    c.edit(&request);
+    const StatusOr<v1::ContinueResult> r = RunContinue(request);
+    ASSERT_FALSE(r.ok()) << c.name;
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << c.name;
+    EXPECT_THAT(r.status().message(), HasSubstr(c.names)) << c.name;
+  }
+}
+
+TEST(RunContinue, ChaoticStartIsFailedPrecondition) {
+  // b = 0.05 lies in a chaotic band of MODEL.md's brute-force diagram (checked with
+  // `drillctl --local simulate --b 0.05 --transient 2000 --samples 30`: the Poincare samples never
+  // repeat, with impacts in some periods only), so no Poincare return closes within 16 periods.
+  v1::ContinueRequest request;
+  request.mutable_params()->set_b(0.05);
+  request.set_param("b");
+  request.set_min(0.04);
+  request.set_max(0.06);
+  request.set_transient_periods(50);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_THAT(r.status().message(), HasSubstr("the start state is not near a periodic orbit"));
+}
+
+TEST(RunContinue, IncreasingDirectionStopsAfterMaxSteps) {
+  v1::ContinueRequest request;  // reference point, b = 0.15
+  request.set_param("b");
+  request.set_min(0.0);
+  request.set_max(0.2);
+  request.set_direction(v1::ContinueRequest::INCREASING);
+  request.set_max_steps(5);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED");
+  EXPECT_THAT(r->message(), HasSubstr("max_steps"));
+  EXPECT_EQ(r->steps(), 5);
+  ASSERT_EQ(r->points_size(), 6);  // the start orbit and 5 steps
+  EXPECT_EQ(r->points(0).value(), 0.15);
+  for (int i = 1; i < r->points_size(); ++i) {
+    EXPECT_GT(r->points(i).value(), r->points(i - 1).value());
+  }
+}
+
+TEST(RunContinue, WithoutSwitchingStopsAtTheL1Grazing) {
+  // Down from b = 0.12 (above the period doubling at 0.11001, so the period-1 orbit is the
+  // attractor the simulation finds) past the period doubling to the grazing where the progression
+  // phase vanishes.
+  v1::ContinueRequest request;
+  request.mutable_params()->set_b(0.12);
+  request.set_param("b");
+  request.set_min(0.0);
+  request.set_max(0.2);
+  request.set_direction(v1::ContinueRequest::DECREASING);
+  request.set_switch_signatures(false);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+  EXPECT_THAT(r->message(), HasSubstr("switching is off"));
+  const std::vector<v1::SpecialPoint> grazings = OfKind(*r, v1::SpecialPoint::GRAZING_L1);
+  ASSERT_EQ(grazings.size(), 1u);
+  EXPECT_NEAR(grazings[0].value(), kGrazingL1B, kPublishedTolerance);
+  // Branch order: the decreasing direction from its far end (the grazing) to the start orbit.
+  EXPECT_NEAR(r->points(0).value(), kGrazingL1B, kPublishedTolerance);
+  EXPECT_EQ(r->points(r->points_size() - 1).value(), 0.12);
+  EXPECT_EQ(OfKind(*r, v1::SpecialPoint::PERIOD_DOUBLING).size(), 1u);
+}
+
+TEST(RunContinue, CancelledFromTheProgressCallback) {
+  int calls = 0;
+  std::vector<double> fractions;
+  const StatusOr<v1::ContinueResult> r = RunContinue(FoldRequest(), [&](double fraction) {
+    fractions.push_back(fraction);
+    return ++calls < 4;
+  });
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "CANCELLED");
+  EXPECT_EQ(calls, 4);
+  EXPECT_GT(r->points_size(), 0);
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()));
+  for (double f : fractions) {
+    EXPECT_GE(f, 0.0);
+    EXPECT_LE(f, 1.0);
+  }
+}
+
+TEST(RunContinue, CancelledBeforeTheFirstStep) {
+  const StatusOr<v1::ContinueResult> r = RunContinue(FoldRequest(), [](double) { return false; });
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "CANCELLED");
+  EXPECT_EQ(r->points_size(), 0);
+}
+
+}  // namespace
+}  // namespace drillbif::client
