@@ -138,7 +138,7 @@ TEST_P(ExactFlowTest, MeasureIncrementsMatchQuadratureOfTheirRates) {
   const StateVector x0 = ContactState(0.3, 0.6, 2.0, prm);
   for (int mode = 0; mode < 3; ++mode) {
     const double t = 3.0;
-    const MeasureVector closed = model.MeasureIncrements(mode, x0, t, prm);
+    const MeasureVector closed = model.MeasureIncrements(mode, x0, t, prm, kAllMeasures);
     const int n = 20000;
     MeasureVector simpson = MeasureVector::Zero(2);
     StateVector x;

@@ -337,7 +337,8 @@ void ForcedLinearOscillator::EvaluateSegment(const PreparedSegment& segment, dou
 }
 
 MeasureVector ForcedLinearOscillator::MeasureIncrements(int /*mode*/, const StateVector& x0,
-                                                        double t, const Params& p) const {
+                                                        double t, const Params& p,
+                                                        unsigned /*which*/) const {
   const StateVector x = ExactState(x0, t, p);
   MeasureVector m(2);
   m[kDisplacement] = x[kX] - x0[kX];

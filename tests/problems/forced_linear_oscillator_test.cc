@@ -165,7 +165,7 @@ TEST(ForcedLinearOscillatorTest, MeasureIncrementsMatchQuadratureOfTheRates) {
     sum += w * model.MeasureRates(FLO::kFree, FLO::ExactState(kStart, t * i / n, p), p);
   }
   sum *= t / (3.0 * n);
-  const MeasureVector closed = model.MeasureIncrements(FLO::kFree, kStart, t, p);
+  const MeasureVector closed = model.MeasureIncrements(FLO::kFree, kStart, t, p, kAllMeasures);
   EXPECT_NEAR(closed[FLO::kDisplacement], sum[FLO::kDisplacement], 1e-10);
   EXPECT_NEAR(closed[FLO::kPositionIntegral], sum[FLO::kPositionIntegral], 1e-10);
 }

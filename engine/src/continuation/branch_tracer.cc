@@ -54,7 +54,8 @@ bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* itera
     a.bottomRows(1) = dir.transpose();
     r.head(m()) = g;
     r[m()] = dir.dot(*y - y_pred);
-    const Vec step = a.partialPivLu().solve(-r);
+    lu_.compute(a);
+    const Vec step = lu_.solve(-r);
     if (!step.allFinite()) return false;
     *y += step;
     ++newton_;
@@ -85,6 +86,16 @@ bool BranchTracer::Tangent(const Vec& y, const Vec& prev, Vec* t, double* det) {
   return true;
 }
 
+bool BranchTracer::TangentFromCorrector(Vec* t, double* det) const {
+  Vec e = Vec::Zero(m() + 1);
+  e[m()] = 1.0;
+  *t = lu_.solve(e);
+  if (!t->allFinite() || t->norm() == 0.0) return false;
+  t->normalize();
+  *det = Sign(lu_.determinant());
+  return true;
+}
+
 ContinuationPoint BranchTracer::MakePoint(const Vec& y) const {
   ContinuationPoint p;
   p.value = y[m()];
@@ -98,7 +109,7 @@ ContinuationPoint BranchTracer::MakePoint(const Vec& y) const {
 double BranchTracer::Measure(const Vec& y, int index) const {
   PeriodicOrbit o;
   bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &o);
-  return OrbitMeasures(model_, propagator_, o)[index];
+  return OrbitMeasures(model_, propagator_, o, 1u << index)[index];
 }
 
 TestValues BranchTracer::Tests(const Vec& y, const Vec& t, double det,
@@ -401,7 +412,7 @@ bool BranchTracer::Step(ContinuationResult* result) {
     }
     Vec t1;
     double det = 0.0;
-    if (!Tangent(y1, t_, &t1, &det)) {
+    if (!TangentFromCorrector(&t1, &det)) {
       Finish(Termination::kFailed, "no tangent");
       return false;
     }

@@ -53,6 +53,11 @@ class BranchTracer {
   bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations);
   // Unit tangent at y oriented along `prev` (same size), and det of the bordered matrix with it.
   bool Tangent(const Vec& y, const Vec& prev, Vec* t, double* det);
+  // The same at the point the last Correct() converged to, from its final factorisation (whose
+  // last row was the step direction): solving it for e_last gives a vector along the tangent on
+  // the direction's side, and det [G_X G_l; v^T] = v . c with c along the tangent, so the sign of
+  // that determinant is the sign of det with the tangent itself.
+  bool TangentFromCorrector(Vec* t, double* det) const;
   ContinuationPoint MakePoint(const Vec& y) const;
   double Measure(const Vec& y, int index) const;
   TestValues Tests(const Vec& y, const Vec& t, double det, const ContinuationPoint& p) const;
@@ -79,8 +84,9 @@ class BranchTracer {
   int param_;
   Params base_;
   std::unique_ptr<OrbitBvp> bvp_;
-  Vec y_, t_;       // current point (X, lambda) and unit tangent
-  double h_ = 0.0;  // next step length
+  Vec y_, t_;                                // current point (X, lambda) and unit tangent
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;  // the last corrector iteration's bordered matrix
+  double h_ = 0.0;                           // next step length
   ContinuationPoint point_;
   TestValues tests_;
   int steps_ = 0, rejected_ = 0, newton_ = 0;

@@ -282,15 +282,17 @@ bool DriftingOscillator::FlowParamDerivative(int mode, const StateVector& x0, do
 }
 
 MeasureVector DriftingOscillator::MeasureIncrements(int mode, const StateVector& x0, double t,
-                                                    const Params& params) const {
+                                                    const Params& params, unsigned which) const {
   const double xi = params[kXi];
   MeasureVector m = MeasureVector::Zero(2);
+  const bool power = which & (1u << kPower), drift = which & (1u << kDrift);
   switch (mode) {
     case kNoContact:
       // w' = q^2/(2 xi) = -d/dt (q^2/2) since q' = -q/(2 xi): the spring's energy is released.
-      m[kPower] = -0.5 * x0[kQ] * x0[kQ] * std::expm1(-t / xi);
+      if (power) m[kPower] = -0.5 * x0[kQ] * x0[kQ] * std::expm1(-t / xi);
       return m;
     case kContact: {
+      if (!power) return m;  // no drift in contact without progression
       // w' = 2 xi y^2: no short closed form; Gauss-Legendre on panels of half the time scale.
       const double panel = 0.5 * std::min(TimeScale(kContact, params), 1.0 / params[kOmega]);
       PreparedSegment seg;
@@ -313,9 +315,9 @@ MeasureVector DriftingOscillator::MeasureIncrements(int mode, const StateVector&
       EvaluateCore(seg, t, params, &k);
       const double i2 = t * t * (seg.c[kCos0] * k.c2 - seg.c[kSin0] * k.xw * k.s3);
       const double int_y = x0[kY] * t + 0.5 * (params[kB] - 1.0) * t * t + params[kA] * i2;
-      m[kDrift] = int_y - (x0[kQ] - 1.0) * k.decay;
+      if (drift) m[kDrift] = int_y - (x0[kQ] - 1.0) * k.decay;
       // w' = (q-1)^2/(2 xi) = -d/dt ((q-1)^2/2).
-      m[kPower] = -0.5 * (x0[kQ] - 1.0) * (x0[kQ] - 1.0) * std::expm1(-t / xi);
+      if (power) m[kPower] = -0.5 * (x0[kQ] - 1.0) * (x0[kQ] - 1.0) * std::expm1(-t / xi);
       return m;
     }
   }

@@ -123,14 +123,15 @@ Stability OrbitStability(const HybridModel& model, Propagator& propagator,
 }
 
 std::vector<double> OrbitMeasures(const HybridModel& model, Propagator& propagator,
-                                  const PeriodicOrbit& orbit) {
+                                  const PeriodicOrbit& orbit, unsigned which) {
   const auto* closed = dynamic_cast<const ClosedFormFlow*>(&model);
   MeasureVector sum = MeasureVector::Zero(model.measure_names().size());
   double period = 0.0;
   for (size_t i = 0; i < orbit.durations.size(); ++i) {
     const int mode = orbit.signature.segments[i].mode;
     if (closed) {
-      sum += closed->MeasureIncrements(mode, orbit.starts[i], orbit.durations[i], orbit.params);
+      sum +=
+          closed->MeasureIncrements(mode, orbit.starts[i], orbit.durations[i], orbit.params, which);
     } else {
       AdvanceRequest req;
       req.mode = mode, req.x0 = orbit.starts[i], req.t_max = orbit.durations[i];

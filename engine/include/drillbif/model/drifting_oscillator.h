@@ -96,8 +96,8 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
                       PreparedSegment* segment) const override;
   void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,
                        bool with_guards, SegmentPoint* point) const override;
-  MeasureVector MeasureIncrements(int mode, const StateVector& x0, double t,
-                                  const Params& params) const override;
+  MeasureVector MeasureIncrements(int mode, const StateVector& x0, double t, const Params& params,
+                                  unsigned which) const override;
 
  private:
   std::vector<std::string> state_names_, param_names_, measure_names_;

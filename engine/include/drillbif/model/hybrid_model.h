@@ -57,6 +57,7 @@ struct Transition {
 
 // Rates of the measures accumulated along a trajectory (see HybridModel::MeasureRates).
 inline constexpr int kMaxMeasures = 4;
+inline constexpr unsigned kAllMeasures = ~0u;
 using MeasureVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxMeasures, 1>;
 
 class HybridModel {
@@ -191,9 +192,10 @@ class ClosedFormFlow {
   // (the same values as Flow, Guard and GuardCurvatureBound give, sharing their common work).
   virtual void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,
                                bool with_guards, SegmentPoint* point) const = 0;
-  // The measures' increments over [0, t] from x0 in `mode`.
+  // The measures' increments over [0, t] from x0 in `mode`: those whose bit is set in `which`
+  // (bit k: measure k; kAllMeasures: every one), the others zero and not computed.
   virtual MeasureVector MeasureIncrements(int mode, const StateVector& x0, double t,
-                                          const Params& params) const = 0;
+                                          const Params& params, unsigned which) const = 0;
 };
 
 }  // namespace drillbif

@@ -74,9 +74,10 @@ struct OrbitSolveSummary {
   double residual = 0.0;  // max-norm of the conditions at the returned orbit
 };
 
-// The measures' means over the orbit (as in HybridModel::measure_names(): ROP, Pc).
+// The measures' means over the orbit (as in HybridModel::measure_names(): ROP, Pc); only those
+// selected by the bit mask `which` are computed (the others are zero).
 std::vector<double> OrbitMeasures(const HybridModel& model, Propagator& propagator,
-                                  const PeriodicOrbit& orbit);
+                                  const PeriodicOrbit& orbit, unsigned which = kAllMeasures);
 
 // Stability of an orbit (flow Jacobians, saltation matrices).
 Stability OrbitStability(const HybridModel& model, Propagator& propagator,
