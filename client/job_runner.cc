@@ -288,6 +288,19 @@ StatusOr<ContinuationOptions> ToContinuationOptions(const v1::ContinueRequest& r
   if (request.has_target_iterations()) options.target_iterations = request.target_iterations();
   if (request.has_locate_tolerance()) options.locate_tolerance = request.locate_tolerance();
   if (request.has_switch_signatures()) options.switch_signatures = request.switch_signatures();
+  for (int k : request.stop_at()) {
+    // The proto's kind names are the engine's (SpecialPointKindName).
+    bool found = false;
+    for (int e = 0; e <= static_cast<int>(SpecialPointKind::kPowerMax); ++e) {
+      const auto kind = static_cast<SpecialPointKind>(e);
+      if (v1::SpecialPoint::Kind_Name(static_cast<v1::SpecialPoint::Kind>(k)) ==
+          SpecialPointKindName(kind)) {
+        options.stop_at.push_back(kind);
+        found = true;
+      }
+    }
+    if (!found) return InvalidArgument("stop_at: no special point kind " + std::to_string(k));
+  }
 
   if (!std::isfinite(options.min) || !std::isfinite(options.max)) {
     return InvalidArgument("min and max must be finite (got min = " + Num(options.min) +

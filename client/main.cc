@@ -117,6 +117,7 @@ struct ContinueFlags {
   int target_iterations = defaults.target_iterations;
   double locate_tolerance = defaults.locate_tolerance;
   bool no_switch = false;
+  std::vector<std::string> stop_at;
 };
 
 // Accepts finite numbers > 0.
@@ -299,6 +300,16 @@ int RunContinueCommand(const GlobalFlags& global, const ModelFlags& m, const Con
   request.set_target_iterations(f.target_iterations);
   request.set_locate_tolerance(f.locate_tolerance);
   request.set_switch_signatures(!f.no_switch);
+  for (const std::string& name : f.stop_at) {
+    v1::SpecialPoint::Kind kind;
+    if (!v1::SpecialPoint::Kind_Parse(name, &kind) || kind == v1::SpecialPoint::KIND_UNSPECIFIED) {
+      return Error("--stop-at: unknown special point kind '" + name +
+                       "' (FOLD, PERIOD_DOUBLING, NEIMARK_SACKER, BRANCH_POINT, GRAZING_L1, "
+                       "GRAZING_L2, GRAZING_PI, SIGNATURE_CHANGE, ROP_MAX, POWER_MAX)",
+                   kExitUsage);
+    }
+    request.add_stop_at(kind);
+  }
   request.set_transient_periods(m.transient);
 
   return RunAndPrint(
@@ -423,6 +434,10 @@ int Main(int argc, char** argv) {
       ->group(c);
   cont->add_flag("--no-switch", co.no_switch,
                  "Stop a direction at its first grazing instead of switching signature")
+      ->group(c);
+  cont->add_option("--stop-at", co.stop_at,
+                   "Stop a direction at its first special point of these kinds, e.g. FOLD")
+      ->delimiter(',')
       ->group(c);
   AddModelFlags(cont, &model);
   cont->add_option("--transient", model.transient,

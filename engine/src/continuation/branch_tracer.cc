@@ -188,7 +188,8 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
 }
 
 void BranchTracer::AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
-                              ContinuationResult* result) const {
+                              ContinuationResult* result) {
+  NoteStop(kind);
   SpecialPoint sp;
   sp.kind = kind;
   sp.point = MakePoint(y);
@@ -284,6 +285,7 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
     sp.point = at_graze;
     sp.detail = sw.detail;
     result->special_points.push_back(sp);
+    NoteStop(sw.kind);
   }
   if (!sw.representation_only) result->points.push_back(at_graze);
   if (!options_.switch_signatures && !sw.representation_only) {
@@ -341,12 +343,23 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
   return true;
 }
 
+void BranchTracer::NoteStop(SpecialPointKind kind) {
+  const auto& stops = options_.stop_at;
+  if (stop_kind_.empty() && std::find(stops.begin(), stops.end(), kind) != stops.end()) {
+    stop_kind_ = SpecialPointKindName(kind);
+  }
+}
+
 void BranchTracer::Finish(Termination termination, std::string message) {
   termination_ = termination;
   message_ = std::move(message);
 }
 
 bool BranchTracer::Step(ContinuationResult* result) {
+  if (!stop_kind_.empty()) {
+    Finish(Termination::kCompleted, "stopped at " + stop_kind_);
+    return false;
+  }
   if (steps_ >= options_.max_steps) {
     Finish(Termination::kCompleted, "reached max_steps");
     return false;

@@ -71,8 +71,11 @@ class BranchTracer {
   // Detects sign changes of the test functions between the current point and (y1, tests1) at
   // arclength h, and appends the located special points.
   void DetectSpecialPoints(double h, const TestValues& tests1, ContinuationResult* result);
+  // Records a located special point (and whether the options stop at its kind).
   void AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
-                  ContinuationResult* result) const;
+                  ContinuationResult* result);
+  // Marks the branch to stop after this step when `kind` is one of options.stop_at.
+  void NoteStop(SpecialPointKind kind);
   // Handles an inadmissible corrected point at arclength h: locates the grazing, records it and
   // switches the signature. False when the branch cannot go on.
   bool CrossGrazing(double h, const Admissibility& violation, ContinuationResult* result);
@@ -92,6 +95,7 @@ class BranchTracer {
   int steps_ = 0, rejected_ = 0, newton_ = 0;
   Termination termination_ = Termination::kCompleted;
   std::string message_;
+  std::string stop_kind_;  // set once a special point of a stop_at kind is recorded
 };
 
 }  // namespace drillbif::internal

@@ -78,6 +78,9 @@ struct ContinuationOptions {
   double locate_tolerance = 1e-10;  // special points: parameter bracket width
   bool locate = true;               // detect and locate special points
   bool switch_signatures = true;    // at grazing, switch and go on (else stop there)
+  // Stop a direction at the first special point of one of these kinds (e.g. {kFold}: up to the
+  // fold, for the stable part of a branch).
+  std::vector<SpecialPointKind> stop_at;
 
   Status Validate() const;
 };
