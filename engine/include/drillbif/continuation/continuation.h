@@ -108,6 +108,26 @@ ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
                             const PeriodicOrbit& start, const ContinuationOptions& options,
                             const ContinuationCallback& callback = {});
 
+// Branch switching at a located period-doubling point: the period-2n orbit born there. Found by
+// simulating from the PD orbit perturbed along the eigenvector of its multiplier -1 (size
+// `perturbation`, relative), at the parameter `offset` past the point on each side in turn, until
+// an attracting orbit of twice the period appears; then solved as a boundary-value problem.
+// FAILED_PRECONDITION when neither side has one (e.g. a subcritical doubling, whose period-2n
+// orbit is unstable).
+struct PeriodDoublingSwitchOptions {
+  // Parameter distance from the PD point: far enough that the new orbit attracts at a useful rate
+  // (its own multiplier tends to 1 at the doubling) and its two halves differ (by ~sqrt(offset)).
+  double offset = 1e-3;
+  double perturbation = 1e-4;    // relative size of the kick along the eigenvector
+  int transient_periods = 2000;  // forcing periods simulated before reading the orbit
+  // Relative return distance accepted from the simulation; Newton then solves the orbit exactly.
+  double return_tolerance = 1e-4;
+};
+StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propagator& propagator,
+                                               const SpecialPoint& period_doubling,
+                                               const std::string& param,
+                                               const PeriodDoublingSwitchOptions& options = {});
+
 }  // namespace drillbif
 
 #endif  // DRILLBIF_CONTINUATION_CONTINUATION_H_
