@@ -282,11 +282,25 @@ Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
   return t;
 }
 
+bool DriftingOscillator::ModeConstraint(int mode, const StateVector& x, const Params& params,
+                                        double* c, StateRow* grad, ParamVector* param_grad) const {
+  if (mode == kNoContact) return false;
+  *c = x[kP] - x[kQ] - params[kG];
+  *grad = StateRow::Zero(4);
+  (*grad)[kP] = 1.0, (*grad)[kQ] = -1.0;
+  *param_grad = ParamVector::Zero(6);
+  (*param_grad)[kG] = -1.0;
+  return true;
+}
+
 int DriftingOscillator::ModeAcross(int mode, int guard) const {
   switch (mode) {
-    case kNoContact: return kContact;  // an impact that is not tangential starts contact
-    case kContact: return guard == kProgressionStart ? kProgression : kNoContact;
-    default: return kContact;
+    case kNoContact:
+      return kContact;  // an impact that is not tangential starts contact
+    case kContact:
+      return guard == kProgressionStart ? kProgression : kNoContact;
+    default:
+      return kContact;
   }
 }
 

@@ -127,6 +127,32 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
         if (want_p) (*gp)[row + r] = -dend_p[j];
         ++r;
       }
+      // A first segment in a mode confined to a surface: the periodicity of the component along
+      // the constraint's gradient is implied by the others on that surface (and is the identity
+      // 0 = 0 when no jump projects onto it, e.g. an orbit that never leaves contact), so that
+      // row states the constraint at the start instead.
+      double c = 0.0;
+      StateRow cgrad;
+      ParamVector cpgrad;
+      if (model_.ModeConstraint(signature_.segments[0].mode, orbit.starts[0], params, &c, &cgrad,
+                                &cpgrad)) {
+        int j_row = -1;
+        for (int j = 0, r = 0; j < n && j_row < 0; ++j) {
+          if (j == ps_) continue;
+          if (cgrad[j] != 0.0) j_row = r;
+          ++r;
+        }
+        if (j_row >= 0) {
+          (*g)[row + j_row] = c;
+          if (gx) {
+            gx->row(row + j_row).setZero();
+            for (int j = 0, r = 0; j < n; ++j) {
+              if (j != ps_) (*gx)(row + j_row, r++) = cgrad[j];
+            }
+          }
+          if (want_p) (*gp)[row + j_row] = cpgrad[param_];
+        }
+      }
       double total = 0.0;
       for (int jseg = 0; jseg < k; ++jseg) total += orbit.durations[jseg];
       (*g)[row + d_] = total - kTwoPi * signature_.periods / omega;

@@ -74,6 +74,9 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
                              const Params& params) const override;
   Transition Jump(int mode, int guard, const StateVector& x, const Params& params) const override;
   int ModeAcross(int mode, int guard) const override;
+  // Contact modes (CwoP, CwP) live on Pi: c = p - q - g = 0.
+  bool ModeConstraint(int mode, const StateVector& x, const Params& params, double* c,
+                      StateRow* grad, ParamVector* param_grad) const override;
   const std::vector<std::string>& measure_names() const override;
   MeasureVector MeasureRates(int mode, const StateVector& x, const Params& params) const override;
   double TimeScale(int mode, const Params& params) const override;

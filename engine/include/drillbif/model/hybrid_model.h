@@ -119,6 +119,15 @@ class HybridModel {
   // stay in `mode`; this is the mode on the guard's other side).
   virtual int ModeAcross(int mode, int guard) const = 0;
 
+  // An equality c(x) = 0 that holds throughout `mode` when the mode lives on a surface (the
+  // drifting oscillator's contact modes: p - q - g = 0), with its state and parameter gradients.
+  // False when the mode has none.
+  virtual bool ModeConstraint(int /*mode*/, const StateVector& /*x*/, const Params& /*params*/,
+                              double* /*c*/, StateRow* /*grad*/,
+                              ParamVector* /*param_grad*/) const {
+    return false;
+  }
+
   // ---- measures ----
   virtual const std::vector<std::string>& measure_names() const = 0;
   // Rates (time derivatives) of the measures in a mode at x.
