@@ -23,7 +23,7 @@ PeriodicOrbit FindStartOrbit(const DriftingOscillator& model, Propagator& prop) 
 
 ContinuationOptions ToZeroAndFold() {
   ContinuationOptions o;
-  o.param = "b";
+  o.param = std::string("b");  // not = "b": GCC 12 warns falsely (-Wrestrict, GCC bug 105329)
   o.min = 0.0;
   o.max = 0.2;
   o.stop_at = {SpecialPointKind::kFold};
