@@ -10,15 +10,13 @@
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
 
 namespace drillbif {
 namespace {
 
 PeriodicOrbit FindStartOrbit(const DriftingOscillator& model, Propagator& prop) {
-  PeriodicOrbit orbit =
-      *OrbitFromSimulation(model, prop, testing::ReferenceParams(), DefaultInitialState(model));
-  SolveOrbit(model, prop, {}, &orbit);
-  return orbit;
+  return *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
 }
 
 ContinuationOptions ToZeroAndFold() {

@@ -10,6 +10,7 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
 
 namespace drillbif {
 namespace {
@@ -17,12 +18,9 @@ namespace {
 using DO = DriftingOscillator;
 
 PeriodicOrbit StartOrbit(const DO& model, Propagator& prop, const Params& params) {
-  StatusOr<PeriodicOrbit> guess =
-      OrbitFromSimulation(model, prop, params, DefaultInitialState(model));
-  EXPECT_TRUE(guess.ok()) << guess.status().ToString();
-  PeriodicOrbit orbit = *guess;
-  EXPECT_EQ(SolveOrbit(model, prop, {}, &orbit).status, SolveStatus::kConverged);
-  return orbit;
+  StatusOr<PeriodicOrbit> orbit = testing::SolvedOrbitFromRest(model, prop, params);
+  EXPECT_TRUE(orbit.ok()) << orbit.status().ToString();
+  return orbit.ok() ? *orbit : PeriodicOrbit{};
 }
 
 ContinuationResult ContinueInB(double a) {

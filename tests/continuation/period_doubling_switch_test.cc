@@ -7,6 +7,7 @@
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
 
 namespace drillbif {
 namespace {
@@ -16,9 +17,10 @@ using DO = DriftingOscillator;
 TEST(PeriodDoublingSwitch, FindsTheAttractingPeriodTwoOrbitBornAtTheDoubling) {
   DO model;
   ExactPropagator prop(model);
-  PeriodicOrbit start =
-      *OrbitFromSimulation(model, prop, testing::ReferenceParams(), DefaultInitialState(model));
-  ASSERT_EQ(SolveOrbit(model, prop, {}, &start).status, SolveStatus::kConverged);
+  const StatusOr<PeriodicOrbit> found =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(found.ok()) << found.status().ToString();
+  const PeriodicOrbit& start = *found;
   ContinuationOptions opt;
   opt.param = "b";
   opt.min = 0.05;

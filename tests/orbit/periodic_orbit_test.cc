@@ -9,6 +9,7 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
 
 namespace drillbif {
 namespace {
@@ -16,13 +17,9 @@ namespace {
 using DO = DriftingOscillator;
 
 PeriodicOrbit SolvedOrbit(const DO& model, Propagator& prop, const Params& params) {
-  StatusOr<PeriodicOrbit> guess =
-      OrbitFromSimulation(model, prop, params, DefaultInitialState(model));
-  EXPECT_TRUE(guess.ok()) << guess.status().ToString();
-  PeriodicOrbit orbit = *guess;
-  const OrbitSolveSummary s = SolveOrbit(model, prop, {}, &orbit);
-  EXPECT_EQ(s.status, SolveStatus::kConverged) << s.message;
-  return orbit;
+  StatusOr<PeriodicOrbit> orbit = testing::SolvedOrbitFromRest(model, prop, params);
+  EXPECT_TRUE(orbit.ok()) << orbit.status().ToString();
+  return orbit.ok() ? *orbit : PeriodicOrbit{};
 }
 
 TEST(PeriodicOrbit, SolvesThePublishedReferenceOrbit) {

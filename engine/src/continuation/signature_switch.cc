@@ -34,6 +34,16 @@ SpecialPointKind KindOfVanishing(const HybridModel& model, const Signature& sig,
   return SpecialPointKind::kSignatureChange;
 }
 
+// The segment on the other side of `guard` of `mode`: the mode across it, ending on its guard
+// that leads back into `mode` (e.g. across NC's impact: CwoP, ending on separation).
+SegmentSpec Across(const HybridModel& model, int mode, int guard) {
+  SegmentSpec s{model.ModeAcross(mode, guard), -1};
+  for (int g = 0; g < static_cast<int>(model.guards(s.mode).size()); ++g) {
+    if (model.ModeAcross(s.mode, g) == mode) s.guard = g;
+  }
+  return s;
+}
+
 }  // namespace
 
 GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagator,
@@ -135,24 +145,16 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
     // progression threshold): a zero-length segment of the mode across that guard now comes first,
     // ending where the old segment begins.
     const SegmentSpec seg = segs[i];
-    const int m2 = model.ModeAcross(seg.mode, violation.guard);
-    int back = -1;
-    for (int g = 0; g < static_cast<int>(model.guards(m2).size()); ++g) {
-      if (model.ModeAcross(m2, g) == seg.mode) back = g;
-    }
+    const SegmentSpec across = Across(model, seg.mode, violation.guard);
     out.kind = SpecialPointKind::kSignatureChange;
-    segs.insert(segs.begin() + i, {m2, back});
+    segs.insert(segs.begin() + i, across);
     o.starts.insert(o.starts.begin() + i, o.starts[i]);
     o.durations.insert(o.durations.begin() + i, 0.0);
     out.new_segment = i;
   } else {
-    // Split segment i at the touch: (m > guard) (m2 > back) (m > old end), m2 = the mode across.
+    // Split segment i at the touch: (m > guard) (across) (m > old end).
     const SegmentSpec seg = segs[i];
-    const int m2 = model.ModeAcross(seg.mode, violation.guard);
-    int back = -1;
-    for (int g = 0; g < static_cast<int>(model.guards(m2).size()); ++g) {
-      if (model.ModeAcross(m2, g) == seg.mode) back = g;
-    }
+    const SegmentSpec across = Across(model, seg.mode, violation.guard);
     out.kind = KindOfSurface(model.guards(seg.mode)[violation.guard].surface);
     // The touching time: the guard's interior minimum.
     const StateVector x0 = o.starts[i];
@@ -161,7 +163,7 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
     StateVector xt = propagator.FlowMap(seg.mode, x0, t_touch, o.params, {}).x;
     const StateVector x_across = model.Jump(seg.mode, violation.guard, xt, o.params).x;
     segs[i].guard = violation.guard;
-    segs.insert(segs.begin() + i + 1, {{m2, back}, {seg.mode, seg.guard}});
+    segs.insert(segs.begin() + i + 1, {across, {seg.mode, seg.guard}});
     o.durations[i] = t_touch;
     o.durations.insert(o.durations.begin() + i + 1, {0.0, tau - t_touch});
     o.starts.insert(o.starts.begin() + i + 1, {x_across, x_across});
