@@ -260,3 +260,87 @@ TEST(Continuation, InvalidRequestsAreClearErrors) {
 
 }  // namespace
 }  // namespace drillbif
+
+namespace drillbif {
+namespace {
+
+// MODEL.md's other continuations from the start orbit: in a over [0.05, 3] and in omega over
+// [0.03, 3.5]. Both run to both ends, through every special point on the way (their lists are in
+// the closing note of issue 3), with every point admissible and every located fold and period
+// doubling at a multiplier +1 / -1 to 1e-9.
+class RangeContinuationTest
+    : public ::testing::TestWithParam<std::tuple<const char*, double, double>> {};
+
+TEST_P(RangeContinuationTest, RunsToBothEndsThroughEverySpecialPoint) {
+  const auto [param, lo, hi] = GetParam();
+  DO model;
+  ExactPropagator prop(model);
+  ContinuationOptions opt;
+  opt.param = param;
+  opt.min = lo;
+  opt.max = hi;
+  const ContinuationResult r =
+      Continue(model, prop, StartOrbit(model, prop, testing::ReferenceParams()), opt);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  EXPECT_NEAR(r.points.front().value, lo, 1e-9) << r.summary.message;
+  EXPECT_NEAR(r.points.back().value, hi, 1e-9) << r.summary.message;
+  EXPECT_GE(r.special_points.size(), 3u);
+  std::vector<double> special_values;
+  for (const SpecialPoint& s : r.special_points) {
+    special_values.push_back(s.point.value);
+    double closest = std::numeric_limits<double>::infinity();
+    const double target = s.kind == SpecialPointKind::kFold ? 1.0 : -1.0;
+    for (const auto& mu : s.point.stability.multipliers) {
+      closest = std::min(closest, std::abs(mu - target));
+    }
+    if (s.kind == SpecialPointKind::kFold || s.kind == SpecialPointKind::kPeriodDoubling) {
+      EXPECT_LE(closest, 1e-9) << SpecialPointKindName(s.kind) << " at " << s.point.value;
+    }
+  }
+  for (const ContinuationPoint& p : r.points) {
+    const bool at_special = std::any_of(special_values.begin(), special_values.end(),
+                                        [&](double v) { return std::abs(v - p.value) < 1e-9; });
+    if (at_special) continue;
+    const Admissibility a = CheckAdmissible(model, prop, p.orbit);
+    ASSERT_TRUE(a.admissible) << param << " = " << p.value << ": " << a.message;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(ModelRanges, RangeContinuationTest,
+                         ::testing::Values(std::make_tuple("a", 0.05, 3.0),
+                                           std::make_tuple("omega", 0.03, 3.5)),
+                         [](const auto& test_info) { return std::get<0>(test_info.param); });
+
+// Hard cases: repeated characteristic roots in contact (xi = 1) and slow forcing with a period-3
+// start orbit (omega = 0.02): the b-continuation completes with admissible points.
+TEST(Continuation, HardParametersCompleteWithAdmissiblePoints) {
+  DO model;
+  ExactPropagator prop(model);
+  for (const auto& [index, value] : {std::make_pair(static_cast<int>(DO::kXi), 1.0),
+                                     std::make_pair(static_cast<int>(DO::kOmega), 0.02)}) {
+    Params prm = testing::ReferenceParams();
+    prm[index] = value;
+    const PeriodicOrbit start = StartOrbit(model, prop, prm);
+    ContinuationOptions opt;
+    opt.param = "b";
+    opt.min = 0.1;
+    opt.max = 0.3;
+    opt.max_steps = 300;
+    const ContinuationResult r = Continue(model, prop, start, opt);
+    EXPECT_EQ(r.summary.termination, Termination::kCompleted)
+        << model.param_names()[index] << ": " << r.summary.message;
+    std::vector<double> special_values;
+    for (const SpecialPoint& s : r.special_points) special_values.push_back(s.point.value);
+    for (const ContinuationPoint& p : r.points) {
+      if (std::any_of(special_values.begin(), special_values.end(),
+                      [&](double v) { return std::abs(v - p.value) < 1e-9; })) {
+        continue;
+      }
+      EXPECT_TRUE(CheckAdmissible(model, prop, p.orbit).admissible)
+          << model.param_names()[index] << " b = " << p.value;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace drillbif

@@ -73,7 +73,7 @@ struct ContinuationOptions {
   double max_step = 2.0;            // longest step
   int target_iterations = 3;        // corrector iterations aimed for; the step adapts
   int max_iterations = 8;           // more fails the step (it is retried shorter)
-  int max_steps = 2000;             // per direction
+  int max_steps = 10000;            // per direction (the a-branch of MODEL.md takes ~2000)
   double tolerance = 1e-11;         // corrector: scaled Newton step
   double locate_tolerance = 1e-10;  // special points: parameter bracket width
   bool locate = true;               // detect and locate special points
