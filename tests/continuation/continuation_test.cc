@@ -344,3 +344,73 @@ TEST(Continuation, HardParametersCompleteWithAdmissiblePoints) {
 
 }  // namespace
 }  // namespace drillbif
+
+namespace drillbif {
+namespace {
+
+TEST(Continuation, CallbackReceivesEveryPointAndCanCancel) {
+  DO model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start = StartOrbit(model, prop, testing::ReferenceParams());
+  ContinuationOptions opt;
+  opt.param = "b";
+  opt.min = 0.0;
+  opt.max = 0.2;
+  int calls = 0;
+  double last_fraction = -1.0;
+  const ContinuationResult r =
+      Continue(model, prop, start, opt, [&](const ContinuationPoint& p, double fraction) {
+        EXPECT_GE(fraction, last_fraction);
+        EXPECT_LE(fraction, 1.0);
+        EXPECT_FALSE(p.measures.empty());
+        last_fraction = fraction;
+        return ++calls < 10;
+      });
+  EXPECT_EQ(calls, 10);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
+}
+
+// Stability against direct simulation on the a and omega branches (as on the b branch above).
+TEST(Continuation, StabilityAgreesWithSimulationOnTheAAndOmegaBranches) {
+  DO model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start = StartOrbit(model, prop, testing::ReferenceParams());
+  for (const auto& [param, lo, hi] :
+       {std::make_tuple("a", 0.05, 3.0), std::make_tuple("omega", 0.03, 3.5)}) {
+    ContinuationOptions opt;
+    opt.param = param;
+    opt.min = lo;
+    opt.max = hi;
+    const ContinuationResult r = Continue(model, prop, start, opt);
+    std::vector<const ContinuationPoint*> chosen;
+    for (const ContinuationPoint& p : r.points) {
+      if (p.stability.multipliers.empty()) continue;
+      const double mu = std::abs(p.stability.multipliers[0]);
+      const double dmin = *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
+      if (std::abs(mu - 1.0) < 0.1 || dmin < 1e-2) continue;
+      chosen.push_back(&p);
+    }
+    ASSERT_GE(chosen.size(), 20u) << param;
+    for (int k = 0; k < 20; ++k) {
+      const ContinuationPoint& p = *chosen[k * chosen.size() / 20];
+      StateVector x = p.orbit.starts[0];
+      x[DO::kY] += 1e-7;
+      SimulationOptions so;
+      so.transient_periods = 0;
+      so.sample_periods = 10 * p.orbit.signature.periods;
+      so.outputs = SimulationOutputs{false, true, false, false, 0.0};
+      const SimulationResult s = Simulate(model, prop, p.orbit.params, x, so);
+      ASSERT_EQ(s.termination, Termination::kCompleted);
+      const double d = (s.poincare.back().x - p.orbit.starts[0]).head(3).norm();
+      if (p.stability.stable) {
+        EXPECT_LT(d, 1e-7) << param << " = " << p.value << " (stable)";
+      } else {
+        EXPECT_GT(d, 1e-7) << param << " = " << p.value << " (unstable)";
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace drillbif

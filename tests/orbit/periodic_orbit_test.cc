@@ -7,6 +7,7 @@
 
 #include <cmath>
 
+#include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
@@ -122,6 +123,40 @@ TEST(PeriodicOrbit, InvalidSignatureOrParametersFailTheSolve) {
   const OrbitSolveSummary s = SolveOrbit(model, prop, {}, &bad);
   EXPECT_EQ(s.status, SolveStatus::kFailed);
   EXPECT_NE(s.message.find("xi"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace drillbif
+
+namespace drillbif {
+namespace {
+
+// A model without closed-form flows would solve its orbits with CVODES sensitivities: the same
+// boundary-value problem through the CVODE propagator finds the same orbit. CVODE's global error
+// over the orbit's segments is ~100 (rtol |x| + atol) (tests/simulate/propagator_agreement_test),
+// at rtol 1e-11 about 1e-7 on |p| ~ 60.
+TEST(PeriodicOrbit, SolvesWithCvodesSensitivitiesToo) {
+  DO model;
+  ExactPropagator exact(model);
+  CvodeOptions copt;
+  copt.rtol = 1e-11;
+  copt.atol = 1e-13;
+  CvodePropagator cvode(model, copt);
+  const PeriodicOrbit reference = SolvedOrbit(model, exact, testing::ReferenceParams());
+  PeriodicOrbit orbit = reference;
+  orbit.starts[0][DO::kY] += 1e-3;  // start Newton off the solution
+  const OrbitSolveSummary s = SolveOrbit(model, cvode, {}, &orbit);
+  ASSERT_EQ(s.status, SolveStatus::kConverged) << s.message;
+  for (size_t i = 0; i < orbit.starts.size(); ++i) {
+    for (int j = 0; j < 4; ++j) {
+      EXPECT_NEAR(orbit.starts[i][j], reference.starts[i][j],
+                  1e-7 * (1 + std::abs(reference.starts[i][j])));
+    }
+    EXPECT_NEAR(orbit.durations[i], reference.durations[i], 1e-7 * (1 + reference.durations[i]));
+  }
+  const Stability st = OrbitStability(model, cvode, orbit);
+  ASSERT_EQ(st.multipliers.size(), 1u);
+  EXPECT_NEAR(st.multipliers[0].real(), -0.0873672, 1e-6);
 }
 
 }  // namespace
