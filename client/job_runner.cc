@@ -587,6 +587,34 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
       return r.summary.status;
     }
     v1::ContinueResult out = ToProto(r);
+    if (request.follow_period_doubling()) {
+      // The first period doubling on the branch whose period-2n orbit attracts (a supercritical
+      // doubling): switch onto it.
+      v1::ContinueResult* doubled = out.mutable_period_doubled_branch();
+      doubled->set_engine_version(EngineVersion());
+      StatusOr<PeriodicOrbit> orbit2 =
+          Status(StatusCode::kNotFound, "no period-doubling point on the branch");
+      std::string tried;
+      for (const SpecialPoint& sp : r.special_points) {
+        if (sp.kind != SpecialPointKind::kPeriodDoubling) continue;
+        orbit2 = SwitchAtPeriodDoubling(model, propagator, sp, request.param());
+        if (orbit2.ok()) break;
+        tried += (tried.empty() ? "" : "; ") + orbit2.status().message();
+      }
+      {
+        if (!orbit2.ok()) {
+          doubled->set_status(TerminationName(Termination::kFailed));
+          doubled->set_message(tried.empty() ? orbit2.status().message() : tried);
+        } else {
+          ContinuationOptions options2 = *options;
+          if (orbit2->params[*index] < options2.min || orbit2->params[*index] > options2.max) {
+            options2.min = std::min(options2.min, orbit2->params[*index]);
+            options2.max = std::max(options2.max, orbit2->params[*index]);
+          }
+          *doubled = ToProto(Continue(model, propagator, *orbit2, options2, callback));
+        }
+      }
+    }
     out.set_wall_seconds(Seconds(start));
     return out;
   } catch (const std::bad_alloc&) {

@@ -118,6 +118,7 @@ struct ContinueFlags {
   double locate_tolerance = defaults.locate_tolerance;
   bool no_switch = false;
   std::vector<std::string> stop_at;
+  bool follow_pd = false;
 };
 
 // Accepts finite numbers > 0.
@@ -300,6 +301,7 @@ int RunContinueCommand(const GlobalFlags& global, const ModelFlags& m, const Con
   request.set_target_iterations(f.target_iterations);
   request.set_locate_tolerance(f.locate_tolerance);
   request.set_switch_signatures(!f.no_switch);
+  if (f.follow_pd) request.set_follow_period_doubling(true);
   for (const std::string& name : f.stop_at) {
     v1::SpecialPoint::Kind kind;
     if (!v1::SpecialPoint::Kind_Parse(name, &kind) || kind == v1::SpecialPoint::KIND_UNSPECIFIED) {
@@ -434,6 +436,9 @@ int Main(int argc, char** argv) {
       ->group(c);
   cont->add_flag("--no-switch", co.no_switch,
                  "Stop a direction at its first grazing instead of switching signature")
+      ->group(c);
+  cont->add_flag("--follow-pd", co.follow_pd,
+                 "Also continue the period-2n branch born at the first period doubling")
       ->group(c);
   cont->add_option("--stop-at", co.stop_at,
                    "Stop a direction at its first special point of these kinds, e.g. FOLD")

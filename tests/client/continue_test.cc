@@ -321,3 +321,38 @@ TEST(RunContinue, CancelledBeforeTheFirstStep) {
 
 }  // namespace
 }  // namespace drillbif::client
+
+namespace drillbif::client {
+namespace {
+
+// follow_period_doubling: from the reference orbit over b in [0.09, 0.12] the branch doubles at
+// b = 0.11001173 (MODEL.md); the period-2 branch born there is continued and returned.
+TEST(RunContinue, FollowsThePeriodDoubledBranch) {
+  v1::ContinueRequest request;
+  request.set_param("b");
+  request.set_min(0.09);
+  request.set_max(0.12);
+  request.set_max_steps(200);
+  request.mutable_params()->set_b(0.115);
+  request.set_follow_period_doubling(true);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const auto& specials = r->special_points();
+  ASSERT_TRUE(std::any_of(specials.begin(), specials.end(), [](const v1::SpecialPoint& s) {
+    return s.kind() == v1::SpecialPoint::PERIOD_DOUBLING && std::abs(s.value() - 0.11001173) < 1e-7;
+  }));
+  const v1::ContinueResult& doubled = r->period_doubled_branch();
+  EXPECT_EQ(doubled.status(), "COMPLETED") << doubled.message();
+  ASSERT_GT(doubled.points_size(), 10);
+  for (const v1::BranchPoint& p : doubled.points()) {
+    EXPECT_THAT(p.signature_text(), ::testing::EndsWith(" x2"));
+  }
+  // The period-2 branch meets the period-1 branch at the doubling: a branch point of the doubled
+  // system there.
+  EXPECT_TRUE(std::any_of(
+      doubled.special_points().begin(), doubled.special_points().end(),
+      [](const v1::SpecialPoint& s) { return std::abs(s.value() - 0.11001173) < 1e-6; }));
+}
+
+}  // namespace
+}  // namespace drillbif::client
