@@ -53,6 +53,41 @@ TEST(PeriodDoublingSwitch, FindsTheAttractingPeriodTwoOrbitBornAtTheDoubling) {
   EXPECT_GT((s.poincare[0].x - x0).head(3).norm(), 1e-3);
 }
 
+// Continued towards the doubling, the period-2 branch meets the (doubled) period-1 branch there:
+// in the period-2 boundary-value system that is a branch point, located at the PD value.
+TEST(PeriodDoublingSwitch, PeriodTwoBranchHasABranchPointAtTheDoubling) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> found =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(found.ok());
+  ContinuationOptions opt;
+  opt.param = "b";
+  opt.min = 0.05;
+  opt.max = 0.2;
+  opt.direction = ContinuationDirection::kDecreasing;
+  opt.stop_at = {SpecialPointKind::kPeriodDoubling};
+  const ContinuationResult r = Continue(model, prop, *found, opt);
+  ASSERT_FALSE(r.special_points.empty());
+  const SpecialPoint& pd = r.special_points.back();
+  const StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model, prop, pd, "b");
+  ASSERT_TRUE(doubled.ok()) << doubled.status().ToString();
+  ContinuationOptions up;
+  up.param = "b";
+  up.min = 0.1;
+  up.max = 0.12;
+  up.direction = ContinuationDirection::kIncreasing;
+  up.stop_at = {SpecialPointKind::kBranchPoint};
+  const ContinuationResult r2 = Continue(model, prop, *doubled, up);
+  const SpecialPoint* bp = nullptr;
+  for (const SpecialPoint& s : r2.special_points) {
+    if (s.kind == SpecialPointKind::kBranchPoint) bp = &s;
+  }
+  ASSERT_NE(bp, nullptr) << r2.summary.message;
+  // Both located to 1e-10 in b.
+  EXPECT_NEAR(bp->point.value, pd.point.value, 1e-9);
+}
+
 TEST(PeriodDoublingSwitch, RejectsAPointThatIsNotAPeriodDoubling) {
   DO model;
   ExactPropagator prop(model);
