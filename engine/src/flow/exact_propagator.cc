@@ -68,21 +68,23 @@ FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, c
     // Van Loan: expm([[A, dA], [0, A]] t) has d expm(A t) / dk in its upper right block.
     const int n = model_.state_dim(), ps = model_.phase_index(), np = model_.num_params();
     const int m = linear_->augmented_dim();
-    Eigen::VectorXd z0, dz0;
-    Eigen::MatrixXd a, da;
-    linear_->ToAugmented(x0, params, &z0);
-    linear_->AugmentedMatrix(mode, params, &a);
-    const Eigen::MatrixXd e = (a * t).exp();
-    ParamMatrix fp;
-    model_.ParamJacobian(mode, x0, params, &fp);  // its phase row is d omega / d params
     out.param_jacobian.setZero(n, np);
-    Eigen::MatrixXd block(2 * m, 2 * m);
+    // The exponentials are computed only for columns the closed form does not give.
+    Eigen::VectorXd z0, dz0;
+    Eigen::MatrixXd a, da, e, block(2 * m, 2 * m);
+    ParamMatrix fp;
     for (int k = 0; k < np; ++k) {
       if (request.param >= 0 && k != request.param) continue;
       StateVector dx;
       if (closed_ && closed_->FlowParamDerivative(mode, x0, t, params, k, &dx)) {
         out.param_jacobian.col(k) = dx;
         continue;
+      }
+      if (e.size() == 0) {
+        linear_->ToAugmented(x0, params, &z0);
+        linear_->AugmentedMatrix(mode, params, &a);
+        e = (a * t).exp();
+        model_.ParamJacobian(mode, x0, params, &fp);  // its phase row is d omega / d params
       }
       linear_->AugmentedMatrixDerivative(mode, params, k, &da);
       linear_->AugmentedInitialDerivative(x0, params, k, &dz0);
