@@ -148,9 +148,9 @@ TEST(BContinuation, EveryPointIsAdmissible) {
 }
 
 // Stability agrees with direct simulation: from the orbit's section state perturbed by 1e-7, a
-// stable orbit's deviation shrinks over 10 periods and an unstable one's grows (the largest
-// multiplier's modulus to the 10th power; points with it within 10% of 1 are skipped, where 10
-// periods cannot tell).
+// stable orbit's deviation shrinks over 30 periods and an unstable one's grows (by the largest
+// multiplier's modulus to the 30th power; points with it in [0.8, 1.25] are skipped, so the
+// factor is below 1e-3 or above 8e2 and a non-normal transient cannot blur it).
 TEST(BContinuation, StabilityAgreesWithDirectSimulation) {
   DO model;
   ExactPropagator prop(model);
@@ -160,7 +160,7 @@ TEST(BContinuation, StabilityAgreesWithDirectSimulation) {
     if (p.orbit.signature.periods != 1 || p.stability.multipliers.empty()) continue;
     const double mu = std::abs(p.stability.multipliers[0]);
     const double dmin = *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
-    if (std::abs(mu - 1.0) < 0.1 || dmin < 1e-2) continue;
+    if ((mu > 0.8 && mu < 1.25) || dmin < 1e-2) continue;
     chosen.push_back(&p);
   }
   ASSERT_GE(chosen.size(), 20u);
@@ -171,7 +171,7 @@ TEST(BContinuation, StabilityAgreesWithDirectSimulation) {
     x[DO::kY] += 1e-7;
     SimulationOptions opt;
     opt.transient_periods = 0;
-    opt.sample_periods = 10;
+    opt.sample_periods = 30;
     opt.outputs = SimulationOutputs{false, true, false, false, 0.0};
     const SimulationResult s = Simulate(model, prop, p.orbit.params, x, opt);
     ASSERT_EQ(s.termination, Termination::kCompleted);
@@ -388,7 +388,7 @@ TEST(Continuation, StabilityAgreesWithSimulationOnTheAAndOmegaBranches) {
       if (p.stability.multipliers.empty()) continue;
       const double mu = std::abs(p.stability.multipliers[0]);
       const double dmin = *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
-      if (std::abs(mu - 1.0) < 0.1 || dmin < 1e-2) continue;
+      if ((mu > 0.8 && mu < 1.25) || dmin < 1e-2) continue;
       chosen.push_back(&p);
     }
     ASSERT_GE(chosen.size(), 20u) << param;
@@ -398,7 +398,7 @@ TEST(Continuation, StabilityAgreesWithSimulationOnTheAAndOmegaBranches) {
       x[DO::kY] += 1e-7;
       SimulationOptions so;
       so.transient_periods = 0;
-      so.sample_periods = 10 * p.orbit.signature.periods;
+      so.sample_periods = 30 * p.orbit.signature.periods;
       so.outputs = SimulationOutputs{false, true, false, false, 0.0};
       const SimulationResult s = Simulate(model, prop, p.orbit.params, x, so);
       ASSERT_EQ(s.termination, Termination::kCompleted);

@@ -46,6 +46,12 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
       summary.message = s.message();
       return summary;
     }
+    // A residual at rounding level (1e-13 of the unknowns' size) is converged even when an
+    // ill-conditioned system keeps the steps at noise size.
+    if (summary.iterations > 1 &&
+        g.lpNorm<Eigen::Infinity>() <= 1e-13 * (1.0 + x.lpNorm<Eigen::Infinity>())) {
+      break;
+    }
     const Eigen::VectorXd step = gx.colPivHouseholderQr().solve(-g);
     if (!step.allFinite()) {
       summary.message = "singular Newton system";
