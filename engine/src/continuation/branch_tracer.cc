@@ -344,6 +344,24 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
     return false;
   }
   if (!Tangent(y_, prev, &t_, &det)) return false;
+  if (sw.new_segment < 0) {
+    // The new signature's branch may lie on either side of the grazing point (it turns back there
+    // when the touch that removed the segment reappears at once past it). Flip the direction only
+    // when a trial step along it lands on an inadmissible orbit and one against it does not.
+    auto admissible_at = [&](double sigma) {
+      Vec y_try;
+      int trial_iterations = 0;
+      if (!Correct(y_ + sigma * t_, t_, &y_try, &trial_iterations)) return false;
+      PeriodicOrbit o;
+      bvp_->Unpack(y_try.head(m()), ParamsAt(y_try[m()]), &o);
+      return CheckAdmissible(model_, propagator_, o).admissible;
+    };
+    const double trial = std::max(options_.min_step, std::min(h_, options_.initial_step));
+    if (!admissible_at(trial) && admissible_at(-trial)) {
+      t_ = -t_;
+      det = -det;
+    }
+  }
   point_ = MakePoint(y_);
   tests_ = Tests(y_, t_, det, point_);
   h_ = std::max(options_.min_step, std::min(h_, options_.initial_step));
