@@ -414,3 +414,36 @@ TEST(Continuation, StabilityAgreesWithSimulationOnTheAAndOmegaBranches) {
 
 }  // namespace
 }  // namespace drillbif
+
+namespace drillbif {
+namespace {
+
+// Continuation in the remaining parameters, xi and g, from the start orbit: completes with every
+// point admissible. (g only shifts where contact happens: the orbit moves rigidly in p.)
+TEST(Continuation, RunsInXiAndG) {
+  DO model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start = StartOrbit(model, prop, testing::ReferenceParams());
+  for (const auto& [param, lo, hi] :
+       {std::make_tuple("xi", 0.02, 0.5), std::make_tuple("g", 0.001, 1.0)}) {
+    ContinuationOptions opt;
+    opt.param = param;
+    opt.min = lo;
+    opt.max = hi;
+    const ContinuationResult r = Continue(model, prop, start, opt);
+    ASSERT_EQ(r.summary.termination, Termination::kCompleted) << param << ": " << r.summary.message;
+    EXPECT_GE(r.points.size(), 3u);
+    std::vector<double> special_values;
+    for (const SpecialPoint& s : r.special_points) special_values.push_back(s.point.value);
+    for (const ContinuationPoint& p : r.points) {
+      if (std::any_of(special_values.begin(), special_values.end(),
+                      [&](double v) { return std::abs(v - p.value) < 1e-9; })) {
+        continue;
+      }
+      EXPECT_TRUE(CheckAdmissible(model, prop, p.orbit).admissible) << param << " = " << p.value;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace drillbif
