@@ -269,9 +269,6 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
     return false;
   }
   // Special points of the old signature before the grazing point.
-  Vec t_star;
-  double det = 0.0;
-  if (!Tangent(y_star, t_, &t_star, &det)) return false;
   const ContinuationPoint at_graze = MakePoint(y_star);
   if (options_.locate) {
     // Up to just before the grazing point: the fixed-signature branch folds back at a vanishing
@@ -292,9 +289,9 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
     sp.point = at_graze;
     sp.detail = sw.detail;
     result->special_points.push_back(sp);
+    result->points.push_back(at_graze);
     NoteStop(sw.kind);
   }
-  if (!sw.representation_only) result->points.push_back(at_graze);
   if (!options_.switch_signatures && !sw.representation_only) {
     Finish(Termination::kCompleted, "stopped at " + std::string(SpecialPointKindName(sw.kind)) +
                                         " (signature switching is off)");
@@ -320,12 +317,13 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
     // lambda*|), so the new system folds exactly here. Step off the grazing point along that
     // duration: fix it at a small kGrazeStep (lambda free), then go on where it grows.
     constexpr double kGrazeStep = 1e-3;
-    const int col =
-        sw.new_segment * (bvp_->size() / bvp_->segments()) + (bvp_->size() / bvp_->segments() - 1);
+    const int per_segment = bvp_->size() / bvp_->segments();  // start state, then duration
+    const int col = sw.new_segment * per_segment + per_segment - 1;
     y[col] = kGrazeStep;
     fix[col] = 1.0;
     prev[col] = 1.0;
   }
+  double det = 0.0;
   int iterations = 0;
   if (!Correct(y, fix, &y_, &iterations)) {
     if (sw.orbit.signature.segments.size() == 1) {
