@@ -49,6 +49,65 @@ const SpecialPoint* Find(const ContinuationResult& r, SpecialPointKind kind, dou
   return nullptr;
 }
 
+// Every point of the branch is admissible: positive durations, and no guard vanishes inside a
+// segment. The located special points themselves are excluded (a grazing point lies on the
+// boundary, with a zero-length segment).
+void ExpectAdmissibleAwayFromSpecialPoints(const DO& model, Propagator& prop,
+                                           const ContinuationResult& r, const std::string& label) {
+  std::vector<double> special;
+  for (const SpecialPoint& s : r.special_points) special.push_back(s.point.value);
+  for (const ContinuationPoint& p : r.points) {
+    if (std::any_of(special.begin(), special.end(),
+                    [&](double v) { return std::abs(v - p.value) < 1e-9; })) {
+      continue;
+    }
+    const Admissibility a = CheckAdmissible(model, prop, p.orbit);
+    EXPECT_TRUE(a.admissible) << label << " = " << p.value << ": " << a.message;
+  }
+}
+
+// Stability agrees with direct simulation at 20 points of the branch: from the orbit's section
+// state perturbed by 1e-7, a stable orbit's deviation shrinks over 30 periods and an unstable
+// one's grows (by the largest multiplier's modulus to the 30th power; points with it in
+// [0.8, 1.25] are skipped, so the factor is below 1e-3 or above 8e2 and a non-normal transient
+// cannot blur it; so are points next to a grazing, where a segment is shorter than 1e-2).
+// Returns how many stable and unstable points were checked.
+std::pair<int, int> ExpectStabilityMatchesSimulation(const DO& model, Propagator& prop,
+                                                     const ContinuationResult& r,
+                                                     const std::string& label) {
+  std::vector<const ContinuationPoint*> chosen;
+  for (const ContinuationPoint& p : r.points) {
+    if (p.stability.multipliers.empty()) continue;
+    const double mu = std::abs(p.stability.multipliers[0]);
+    const double dmin = *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
+    if ((mu > 0.8 && mu < 1.25) || dmin < 1e-2) continue;
+    chosen.push_back(&p);
+  }
+  EXPECT_GE(chosen.size(), 20u) << label;
+  int stable = 0, unstable = 0;
+  for (size_t k = 0; k < 20 && k < chosen.size(); ++k) {
+    const ContinuationPoint& p = *chosen[k * chosen.size() / 20];
+    StateVector x = p.orbit.starts[0];
+    x[DO::kY] += 1e-7;
+    SimulationOptions opt;
+    opt.transient_periods = 0;
+    opt.sample_periods = 30 * p.orbit.signature.periods;
+    opt.outputs = SimulationOutputs{false, true, false, false, 0.0};
+    const SimulationResult s = Simulate(model, prop, p.orbit.params, x, opt);
+    EXPECT_EQ(s.termination, Termination::kCompleted) << label << " = " << p.value;
+    if (s.poincare.empty()) continue;
+    const double d = (s.poincare.back().x - p.orbit.starts[0]).head(3).norm();
+    if (p.stability.stable) {
+      EXPECT_LT(d, 1e-7) << "stable orbit at " << label << " = " << p.value;
+      ++stable;
+    } else {
+      EXPECT_GT(d, 1e-7) << "unstable orbit at " << label << " = " << p.value;
+      ++unstable;
+    }
+  }
+  return {stable, unstable};
+}
+
 // MODEL.md's table, independent-computation column (8 significant digits), to 1e-6 relative.
 TEST(BContinuation, ReproducesThePublishedTable) {
   const ContinuationResult& r = ReferenceBranch();
@@ -135,55 +194,16 @@ TEST(BContinuation, LocatedPointsSatisfyTheirDefiningConditions) {
 TEST(BContinuation, EveryPointIsAdmissible) {
   DO model;
   ExactPropagator prop(model);
-  const ContinuationResult& r = ReferenceBranch();
-  std::vector<double> grazing;
-  for (const SpecialPoint& s : r.special_points) grazing.push_back(s.point.value);
-  for (const ContinuationPoint& p : r.points) {
-    const bool at_graze = std::any_of(grazing.begin(), grazing.end(),
-                                      [&](double g) { return std::abs(g - p.value) < 1e-9; });
-    if (at_graze) continue;
-    const Admissibility a = CheckAdmissible(model, prop, p.orbit);
-    EXPECT_TRUE(a.admissible) << "b = " << p.value << ": " << a.message;
-  }
+  ExpectAdmissibleAwayFromSpecialPoints(model, prop, ReferenceBranch(), "b");
 }
 
-// Stability agrees with direct simulation: from the orbit's section state perturbed by 1e-7, a
-// stable orbit's deviation shrinks over 30 periods and an unstable one's grows (by the largest
-// multiplier's modulus to the 30th power; points with it in [0.8, 1.25] are skipped, so the
-// factor is below 1e-3 or above 8e2 and a non-normal transient cannot blur it).
+// Stability agrees with direct simulation (ExpectStabilityMatchesSimulation) on the b branch,
+// which has both stable and unstable orbits.
 TEST(BContinuation, StabilityAgreesWithDirectSimulation) {
   DO model;
   ExactPropagator prop(model);
-  const ContinuationResult& r = ReferenceBranch();
-  std::vector<const ContinuationPoint*> chosen;
-  for (const ContinuationPoint& p : r.points) {
-    if (p.orbit.signature.periods != 1 || p.stability.multipliers.empty()) continue;
-    const double mu = std::abs(p.stability.multipliers[0]);
-    const double dmin = *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
-    if ((mu > 0.8 && mu < 1.25) || dmin < 1e-2) continue;
-    chosen.push_back(&p);
-  }
-  ASSERT_GE(chosen.size(), 20u);
-  int stable = 0, unstable = 0;
-  for (int k = 0; k < 20; ++k) {
-    const ContinuationPoint& p = *chosen[k * chosen.size() / 20];
-    StateVector x = p.orbit.starts[0];
-    x[DO::kY] += 1e-7;
-    SimulationOptions opt;
-    opt.transient_periods = 0;
-    opt.sample_periods = 30;
-    opt.outputs = SimulationOutputs{false, true, false, false, 0.0};
-    const SimulationResult s = Simulate(model, prop, p.orbit.params, x, opt);
-    ASSERT_EQ(s.termination, Termination::kCompleted);
-    const double d = (s.poincare.back().x - p.orbit.starts[0]).head(3).norm();
-    if (p.stability.stable) {
-      EXPECT_LT(d, 1e-7) << "stable orbit at b = " << p.value;
-      ++stable;
-    } else {
-      EXPECT_GT(d, 1e-7) << "unstable orbit at b = " << p.value;
-      ++unstable;
-    }
-  }
+  const auto [stable, unstable] =
+      ExpectStabilityMatchesSimulation(model, prop, ReferenceBranch(), "b");
   EXPECT_GT(stable, 0);
   EXPECT_GT(unstable, 0);
 }
@@ -258,12 +278,6 @@ TEST(Continuation, InvalidRequestsAreClearErrors) {
   EXPECT_EQ(r.summary.status.code(), StatusCode::kFailedPrecondition);
 }
 
-}  // namespace
-}  // namespace drillbif
-
-namespace drillbif {
-namespace {
-
 // MODEL.md's other continuations from the start orbit: in a over [0.05, 3] and in omega over
 // [0.03, 3.5]. Both run to both ends, through every special point on the way (their lists are in
 // the closing note of issue 3), with every point admissible and every located fold and period
@@ -285,9 +299,7 @@ TEST_P(RangeContinuationTest, RunsToBothEndsThroughEverySpecialPoint) {
   EXPECT_NEAR(r.points.front().value, lo, 1e-9) << r.summary.message;
   EXPECT_NEAR(r.points.back().value, hi, 1e-9) << r.summary.message;
   EXPECT_GE(r.special_points.size(), 3u);
-  std::vector<double> special_values;
   for (const SpecialPoint& s : r.special_points) {
-    special_values.push_back(s.point.value);
     double closest = std::numeric_limits<double>::infinity();
     const double target = s.kind == SpecialPointKind::kFold ? 1.0 : -1.0;
     for (const auto& mu : s.point.stability.multipliers) {
@@ -297,13 +309,7 @@ TEST_P(RangeContinuationTest, RunsToBothEndsThroughEverySpecialPoint) {
       EXPECT_LE(closest, 1e-9) << SpecialPointKindName(s.kind) << " at " << s.point.value;
     }
   }
-  for (const ContinuationPoint& p : r.points) {
-    const bool at_special = std::any_of(special_values.begin(), special_values.end(),
-                                        [&](double v) { return std::abs(v - p.value) < 1e-9; });
-    if (at_special) continue;
-    const Admissibility a = CheckAdmissible(model, prop, p.orbit);
-    ASSERT_TRUE(a.admissible) << param << " = " << p.value << ": " << a.message;
-  }
+  ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, param);
 }
 
 INSTANTIATE_TEST_SUITE_P(ModelRanges, RangeContinuationTest,
@@ -329,24 +335,9 @@ TEST(Continuation, HardParametersCompleteWithAdmissiblePoints) {
     const ContinuationResult r = Continue(model, prop, start, opt);
     EXPECT_EQ(r.summary.termination, Termination::kCompleted)
         << model.param_names()[index] << ": " << r.summary.message;
-    std::vector<double> special_values;
-    for (const SpecialPoint& s : r.special_points) special_values.push_back(s.point.value);
-    for (const ContinuationPoint& p : r.points) {
-      if (std::any_of(special_values.begin(), special_values.end(),
-                      [&](double v) { return std::abs(v - p.value) < 1e-9; })) {
-        continue;
-      }
-      EXPECT_TRUE(CheckAdmissible(model, prop, p.orbit).admissible)
-          << model.param_names()[index] << " b = " << p.value;
-    }
+    ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, model.param_names()[index] + ", b");
   }
 }
-
-}  // namespace
-}  // namespace drillbif
-
-namespace drillbif {
-namespace {
 
 TEST(Continuation, CallbackReceivesEveryPointAndCanCancel) {
   DO model;
@@ -382,41 +373,9 @@ TEST(Continuation, StabilityAgreesWithSimulationOnTheAAndOmegaBranches) {
     opt.param = param;
     opt.min = lo;
     opt.max = hi;
-    const ContinuationResult r = Continue(model, prop, start, opt);
-    std::vector<const ContinuationPoint*> chosen;
-    for (const ContinuationPoint& p : r.points) {
-      if (p.stability.multipliers.empty()) continue;
-      const double mu = std::abs(p.stability.multipliers[0]);
-      const double dmin = *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
-      if ((mu > 0.8 && mu < 1.25) || dmin < 1e-2) continue;
-      chosen.push_back(&p);
-    }
-    ASSERT_GE(chosen.size(), 20u) << param;
-    for (int k = 0; k < 20; ++k) {
-      const ContinuationPoint& p = *chosen[k * chosen.size() / 20];
-      StateVector x = p.orbit.starts[0];
-      x[DO::kY] += 1e-7;
-      SimulationOptions so;
-      so.transient_periods = 0;
-      so.sample_periods = 30 * p.orbit.signature.periods;
-      so.outputs = SimulationOutputs{false, true, false, false, 0.0};
-      const SimulationResult s = Simulate(model, prop, p.orbit.params, x, so);
-      ASSERT_EQ(s.termination, Termination::kCompleted);
-      const double d = (s.poincare.back().x - p.orbit.starts[0]).head(3).norm();
-      if (p.stability.stable) {
-        EXPECT_LT(d, 1e-7) << param << " = " << p.value << " (stable)";
-      } else {
-        EXPECT_GT(d, 1e-7) << param << " = " << p.value << " (unstable)";
-      }
-    }
+    ExpectStabilityMatchesSimulation(model, prop, Continue(model, prop, start, opt), param);
   }
 }
-
-}  // namespace
-}  // namespace drillbif
-
-namespace drillbif {
-namespace {
 
 // Continuation in the remaining parameters, xi and g, from the start orbit: completes with every
 // point admissible. (g only shifts where contact happens: the orbit moves rigidly in p.)
@@ -433,15 +392,7 @@ TEST(Continuation, RunsInXiAndG) {
     const ContinuationResult r = Continue(model, prop, start, opt);
     ASSERT_EQ(r.summary.termination, Termination::kCompleted) << param << ": " << r.summary.message;
     EXPECT_GE(r.points.size(), 3u);
-    std::vector<double> special_values;
-    for (const SpecialPoint& s : r.special_points) special_values.push_back(s.point.value);
-    for (const ContinuationPoint& p : r.points) {
-      if (std::any_of(special_values.begin(), special_values.end(),
-                      [&](double v) { return std::abs(v - p.value) < 1e-9; })) {
-        continue;
-      }
-      EXPECT_TRUE(CheckAdmissible(model, prop, p.orbit).admissible) << param << " = " << p.value;
-    }
+    ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, param);
   }
 }
 

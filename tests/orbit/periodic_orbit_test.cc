@@ -125,12 +125,6 @@ TEST(PeriodicOrbit, InvalidSignatureOrParametersFailTheSolve) {
   EXPECT_NE(s.message.find("xi"), std::string::npos);
 }
 
-}  // namespace
-}  // namespace drillbif
-
-namespace drillbif {
-namespace {
-
 // A model without closed-form flows would solve its orbits with CVODES sensitivities: the same
 // boundary-value problem through the CVODE propagator finds the same orbit. CVODE's global error
 // over the orbit's segments is ~100 (rtol |x| + atol) (tests/simulate/propagator_agreement_test),
