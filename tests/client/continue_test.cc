@@ -319,12 +319,6 @@ TEST(RunContinue, CancelledBeforeTheFirstStep) {
   EXPECT_EQ(r->points_size(), 0);
 }
 
-}  // namespace
-}  // namespace drillbif::client
-
-namespace drillbif::client {
-namespace {
-
 // follow_period_doubling: from the reference orbit over b in [0.09, 0.12] the branch doubles at
 // b = 0.11001173 (MODEL.md); the period-2 branch born there is continued and returned.
 TEST(RunContinue, FollowsThePeriodDoubledBranch) {
