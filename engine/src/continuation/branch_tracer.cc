@@ -271,14 +271,16 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
   // Special points of the old signature before the grazing point.
   const ContinuationPoint at_graze = MakePoint(y_star);
   if (options_.locate) {
-    // Up to just before the grazing point: the fixed-signature branch folds back at a vanishing
-    // segment, and that fold belongs to no physical orbit, so it must not be reported.
+    // Up to just before the grazing point.
     const double sigma = t_.dot(y_star - y_) * (1.0 - 1e-6);
     Vec y_before, t_before;
     double det_before = 0.0;
     if (PointAt(sigma, &y_before) && Tangent(y_before, t_, &t_before, &det_before)) {
       TestValues before = Tests(y_before, t_before, det_before, MakePoint(y_before));
-      before.fold = tests_.fold;  // the fixed-signature branch's fold here is not physical
+      // The fixed-signature system degenerates at the grazing point (a fold of it, or a sign
+      // change of its bordered determinant there): neither belongs to a physical orbit.
+      before.fold = tests_.fold;
+      before.branch_point = tests_.branch_point;
       DetectSpecialPoints(sigma, before, result);
     }
   }
