@@ -40,7 +40,8 @@ Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_star
   return Status::Ok();
 }
 
-bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations) {
+bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations,
+                           bool accept_rounding_residual) {
   *y = y_pred;
   Vec g, gp;
   Eigen::MatrixXd gx, a(m() + 1, m() + 1);
@@ -54,10 +55,12 @@ bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* itera
     a.bottomRows(1) = dir.transpose();
     r.head(m()) = g;
     r[m()] = dir.dot(*y - y_pred);
-    // Converged also when the residual is at rounding level (1e-13 of the unknowns' size, about
-    // 500 eps): near a grazing point the system is ill-conditioned and the Newton steps stay at
-    // noise size without ever passing the step test.
-    if (it > 1 && r.lpNorm<Eigen::Infinity>() <= 1e-13 * (1.0 + y->lpNorm<Eigen::Infinity>())) {
+    // Right after a signature switch the system is ill-conditioned and the Newton steps can stay
+    // at noise size without passing the step test: there a residual at rounding level (1e-13 of
+    // the unknowns' size) counts as converged. Not elsewhere: where the parameter is stationary
+    // (a located grazing) a small residual does not pin it.
+    if (accept_rounding_residual && it > 1 &&
+        r.lpNorm<Eigen::Infinity>() <= 1e-13 * (1.0 + y->lpNorm<Eigen::Infinity>())) {
       *iterations = it;
       return model_.ValidateParams(ParamsAt((*y)[m()])).ok();
     }
@@ -327,7 +330,7 @@ bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
   }
   double det = 0.0;
   int iterations = 0;
-  if (!Correct(y, fix, &y_, &iterations)) {
+  if (!Correct(y, fix, &y_, &iterations, /*accept_rounding_residual=*/true)) {
     if (sw.orbit.signature.segments.size() == 1) {
       // No event left: the motion beyond never impacts (NC|: no periodic orbit unless the mean
       // force vanishes) or never separates (pure contact, whose p - q offset no jump fixes: this

@@ -50,7 +50,9 @@ class BranchTracer {
   Params ParamsAt(double value) const;
   int m() const { return bvp_->size(); }
   // Newton on [G; dir . (y - y_pred)] = 0 from y_pred.
-  bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations);
+  // With accept_rounding_residual, a residual at rounding level also counts as converged.
+  bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations,
+               bool accept_rounding_residual = false);
   // Unit tangent at y oriented along `prev` (same size), and det of the bordered matrix with it.
   bool Tangent(const Vec& y, const Vec& prev, Vec* t, double* det);
   // The same at the point the last Correct() converged to, from its final factorisation (whose
