@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "continuation/signature_switch.h"
 
@@ -254,23 +255,31 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   }
 }
 
-bool BranchTracer::CrossGrazing(double h, const Admissibility& violation,
+bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& violations,
                                 ContinuationResult* result) {
-  auto psi = [&](const Vec& yy) {
-    PeriodicOrbit o;
-    bvp_->Unpack(yy.head(m()), ParamsAt(yy[m()]), &o);
-    return ViolationTestFunction(model_, propagator_, o, violation);
-  };
-  const double psi0 = psi(y_);
+  // Locate each violation found at the step's end from the admissible side, and cross at the
+  // earliest: several guards may reach a surface within one step (the impacts of a period-2n
+  // orbit reaching the progression threshold at nearly the same parameter).
+  // The parameter is stationary at a grazing point where a segment vanishes (the fixed-signature
+  // branch folds back there, with b - b* ~ tau^2), so roots are bracketed in arclength.
   Vec y1;
   if (!PointAt(h, &y1)) return false;
-  const double psi1 = psi(y1);
   Vec y_star;
-  // The parameter is stationary at a grazing point where a segment vanishes (the fixed-signature
-  // branch folds back there, with b - b* ~ tau^2), so bracket the root in arclength.
-  if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h, psi0, psi1, psi, true, &y_star)) {
-    return false;
+  Admissibility violation;
+  double sigma_star = std::numeric_limits<double>::infinity();
+  for (const Admissibility& v : violations) {
+    auto psi = [&](const Vec& yy) {
+      PeriodicOrbit o;
+      bvp_->Unpack(yy.head(m()), ParamsAt(yy[m()]), &o);
+      return ViolationTestFunction(model_, propagator_, o, v);
+    };
+    const double psi0 = psi(y_), psi1 = psi(y1);
+    Vec y_v;
+    if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h, psi0, psi1, psi, true, &y_v)) continue;
+    const double sigma = t_.dot(y_v - y_);
+    if (sigma < sigma_star) sigma_star = sigma, y_star = y_v, violation = v;
   }
+  if (!std::isfinite(sigma_star)) return false;
   // Special points of the old signature before the grazing point.
   const ContinuationPoint at_graze = MakePoint(y_star);
   if (options_.locate) {
@@ -429,9 +438,11 @@ bool BranchTracer::Step(ContinuationResult* result) {
     const double bound = value > options_.max ? options_.max : options_.min;
     const bool outside = value > options_.max || value < options_.min;
     ContinuationPoint p1 = MakePoint(y1);
-    const Admissibility adm = CheckAdmissible(model_, propagator_, p1.orbit);
+    const std::vector<Admissibility> violations =
+        AdmissibilityViolations(model_, propagator_, p1.orbit);
+    const Admissibility adm = violations.empty() ? Admissibility{} : violations.front();
     if (!adm.admissible && !outside) {
-      if (!CrossGrazing(h, adm, result)) {
+      if (!CrossGrazing(h, violations, result)) {
         if (termination_ == Termination::kCompleted && message_.empty()) {
           Finish(Termination::kFailed, "could not locate or cross: " + adm.message);
         }

@@ -78,9 +78,10 @@ class BranchTracer {
                   ContinuationResult* result);
   // Marks the branch to stop after this step when `kind` is one of options.stop_at.
   void NoteStop(SpecialPointKind kind);
-  // Handles an inadmissible corrected point at arclength h: locates the grazing, records it and
-  // switches the signature. False when the branch cannot go on.
-  bool CrossGrazing(double h, const Admissibility& violation, ContinuationResult* result);
+  // Handles an inadmissible corrected point at arclength h (its violations): locates the earliest
+  // grazing, records it and switches the signature. False when the branch cannot go on.
+  bool CrossGrazing(double h, const std::vector<Admissibility>& violations,
+                    ContinuationResult* result);
   void Finish(Termination termination, std::string message);
 
   const HybridModel& model_;

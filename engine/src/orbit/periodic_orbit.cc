@@ -151,20 +151,21 @@ std::vector<double> OrbitMeasures(const HybridModel& model, Propagator& propagat
   return means;
 }
 
-Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
-                              const PeriodicOrbit& orbit) {
-  Admissibility a;
-  // A vanished segment first: it explains the guard crossings of its neighbours (past a grazing
-  // point the fixed-signature branch re-crosses the surface inside the adjacent segments).
+std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Propagator& propagator,
+                                                   const PeriodicOrbit& orbit) {
+  std::vector<Admissibility> found;
+  // Vanished segments first: they explain the guard crossings of their neighbours (past a
+  // grazing point the fixed-signature branch re-crosses the surface inside the adjacent segments).
   for (size_t i = 0; i < orbit.durations.size(); ++i) {
     const double tau = orbit.durations[i];
     if (!(tau > 0.0)) {
       const int mode = orbit.signature.segments[i].mode;
-      return {false, static_cast<int>(i), -1, false,
-              "segment " + std::to_string(i) + " (" + std::string(model.mode_name(mode)) +
-                  ") has duration " + std::to_string(tau) + " <= 0"};
+      found.push_back({false, static_cast<int>(i), -1, false,
+                       "segment " + std::to_string(i) + " (" + std::string(model.mode_name(mode)) +
+                           ") has duration " + std::to_string(tau) + " <= 0"});
     }
   }
+  if (!found.empty()) return found;
   for (size_t i = 0; i < orbit.durations.size(); ++i) {
     const SegmentSpec& seg = orbit.signature.segments[i];
     const double tau = orbit.durations[i];
@@ -176,13 +177,20 @@ Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
     const AdvanceResult r = propagator.Advance(req, orbit.params);
     const bool own_end = r.guard == seg.guard && r.duration >= tau * (1.0 - 1e-6);
     if (r.end == AdvanceEnd::kEvent && !own_end) {
-      return {false, static_cast<int>(i), r.guard, r.duration == 0.0,
-              "segment " + std::to_string(i) + " (" + std::string(model.mode_name(seg.mode)) +
-                  ") crosses " + model.guards(seg.mode)[r.guard].surface +
-                  " at t = " + std::to_string(r.duration) + " of " + std::to_string(tau)};
+      found.push_back({false, static_cast<int>(i), r.guard, r.duration == 0.0,
+                       "segment " + std::to_string(i) + " (" +
+                           std::string(model.mode_name(seg.mode)) + ") crosses " +
+                           model.guards(seg.mode)[r.guard].surface +
+                           " at t = " + std::to_string(r.duration) + " of " + std::to_string(tau)});
     }
   }
-  return a;
+  return found;
+}
+
+Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
+                              const PeriodicOrbit& orbit) {
+  const std::vector<Admissibility> v = AdmissibilityViolations(model, propagator, orbit);
+  return v.empty() ? Admissibility{} : v.front();
 }
 
 StatusOr<PeriodicOrbit> OrbitFromSimulation(const HybridModel& model, Propagator& propagator,

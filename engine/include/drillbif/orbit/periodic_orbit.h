@@ -88,6 +88,10 @@ Stability OrbitStability(const HybridModel& model, Propagator& propagator,
 // locator along each segment.
 Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
                               const PeriodicOrbit& orbit);
+// Every violation: the segments whose duration is not positive, or (when none) each segment in
+// which a guard fires before its end. Empty when the orbit is admissible.
+std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Propagator& propagator,
+                                                   const PeriodicOrbit& orbit);
 
 // Solves for the orbit near `guess` (same signature and parameters) by Newton.
 OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
