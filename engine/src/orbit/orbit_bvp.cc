@@ -65,7 +65,8 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
     const SegmentSpec& seg = signature_.segments[i];
     const int col = i * (d_ + 1);
     FlowRequest req;
-    req.state_jacobian = gx != nullptr;
+    // The parameter derivative needs the phase column too (s_i moves with omega).
+    req.state_jacobian = gx != nullptr || want_p;
     req.param_jacobian = want_p;
     req.param = param_;
     const FlowResult fr =

@@ -1,0 +1,80 @@
+// Two-parameter continuation of bifurcation curves by extended systems: from a fold, period
+// doubling point located by a one-parameter continuation, follow the curve of such
+// points in two parameters (lambda1, lambda2).
+//
+// Unknowns Y = (X, lambda1, lambda2), X the orbit's boundary-value unknowns
+// (orbit/periodic_orbit.h); equations G(X; lambda) = 0 plus one defining condition:
+//   fold:              sigma(M - I) = 0
+//   period doubling:   sigma(M + I) = 0
+// where M is the monodromy (state without phase) and sigma(A) the last component of the solution
+// of the bordered system [[A, b], [c^T, 0]] (v, sigma) = (0, 1), with b and c the singular vectors
+// of A's smallest singular value at the start point (Govaerts, "Numerical Methods for
+// Bifurcations of Dynamical Equilibria", SIAM 2000): sigma is smooth and vanishes exactly where A
+// is singular. Its derivatives are taken by central differences (each needs a monodromy); the
+// rest of the Jacobian is exact. Pseudo-arclength with the same step control as the
+// one-parameter continuation.
+//
+// This first version traces fold and period-doubling curves while their orbits stay admissible
+// and stops where one is not (a codimension-2 point such as fold-grazing, not yet classified), at
+// the box bounds, or after max_steps. Grazing curves are not traced yet (UNIMPLEMENTED): keeping
+// the vanishing segment at zero length makes the two events around it coincide and the system
+// singular; they need the touching point as a segment end with h = 0 and h' = 0.
+#ifndef DRILLBIF_CONTINUATION_CURVE_H_
+#define DRILLBIF_CONTINUATION_CURVE_H_
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "drillbif/continuation/continuation.h"
+
+namespace drillbif {
+
+enum class CurveKind { kFold, kPeriodDoubling };
+const char* CurveKindName(CurveKind kind);
+
+struct CurveOptions {
+  std::string param1;  // the parameter of the one-parameter continuation that found the point
+  std::string param2;  // the second parameter
+  double min1 = -std::numeric_limits<double>::infinity();  // the box: stop at its edges
+  double max1 = std::numeric_limits<double>::infinity();
+  double min2 = -std::numeric_limits<double>::infinity();
+  double max2 = std::numeric_limits<double>::infinity();
+  double initial_step = 0.02;  // arclength of the first step (units of X and the parameters)
+  double min_step = 1e-8;      // a step that must shrink below this ends the direction
+  double max_step = 1.0;       // longest step
+  int target_iterations = 3;   // corrector iterations aimed for
+  int max_iterations = 8;      // more fails the step (retried shorter)
+  int max_steps = 2000;        // per direction
+  double tolerance = 1e-10;    // corrector: scaled Newton step
+  // Values of lambda2 where the curve's crossing points are solved exactly (Newton with lambda2
+  // fixed, from the interpolation between the two points around it), e.g. to compare with a
+  // one-parameter continuation at that value.
+  std::vector<double> crossings2;
+
+  Status Validate() const;
+};
+
+struct CurvePoint {
+  double value1 = 0.0, value2 = 0.0;  // (lambda1, lambda2)
+  PeriodicOrbit orbit;
+  std::vector<double> measures;  // ROP, Pc
+  Stability stability;
+};
+
+struct CurveResult {
+  CurveKind kind = CurveKind::kFold;
+  std::vector<CurvePoint> points;     // along the curve
+  std::vector<CurvePoint> crossings;  // at the requested lambda2 values, in the order found
+  ContinuationSummary summary;
+};
+
+// Traces the curve through `start` (a FOLD or PERIOD_DOUBLING point) in both
+// directions. INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a
+// grazing point.
+CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
+                          const SpecialPoint& start, const CurveOptions& options);
+
+}  // namespace drillbif
+
+#endif  // DRILLBIF_CONTINUATION_CURVE_H_

@@ -1,0 +1,308 @@
+// Two-parameter curve continuation (see continuation/curve.h).
+#include "drillbif/continuation/curve.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "orbit/orbit_bvp.h"
+
+namespace drillbif {
+
+const char* CurveKindName(CurveKind kind) {
+  switch (kind) {
+    case CurveKind::kFold:
+      return "FOLD";
+    case CurveKind::kPeriodDoubling:
+      return "PERIOD_DOUBLING";
+  }
+  return "?";
+}
+
+Status CurveOptions::Validate() const {
+  if (param1.empty() || param2.empty() || param1 == param2) {
+    return InvalidArgument("param1 and param2 must name two different parameters");
+  }
+  if (std::isnan(min1) || std::isnan(max1) || !(max1 > min1) || std::isnan(min2) ||
+      std::isnan(max2) || !(max2 > min2)) {
+    return InvalidArgument("the box is empty: need min1 < max1 and min2 < max2");
+  }
+  if (!(initial_step > 0.0 && min_step > 0.0 && max_step >= min_step && std::isfinite(max_step))) {
+    return InvalidArgument("steps: need 0 < min_step <= max_step < inf and initial_step > 0");
+  }
+  if (target_iterations < 1 || max_iterations < target_iterations || max_steps < 1) {
+    return InvalidArgument("need 1 <= target_iterations <= max_iterations and max_steps >= 1");
+  }
+  if (!(tolerance > 0.0)) return InvalidArgument("tolerance must be > 0");
+  return Status::Ok();
+}
+
+namespace {
+
+using Vec = Eigen::VectorXd;
+using Mat = Eigen::MatrixXd;
+
+double Sign(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
+
+class CurveTracer {
+ public:
+  CurveTracer(const HybridModel& model, Propagator& propagator, const CurveOptions& options,
+              CurveKind kind, int index1, int index2, const PeriodicOrbit& start)
+      : model_(model),
+        propagator_(propagator),
+        options_(options),
+        kind_(kind),
+        index1_(index1),
+        index2_(index2),
+        base_(start.params),
+        bvp1_(model, propagator, start.signature, index1),
+        bvp2_(model, propagator, start.signature, index2) {
+    start_.resize(n());
+    start_.head(m()) = bvp1_.Pack(start);
+    start_[m()] = start.params[index1];
+    start_[m() + 1] = start.params[index2];
+    // Bordering vectors: the singular vectors of M -+ I's smallest singular value.
+    const Mat a = Shifted(Unpack(start_));
+    Eigen::JacobiSVD<Mat> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    border_b_ = svd.matrixU().col(a.rows() - 1);
+    border_c_ = svd.matrixV().col(a.cols() - 1);
+  }
+
+  int m() const { return bvp1_.size(); }
+  int n() const { return m() + 2; }
+  const Vec& start() const { return start_; }
+
+  Params ParamsAt(const Vec& y) const {
+    Params p = base_;
+    p[index1_] = y[m()];
+    p[index2_] = y[m() + 1];
+    return p;
+  }
+
+  PeriodicOrbit Unpack(const Vec& y) const {
+    PeriodicOrbit o;
+    bvp1_.Unpack(y.head(m()), ParamsAt(y), &o);
+    return o;
+  }
+
+  // M - I (fold) or M + I (period doubling) of the orbit.
+  Mat Shifted(const PeriodicOrbit& o) const {
+    const Mat mono = OrbitStability(model_, propagator_, o).monodromy;
+    const double shift = kind_ == CurveKind::kFold ? -1.0 : 1.0;
+    return mono + shift * Mat::Identity(mono.rows(), mono.cols());
+  }
+
+  // The defining condition.
+  double Condition(const Vec& y) const {
+    const Mat a = Shifted(Unpack(y));
+    const int d = static_cast<int>(a.rows());
+    Mat bordered = Mat::Zero(d + 1, d + 1);
+    bordered.topLeftCorner(d, d) = a;
+    bordered.topRightCorner(d, 1) = border_b_;
+    bordered.bottomLeftCorner(1, d) = border_c_.transpose();
+    Vec rhs = Vec::Zero(d + 1);
+    rhs[d] = 1.0;
+    return bordered.partialPivLu().solve(rhs)[d];
+  }
+
+  // F(y) = (G, condition) and its Jacobian (n - 1 rows, n columns).
+  bool Evaluate(const Vec& y, Vec* f, Mat* jac) const {
+    const Params prm = ParamsAt(y);
+    if (!model_.ValidateParams(prm).ok()) return false;
+    Vec g, gp1, g2, gp2;
+    Mat gx;
+    if (!bvp1_.Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr).ok()) {
+      return false;
+    }
+    f->resize(m() + 1);
+    f->head(m()) = g;
+    (*f)[m()] = Condition(y);
+    if (!jac) return f->allFinite();
+    if (!bvp2_.Evaluate(y.head(m()), prm, &g2, nullptr, &gp2).ok()) return false;
+    jac->setZero(m() + 1, n());
+    jac->topLeftCorner(m(), m()) = gx;
+    jac->col(m()).head(m()) = gp1;
+    jac->col(m() + 1).head(m()) = gp2;
+    // Central differences of sigma: truncation h^2 |sigma'''|, rounding eps |sigma| / h, both
+    // ~1e-10 with h = 1e-6 (1 + |y_j|) for these O(1) quantities.
+    for (int j = 0; j < n(); ++j) {
+      const double h = 1e-6 * (1.0 + std::abs(y[j]));
+      Vec yp = y, ym = y;
+      yp[j] += h, ym[j] -= h;
+      (*jac)(m(), j) = (Condition(yp) - Condition(ym)) / (2.0 * h);
+    }
+    return f->allFinite() && jac->allFinite();
+  }
+
+  bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations) const {
+    *y = y_pred;
+    Vec f;
+    Mat jac, a(n(), n());
+    Vec r(n());
+    for (int it = 1; it <= options_.max_iterations; ++it) {
+      if (!Evaluate(*y, &f, &jac)) return false;
+      a.topRows(n() - 1) = jac;
+      a.bottomRows(1) = dir.transpose();
+      r.head(n() - 1) = f;
+      r[n() - 1] = dir.dot(*y - y_pred);
+      const Vec step = a.partialPivLu().solve(-r);
+      if (!step.allFinite()) return false;
+      *y += step;
+      if (step.lpNorm<Eigen::Infinity>() <=
+          options_.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>())) {
+        *iterations = it;
+        return true;
+      }
+    }
+    return false;
+  }
+
+  bool Tangent(const Vec& y, const Vec& prev, Vec* t) const {
+    Vec f;
+    Mat jac;
+    if (!Evaluate(y, &f, &jac)) return false;
+    Mat a(n(), n());
+    a.topRows(n() - 1) = jac;
+    a.bottomRows(1) = prev.transpose();
+    Vec e = Vec::Zero(n());
+    e[n() - 1] = 1.0;
+    *t = a.partialPivLu().solve(e);
+    if (!t->allFinite() || t->norm() == 0.0) return false;
+    t->normalize();
+    if (t->dot(prev) < 0.0) *t = -*t;
+    return true;
+  }
+
+  bool Admissible(const PeriodicOrbit& o, std::string* why) const {
+    const Admissibility a = CheckAdmissible(model_, propagator_, o);
+    *why = a.message;
+    return a.admissible;
+  }
+
+  CurvePoint MakePoint(const Vec& y) const {
+    CurvePoint p;
+    p.value1 = y[m()];
+    p.value2 = y[m() + 1];
+    p.orbit = Unpack(y);
+    p.measures = OrbitMeasures(model_, propagator_, p.orbit);
+    p.stability = OrbitStability(model_, propagator_, p.orbit);
+    return p;
+  }
+
+  // Traces one direction from the start; returns why it ended.
+  std::string Trace(double sign, std::vector<CurvePoint>* points,
+                    std::vector<CurvePoint>* crossings, ContinuationSummary* sum) const {
+    Vec y = start_, t, prev = Vec::Zero(n());
+    // Start along the second parameter (the curve leaves the one-parameter branch across it).
+    prev[m() + 1] = sign;
+    if (!Tangent(y, prev, &t)) return "no tangent at the start point";
+    double h = options_.initial_step;
+    for (int step = 0; step < options_.max_steps; ++step) {
+      Vec y1;
+      int iterations = 0;
+      if (!Correct(y + h * t, t, &y1, &iterations)) {
+        ++sum->rejected_steps;
+        h *= 0.5;
+        if (h < options_.min_step) return "the corrector failed down to min_step";
+        --step;
+        continue;
+      }
+      sum->newton_iterations += iterations;
+      ++sum->steps;
+      const double factor = iterations <= options_.target_iterations - 1  ? 1.6
+                            : iterations > options_.target_iterations + 1 ? 0.6
+                                                                          : 1.0;
+      h = std::clamp(h * factor, options_.min_step, options_.max_step);
+      const double v1 = y1[m()], v2 = y1[m() + 1];
+      if (v1 < options_.min1 || v1 > options_.max1 || v2 < options_.min2 || v2 > options_.max2) {
+        return "left the box";
+      }
+      CurvePoint p = MakePoint(y1);
+      std::string why;
+      if (!Admissible(p.orbit, &why)) {
+        return "the orbit is no longer admissible (a codimension-2 point, not yet classified): " +
+               why;
+      }
+      // Requested lambda2 values crossed by this step: solve the crossing with lambda2 fixed.
+      for (double c : options_.crossings2) {
+        if ((y[m() + 1] - c) * (v2 - c) > 0.0 || y[m() + 1] == v2) continue;
+        const double w = (c - y[m() + 1]) / (v2 - y[m() + 1]);
+        Vec guess = y + w * (y1 - y), fixed = Vec::Zero(n()), yc;
+        guess[m() + 1] = c;
+        fixed[m() + 1] = 1.0;
+        int it = 0;
+        if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
+      }
+      points->push_back(std::move(p));
+      Vec t1;
+      if (!Tangent(y1, t, &t1)) return "no tangent";
+      y = y1;
+      t = t1;
+    }
+    return "reached max_steps";
+  }
+
+ private:
+  const HybridModel& model_;
+  Propagator& propagator_;
+  const CurveOptions& options_;
+  CurveKind kind_;
+  int index1_, index2_;
+  Params base_;
+  internal::OrbitBvp bvp1_, bvp2_;
+  Vec start_;
+  Vec border_b_, border_c_;
+};
+
+}  // namespace
+
+CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
+                          const SpecialPoint& start, const CurveOptions& options) {
+  CurveResult result;
+  ContinuationSummary& sum = result.summary;
+  auto fail = [&](Status s) {
+    sum.termination = Termination::kFailed;
+    sum.status = s;
+    sum.message = s.message();
+    return result;
+  };
+  if (Status s = options.Validate(); !s.ok()) return fail(s);
+  StatusOr<int> i1 = model.ParamIndex(options.param1);
+  if (!i1.ok()) return fail(Status(StatusCode::kInvalidArgument, i1.status().message()));
+  StatusOr<int> i2 = model.ParamIndex(options.param2);
+  if (!i2.ok()) return fail(Status(StatusCode::kInvalidArgument, i2.status().message()));
+  const PeriodicOrbit& orbit = start.point.orbit;
+  switch (start.kind) {
+    case SpecialPointKind::kFold:
+      result.kind = CurveKind::kFold;
+      break;
+    case SpecialPointKind::kPeriodDoubling:
+      result.kind = CurveKind::kPeriodDoubling;
+      break;
+    case SpecialPointKind::kGrazingL1:
+    case SpecialPointKind::kGrazingL2:
+    case SpecialPointKind::kGrazingPi:
+      return fail(Status(StatusCode::kUnimplemented,
+                         "grazing curves are not traced yet (they need the touching point as a "
+                         "segment end with h = 0 and h' = 0)"));
+    default:
+      return fail(InvalidArgument(std::string("a curve starts at a FOLD or PERIOD_DOUBLING "
+                                              "point, not at ") +
+                                  SpecialPointKindName(start.kind)));
+  }
+  CurveTracer tracer(model, propagator, options, result.kind, *i1, *i2, orbit);
+  std::vector<CurvePoint> backward, forward;
+  const std::string end_forward = tracer.Trace(+1.0, &forward, &result.crossings, &sum);
+  const std::string end_backward = tracer.Trace(-1.0, &backward, &result.crossings, &sum);
+  std::reverse(backward.begin(), backward.end());
+  result.points = std::move(backward);
+  result.points.push_back(tracer.MakePoint(tracer.start()));
+  result.points.insert(result.points.end(), forward.begin(), forward.end());
+  sum.termination = Termination::kCompleted;
+  sum.message = "increasing " + options.param2 + ": " + end_forward + "; decreasing " +
+                options.param2 + ": " + end_backward;
+  return result;
+}
+
+}  // namespace drillbif
