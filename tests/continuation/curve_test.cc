@@ -1,10 +1,11 @@
-// Two-parameter curves of folds and period doublings: consistent with the one-parameter
-// continuations (each curve crosses a = 0.28 and a = 0.32 where the b-continuation at that a
-// locates the point), and every crossing satisfies its defining condition.
+// Two-parameter curves of folds, period doublings and l1 grazings: consistent with the
+// one-parameter continuations (each curve crosses a = 0.28 and a = 0.32 where the b-continuation at
+// that a locates the point), and every crossing satisfies its defining condition.
 #include "drillbif/continuation/curve.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "drillbif/flow/exact_propagator.h"
@@ -16,18 +17,33 @@ namespace {
 
 using DO = DriftingOscillator;
 
-// The b-continuation from rest at amplitude a, up to the fold (it passes the PD on the way down).
+// The b-continuation at amplitude a of the family of MODEL.md's start orbit: the start orbit
+// (a = 0.3, b = 0.15) continued in a to the requested value first, since from rest at another a
+// the simulation may settle on a coexisting period-1 orbit of another family. Up to the fold and
+// down to b = 0 (through the PD and the l1 grazing).
 ContinuationResult BBranch(const DO& model, Propagator& prop, double a) {
-  Params prm = testing::ReferenceParams();
-  prm[DO::kA] = a;
-  const StatusOr<PeriodicOrbit> start = testing::SolvedOrbitFromRest(model, prop, prm);
-  EXPECT_TRUE(start.ok()) << start.status().ToString();
+  const StatusOr<PeriodicOrbit> reference =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  EXPECT_TRUE(reference.ok()) << reference.status().ToString();
+  PeriodicOrbit start = *reference;
+  if (a != start.params[DO::kA]) {
+    ContinuationOptions to_a;
+    to_a.param = "a";
+    to_a.min = std::min(a, start.params[DO::kA]);
+    to_a.max = std::max(a, start.params[DO::kA]);
+    to_a.direction = a < start.params[DO::kA] ? ContinuationDirection::kDecreasing
+                                              : ContinuationDirection::kIncreasing;
+    const ContinuationResult moved = Continue(model, prop, start, to_a);
+    EXPECT_EQ(moved.summary.termination, Termination::kCompleted) << moved.summary.message;
+    start = (a < start.params[DO::kA] ? moved.points.front() : moved.points.back()).orbit;
+    EXPECT_NEAR(start.params[DO::kA], a, 1e-9);
+  }
   ContinuationOptions opt;
   opt.param = "b";
-  opt.min = 0.05;
+  opt.min = 0.0;
   opt.max = 0.2;
   opt.stop_at = {SpecialPointKind::kFold};
-  return Continue(model, prop, *start, opt);
+  return Continue(model, prop, start, opt);
 }
 
 const SpecialPoint* FindKind(const ContinuationResult& r, SpecialPointKind kind) {
@@ -57,12 +73,60 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
   ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
   ASSERT_EQ(curve.crossings.size(), 2u) << curve.summary.message;
   const double target = GetParam() == SpecialPointKind::kFold ? 1.0 : -1.0;
+  const bool grazing = GetParam() == SpecialPointKind::kGrazingL1;
   for (const CurvePoint& c : curve.crossings) {
-    const ContinuationResult one = BBranch(model, prop, c.value2);
-    const SpecialPoint* located = FindKind(one, GetParam());
-    ASSERT_NE(located, nullptr) << "a = " << c.value2;
-    // Both are located to 1e-10 in b; the issue asks for agreement to 1e-7.
-    EXPECT_NEAR(c.value1, located->point.value, 1e-7) << "a = " << c.value2;
+    if (!grazing) {
+      const ContinuationResult one = BBranch(model, prop, c.value2);
+      const SpecialPoint* located = FindKind(one, GetParam());
+      ASSERT_NE(located, nullptr) << "a = " << c.value2;
+      // Both are located to 1e-10 in b (the curve's crossing to the corrector's 1e-10); the
+      // issue asks for agreement to 1e-7.
+      EXPECT_NEAR(c.value1, located->point.value, 1e-7) << "a = " << c.value2;
+    }
+    if (grazing) {
+      // Independent check of the crossing: the original-signature orbit (with its CwP phase)
+      // solved by Newton at b = crossing + 1e-6 has a short positive CwP phase, and at
+      // b = crossing - 1e-6 none exists (no convergence, or a negative duration). (The
+      // one-parameter location is not used here: it can land on a degenerate family of
+      // zero-length solutions; see the closing note of issue 4's first part.)
+      // Natural-parameter Newton steps from the regular start orbit: b down to 0.029 at a = 0.3,
+      // then a to the crossing's value, then b down to just above the crossing.
+      PeriodicOrbit above = *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+      auto step_to = [&](int index, double target, double step) {
+        const double from = above.params[index];
+        const int n = std::max(1, static_cast<int>(std::ceil(std::abs(target - from) / step)));
+        for (int k = 1; k <= n; ++k) {
+          above.params[index] = from + (target - from) * k / n;
+          ASSERT_EQ(SolveOrbit(model, prop, {}, &above).status, SolveStatus::kConverged)
+              << model.param_names()[index] << " = " << above.params[index];
+        }
+      };
+      step_to(DO::kB, 0.029, 5e-4);
+      step_to(DO::kA, c.value2, 1e-3);
+      step_to(DO::kB, c.value1 + 1e-4, 1e-4);
+      step_to(DO::kB, c.value1 + 1e-5, 1e-5);
+      above.params[DO::kB] = c.value1 + 1e-6;
+      ASSERT_EQ(SolveOrbit(model, prop, {}, &above).status, SolveStatus::kConverged);
+      EXPECT_GT(above.durations[2], 0.0) << "a = " << c.value2;
+      EXPECT_LT(above.durations[2], 0.05) << "a = " << c.value2;
+      PeriodicOrbit below = above;
+      below.params[DO::kB] = c.value1 - 1e-6;
+      const OrbitSolveSummary sb = SolveOrbit(model, prop, {}, &below);
+      EXPECT_TRUE(sb.status != SolveStatus::kConverged || below.durations[2] <= 0.0)
+          << "a = " << c.value2;
+      // The touching point: the tangent segment end has h = 0 (an equation of the orbit) and
+      // h' = 0 (the curve's condition), to the corrector's accuracy.
+      const auto& segs = c.orbit.signature.segments;
+      int k = 0;
+      while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
+      ASSERT_LT(k, static_cast<int>(segs.size()));
+      const StateVector xe =
+          prop.FlowMap(segs[k].mode, c.orbit.starts[k], c.orbit.durations[k], c.orbit.params, {}).x;
+      const GuardValue g = model.Guard(segs[k].mode, segs[k].guard, xe, c.orbit.params);
+      EXPECT_LE(std::abs(g.h), 1e-9) << "a = " << c.value2;
+      EXPECT_LE(std::abs(g.dh), 1e-9) << "a = " << c.value2;
+      continue;
+    }
     // The crossing's defining condition: a multiplier at +1 (fold) or -1 (period doubling), to the
     // corrector's accuracy (1e-10 relative to the unknowns, amplified by dmu/dY = O(10)).
     double closest = std::numeric_limits<double>::infinity();
@@ -79,7 +143,8 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
 
 INSTANTIATE_TEST_SUITE_P(FoldAndPeriodDoubling, CurveConsistencyTest,
                          ::testing::Values(SpecialPointKind::kFold,
-                                           SpecialPointKind::kPeriodDoubling),
+                                           SpecialPointKind::kPeriodDoubling,
+                                           SpecialPointKind::kGrazingL1),
                          [](const auto& test_info) {
                            return std::string(SpecialPointKindName(test_info.param));
                          });
@@ -95,8 +160,10 @@ TEST(Curve, OtherStartsAreClearErrors) {
   opt.min1 = 0.0, opt.max1 = 1.0, opt.min2 = 0.0, opt.max2 = 1.0;
   EXPECT_EQ(ContinueCurve(model, prop, rop_max, opt).summary.status.code(),
             StatusCode::kInvalidArgument);
-  SpecialPoint graze;
-  graze.kind = SpecialPointKind::kGrazingL1;
+  SpecialPoint graze;  // a grazing whose orbit has no vanishing segment
+  graze.kind = SpecialPointKind::kGrazingPi;
+  graze.point.orbit.signature.segments = {{0, 0}, {1, 1}, {0, -1}};
+  graze.point.orbit.durations = {1.0, 1.0, 1.0};
   EXPECT_EQ(ContinueCurve(model, prop, graze, opt).summary.status.code(),
             StatusCode::kUnimplemented);
   CurveOptions same = opt;

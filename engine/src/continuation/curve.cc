@@ -62,11 +62,27 @@ class CurveTracer {
     start_.head(m()) = bvp1_.Pack(start);
     start_[m()] = start.params[index1];
     start_[m() + 1] = start.params[index2];
+    for (int i = 0; i < static_cast<int>(start.signature.segments.size()); ++i) {
+      if (start.signature.segments[i].tangent) tangent_ = i;
+    }
+    if (kind_ == CurveKind::kGrazing) return;
     // Bordering vectors: the singular vectors of M -+ I's smallest singular value.
     const Mat a = Shifted(Unpack(start_));
     Eigen::JacobiSVD<Mat> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
     border_b_ = svd.matrixU().col(a.rows() - 1);
     border_c_ = svd.matrixV().col(a.cols() - 1);
+  }
+
+  // Puts the start exactly on the curve: Newton on the extended system with lambda2 fixed (the
+  // located point satisfies the defining condition only to the location's accuracy, and a grazing
+  // point re-expressed with a tangent end is slightly off the touch).
+  bool CorrectStart() {
+    Vec fixed = Vec::Zero(n()), y;
+    fixed[m() + 1] = 1.0;
+    int iterations = 0;
+    if (!Correct(start_, fixed, &y, &iterations)) return false;
+    start_ = y;
+    return true;
   }
 
   int m() const { return bvp1_.size(); }
@@ -93,8 +109,16 @@ class CurveTracer {
     return mono + shift * Mat::Identity(mono.rows(), mono.cols());
   }
 
-  // The defining condition.
+  // The defining condition: sigma(M -+ I) for folds and period doublings; for grazing, h' at the
+  // tangent end (the guard's rate where it touches zero).
   double Condition(const Vec& y) const {
+    if (kind_ == CurveKind::kGrazing) {
+      const PeriodicOrbit o = Unpack(y);
+      const SegmentSpec& seg = o.signature.segments[tangent_];
+      const StateVector xe =
+          propagator_.FlowMap(seg.mode, o.starts[tangent_], o.durations[tangent_], o.params, {}).x;
+      return model_.Guard(seg.mode, seg.guard, xe, o.params).dh;
+    }
     const Mat a = Shifted(Unpack(y));
     const int d = static_cast<int>(a.rows());
     Mat bordered = Mat::Zero(d + 1, d + 1);
@@ -124,8 +148,8 @@ class CurveTracer {
     jac->topLeftCorner(m(), m()) = gx;
     jac->col(m()).head(m()) = gp1;
     jac->col(m() + 1).head(m()) = gp2;
-    // Central differences of sigma: truncation h^2 |sigma'''|, rounding eps |sigma| / h, both
-    // ~1e-10 with h = 1e-6 (1 + |y_j|) for these O(1) quantities.
+    // Central differences of the condition: truncation h^2 |sigma'''|, rounding eps |sigma| / h,
+    // both ~1e-10 with h = 1e-6 (1 + |y_j|) for these O(1) quantities.
     for (int j = 0; j < n(); ++j) {
       const double h = 1e-6 * (1.0 + std::abs(y[j]));
       Vec yp = y, ym = y;
@@ -251,6 +275,7 @@ class CurveTracer {
   int index1_, index2_;
   Params base_;
   internal::OrbitBvp bvp1_, bvp2_;
+  int tangent_ = -1;  // grazing curves: the segment with the tangent end
   Vec start_;
   Vec border_b_, border_c_;
 };
@@ -273,6 +298,7 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
   StatusOr<int> i2 = model.ParamIndex(options.param2);
   if (!i2.ok()) return fail(Status(StatusCode::kInvalidArgument, i2.status().message()));
   const PeriodicOrbit& orbit = start.point.orbit;
+  PeriodicOrbit tangent_orbit;
   switch (start.kind) {
     case SpecialPointKind::kFold:
       result.kind = CurveKind::kFold;
@@ -282,16 +308,43 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
       break;
     case SpecialPointKind::kGrazingL1:
     case SpecialPointKind::kGrazingL2:
-    case SpecialPointKind::kGrazingPi:
-      return fail(Status(StatusCode::kUnimplemented,
-                         "grazing curves are not traced yet (they need the touching point as a "
-                         "segment end with h = 0 and h' = 0)"));
+    case SpecialPointKind::kGrazingPi: {
+      // The touching point: the vanishing segment i (zero length at the located point) goes, and
+      // segment i - 1, in the same mode as i + 1, ends tangentially on its guard instead.
+      result.kind = CurveKind::kGrazing;
+      const auto& d = orbit.durations;
+      const int i = static_cast<int>(
+          std::min_element(d.begin(), d.end(),
+                           [](double x, double y) { return std::abs(x) < std::abs(y); }) -
+          d.begin());
+      const auto& segs = orbit.signature.segments;
+      if (std::abs(d[i]) > 1e-6 || i == 0 || i + 1 >= static_cast<int>(segs.size()) ||
+          segs[i - 1].mode != segs[i + 1].mode) {
+        return fail(Status(StatusCode::kUnimplemented,
+                           "grazing curves are traced only from grazings where a segment "
+                           "vanishes between two segments of the same mode"));
+      }
+      tangent_orbit = orbit;
+      auto& ts = tangent_orbit.signature.segments;
+      ts[i - 1].tangent = true;
+      tangent_orbit.durations[i + 1] += tangent_orbit.durations[i];
+      tangent_orbit.starts[i + 1] = tangent_orbit.starts[i];
+      ts.erase(ts.begin() + i);
+      tangent_orbit.durations.erase(tangent_orbit.durations.begin() + i);
+      tangent_orbit.starts.erase(tangent_orbit.starts.begin() + i);
+      break;
+    }
     default:
-      return fail(InvalidArgument(std::string("a curve starts at a FOLD or PERIOD_DOUBLING "
-                                              "point, not at ") +
-                                  SpecialPointKindName(start.kind)));
+      return fail(
+          InvalidArgument(std::string("a curve starts at a FOLD, PERIOD_DOUBLING or GRAZING "
+                                      "point, not at ") +
+                          SpecialPointKindName(start.kind)));
   }
-  CurveTracer tracer(model, propagator, options, result.kind, *i1, *i2, orbit);
+  CurveTracer tracer(model, propagator, options, result.kind, *i1, *i2,
+                     result.kind == CurveKind::kGrazing ? tangent_orbit : orbit);
+  if (!tracer.CorrectStart()) {
+    return fail(Internal("could not put the start point on the curve"));
+  }
   std::vector<CurvePoint> backward, forward;
   const std::string end_forward = tracer.Trace(+1.0, &forward, &result.crossings, &sum);
   const std::string end_backward = tracer.Trace(-1.0, &backward, &result.crossings, &sum);

@@ -100,7 +100,16 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
         (*gp)[row] = grad.dot(dend_p.transpose()) +
                      model_.GuardParamGradient(seg.mode, seg.guard, xe, params)[param_];
       }
-      const Transition tr = model_.Jump(seg.mode, seg.guard, xe, params);
+      // A tangent end touches the surface and goes on in the same mode: no jump.
+      Transition tr;
+      if (seg.tangent) {
+        tr.next_mode = seg.mode;
+        tr.x = xe;
+        tr.jacobian = StateMatrix::Identity(n, n);
+        tr.param_jacobian = ParamMatrix::Zero(n, model_.num_params());
+      } else {
+        tr = model_.Jump(seg.mode, seg.guard, xe, params);
+      }
       const Eigen::MatrixXd jdend = gx ? Eigen::MatrixXd(tr.jacobian * dend) : Eigen::MatrixXd();
       const Eigen::VectorXd jdend_p =
           want_p ? Eigen::VectorXd(tr.jacobian * dend_p + tr.param_jacobian.col(param_))

@@ -90,7 +90,9 @@ Stability OrbitStability(const HybridModel& model, Propagator& propagator,
     const FlowResult fr =
         propagator.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], orbit.params, req);
     m = fr.state_jacobian * m;
-    if (seg.guard < 0) continue;
+    // No saltation at the section, nor at a tangent end (same mode on both sides: it would be the
+    // identity, and its formula divides by h' = 0 there).
+    if (seg.guard < 0 || seg.tangent) continue;
     // Saltation: S = DR + (f+ - DR f-) grad h / (grad h . f-).
     StateVector f_minus, f_plus;
     model.VectorField(seg.mode, fr.x, orbit.params, &f_minus);

@@ -7,7 +7,7 @@ std::string SignatureString(const HybridModel& model, const Signature& signature
   for (const SegmentSpec& s : signature.segments) {
     if (!out.empty()) out += ' ';
     out += model.mode_name(s.mode);
-    out += s.guard >= 0 ? ">" + model.guards(s.mode)[s.guard].surface : "|";
+    out += s.guard >= 0 ? (s.tangent ? "~" : ">") + model.guards(s.mode)[s.guard].surface : "|";
   }
   if (signature.periods > 1) out += " x" + std::to_string(signature.periods);
   return out;
@@ -30,6 +30,10 @@ Status ValidateSignature(const HybridModel& model, const Signature& signature) {
                              std::to_string(s.mode));
     }
     const bool last = i == k - 1;
+    if (s.tangent && (last || signature.segments[i + 1].mode != s.mode)) {
+      return InvalidArgument("signature segment " + std::to_string(i) +
+                             ": a tangent end must be followed by a segment in the same mode");
+    }
     if (last != (s.guard < 0) || s.guard >= static_cast<int>(model.guards(s.mode).size())) {
       return InvalidArgument("signature segment " + std::to_string(i) +
                              (last ? ": the last segment must end at the section"

@@ -1,5 +1,5 @@
 // Two-parameter continuation of bifurcation curves by extended systems: from a fold, period
-// doubling point located by a one-parameter continuation, follow the curve of such
+// doubling or grazing point located by a one-parameter continuation, follow the curve of such
 // points in two parameters (lambda1, lambda2).
 //
 // Unknowns Y = (X, lambda1, lambda2), X the orbit's boundary-value unknowns
@@ -14,11 +14,14 @@
 // rest of the Jacobian is exact. Pseudo-arclength with the same step control as the
 // one-parameter continuation.
 //
-// This first version traces fold and period-doubling curves while their orbits stay admissible
-// and stops where one is not (a codimension-2 point such as fold-grazing, not yet classified), at
-// the box bounds, or after max_steps. Grazing curves are not traced yet (UNIMPLEMENTED): keeping
-// the vanishing segment at zero length makes the two events around it coincide and the system
-// singular; they need the touching point as a segment end with h = 0 and h' = 0.
+//   grazing:           h'(x_touch) = 0 at the touching point, which becomes a tangent segment end
+//                      (SegmentSpec::tangent: h = 0 there, then the same mode goes on)
+// Grazing curves start from grazings where a segment vanishes between two segments of the same
+// mode (l1: the CwP phase between two contact phases; Pi: a contact phase between free flights);
+// the vanishing segment is dropped and the one before it ends tangentially.
+// This first version traces a curve while its orbits stay admissible and stops where one is not
+// (a codimension-2 point such as fold-grazing, not yet classified), at the box bounds, or after
+// max_steps.
 #ifndef DRILLBIF_CONTINUATION_CURVE_H_
 #define DRILLBIF_CONTINUATION_CURVE_H_
 
@@ -30,7 +33,7 @@
 
 namespace drillbif {
 
-enum class CurveKind { kFold, kPeriodDoubling };
+enum class CurveKind { kFold, kPeriodDoubling, kGrazing };
 const char* CurveKindName(CurveKind kind);
 
 struct CurveOptions {
@@ -69,9 +72,9 @@ struct CurveResult {
   ContinuationSummary summary;
 };
 
-// Traces the curve through `start` (a FOLD or PERIOD_DOUBLING point) in both
+// Traces the curve through `start` (a FOLD, PERIOD_DOUBLING or GRAZING_* point) in both
 // directions. INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a
-// grazing point.
+// grazing without a vanishing segment between two segments of the same mode.
 CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                           const SpecialPoint& start, const CurveOptions& options);
 

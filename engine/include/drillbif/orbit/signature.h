@@ -17,7 +17,13 @@ namespace drillbif {
 struct SegmentSpec {
   int mode = 0;
   int guard = -1;  // guard of `mode` that ends the segment; -1: the segment ends at the section
-  bool operator==(const SegmentSpec& o) const { return mode == o.mode && guard == o.guard; }
+  // The segment ends where its guard touches zero tangentially (h = 0, h' = 0) and the flow goes
+  // on in the same mode (no jump): the touching point of a grazing orbit, used to follow grazing
+  // curves in two parameters (h' = 0 is then the curve's defining condition).
+  bool tangent = false;
+  bool operator==(const SegmentSpec& o) const {
+    return mode == o.mode && guard == o.guard && tangent == o.tangent;
+  }
 };
 
 struct Signature {
