@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "continuation/signature_switch.h"
+#include "continuation/tangent_grazing.h"
 
 namespace drillbif::internal {
 namespace {
@@ -282,6 +283,44 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   if (!std::isfinite(sigma_star)) return false;
   // Special points of the old signature before the grazing point.
   const ContinuationPoint at_graze = MakePoint(y_star);
+  // The point reported: for a vanishing segment, refined by the tangency system.
+  ContinuationPoint reported = at_graze;
+  if (violation.guard < 0) {
+    // A vanishing segment: the bracket on its duration may close on the degenerate family of
+    // zero-length solutions (tangent_grazing.h); the tangency system pins the grazing point.
+    // From the located point, else from the last admissible one.
+    const int i = violation.segment;
+    StatusOr<PeriodicOrbit> solved = Status(StatusCode::kNotFound, "");
+    for (const PeriodicOrbit* from :
+         {&at_graze.orbit, const_cast<const PeriodicOrbit*>(&point_.orbit)}) {
+      const StatusOr<PeriodicOrbit> tangent = TangentForm(*from, i);
+      if (!tangent.ok()) break;
+      solved = SolveTangentGrazing(model_, propagator_, *tangent, param_);
+      // Sound only with every segment of positive duration, next to the bracketed point (Newton
+      // can also reach a touching point at a segment's very start).
+      if (solved.ok() &&
+          *std::min_element(solved->durations.begin(), solved->durations.end()) > 0.0 &&
+          std::abs(solved->params[param_] - at_graze.value) <=
+              1e-3 * (1.0 + std::abs(at_graze.value))) {
+        break;
+      }
+      solved = Status(StatusCode::kNotFound, "no sound tangency solution");
+    }
+    if (solved.ok()) {
+      // Back to the old signature, with segment i of zero length at the touching point.
+      PeriodicOrbit old = *solved;
+      old.signature.segments[i - 1].tangent = false;
+      old.signature.segments.insert(old.signature.segments.begin() + i,
+                                    at_graze.orbit.signature.segments[i]);
+      old.starts.insert(old.starts.begin() + i, old.starts[i]);
+      old.durations.insert(old.durations.begin() + i, 0.0);
+      reported.value = old.params[param_];
+      reported.orbit = old;
+      reported.measures = OrbitMeasures(model_, propagator_, old);
+      reported.stability = OrbitStability(model_, propagator_, old);
+      reported.period = kTwoPi * old.signature.periods / model_.ForcingFrequency(old.params);
+    }
+  }
   if (options_.locate) {
     // Up to just before the grazing point.
     const double sigma = t_.dot(y_star - y_) * (1.0 - 1e-6);
@@ -300,10 +339,10 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   if (!sw.representation_only) {
     SpecialPoint sp;
     sp.kind = sw.kind;
-    sp.point = at_graze;
+    sp.point = reported;
     sp.detail = sw.detail;
     result->special_points.push_back(sp);
-    result->points.push_back(at_graze);
+    result->points.push_back(reported);
     NoteStop(sw.kind);
   }
   if (!options_.switch_signatures && !sw.representation_only) {
@@ -312,7 +351,9 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     return false;
   }
   // Go on with the new signature from the same point.
-  const double value = y_star[m()];  // m() changes with the signature below
+  // Go on from the bracketed point (continuing from the refined one is not robust yet: it broke
+  // the a = 5 branch).
+  const double value = at_graze.value;  // m() changes with the signature below
   const double direction = Sign(t_[m()]);
   bvp_ = std::make_unique<OrbitBvp>(model_, propagator_, sw.orbit.signature, param_);
   Vec y(m() + 1);

@@ -1,0 +1,80 @@
+#include "continuation/tangent_grazing.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "orbit/orbit_bvp.h"
+
+namespace drillbif::internal {
+
+StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i) {
+  const auto& segs = orbit.signature.segments;
+  if (i <= 0 || i + 1 >= static_cast<int>(segs.size()) || segs[i - 1].mode != segs[i + 1].mode) {
+    return InvalidArgument("no tangent form: segment " + std::to_string(i) +
+                           " does not lie between two segments of one mode");
+  }
+  PeriodicOrbit t = orbit;
+  auto& ts = t.signature.segments;
+  ts[i - 1].tangent = true;
+  t.durations[i + 1] += t.durations[i];
+  t.starts[i + 1] = t.starts[i];
+  ts.erase(ts.begin() + i);
+  t.durations.erase(t.durations.begin() + i);
+  t.starts.erase(t.starts.begin() + i);
+  return t;
+}
+
+StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator& propagator,
+                                            const PeriodicOrbit& guess, int param,
+                                            double tolerance) {
+  int k = 0;
+  const auto& segs = guess.signature.segments;
+  while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
+  if (k == static_cast<int>(segs.size())) return InvalidArgument("the guess has no tangent end");
+  OrbitBvp bvp(model, propagator, guess.signature, param);
+  const int m = bvp.size();
+  Params params = guess.params;
+  Eigen::VectorXd y(m + 1);
+  y.head(m) = bvp.Pack(guess);
+  y[m] = params[param];
+  // h' at the tangent end, as a function of (X, lambda).
+  auto rate = [&](const Eigen::VectorXd& yy) {
+    Params p = params;
+    p[param] = yy[m];
+    PeriodicOrbit o;
+    bvp.Unpack(yy.head(m), p, &o);
+    const StateVector xe = propagator.FlowMap(segs[k].mode, o.starts[k], o.durations[k], p, {}).x;
+    return model.Guard(segs[k].mode, segs[k].guard, xe, p).dh;
+  };
+  Eigen::VectorXd g, gp, f(m + 1);
+  Eigen::MatrixXd gx, jac(m + 1, m + 1);
+  for (int it = 0; it < 30; ++it) {
+    params[param] = y[m];
+    if (!model.ValidateParams(params).ok()) return Internal("left the parameter domain");
+    if (Status s = bvp.Evaluate(y.head(m), params, &g, &gx, &gp); !s.ok()) return s;
+    f.head(m) = g;
+    f[m] = rate(y);
+    jac.topLeftCorner(m, m) = gx;
+    jac.topRightCorner(m, 1) = gp;
+    // d h' / d (X, lambda) by central differences: truncation h^2 |h''''| and rounding
+    // eps |h'| / h, both ~1e-12 with h = 1e-6 (1 + |y_j|).
+    for (int j = 0; j <= m; ++j) {
+      const double h = 1e-6 * (1.0 + std::abs(y[j]));
+      Eigen::VectorXd yp = y, ym = y;
+      yp[j] += h, ym[j] -= h;
+      jac(m, j) = (rate(yp) - rate(ym)) / (2.0 * h);
+    }
+    const Eigen::VectorXd step = jac.partialPivLu().solve(-f);
+    if (!step.allFinite()) return Internal("singular tangency system");
+    y += step;
+    if (step.lpNorm<Eigen::Infinity>() <= tolerance * (1.0 + y.lpNorm<Eigen::Infinity>())) {
+      params[param] = y[m];
+      PeriodicOrbit out;
+      bvp.Unpack(y.head(m), params, &out);
+      return out;
+    }
+  }
+  return Internal("the tangency system did not converge");
+}
+
+}  // namespace drillbif::internal

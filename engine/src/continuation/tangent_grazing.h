@@ -1,0 +1,26 @@
+// The grazing point where a segment vanishes between two segments of one mode, solved by its
+// tangency condition: the orbit with that segment dropped and the segment before it ending
+// tangentially on its guard (SegmentSpec::tangent: h = 0 there, the same mode goes on), plus
+// h' = 0 at that end, with the continuation parameter free: a square, regular system. (Holding
+// the vanishing segment at zero length instead is degenerate: its two events coincide and a whole
+// family of zero-length solutions at transversal crossings meets the true branch there.)
+#ifndef DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
+#define DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
+
+#include "drillbif/orbit/periodic_orbit.h"
+
+namespace drillbif::internal {
+
+// The orbit `orbit` re-expressed with segment i dropped and segment i - 1 ending tangentially;
+// INVALID_ARGUMENT unless 0 < i < k - 1 and segments i - 1 and i + 1 share their mode.
+StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i);
+
+// Newton on (G = 0, h' = 0 at the tangent end) for the tangent-form orbit and params[param],
+// from `guess` (in tangent form). Returns the solved orbit (in tangent form).
+StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator& propagator,
+                                            const PeriodicOrbit& guess, int param,
+                                            double tolerance = 1e-12);
+
+}  // namespace drillbif::internal
+
+#endif  // DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
