@@ -88,11 +88,11 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
       // Natural-parameter Newton steps from the regular start orbit: b down to 0.029 at a = 0.3,
       // then a to the crossing's value, then b down to just above the crossing.
       PeriodicOrbit above = *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-      auto step_to = [&](int index, double target, double step) {
+      auto step_to = [&](int index, double to, double step) {
         const double from = above.params[index];
-        const int n = std::max(1, static_cast<int>(std::ceil(std::abs(target - from) / step)));
+        const int n = std::max(1, static_cast<int>(std::ceil(std::abs(to - from) / step)));
         for (int k = 1; k <= n; ++k) {
-          above.params[index] = from + (target - from) * k / n;
+          above.params[index] = from + (to - from) * k / n;
           ASSERT_EQ(SolveOrbit(model, prop, {}, &above).status, SolveStatus::kConverged)
               << model.param_names()[index] << " = " << above.params[index];
         }

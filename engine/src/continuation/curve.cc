@@ -16,6 +16,8 @@ const char* CurveKindName(CurveKind kind) {
       return "FOLD";
     case CurveKind::kPeriodDoubling:
       return "PERIOD_DOUBLING";
+    case CurveKind::kGrazing:
+      return "GRAZING";
   }
   return "?";
 }
@@ -42,8 +44,6 @@ namespace {
 
 using Vec = Eigen::VectorXd;
 using Mat = Eigen::MatrixXd;
-
-double Sign(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
 
 class CurveTracer {
  public:
