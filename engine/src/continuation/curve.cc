@@ -6,6 +6,7 @@
 #include <cmath>
 #include <memory>
 
+#include "continuation/tangent_grazing.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif {
@@ -62,9 +63,6 @@ class CurveTracer {
     start_.head(m()) = bvp1_.Pack(start);
     start_[m()] = start.params[index1];
     start_[m() + 1] = start.params[index2];
-    for (int i = 0; i < static_cast<int>(start.signature.segments.size()); ++i) {
-      if (start.signature.segments[i].tangent) tangent_ = i;
-    }
     if (kind_ == CurveKind::kGrazing) return;
     // Bordering vectors: the singular vectors of M -+ I's smallest singular value.
     const Mat a = Shifted(Unpack(start_));
@@ -112,13 +110,8 @@ class CurveTracer {
   // The defining condition: sigma(M -+ I) for folds and period doublings; for grazing, h' at the
   // tangent end (the guard's rate where it touches zero).
   double Condition(const Vec& y) const {
-    if (kind_ == CurveKind::kGrazing) {
-      const PeriodicOrbit o = Unpack(y);
-      const SegmentSpec& seg = o.signature.segments[tangent_];
-      const StateVector xe =
-          propagator_.FlowMap(seg.mode, o.starts[tangent_], o.durations[tangent_], o.params, {}).x;
-      return model_.Guard(seg.mode, seg.guard, xe, o.params).dh;
-    }
+    if (kind_ == CurveKind::kGrazing)
+      return internal::TangentEndRate(model_, propagator_, Unpack(y));
     const Mat a = Shifted(Unpack(y));
     const int d = static_cast<int>(a.rows());
     Mat bordered = Mat::Zero(d + 1, d + 1);
@@ -275,7 +268,6 @@ class CurveTracer {
   int index1_, index2_;
   Params base_;
   internal::OrbitBvp bvp1_, bvp2_;
-  int tangent_ = -1;  // grazing curves: the segment with the tangent end
   Vec start_;
   Vec border_b_, border_c_;
 };
@@ -317,21 +309,13 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
           std::min_element(d.begin(), d.end(),
                            [](double x, double y) { return std::abs(x) < std::abs(y); }) -
           d.begin());
-      const auto& segs = orbit.signature.segments;
-      if (std::abs(d[i]) > 1e-6 || i == 0 || i + 1 >= static_cast<int>(segs.size()) ||
-          segs[i - 1].mode != segs[i + 1].mode) {
+      StatusOr<PeriodicOrbit> tangent = internal::TangentForm(orbit, i);
+      if (std::abs(d[i]) > 1e-6 || !tangent.ok()) {
         return fail(Status(StatusCode::kUnimplemented,
                            "grazing curves are traced only from grazings where a segment "
                            "vanishes between two segments of the same mode"));
       }
-      tangent_orbit = orbit;
-      auto& ts = tangent_orbit.signature.segments;
-      ts[i - 1].tangent = true;
-      tangent_orbit.durations[i + 1] += tangent_orbit.durations[i];
-      tangent_orbit.starts[i + 1] = tangent_orbit.starts[i];
-      ts.erase(ts.begin() + i);
-      tangent_orbit.durations.erase(tangent_orbit.durations.begin() + i);
-      tangent_orbit.starts.erase(tangent_orbit.starts.begin() + i);
+      tangent_orbit = *std::move(tangent);
       break;
     }
     default:

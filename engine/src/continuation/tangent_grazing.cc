@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <limits>
 
 #include "orbit/orbit_bvp.h"
 
@@ -24,13 +25,24 @@ StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i) {
   return t;
 }
 
+double TangentEndRate(const HybridModel& model, Propagator& propagator,
+                      const PeriodicOrbit& orbit) {
+  const auto& segs = orbit.signature.segments;
+  for (size_t k = 0; k < segs.size(); ++k) {
+    if (!segs[k].tangent) continue;
+    const StateVector end =
+        propagator.FlowMap(segs[k].mode, orbit.starts[k], orbit.durations[k], orbit.params, {}).x;
+    return model.Guard(segs[k].mode, segs[k].guard, end, orbit.params).dh;
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
 StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator& propagator,
                                             const PeriodicOrbit& guess, int param,
                                             double tolerance) {
-  int k = 0;
-  const auto& segs = guess.signature.segments;
-  while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
-  if (k == static_cast<int>(segs.size())) return InvalidArgument("the guess has no tangent end");
+  if (std::isnan(TangentEndRate(model, propagator, guess))) {
+    return InvalidArgument("the guess has no tangent end");
+  }
   OrbitBvp bvp(model, propagator, guess.signature, param);
   const int m = bvp.size();
   Params params = guess.params;
@@ -43,8 +55,7 @@ StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator
     p[param] = yy[m];
     PeriodicOrbit o;
     bvp.Unpack(yy.head(m), p, &o);
-    const StateVector xe = propagator.FlowMap(segs[k].mode, o.starts[k], o.durations[k], p, {}).x;
-    return model.Guard(segs[k].mode, segs[k].guard, xe, p).dh;
+    return TangentEndRate(model, propagator, o);
   };
   Eigen::VectorXd g, gp, f(m + 1);
   Eigen::MatrixXd gx, jac(m + 1, m + 1);

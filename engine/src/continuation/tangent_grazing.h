@@ -15,6 +15,10 @@ namespace drillbif::internal {
 // INVALID_ARGUMENT unless 0 < i < k - 1 and segments i - 1 and i + 1 share their mode.
 StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i);
 
+// h' at the end of the orbit's tangent segment (the guard's rate where it touches zero); the
+// first tangent segment when there are several. NaN when the orbit has none.
+double TangentEndRate(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit);
+
 // Newton on (G = 0, h' = 0 at the tangent end) for the tangent-form orbit and params[param],
 // from `guess` (in tangent form). Returns the solved orbit (in tangent form).
 StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator& propagator,
