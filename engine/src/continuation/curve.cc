@@ -23,6 +23,18 @@ const char* CurveKindName(CurveKind kind) {
   return "?";
 }
 
+const char* Codim2KindName(Codim2Kind kind) {
+  switch (kind) {
+    case Codim2Kind::kFoldGrazing:
+      return "FOLD_GRAZING";
+    case Codim2Kind::kFlipGrazing:
+      return "FLIP_GRAZING";
+    case Codim2Kind::kFoldFlip:
+      return "FOLD_FLIP";
+  }
+  return "?";
+}
+
 Status CurveOptions::Validate() const {
   if (param1.empty() || param2.empty() || param1 == param2) {
     return InvalidArgument("param1 and param2 must name two different parameters");
@@ -207,14 +219,92 @@ class CurveTracer {
     return p;
   }
 
+  // det(M - I) (shift -1) or det(M + I) (shift +1) at a curve point.
+  double ShiftedDet(const Vec& y, double shift) const {
+    const Mat mono = OrbitStability(model_, propagator_, Unpack(y)).monodromy;
+    return (mono + shift * Mat::Identity(mono.rows(), mono.cols())).determinant();
+  }
+
+  // The codimension-2 test functions this curve carries: (shift, kind) pairs.
+  std::vector<std::pair<double, Codim2Kind>> Codim2Tests() const {
+    switch (kind_) {
+      case CurveKind::kGrazing:
+        return {{-1.0, Codim2Kind::kFoldGrazing}, {+1.0, Codim2Kind::kFlipGrazing}};
+      case CurveKind::kFold:
+        return {{+1.0, Codim2Kind::kFoldFlip}};
+      case CurveKind::kPeriodDoubling:
+        return {{-1.0, Codim2Kind::kFoldFlip}};
+    }
+    return {};
+  }
+
+  // The root of det(M -+ I) on the step from y along t of length h (values d0, d1 at its ends):
+  // Illinois on the arclength, each trial point corrected onto the curve, until |det| <= 1e-10
+  // or the bracket is below 1e-14 of the step.
+  bool LocateCodim2(const Vec& y, const Vec& t, double h, double shift, double d0, double d1,
+                    Vec* root) const {
+    double a = 0.0, fa = d0, b = h, fb = d1;
+    int side = 0;
+    for (int it = 0; it < 100; ++it) {
+      double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
+      if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
+      int iterations = 0;
+      if (!Correct(y + sigma * t, t, root, &iterations)) return false;
+      const double f = ShiftedDet(*root, shift);
+      if (std::abs(f) <= 1e-10 || b - a <= 1e-14 * std::max(1.0, h)) return true;
+      if ((f > 0.0) == (fa > 0.0)) {
+        a = sigma, fa = f;
+        if (side == -1) fb *= 0.5;
+        side = -1;
+      } else {
+        b = sigma, fb = f;
+        if (side == +1) fa *= 0.5;
+        side = +1;
+      }
+    }
+    return false;
+  }
+
+  // The admissibility boundary between curve points ya (admissible) and yb (not): bisection in
+  // the arclength along t, each midpoint of the chord corrected onto the curve in the hyperplane
+  // normal to t, until the bracket is below 1e-12 (1 + |y|). Beyond the boundary the extended
+  // system need not be smooth (a segment of negative duration may cross a guard) and Newton can
+  // stall there: a midpoint that does not correct counts as beyond, but then the boundary is
+  // only known to lie between the result and the nearest corrected inadmissible point. Returns
+  // that bracket width in arclength; the result is always a corrected admissible point and *why
+  // names the violation at the nearest corrected inadmissible point.
+  double LocateBoundary(Vec ya, Vec yb, const Vec& t, Vec* boundary, std::string* why) const {
+    const double tol = 1e-12 * (1.0 + ya.lpNorm<Eigen::Infinity>());
+    Vec known_beyond = yb;
+    for (int it = 0; it < 80 && t.dot(yb - ya) > tol; ++it) {
+      const Vec mid = 0.5 * (ya + yb);
+      Vec yc;
+      int iterations = 0;
+      std::string reason;
+      if (!Correct(mid, t, &yc, &iterations)) {
+        yb = mid;
+      } else if (Admissible(Unpack(yc), &reason)) {
+        ya = yc;
+      } else {
+        yb = known_beyond = yc, *why = reason;
+      }
+    }
+    *boundary = ya;
+    return t.dot(known_beyond - ya);
+  }
+
   // Traces one direction from the start; returns why it ended.
   std::string Trace(double sign, std::vector<CurvePoint>* points,
-                    std::vector<CurvePoint>* crossings, ContinuationSummary* sum) const {
+                    std::vector<CurvePoint>* crossings, std::vector<Codim2Point>* codim2,
+                    ContinuationSummary* sum) const {
     Vec y = start_, t, prev = Vec::Zero(n());
     // Start along the second parameter (the curve leaves the one-parameter branch across it).
     prev[m() + 1] = sign;
     if (!Tangent(y, prev, &t)) return "no tangent at the start point";
     double h = options_.initial_step;
+    const auto tests = Codim2Tests();
+    std::vector<double> dets;
+    for (const auto& [shift, kind] : tests) dets.push_back(ShiftedDet(y, shift));
     for (int step = 0; step < options_.max_steps; ++step) {
       Vec y1;
       int iterations = 0;
@@ -238,6 +328,15 @@ class CurveTracer {
       CurvePoint p = MakePoint(y1);
       std::string why;
       if (!Admissible(p.orbit, &why)) {
+        // A fold or period-doubling curve ends where its orbit grazes: a codimension-2 point.
+        Vec boundary;
+        if (kind_ != CurveKind::kGrazing) {
+          const double width = LocateBoundary(y, y1, t, &boundary, &why);
+          const Codim2Kind k =
+              kind_ == CurveKind::kFold ? Codim2Kind::kFoldGrazing : Codim2Kind::kFlipGrazing;
+          codim2->push_back({k, MakePoint(boundary), why, width});
+          return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
+        }
         return "the orbit is no longer admissible (a codimension-2 point, not yet classified): " +
                why;
       }
@@ -250,6 +349,17 @@ class CurveTracer {
         fixed[m() + 1] = 1.0;
         int it = 0;
         if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
+      }
+      // Codimension-2 points on this step: sign changes of det(M -+ I).
+      for (size_t k = 0; k < tests.size(); ++k) {
+        const double d1 = ShiftedDet(y1, tests[k].first);
+        Vec root;
+        const double step_length = t.dot(y1 - y);
+        if ((dets[k] > 0.0) != (d1 > 0.0) &&
+            LocateCodim2(y, t, step_length, tests[k].first, dets[k], d1, &root)) {
+          codim2->push_back({tests[k].second, MakePoint(root), "", 0.0});
+        }
+        dets[k] = d1;
       }
       points->push_back(std::move(p));
       Vec t1;
@@ -330,8 +440,10 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
     return fail(Internal("could not put the start point on the curve"));
   }
   std::vector<CurvePoint> backward, forward;
-  const std::string end_forward = tracer.Trace(+1.0, &forward, &result.crossings, &sum);
-  const std::string end_backward = tracer.Trace(-1.0, &backward, &result.crossings, &sum);
+  const std::string end_forward =
+      tracer.Trace(+1.0, &forward, &result.crossings, &result.codim2, &sum);
+  const std::string end_backward =
+      tracer.Trace(-1.0, &backward, &result.crossings, &result.codim2, &sum);
   std::reverse(backward.begin(), backward.end());
   result.points = std::move(backward);
   result.points.push_back(tracer.MakePoint(tracer.start()));

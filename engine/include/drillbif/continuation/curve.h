@@ -65,10 +65,30 @@ struct CurvePoint {
   Stability stability;
 };
 
+// Codimension-2 points found along a curve by the sign of det(M - I) (fold) and det(M + I)
+// (period doubling), located by a safeguarded secant along the curve until |det| <= 1e-10:
+// on a grazing curve FOLD_GRAZING / FLIP_GRAZING, on a fold curve (PD test) or a PD curve (fold
+// test) FOLD_FLIP.
+enum class Codim2Kind { kFoldGrazing, kFlipGrazing, kFoldFlip };
+const char* Codim2KindName(Codim2Kind kind);
+
+// On a grazing curve the point is the root of the determinant; a fold or period-doubling curve
+// ends at a FOLD_GRAZING / FLIP_GRAZING point where its orbit stops being admissible, located by
+// bisection: the last admissible point, `detail` naming the violation just beyond it and
+// `bracket` the arclength to the nearest inadmissible point the corrector reached (~1e-12 when
+// the bisection converged; wider where Newton stalled next to the boundary).
+struct Codim2Point {
+  Codim2Kind kind = Codim2Kind::kFoldGrazing;
+  CurvePoint point;
+  std::string detail;
+  double bracket = 0.0;
+};
+
 struct CurveResult {
   CurveKind kind = CurveKind::kFold;
   std::vector<CurvePoint> points;     // along the curve
   std::vector<CurvePoint> crossings;  // at the requested lambda2 values, in the order found
+  std::vector<Codim2Point> codim2;    // in the order found
   ContinuationSummary summary;
 };
 

@@ -1,0 +1,138 @@
+// Codimension-2 points on two-parameter curves in (omega, a), found two independent ways:
+// along the l1 grazing curve as roots of det(M -+ I), and at the ends of the period-doubling and
+// fold curves as the boundary where their orbits stop being admissible. The same flip-grazing
+// points must come out of both, and each point satisfies both of its defining conditions.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "drillbif/continuation/curve.h"
+#include "drillbif/flow/exact_propagator.h"
+#include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
+
+namespace drillbif {
+namespace {
+
+using DO = DriftingOscillator;
+
+class Codim2Test : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const StatusOr<PeriodicOrbit> start =
+        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
+    ASSERT_TRUE(start.ok()) << start.status().ToString();
+    ContinuationOptions opt;
+    opt.param = "omega";
+    opt.min = 0.05;
+    opt.max = 2.0;
+    omega_branch_ = Continue(model_, prop_, *start, opt);
+    ASSERT_EQ(omega_branch_.summary.termination, Termination::kCompleted);
+  }
+
+  // The first special point of this kind with omega in [lo, hi].
+  const SpecialPoint* Find(SpecialPointKind kind, double lo, double hi) const {
+    for (const SpecialPoint& s : omega_branch_.special_points) {
+      if (s.kind == kind && s.point.value >= lo && s.point.value <= hi) return &s;
+    }
+    return nullptr;
+  }
+
+  CurveResult Curve(const SpecialPoint& start) {
+    CurveOptions opt;
+    opt.param1 = std::string("omega");  // not = "omega": GCC 12 -Wrestrict false positive
+    opt.param2 = "a";
+    opt.min1 = 0.05, opt.max1 = 2.0;
+    opt.min2 = 0.01, opt.max2 = 8.0;
+    return ContinueCurve(model_, prop_, start, opt);
+  }
+
+  static double DistanceToMultiplier(const CurvePoint& p, double target) {
+    double closest = std::numeric_limits<double>::infinity();
+    for (const auto& mu : p.stability.multipliers) {
+      closest = std::min(closest, std::abs(mu - target));
+    }
+    return closest;
+  }
+
+  DO model_;
+  ExactPropagator prop_{model_};
+  ContinuationResult omega_branch_;
+};
+
+TEST_F(Codim2Test, GrazingCurveCarriesFlipAndFoldGrazingsSatisfyingBothConditions) {
+  const SpecialPoint* graze = Find(SpecialPointKind::kGrazingL1, 0.4, 0.6);
+  ASSERT_NE(graze, nullptr);
+  const CurveResult curve = Curve(*graze);
+  ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+  int flips = 0, folds = 0;
+  for (const Codim2Point& q : curve.codim2) {
+    const bool flip = q.kind == Codim2Kind::kFlipGrazing;
+    flips += flip;
+    folds += q.kind == Codim2Kind::kFoldGrazing;
+    // The multiplier: the root is located to |det(M -+ I)| <= 1e-10, so the critical multiplier
+    // is within 1e-10 / |mu_other -+ 1| (>= 0.09 here) plus the corrector's 1e-10 amplified by
+    // dmu/dY = O(10): 1e-8 bounds both.
+    EXPECT_LE(DistanceToMultiplier(q.point, flip ? -1.0 : 1.0), 1e-8)
+        << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
+    // The grazing: the tangent segment end has h = 0 and h' = 0 to the corrector's accuracy.
+    const PeriodicOrbit& o = q.point.orbit;
+    const auto& segs = o.signature.segments;
+    int k = 0;
+    while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
+    ASSERT_LT(k, static_cast<int>(segs.size()));
+    const StateVector xe = prop_.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x;
+    const GuardValue g = model_.Guard(segs[k].mode, segs[k].guard, xe, o.params);
+    EXPECT_LE(std::abs(g.h), 1e-9);
+    EXPECT_LE(std::abs(g.dh), 1e-9);
+  }
+  EXPECT_EQ(flips, 2) << curve.summary.message;
+  EXPECT_EQ(folds, 1) << curve.summary.message;
+}
+
+TEST_F(Codim2Test, PeriodDoublingCurveEndsAtTheFlipGrazingsOfTheGrazingCurve) {
+  const SpecialPoint* graze = Find(SpecialPointKind::kGrazingL1, 0.4, 0.6);
+  const SpecialPoint* pd = Find(SpecialPointKind::kPeriodDoubling, 1.0, 2.0);
+  ASSERT_NE(graze, nullptr);
+  ASSERT_NE(pd, nullptr);
+  const CurveResult grazing_curve = Curve(*graze);
+  const CurveResult pd_curve = Curve(*pd);
+  ASSERT_EQ(pd_curve.summary.termination, Termination::kCompleted) << pd_curve.summary.message;
+  ASSERT_EQ(pd_curve.codim2.size(), 2u) << pd_curve.summary.message;
+  for (const Codim2Point& end : pd_curve.codim2) {
+    EXPECT_EQ(end.kind, Codim2Kind::kFlipGrazing);
+    // The boundary bisection converged (no stalled corrector next to it).
+    EXPECT_LE(end.bracket, 1e-9) << end.detail;
+    // Still a period doubling: the PD curve's own condition, 1e-8 as on the crossings.
+    EXPECT_LE(DistanceToMultiplier(end.point, -1.0), 1e-8);
+    // The same point from the grazing curve's determinant root. Each is located to ~1e-10 in
+    // arclength (boundary bracket 1e-12, corrector 1e-10; |det| <= 1e-10 with d det/ds = O(1)),
+    // and both curves cross there at an O(1) angle: 1e-7 leaves a factor 100 for the slopes.
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const Codim2Point& q : grazing_curve.codim2) {
+      if (q.kind != Codim2Kind::kFlipGrazing) continue;
+      nearest = std::min(nearest, std::max(std::abs(q.point.value1 - end.point.value1),
+                                           std::abs(q.point.value2 - end.point.value2)));
+    }
+    EXPECT_LE(nearest, 1e-7) << "omega = " << end.point.value1 << ", a = " << end.point.value2;
+  }
+}
+
+TEST_F(Codim2Test, FoldCurveEndsAtAFoldGrazing) {
+  const SpecialPoint* fold = Find(SpecialPointKind::kFold, 0.05, 0.1);
+  ASSERT_NE(fold, nullptr);
+  const CurveResult curve = Curve(*fold);
+  ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+  ASSERT_EQ(curve.codim2.size(), 1u) << curve.summary.message;
+  const Codim2Point& end = curve.codim2.front();
+  EXPECT_EQ(end.kind, Codim2Kind::kFoldGrazing);
+  EXPECT_LE(end.bracket, 1e-9) << end.detail;
+  EXPECT_LE(DistanceToMultiplier(end.point, 1.0), 1e-8);
+  EXPECT_TRUE(CheckAdmissible(model_, prop_, end.point.orbit).admissible);
+}
+
+}  // namespace
+}  // namespace drillbif
