@@ -220,9 +220,11 @@ class CurveTracer {
   }
 
   // det(M - I) (shift -1) or det(M + I) (shift +1) at a curve point.
-  double ShiftedDet(const Vec& y, double shift) const {
-    const Mat mono = OrbitStability(model_, propagator_, Unpack(y)).monodromy;
+  static double ShiftedDet(const Mat& mono, double shift) {
     return (mono + shift * Mat::Identity(mono.rows(), mono.cols())).determinant();
+  }
+  double ShiftedDet(const Vec& y, double shift) const {
+    return ShiftedDet(OrbitStability(model_, propagator_, Unpack(y)).monodromy, shift);
   }
 
   // The codimension-2 test functions this curve carries: (shift, kind) pairs.
@@ -352,7 +354,7 @@ class CurveTracer {
       }
       // Codimension-2 points on this step: sign changes of det(M -+ I).
       for (size_t k = 0; k < tests.size(); ++k) {
-        const double d1 = ShiftedDet(y1, tests[k].first);
+        const double d1 = ShiftedDet(p.stability.monodromy, tests[k].first);
         Vec root;
         const double step_length = t.dot(y1 - y);
         if ((dets[k] > 0.0) != (d1 > 0.0) &&

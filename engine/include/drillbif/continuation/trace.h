@@ -1,0 +1,58 @@
+// Every bifurcation curve through a start orbit's branches in a box of two parameters: the branch
+// through the start orbit is continued in each of the two parameters over the box, and from every
+// fold, period doubling and grazing located on those branches the curve of such points is traced
+// (continuation/curve.h), with its codimension-2 points. A point that lies on a curve already
+// traced from another start of the same kind (within `duplicate_distance` of its polyline in the
+// box's scaled coordinates) is not traced again; the skipped starts are named in the notes.
+//
+// Not yet: curves leaving the codimension-2 points (switching), curves of period-n orbits born at
+// the period doublings, NS curves.
+#ifndef DRILLBIF_CONTINUATION_TRACE_H_
+#define DRILLBIF_CONTINUATION_TRACE_H_
+
+#include <string>
+#include <vector>
+
+#include "drillbif/continuation/curve.h"
+
+namespace drillbif {
+
+struct TraceOptions {
+  std::string param1, param2;                             // e.g. "omega", "a"
+  double min1 = 0.0, max1 = 0.0, min2 = 0.0, max2 = 0.0;  // the box, finite, min < max
+  // A located point within this distance of the polyline of an already traced curve started from
+  // a point of the same kind (coordinates scaled by the box's widths) is taken as on it. Small on
+  // purpose: near omega = 0.1, a = 0.16 distinct curves lie 1e-3 of the box apart, and a curve
+  // traced twice costs time while a curve skipped is lost. The polyline's chord error (~ step^2
+  // times the curvature) can exceed it; the curve is then traced twice.
+  double duplicate_distance = 1e-5;
+  ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
+  CurveOptions curve;          // for the curves (params and box are set here)
+
+  Status Validate() const;
+};
+
+// Where a traced curve came from.
+struct TracedCurve {
+  SpecialPoint start;       // the located point it was traced from
+  std::string start_param;  // the parameter of the branch that located it
+  CurveResult curve;        // points as (value1, value2) = (param1, param2) of TraceOptions
+};
+
+struct TraceSummary {
+  Status status;                   // OK, or why the trace could not start
+  std::vector<std::string> notes;  // starts skipped (duplicates, unsupported), with why
+  int branch_points = 0;           // points of the one-parameter runs
+};
+
+struct TraceResult {
+  std::vector<TracedCurve> curves;
+  TraceSummary summary;
+};
+
+TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
+                        const PeriodicOrbit& start, const TraceOptions& options);
+
+}  // namespace drillbif
+
+#endif  // DRILLBIF_CONTINUATION_TRACE_H_

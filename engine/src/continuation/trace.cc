@@ -1,0 +1,142 @@
+#include "drillbif/continuation/trace.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace drillbif {
+
+Status TraceOptions::Validate() const {
+  if (param1.empty() || param2.empty() || param1 == param2) {
+    return InvalidArgument("param1 and param2 must name two different parameters");
+  }
+  if (!(std::isfinite(min1) && std::isfinite(max1) && min1 < max1)) {
+    return InvalidArgument("the box in " + param1 + ": need finite min1 < max1");
+  }
+  if (!(std::isfinite(min2) && std::isfinite(max2) && min2 < max2)) {
+    return InvalidArgument("the box in " + param2 + ": need finite min2 < max2");
+  }
+  if (!(duplicate_distance > 0.0 && std::isfinite(duplicate_distance))) {
+    return InvalidArgument("duplicate_distance: need a finite value > 0");
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+CurveKind CurveKindOf(SpecialPointKind kind, bool* traceable) {
+  *traceable = true;
+  switch (kind) {
+    case SpecialPointKind::kFold:
+      return CurveKind::kFold;
+    case SpecialPointKind::kPeriodDoubling:
+      return CurveKind::kPeriodDoubling;
+    case SpecialPointKind::kGrazingL1:
+    case SpecialPointKind::kGrazingL2:
+    case SpecialPointKind::kGrazingPi:
+      return CurveKind::kGrazing;
+    default:
+      *traceable = false;
+      return CurveKind::kFold;
+  }
+}
+
+// Distance from (u, v) to the polyline of the curve, in box-scaled coordinates.
+double DistanceToCurve(const CurveResult& c, double u, double v, double w1, double w2) {
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < c.points.size(); ++k) {
+    const double x0 = c.points[k].value1 / w1, y0 = c.points[k].value2 / w2;
+    const double x1 = (k + 1 < c.points.size() ? c.points[k + 1].value1 : c.points[k].value1) / w1;
+    const double y1 = (k + 1 < c.points.size() ? c.points[k + 1].value2 : c.points[k].value2) / w2;
+    const double dx = x1 - x0, dy = y1 - y0, px = u / w1 - x0, py = v / w2 - y0;
+    const double len2 = dx * dx + dy * dy;
+    const double s = len2 > 0.0 ? std::clamp((px * dx + py * dy) / len2, 0.0, 1.0) : 0.0;
+    best = std::min(best, std::hypot(px - s * dx, py - s * dy));
+  }
+  return best;
+}
+
+// The curve with (value1, value2) swapped, for a curve traced with the parameters in the other
+// order.
+void SwapValues(CurveResult* c) {
+  for (CurvePoint& p : c->points) std::swap(p.value1, p.value2);
+  for (CurvePoint& p : c->crossings) std::swap(p.value1, p.value2);
+  for (Codim2Point& q : c->codim2) std::swap(q.point.value1, q.point.value2);
+}
+
+}  // namespace
+
+TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
+                        const PeriodicOrbit& start, const TraceOptions& options) {
+  TraceResult result;
+  TraceSummary& sum = result.summary;
+  if (Status s = options.Validate(); !s.ok()) {
+    sum.status = s;
+    return result;
+  }
+  const StatusOr<int> i1 = model.ParamIndex(options.param1);
+  const StatusOr<int> i2 = model.ParamIndex(options.param2);
+  if (!i1.ok() || !i2.ok()) {
+    sum.status = InvalidArgument((!i1.ok() ? i1 : i2).status().message());
+    return result;
+  }
+  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  struct Axis {
+    const std::string* name;
+    int index;
+    double min, max;
+  };
+  const Axis axes[2] = {{&options.param1, *i1, options.min1, options.max1},
+                        {&options.param2, *i2, options.min2, options.max2}};
+  for (int axis = 0; axis < 2; ++axis) {
+    const Axis& a = axes[axis];
+    const double v0 = start.params[a.index];
+    if (v0 < a.min || v0 > a.max) {
+      sum.status = InvalidArgument("the start orbit's " + *a.name + " lies outside the box");
+      return result;
+    }
+    ContinuationOptions branch = options.branch;
+    branch.param = *a.name;
+    branch.min = a.min;
+    branch.max = a.max;
+    const ContinuationResult r = Continue(model, propagator, start, branch);
+    sum.branch_points += static_cast<int>(r.points.size());
+    if (r.summary.termination == Termination::kFailed) {
+      sum.notes.push_back("the " + *a.name + "-branch failed: " + r.summary.message);
+    }
+    for (const SpecialPoint& s : r.special_points) {
+      bool traceable = false;
+      const CurveKind kind = CurveKindOf(s.kind, &traceable);
+      if (!traceable) continue;
+      const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
+      const auto on_traced =
+          std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
+            return c.curve.kind == kind && c.start.kind == s.kind &&
+                   DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
+          });
+      const std::string where = std::string(SpecialPointKindName(s.kind)) + " at " +
+                                options.param1 + " = " + std::to_string(u) + ", " + options.param2 +
+                                " = " + std::to_string(v);
+      if (on_traced != result.curves.end()) {
+        sum.notes.push_back(where + ": on the curve traced from " +
+                            SpecialPointKindName(on_traced->start.kind) + " already");
+        continue;
+      }
+      CurveOptions co = options.curve;
+      const Axis& other = axes[1 - axis];
+      co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
+      co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
+      CurveResult curve = ContinueCurve(model, propagator, s, co);
+      if (curve.summary.termination == Termination::kFailed) {
+        sum.notes.push_back(where + ": not traced: " + curve.summary.message);
+        continue;
+      }
+      if (axis == 1) SwapValues(&curve);
+      result.curves.push_back({s, *a.name, std::move(curve)});
+    }
+  }
+  sum.status = Status::Ok();
+  return result;
+}
+
+}  // namespace drillbif

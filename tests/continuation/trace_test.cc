@@ -1,0 +1,111 @@
+// Tracing every curve through the reference orbit's branches in the (omega, a) box of issue 4.
+#include "drillbif/continuation/trace.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "drillbif/flow/exact_propagator.h"
+#include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
+
+namespace drillbif {
+namespace {
+
+using DO = DriftingOscillator;
+
+TraceOptions IssueBox() {
+  TraceOptions opt;
+  opt.param1 = std::string("omega");  // not = "omega": GCC 12 -Wrestrict false positive
+  opt.param2 = std::string("a");
+  opt.min1 = 0.05, opt.max1 = 2.0;
+  opt.min2 = 0.01, opt.max2 = 8.0;
+  return opt;
+}
+
+TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> start =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(start.ok());
+  const TraceOptions opt = IssueBox();
+  const TraceResult r = TraceCurves(model, prop, *start, opt);
+  ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+  ASSERT_FALSE(r.curves.empty());
+  int flip_grazings = 0;
+  for (const TracedCurve& c : r.curves) {
+    EXPECT_NE(c.curve.summary.termination, Termination::kFailed) << c.curve.summary.message;
+    ASSERT_FALSE(c.curve.points.empty());
+    // Every point in (omega, a) order and inside the box, whichever branch found the start.
+    for (const CurvePoint& p : c.curve.points) {
+      EXPECT_NEAR(p.value1, p.orbit.params[DO::kOmega], 1e-12);
+      EXPECT_NEAR(p.value2, p.orbit.params[DO::kA], 1e-12);
+      EXPECT_GE(p.value1, opt.min1);
+      EXPECT_LE(p.value1, opt.max1);
+      EXPECT_GE(p.value2, opt.min2);
+      EXPECT_LE(p.value2, opt.max2);
+    }
+    for (const Codim2Point& q : c.curve.codim2) {
+      EXPECT_NEAR(q.point.value1, q.point.orbit.params[DO::kOmega], 1e-12);
+      flip_grazings += q.kind == Codim2Kind::kFlipGrazing;
+    }
+  }
+  // The flip-grazings of codim2_test, each seen from the grazing curve and from a PD curve.
+  EXPECT_GE(flip_grazings, 4);
+  // Every fold, PD and grazing of the two branches: traced or named in a note.
+  for (const char* param : {"omega", "a"}) {
+    ContinuationOptions branch;
+    branch.param = param;
+    branch.min = std::string(param) == "omega" ? opt.min1 : opt.min2;
+    branch.max = std::string(param) == "omega" ? opt.max1 : opt.max2;
+    const ContinuationResult one = Continue(model, prop, *start, branch);
+    for (const SpecialPoint& s : one.special_points) {
+      const bool traceable =
+          s.kind == SpecialPointKind::kFold || s.kind == SpecialPointKind::kPeriodDoubling ||
+          s.kind == SpecialPointKind::kGrazingL1 || s.kind == SpecialPointKind::kGrazingL2 ||
+          s.kind == SpecialPointKind::kGrazingPi;
+      if (!traceable) continue;
+      bool accounted = false;
+      for (const TracedCurve& c : r.curves) {
+        accounted |= c.start_param == param && c.start.point.value == s.point.value;
+      }
+      const std::string omega = std::to_string(s.point.orbit.params[DO::kOmega]);
+      for (const std::string& note : r.summary.notes) {
+        accounted |= note.find(SpecialPointKindName(s.kind)) == 0 &&
+                     note.find("omega = " + omega) != std::string::npos;
+      }
+      EXPECT_TRUE(accounted) << SpecialPointKindName(s.kind) << " on the " << param << "-branch at "
+                             << s.point.value;
+    }
+  }
+}
+
+TEST(Trace, InvalidRequestsNameTheProblem) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> start =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(start.ok());
+  TraceOptions same = IssueBox();
+  same.param2 = same.param1;
+  EXPECT_EQ(TraceCurves(model, prop, *start, same).summary.status.code(),
+            StatusCode::kInvalidArgument);
+  TraceOptions unknown = IssueBox();
+  unknown.param2 = std::string("zeta");
+  const TraceResult u = TraceCurves(model, prop, *start, unknown);
+  EXPECT_EQ(u.summary.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(u.summary.status.message().find("zeta"), std::string::npos);
+  TraceOptions outside = IssueBox();
+  outside.min2 = 1.0;  // the start orbit has a = 0.3
+  const TraceResult o = TraceCurves(model, prop, *start, outside);
+  EXPECT_EQ(o.summary.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(o.summary.status.message().find("a lies outside"), std::string::npos);
+  TraceOptions empty = IssueBox();
+  empty.max1 = empty.min1;
+  EXPECT_EQ(TraceCurves(model, prop, *start, empty).summary.status.code(),
+            StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace drillbif
