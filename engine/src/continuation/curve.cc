@@ -4,6 +4,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 
 #include "continuation/tangent_grazing.h"
@@ -307,6 +308,13 @@ class CurveTracer {
     const auto tests = Codim2Tests();
     std::vector<double> dets;
     for (const auto& [shift, kind] : tests) dets.push_back(ShiftedDet(y, shift));
+    // Stall watch: parameters (scaled by the box where it is finite) 50 accepted steps back.
+    constexpr int kStallWindow = 50;
+    std::vector<Eigen::Vector2d> recent;
+    const double w1 =
+        std::isfinite(options_.max1 - options_.min1) ? options_.max1 - options_.min1 : 1.0;
+    const double w2 =
+        std::isfinite(options_.max2 - options_.min2) ? options_.max2 - options_.min2 : 1.0;
     for (int step = 0; step < options_.max_steps; ++step) {
       Vec y1;
       int iterations = 0;
@@ -326,6 +334,22 @@ class CurveTracer {
       const double v1 = y1[m()], v2 = y1[m() + 1];
       if (v1 < options_.min1 || v1 > options_.max1 || v2 < options_.min2 || v2 > options_.max2) {
         return "left the box";
+      }
+      // A curve that creeps (the step collapsed while Newton still converges, as next to a
+      // fold-grazing where a segment's duration goes to zero like a square root) is ended rather
+      // than left to spend max_steps.
+      recent.emplace_back(v1 / w1, v2 / w2);
+      if (static_cast<int>(recent.size()) > kStallWindow) {
+        const double moved = (recent.back() - recent.front()).norm();
+        recent.erase(recent.begin());
+        if (moved < 1e-6) {
+          char where[160];
+          std::snprintf(where, sizeof where,
+                        "stalled: the parameters moved %.1e (of the box) in %d steps, near "
+                        "(%.9g, %.9g)",
+                        moved, kStallWindow, v1, v2);
+          return where;
+        }
       }
       CurvePoint p = MakePoint(y1);
       std::string why;
