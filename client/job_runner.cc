@@ -11,6 +11,7 @@
 #include <string>
 #include <utility>
 
+#include "client/job_common.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/flow/exact_propagator.h"
@@ -23,45 +24,17 @@
 namespace drillbif::client {
 namespace {
 
-using Osc = DriftingOscillator;
-
-// The model is stateless once built; one shared instance serves every job and thread.
-const Osc& Model() {
-  static const Osc model;
-  return model;
-}
-
-// Shortest decimal form of a double, for messages.
-std::string Num(double v) {
-  char buf[32];
-  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), v);
-  return ec == std::errc() ? std::string(buf, end) : std::string("?");
-}
-
-double Seconds(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+using internal::FailedPrecondition;
+using internal::Model;
+using internal::Num;
+using internal::Osc;
+using internal::Seconds;
+using internal::StartOrbit;
+using internal::ToEngineParams;
+using internal::ToEngineState;
+using internal::ToProtoParams;
 
 // ---- proto -> engine -------------------------------------------------------------------------
-
-// Unset fields keep the reference values of DriftingOscillator::MakeParams().
-Params ToEngineParams(const v1::ModelParams& m) {
-  Params p = Osc::MakeParams();
-  if (m.has_a()) p[Osc::kA] = m.a();
-  if (m.has_b()) p[Osc::kB] = m.b();
-  if (m.has_omega()) p[Osc::kOmega] = m.omega();
-  if (m.has_xi()) p[Osc::kXi] = m.xi();
-  if (m.has_g()) p[Osc::kG] = m.g();
-  if (m.has_phi0()) p[Osc::kPhi0] = m.phi0();
-  return p;
-}
-
-StateVector ToEngineState(bool has_state, const v1::State& s) {
-  if (!has_state) return DefaultInitialState(Model());
-  StateVector x(4);
-  x << s.p(), s.y(), s.q(), s.s();
-  return x;
-}
 
 // ---- engine -> proto -------------------------------------------------------------------------
 
@@ -249,10 +222,6 @@ void ToProto(const SweepPoint& in, bool sweep_cancelled, v1::SweepPoint* out) {
 
 // ---- continuation ----------------------------------------------------------------------------
 
-Status FailedPrecondition(std::string message) {
-  return Status(StatusCode::kFailedPrecondition, std::move(message));
-}
-
 // A step option must be a finite number > 0.
 Status CheckPositive(const char* field, double v) {
   if (v > 0.0 && std::isfinite(v)) return Status::Ok();
@@ -332,17 +301,6 @@ StatusOr<ContinuationOptions> ToContinuationOptions(const v1::ContinueRequest& r
   return options;
 }
 
-v1::ModelParams ToProtoParams(const Params& p) {
-  v1::ModelParams out;
-  out.set_a(p[Osc::kA]);
-  out.set_b(p[Osc::kB]);
-  out.set_omega(p[Osc::kOmega]);
-  out.set_xi(p[Osc::kXi]);
-  out.set_g(p[Osc::kG]);
-  out.set_phi0(p[Osc::kPhi0]);
-  return out;
-}
-
 void ToProto(const Stability& in, google::protobuf::RepeatedPtrField<v1::Multiplier>* out) {
   out->Reserve(static_cast<int>(in.multipliers.size()));
   for (const std::complex<double>& mu : in.multipliers) {
@@ -402,32 +360,6 @@ void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
   out->set_detail(in.detail);
   ToProto(pt.orbit.signature, out->mutable_signature());
   out->set_signature_text(SignatureString(model, pt.orbit.signature));
-}
-
-// The start orbit: simulation from x0, a period read off the Poincare returns, then Newton.
-// FAILED_PRECONDITION when there is none to be found from x0.
-StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
-                                   const StateVector& x0, int transient_periods) {
-  const Osc& model = Model();
-  GuessOptions guess;
-  guess.transient_periods = transient_periods;
-  StatusOr<PeriodicOrbit> orbit = OrbitFromSimulation(model, propagator, params, x0, guess);
-  if (!orbit.ok()) {
-    return FailedPrecondition(
-        "the start state is not near a periodic orbit: " + orbit.status().message() +
-        " (try another initial_state, more transient_periods, or a parameter value where the "
-        "motion is periodic)");
-  }
-  PeriodicOrbit solved = *orbit;
-  const OrbitSolveSummary summary = SolveOrbit(model, propagator, OrbitSolverOptions(), &solved);
-  if (summary.status != SolveStatus::kConverged) {
-    return FailedPrecondition(
-        "the start state is not near a periodic orbit: Newton on the period-" +
-        std::to_string(solved.signature.periods) + " orbit " +
-        SignatureString(model, orbit->signature) + " found by simulation did not converge (" +
-        SolveStatusName(summary.status) + ": " + summary.message + "); try more transient_periods");
-  }
-  return solved;
 }
 
 v1::ContinueResult ToProto(const ContinuationResult& r) {

@@ -1,0 +1,84 @@
+#include "client/job_common.h"
+
+#include <charconv>
+#include <chrono>
+#include <string>
+#include <utility>
+
+#include "drillbif/orbit/signature.h"
+
+namespace drillbif::client::internal {
+
+const Osc& Model() {
+  static const Osc model;
+  return model;
+}
+
+std::string Num(double v) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), v);
+  return ec == std::errc() ? std::string(buf, end) : std::string("?");
+}
+
+double Seconds(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+Params ToEngineParams(const v1::ModelParams& m) {
+  Params p = Osc::MakeParams();
+  if (m.has_a()) p[Osc::kA] = m.a();
+  if (m.has_b()) p[Osc::kB] = m.b();
+  if (m.has_omega()) p[Osc::kOmega] = m.omega();
+  if (m.has_xi()) p[Osc::kXi] = m.xi();
+  if (m.has_g()) p[Osc::kG] = m.g();
+  if (m.has_phi0()) p[Osc::kPhi0] = m.phi0();
+  return p;
+}
+
+StateVector ToEngineState(bool has_state, const v1::State& s) {
+  if (!has_state) return DefaultInitialState(Model());
+  StateVector x(4);
+  x << s.p(), s.y(), s.q(), s.s();
+  return x;
+}
+
+Status FailedPrecondition(std::string message) {
+  return Status(StatusCode::kFailedPrecondition, std::move(message));
+}
+
+v1::ModelParams ToProtoParams(const Params& p) {
+  v1::ModelParams out;
+  out.set_a(p[Osc::kA]);
+  out.set_b(p[Osc::kB]);
+  out.set_omega(p[Osc::kOmega]);
+  out.set_xi(p[Osc::kXi]);
+  out.set_g(p[Osc::kG]);
+  out.set_phi0(p[Osc::kPhi0]);
+  return out;
+}
+
+StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
+                                   const StateVector& x0, int transient_periods) {
+  const Osc& model = Model();
+  GuessOptions guess;
+  guess.transient_periods = transient_periods;
+  StatusOr<PeriodicOrbit> orbit = OrbitFromSimulation(model, propagator, params, x0, guess);
+  if (!orbit.ok()) {
+    return FailedPrecondition(
+        "the start state is not near a periodic orbit: " + orbit.status().message() +
+        " (try another initial_state, more transient_periods, or a parameter value where the "
+        "motion is periodic)");
+  }
+  PeriodicOrbit solved = *orbit;
+  const OrbitSolveSummary summary = SolveOrbit(model, propagator, OrbitSolverOptions(), &solved);
+  if (summary.status != SolveStatus::kConverged) {
+    return FailedPrecondition(
+        "the start state is not near a periodic orbit: Newton on the period-" +
+        std::to_string(solved.signature.periods) + " orbit " +
+        SignatureString(model, orbit->signature) + " found by simulation did not converge (" +
+        SolveStatusName(summary.status) + ": " + summary.message + "); try more transient_periods");
+  }
+  return solved;
+}
+
+}  // namespace drillbif::client::internal
