@@ -19,6 +19,7 @@
 #include "client/job_runner.h"
 #include "client/output.h"
 #include "client/progress_bar.h"
+#include "client/trace_runner.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/model/drifting_oscillator.h"
@@ -119,6 +120,11 @@ struct ContinueFlags {
   bool no_switch = false;
   std::vector<std::string> stop_at;
   bool follow_pd = false;
+};
+
+struct TraceFlags {
+  std::vector<std::string> params;
+  std::vector<double> min, max;
 };
 
 // Accepts finite numbers > 0.
@@ -319,6 +325,20 @@ int RunContinueCommand(const GlobalFlags& global, const ModelFlags& m, const Con
       [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
 }
 
+int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& f) {
+  v1::TraceRequest request;
+  *request.mutable_params() = ToProtoParams(m);
+  *request.mutable_initial_state() = ToProtoState(m);
+  request.set_transient_periods(m.transient);
+  for (const std::string& name : f.params) request.add_trace_params(name);
+  for (double v : f.min) request.add_min(v);
+  for (double v : f.max) request.add_max(v);
+  // Not interruptible yet: the trace has no progress callback.
+  return RunAndPrint(
+      global, [&](const ProgressCallback&) { return RunTrace(request); },
+      [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
+}
+
 int Main(int argc, char** argv) {
   CLI::App app{"drillctl: bifurcation analysis of the drifting impact oscillator", "drillctl"};
   app.set_version_flag("--version", EngineVersion());
@@ -451,6 +471,35 @@ int Main(int argc, char** argv) {
       ->check(CLI::Range(0, std::numeric_limits<int>::max()))
       ->capture_default_str();
 
+  TraceFlags tr;
+  CLI::App* trace = app.add_subcommand(
+      "trace",
+      "Every fold, period-doubling and grazing curve through the start orbit's branches in a box "
+      "of two parameters, with the codimension-2 points found on them");
+  const std::string t = "Trace";
+  trace->add_option("--params", tr.params, "The two parameters of the plane, e.g. omega,a")
+      ->required()
+      ->delimiter(',')
+      ->expected(2)
+      ->group(t);
+  trace->add_option("--min", tr.min, "Lower bounds, one per parameter, e.g. 0.05,0.01")
+      ->required()
+      ->delimiter(',')
+      ->expected(2)
+      ->group(t);
+  trace->add_option("--max", tr.max, "Upper bounds, one per parameter, e.g. 2,8")
+      ->required()
+      ->delimiter(',')
+      ->expected(2)
+      ->group(t);
+  AddModelFlags(trace, &model);
+  trace
+      ->add_option("--transient", model.transient,
+                   "Forcing periods simulated before the start orbit is looked for")
+      ->group("Start orbit")
+      ->check(CLI::Range(0, std::numeric_limits<int>::max()))
+      ->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -471,6 +520,7 @@ int Main(int argc, char** argv) {
   InstallInterruptHandler();
   if (simulate->parsed()) return RunSimulateCommand(global, model, sim);
   if (cont->parsed()) return RunContinueCommand(global, model, co);
+  if (trace->parsed()) return RunTraceCommand(global, model, tr);
   return RunSweepCommand(global, model, sw);
 }
 

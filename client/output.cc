@@ -259,4 +259,42 @@ std::string ContinueResultToCsv(const v1::ContinueResult& result) {
   return out;
 }
 
+std::string TraceResultToCsv(const v1::TraceResult& result) {
+  std::string out;
+  AppendStatus(result.status(), result.message(), &out);
+  out.append("curve,kind,a,b,omega,xi,g,phi0,rop,stable\n");
+  for (int i = 0; i < result.curves_size(); ++i) {
+    const v1::Curve& c = result.curves(i);
+    for (const v1::CurveVertex& v : c.points()) {
+      const v1::ModelParams& p = v.params();
+      Row(&out)
+          .Num(i)
+          .Str(c.kind())
+          .Num(p.a())
+          .Num(p.b())
+          .Num(p.omega())
+          .Num(p.xi())
+          .Num(p.g())
+          .Num(p.phi0())
+          .Num(v.rop())
+          .Str(v.stable() ? "true" : "false")
+          .End();
+    }
+  }
+  for (const v1::Codim2Point& q : result.codim2_points()) {
+    std::string line = q.kind() + " curve=" + std::to_string(q.curve());
+    const v1::ModelParams& p = q.params();
+    for (const auto& [name, v] :
+         {std::pair{" a=", p.a()}, std::pair{" b=", p.b()}, std::pair{" omega=", p.omega()},
+          std::pair{" xi=", p.xi()}, std::pair{" g=", p.g()}, std::pair{" phi0=", p.phi0()}}) {
+      line.append(name);
+      AppendNumber(v, &line);
+    }
+    if (!q.detail().empty()) line.append(" detail=").append(q.detail());
+    AppendComment(line, &out);
+  }
+  for (const std::string& note : result.notes()) AppendComment("note: " + note, &out);
+  return out;
+}
+
 }  // namespace drillbif::client

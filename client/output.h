@@ -11,6 +11,7 @@
 #include "drillbif/v1/continue.pb.h"
 #include "drillbif/v1/simulate.pb.h"
 #include "drillbif/v1/sweep.pb.h"
+#include "drillbif/v1/trace.pb.h"
 
 namespace drillbif::client {
 
@@ -47,6 +48,13 @@ std::string SweepResultToCsv(const v1::SweepResult& result);
 // structural zeros), then one comment line per special point in the order found:
 //   # FOLD value=0.16715050... rop=... power=... stable=false signature=... [detail=...]
 std::string ContinueResultToCsv(const v1::ContinueResult& result);
+
+// Trace result as CSV: "# status=..." lines when it did not complete, then
+//   curve,kind,a,b,omega,xi,g,phi0,rop,stable
+// one row per curve point (curve: its index), curves in order, then one comment line per
+// codimension-2 point and one per note:
+//   # FLIP_GRAZING curve=2 a=... b=... omega=... xi=... g=... phi0=... [detail=...]
+std::string TraceResultToCsv(const v1::TraceResult& result);
 
 }  // namespace drillbif::client
 

@@ -1,0 +1,97 @@
+// The trace job: request validation naming the field, and a small box whose one period-doubling
+// curve ends at two flip-grazings inside it.
+#include "client/trace_runner.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "client/output.h"
+
+namespace drillbif::client {
+namespace {
+
+using ::testing::HasSubstr;
+
+// omega in [0.05, 0.2], a in [0.27, 0.32] around the reference start (omega = 0.1, a = 0.3).
+v1::TraceRequest SmallBox() {
+  v1::TraceRequest r;
+  r.add_trace_params("omega");
+  r.add_trace_params("a");
+  r.add_min(0.05);
+  r.add_min(0.27);
+  r.add_max(0.2);
+  r.add_max(0.32);
+  return r;
+}
+
+void ExpectInvalid(const v1::TraceRequest& request, const std::string& names) {
+  const StatusOr<v1::TraceResult> r = RunTrace(request);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(r.status().message(), HasSubstr(names));
+}
+
+TEST(RunTrace, InvalidRequestsNameTheField) {
+  v1::TraceRequest one = SmallBox();
+  one.mutable_trace_params()->RemoveLast();
+  ExpectInvalid(one, "trace_params");
+  v1::TraceRequest unknown = SmallBox();
+  unknown.set_trace_params(1, "zeta");
+  ExpectInvalid(unknown, "zeta");
+  v1::TraceRequest same = SmallBox();
+  same.set_trace_params(1, "omega");
+  ExpectInvalid(same, "trace_params");
+  v1::TraceRequest bounds = SmallBox();
+  bounds.mutable_max()->RemoveLast();
+  ExpectInvalid(bounds, "min, max");
+  v1::TraceRequest empty = SmallBox();
+  empty.set_max(1, 0.27);
+  ExpectInvalid(empty, "min, max of a");
+  v1::TraceRequest outside = SmallBox();
+  outside.set_min(1, 0.31);
+  ExpectInvalid(outside, "params.a = 0.3");
+  v1::TraceRequest invalid_value = SmallBox();
+  invalid_value.set_min(0, -1.0);  // omega must be > 0
+  ExpectInvalid(invalid_value, "min, max of omega");
+  v1::TraceRequest transient = SmallBox();
+  transient.set_transient_periods(-1);
+  ExpectInvalid(transient, "transient_periods");
+}
+
+TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtTwoFlipGrazings) {
+  const StatusOr<v1::TraceResult> r = RunTrace(SmallBox());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+  int pd_curves = 0;
+  for (int i = 0; i < r->curves_size(); ++i) {
+    const v1::Curve& c = r->curves(i);
+    ASSERT_GT(c.points_size(), 0);
+    for (const v1::CurveVertex& v : c.points()) {
+      EXPECT_GE(v.params().omega(), 0.05);
+      EXPECT_LE(v.params().omega(), 0.2);
+      EXPECT_GE(v.params().a(), 0.27);
+      EXPECT_LE(v.params().a(), 0.32);
+      EXPECT_DOUBLE_EQ(v.params().b(), 0.15);
+    }
+    if (c.kind() != "PERIOD_DOUBLING") continue;
+    ++pd_curves;
+    EXPECT_EQ(c.period(), 1);
+    int flip_grazings = 0;
+    for (const v1::Codim2Point& q : r->codim2_points()) {
+      flip_grazings += q.curve() == i && q.kind() == "FLIP_GRAZING";
+    }
+    EXPECT_EQ(flip_grazings, 2) << c.message();
+  }
+  EXPECT_EQ(pd_curves, 1);
+  // The JSON names the issue asks for.
+  const StatusOr<std::string> json = ToJson(*r, false);
+  ASSERT_TRUE(json.ok());
+  EXPECT_THAT(*json, HasSubstr("\"curves\":"));
+  EXPECT_THAT(*json, HasSubstr("\"codim2Points\":"));
+  EXPECT_THAT(*json, HasSubstr("\"kind\":\"FLIP_GRAZING\""));
+}
+
+}  // namespace
+}  // namespace drillbif::client
