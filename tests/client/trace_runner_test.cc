@@ -17,8 +17,8 @@ using ::testing::HasSubstr;
 // omega in [0.05, 0.2], a in [0.27, 0.32] around the reference start (omega = 0.1, a = 0.3).
 v1::TraceRequest SmallBox() {
   v1::TraceRequest r;
-  r.add_trace_params("omega");
-  r.add_trace_params("a");
+  r.add_trace_params(std::string("omega"));  // not ("omega"): GCC 12 -Wrestrict false positive
+  r.add_trace_params(std::string("a"));
   r.add_min(0.05);
   r.add_min(0.27);
   r.add_max(0.2);
