@@ -366,15 +366,18 @@ class CurveTracer {
         return "the orbit is no longer admissible (a codimension-2 point, not yet classified): " +
                why;
       }
-      // Requested lambda2 values crossed by this step: solve the crossing with lambda2 fixed.
-      for (double c : options_.crossings2) {
-        if ((y[m() + 1] - c) * (v2 - c) > 0.0 || y[m() + 1] == v2) continue;
-        const double w = (c - y[m() + 1]) / (v2 - y[m() + 1]);
-        Vec guess = y + w * (y1 - y), fixed = Vec::Zero(n()), yc;
-        guess[m() + 1] = c;
-        fixed[m() + 1] = 1.0;
-        int it = 0;
-        if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
+      // Requested lambda1 / lambda2 values crossed by this step: solve the crossing with that
+      // parameter fixed.
+      for (const int j : {m(), m() + 1}) {
+        for (double c : j == m() ? options_.crossings1 : options_.crossings2) {
+          if ((y[j] - c) * (y1[j] - c) > 0.0 || y[j] == y1[j]) continue;
+          const double w = (c - y[j]) / (y1[j] - y[j]);
+          Vec guess = y + w * (y1 - y), fixed = Vec::Zero(n()), yc;
+          guess[j] = c;
+          fixed[j] = 1.0;
+          int it = 0;
+          if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
+        }
       }
       // Codimension-2 points on this step: sign changes of det(M -+ I).
       for (size_t k = 0; k < tests.size(); ++k) {

@@ -54,6 +54,7 @@ struct CurveOptions {
   // fixed, from the interpolation between the two points around it), e.g. to compare with a
   // one-parameter continuation at that value.
   std::vector<double> crossings2;
+  std::vector<double> crossings1;  // likewise for lambda1
 
   Status Validate() const;
 };
@@ -87,7 +88,7 @@ struct Codim2Point {
 struct CurveResult {
   CurveKind kind = CurveKind::kFold;
   std::vector<CurvePoint> points;     // along the curve
-  std::vector<CurvePoint> crossings;  // at the requested lambda2 values, in the order found
+  std::vector<CurvePoint> crossings;  // at the requested lambda1 / lambda2 values, in order found
   std::vector<Codim2Point> codim2;    // in the order found
   ContinuationSummary summary;
 };
