@@ -1,0 +1,86 @@
+// Two-parameter curve cost (issue 4's report): tracing every fold, PD and grazing curve through
+// the reference orbit's branches in omega in [0.05, 2], a in [0.01, 8] at b = 0.15, with their
+// codimension-2 points; and one curve alone. Run (medians of 3; the trace takes seconds):
+//   build/bench/curve_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+// Counters: curves, points (on all curves), codim2 (codimension-2 points found).
+#include <benchmark/benchmark.h>
+
+#include <string>
+
+#include "drillbif/continuation/trace.h"
+#include "drillbif/flow/exact_propagator.h"
+#include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
+
+namespace drillbif {
+namespace {
+
+TraceOptions IssueBox() {
+  TraceOptions o;
+  o.param1 = std::string("omega");  // not = "omega": GCC 12 -Wrestrict false positive
+  o.param2 = std::string("a");
+  o.min1 = 0.05, o.max1 = 2.0;
+  o.min2 = 0.01, o.max2 = 8.0;
+  return o;
+}
+
+// The whole trace: both one-parameter branches and every curve (the start orbit excluded).
+void BM_TraceIssueBox(benchmark::State& state) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start =
+      *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  TraceResult r;
+  for (auto _ : state) {
+    r = TraceCurves(model, prop, start, IssueBox());
+    benchmark::DoNotOptimize(r.curves.data());
+  }
+  double points = 0.0, codim2 = 0.0;
+  for (const TracedCurve& c : r.curves) {
+    points += static_cast<double>(c.curve.points.size());
+    codim2 += static_cast<double>(c.curve.codim2.size());
+  }
+  state.counters["curves"] = static_cast<double>(r.curves.size());
+  state.counters["points"] = points;
+  state.counters["codim2"] = codim2;
+  if (!r.summary.status.ok()) state.SkipWithError("trace failed");
+}
+BENCHMARK(BM_TraceIssueBox)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// One curve: the l1 grazing curve from the omega-branch grazing at 0.5088 (a = 0.3), 688 points
+// and three codimension-2 points; the cost per point of a grazing curve.
+void BM_GrazingCurveL1(benchmark::State& state) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start =
+      *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ContinuationOptions branch;
+  branch.param = std::string("omega");
+  branch.min = 0.05, branch.max = 2.0;
+  const ContinuationResult omega = Continue(model, prop, start, branch);
+  const SpecialPoint* graze = nullptr;
+  for (const SpecialPoint& s : omega.special_points) {
+    if (s.kind == SpecialPointKind::kGrazingL1 && s.point.value > 0.4) graze = &s;
+  }
+  if (graze == nullptr) {
+    state.SkipWithError("no l1 grazing on the omega-branch");
+    return;
+  }
+  CurveOptions opt;
+  opt.param1 = std::string("omega");
+  opt.param2 = std::string("a");
+  opt.min1 = 0.05, opt.max1 = 2.0, opt.min2 = 0.01, opt.max2 = 8.0;
+  CurveResult c;
+  for (auto _ : state) {
+    c = ContinueCurve(model, prop, *graze, opt);
+    benchmark::DoNotOptimize(c.points.data());
+  }
+  state.counters["points"] = static_cast<double>(c.points.size());
+  state.counters["codim2"] = static_cast<double>(c.codim2.size());
+}
+BENCHMARK(BM_GrazingCurveL1)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace drillbif
+
+BENCHMARK_MAIN();
