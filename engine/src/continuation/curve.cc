@@ -32,6 +32,8 @@ const char* Codim2KindName(Codim2Kind kind) {
       return "FLIP_GRAZING";
     case Codim2Kind::kFoldFlip:
       return "FOLD_FLIP";
+    case Codim2Kind::kDoubleGrazing:
+      return "DOUBLE_GRAZING";
   }
   return "?";
 }
@@ -357,17 +359,16 @@ class CurveTracer {
       CurvePoint p = MakePoint(y1);
       std::string why;
       if (!Admissible(p.orbit, &why)) {
-        // A fold or period-doubling curve ends where its orbit grazes: a codimension-2 point.
+        // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
+        // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
+        // grazing (a second boundary touched at once).
         Vec boundary;
-        if (kind_ != CurveKind::kGrazing) {
-          const double width = LocateBoundary(y, y1, t, &boundary, &why);
-          const Codim2Kind k =
-              kind_ == CurveKind::kFold ? Codim2Kind::kFoldGrazing : Codim2Kind::kFlipGrazing;
-          codim2->push_back({k, MakePoint(boundary), why, width});
-          return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
-        }
-        return "the orbit is no longer admissible (a codimension-2 point, not yet classified): " +
-               why;
+        const double width = LocateBoundary(y, y1, t, &boundary, &why);
+        const Codim2Kind k = kind_ == CurveKind::kFold      ? Codim2Kind::kFoldGrazing
+                             : kind_ == CurveKind::kGrazing ? Codim2Kind::kDoubleGrazing
+                                                            : Codim2Kind::kFlipGrazing;
+        codim2->push_back({k, MakePoint(boundary), why, width});
+        return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
       }
       // Requested lambda1 / lambda2 values crossed by this step: solve the crossing with that
       // parameter fixed.

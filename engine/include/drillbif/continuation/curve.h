@@ -19,9 +19,8 @@
 // Grazing curves start from grazings where a segment vanishes between two segments of the same
 // mode (l1: the CwP phase between two contact phases; Pi: a contact phase between free flights);
 // the vanishing segment is dropped and the one before it ends tangentially.
-// This first version traces a curve while its orbits stay admissible and stops where one is not
-// (a codimension-2 point such as fold-grazing, not yet classified), at the box bounds, or after
-// max_steps.
+// A curve is traced while its orbits stay admissible; it ends where one is not (a codimension-2
+// point, see Codim2Point), at the box bounds, where it stalls, or after max_steps.
 #ifndef DRILLBIF_CONTINUATION_CURVE_H_
 #define DRILLBIF_CONTINUATION_CURVE_H_
 
@@ -69,15 +68,15 @@ struct CurvePoint {
 // Codimension-2 points found along a curve by the sign of det(M - I) (fold) and det(M + I)
 // (period doubling), located by a safeguarded secant along the curve until |det| <= 1e-10:
 // on a grazing curve FOLD_GRAZING / FLIP_GRAZING, on a fold curve (PD test) or a PD curve (fold
-// test) FOLD_FLIP.
-enum class Codim2Kind { kFoldGrazing, kFlipGrazing, kFoldFlip };
+// test) FOLD_FLIP. A curve that ends where its orbit grazes ends at a FOLD_GRAZING (fold curve),
+// FLIP_GRAZING (PD curve) or DOUBLE_GRAZING (grazing curve: a second boundary touched).
+enum class Codim2Kind { kFoldGrazing, kFlipGrazing, kFoldFlip, kDoubleGrazing };
 const char* Codim2KindName(Codim2Kind kind);
 
-// On a grazing curve the point is the root of the determinant; a fold or period-doubling curve
-// ends at a FOLD_GRAZING / FLIP_GRAZING point where its orbit stops being admissible, located by
-// bisection: the last admissible point, `detail` naming the violation just beyond it and
-// `bracket` the arclength to the nearest inadmissible point the corrector reached (~1e-12 when
-// the bisection converged; wider where Newton stalled next to the boundary).
+// A root of a determinant is located as above; a curve's end where its orbit stops being
+// admissible is located by bisection: the last admissible point, `detail` naming the violation just
+// beyond it and `bracket` the arclength to the nearest inadmissible point the corrector reached
+// (~1e-12 when the bisection converged; wider where Newton stalled next to the boundary).
 struct Codim2Point {
   Codim2Kind kind = Codim2Kind::kFoldGrazing;
   CurvePoint point;
