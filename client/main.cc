@@ -333,9 +333,8 @@ int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceF
   for (const std::string& name : f.params) request.add_trace_params(name);
   for (double v : f.min) request.add_min(v);
   for (double v : f.max) request.add_max(v);
-  // Not interruptible yet: the trace has no progress callback.
   return RunAndPrint(
-      global, [&](const ProgressCallback&) { return RunTrace(request); },
+      global, [&](const ProgressCallback& progress) { return RunTrace(request, progress); },
       [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
 }
 

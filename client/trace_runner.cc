@@ -70,7 +70,8 @@ void ToProto(const CurvePoint& p, v1::CurveVertex* out) {
 
 }  // namespace
 
-StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request) {
+StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
+                                   const ProgressCallback& progress) {
   const auto start = std::chrono::steady_clock::now();
   const Osc& model = Model();
   const Params params = internal::ToEngineParams(request.params());
@@ -90,7 +91,7 @@ StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request) {
   ExactPropagator propagator(model);
   StatusOr<PeriodicOrbit> orbit = internal::StartOrbit(propagator, params, x0, transient);
   if (!orbit.ok()) return orbit.status();
-  const TraceResult r = TraceCurves(model, propagator, *orbit, *options);
+  const TraceResult r = TraceCurves(model, propagator, *orbit, *options, progress);
   if (!r.summary.status.ok()) return r.summary.status;
 
   v1::TraceResult out;
@@ -120,7 +121,7 @@ StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request) {
       cp->set_bracket(q.bracket);
     }
   }
-  out.set_status(failed ? "FAILED" : "COMPLETED");
+  out.set_status(r.summary.cancelled ? "CANCELLED" : failed ? "FAILED" : "COMPLETED");
   out.set_message(std::to_string(r.curves.size()) + " curves, " +
                   std::to_string(out.codim2_points_size()) + " codimension-2 points, " +
                   std::to_string(r.summary.notes.size()) + " located points not traced (notes)");

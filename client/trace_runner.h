@@ -4,6 +4,7 @@
 #define DRILLBIF_CLIENT_TRACE_RUNNER_H_
 
 #include "drillbif/common/status.h"
+#include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/trace.pb.h"
 
 namespace drillbif::client {
@@ -12,8 +13,11 @@ namespace drillbif::client {
 // (trace_params not two different known names, min/max not one finite pair per parameter with
 // min < max, a bound that is not a valid value of its parameter, the start outside the box,
 // invalid params, initial_state or transient_periods); FAILED_PRECONDITION when the start state
-// leads to no periodic orbit.
-StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request);
+// leads to no periodic orbit. `progress` (optional) is called from the calling thread with the
+// fraction done and returns false to cancel (the result is then CANCELLED, with the curves traced
+// so far).
+StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
+                                   const ProgressCallback& progress = {});
 
 }  // namespace drillbif::client
 

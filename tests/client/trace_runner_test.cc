@@ -93,5 +93,25 @@ TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtTwoFlipGrazings) {
   EXPECT_THAT(*json, HasSubstr("\"kind\":\"FLIP_GRAZING\""));
 }
 
+TEST(RunTrace, CancelStopsBeforeTheNextCurveAndKeepsWhatWasTraced) {
+  int calls = 0;
+  double last = -1.0;
+  bool monotone = true;
+  // Cancel at the first report after the branches (fraction > 0.1: before the second curve).
+  const StatusOr<v1::TraceResult> r = RunTrace(SmallBox(), [&](double f) {
+    ++calls;
+    monotone = monotone && f >= last && f <= 1.0;
+    last = f;
+    return f <= 0.1;
+  });
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "CANCELLED");
+  EXPECT_TRUE(monotone);
+  EXPECT_GT(calls, 1);
+  const StatusOr<v1::TraceResult> full = RunTrace(SmallBox());
+  ASSERT_TRUE(full.ok());
+  EXPECT_LT(r->curves_size(), full->curves_size());
+}
+
 }  // namespace
 }  // namespace drillbif::client

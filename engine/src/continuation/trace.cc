@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace drillbif {
 
@@ -67,7 +69,8 @@ void SwapValues(CurveResult* c) {
 }  // namespace
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
-                        const PeriodicOrbit& start, const TraceOptions& options) {
+                        const PeriodicOrbit& start, const TraceOptions& options,
+                        const TraceProgress& progress) {
   TraceResult result;
   TraceSummary& sum = result.summary;
   if (Status s = options.Validate(); !s.ok()) {
@@ -88,54 +91,75 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
   };
   const Axis axes[2] = {{&options.param1, *i1, options.min1, options.max1},
                         {&options.param2, *i2, options.min2, options.max2}};
-  for (int axis = 0; axis < 2; ++axis) {
-    const Axis& a = axes[axis];
+  for (const Axis& a : axes) {
     const double v0 = start.params[a.index];
     if (v0 < a.min || v0 > a.max) {
       sum.status = InvalidArgument("the start orbit's " + *a.name + " lies outside the box");
       return result;
     }
+  }
+  sum.status = Status::Ok();
+  // Progress: the two branches take the first tenth, the curves the rest (one share each).
+  auto report = [&](double fraction) {
+    if (progress && !progress(fraction)) sum.cancelled = true;
+    return !sum.cancelled;
+  };
+  std::vector<std::pair<int, SpecialPoint>> starts;  // (axis, located point)
+  for (int axis = 0; axis < 2; ++axis) {
+    const Axis& a = axes[axis];
     ContinuationOptions branch = options.branch;
     branch.param = *a.name;
     branch.min = a.min;
     branch.max = a.max;
-    const ContinuationResult r = Continue(model, propagator, start, branch);
+    const ContinuationResult r =
+        Continue(model, propagator, start, branch,
+                 [&](const ContinuationPoint&, double f) { return report(0.05 * (axis + f)); });
+    if (sum.cancelled) return result;
     sum.branch_points += static_cast<int>(r.points.size());
     if (r.summary.termination == Termination::kFailed) {
       sum.notes.push_back("the " + *a.name + "-branch failed: " + r.summary.message);
     }
     for (const SpecialPoint& s : r.special_points) {
       bool traceable = false;
-      const CurveKind kind = CurveKindOf(s.kind, &traceable);
-      if (!traceable) continue;
-      const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
-      const auto on_traced =
-          std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
-            return c.curve.kind == kind && c.start.kind == s.kind &&
-                   DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
-          });
-      const std::string where = std::string(SpecialPointKindName(s.kind)) + " at " +
-                                options.param1 + " = " + std::to_string(u) + ", " + options.param2 +
-                                " = " + std::to_string(v);
-      if (on_traced != result.curves.end()) {
-        sum.notes.push_back(where + ": on the curve traced from " +
-                            SpecialPointKindName(on_traced->start.kind) + " already");
-        continue;
-      }
-      CurveOptions co = options.curve;
-      const Axis& other = axes[1 - axis];
-      co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
-      co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
-      CurveResult curve = ContinueCurve(model, propagator, s, co);
-      if (curve.summary.termination == Termination::kFailed) {
-        sum.notes.push_back(where + ": not traced: " + curve.summary.message);
-        continue;
-      }
-      if (axis == 1) SwapValues(&curve);
-      result.curves.push_back({s, *a.name, std::move(curve)});
+      CurveKindOf(s.kind, &traceable);
+      if (traceable) starts.emplace_back(axis, s);
     }
   }
-  sum.status = Status::Ok();
+  for (size_t k = 0; k < starts.size(); ++k) {
+    if (!report(0.1 + 0.9 * static_cast<double>(k) / static_cast<double>(starts.size()))) {
+      return result;
+    }
+    const auto& [axis, s] = starts[k];
+    const Axis& a = axes[axis];
+    bool traceable = false;
+    const CurveKind kind = CurveKindOf(s.kind, &traceable);
+    const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
+    const auto on_traced =
+        std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
+          return c.curve.kind == kind && c.start.kind == s.kind &&
+                 DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
+        });
+    const std::string where = std::string(SpecialPointKindName(s.kind)) + " at " + options.param1 +
+                              " = " + std::to_string(u) + ", " + options.param2 + " = " +
+                              std::to_string(v);
+    if (on_traced != result.curves.end()) {
+      sum.notes.push_back(where + ": on the curve traced from " +
+                          SpecialPointKindName(on_traced->start.kind) + " already");
+      continue;
+    }
+    CurveOptions co = options.curve;
+    const Axis& other = axes[1 - axis];
+    co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
+    co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
+    CurveResult curve = ContinueCurve(model, propagator, s, co);
+    if (curve.summary.termination == Termination::kFailed) {
+      sum.notes.push_back(where + ": not traced: " + curve.summary.message);
+      continue;
+    }
+    if (axis == 1) SwapValues(&curve);
+    result.curves.push_back({s, *a.name, std::move(curve)});
+  }
+  report(1.0);
   return result;
 }
 

@@ -10,6 +10,7 @@
 #ifndef DRILLBIF_CONTINUATION_TRACE_H_
 #define DRILLBIF_CONTINUATION_TRACE_H_
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,7 @@ struct TracedCurve {
 
 struct TraceSummary {
   Status status;                   // OK, or why the trace could not start
+  bool cancelled = false;          // progress returned false: curves are those traced until then
   std::vector<std::string> notes;  // starts skipped (duplicates, unsupported), with why
   int branch_points = 0;           // points of the one-parameter runs
 };
@@ -50,8 +52,13 @@ struct TraceResult {
   TraceSummary summary;
 };
 
+// Called with the fraction done in [0, 1] during the branches and before each curve; returning
+// false cancels (the result then holds what was traced, summary.cancelled set).
+using TraceProgress = std::function<bool(double fraction)>;
+
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
-                        const PeriodicOrbit& start, const TraceOptions& options);
+                        const PeriodicOrbit& start, const TraceOptions& options,
+                        const TraceProgress& progress = {});
 
 }  // namespace drillbif
 
