@@ -26,7 +26,7 @@ struct TraceOptions {
   // purpose: near omega = 0.1, a = 0.16 distinct curves lie 1e-3 of the box apart, and a curve
   // traced twice costs time while a curve skipped is lost. The polyline's chord error (~ step^2
   // times the curvature) can exceed it; the curve would then be traced twice (not seen in
-  // issue 4's box: no vertex of a traced curve lies within 7e-6 of another of its kind).
+  // issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at most).
   double duplicate_distance = 1e-5;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   CurveOptions curve;          // for the curves (params and box are set here)
