@@ -10,19 +10,11 @@
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
 
 namespace drillbif {
 namespace {
-
-TraceOptions IssueBox() {
-  TraceOptions o;
-  o.param1 = std::string("omega");  // not = "omega": GCC 12 -Wrestrict false positive
-  o.param2 = std::string("a");
-  o.min1 = 0.05, o.max1 = 2.0;
-  o.min2 = 0.01, o.max2 = 8.0;
-  return o;
-}
 
 // The whole trace: both one-parameter branches and every curve (the start orbit excluded).
 void BM_TraceIssueBox(benchmark::State& state) {
@@ -32,7 +24,7 @@ void BM_TraceIssueBox(benchmark::State& state) {
       *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   TraceResult r;
   for (auto _ : state) {
-    r = TraceCurves(model, prop, start, IssueBox());
+    r = TraceCurves(model, prop, start, testing::Issue4Box());
     benchmark::DoNotOptimize(r.curves.data());
   }
   double points = 0.0, codim2 = 0.0;
@@ -48,7 +40,8 @@ void BM_TraceIssueBox(benchmark::State& state) {
 BENCHMARK(BM_TraceIssueBox)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One curve: the l1 grazing curve from the omega-branch grazing at 0.5088 (a = 0.3), 688 points
-// and three codimension-2 points; the cost per point of a grazing curve.
+// and four codimension-2 points (two flip-, one fold-, one double grazing); the cost per point of
+// a grazing curve.
 void BM_GrazingCurveL1(benchmark::State& state) {
   DriftingOscillator model;
   ExactPropagator prop(model);

@@ -7,6 +7,7 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
 
 namespace drillbif {
@@ -14,22 +15,13 @@ namespace {
 
 using DO = DriftingOscillator;
 
-TraceOptions IssueBox() {
-  TraceOptions opt;
-  opt.param1 = std::string("omega");  // not = "omega": GCC 12 -Wrestrict false positive
-  opt.param2 = std::string("a");
-  opt.min1 = 0.05, opt.max1 = 2.0;
-  opt.min2 = 0.01, opt.max2 = 8.0;
-  return opt;
-}
-
 TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   DO model;
   ExactPropagator prop(model);
   const StatusOr<PeriodicOrbit> start =
       testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   ASSERT_TRUE(start.ok());
-  const TraceOptions opt = IssueBox();
+  const TraceOptions opt = testing::Issue4Box();
   const TraceResult r = TraceCurves(model, prop, *start, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
   ASSERT_FALSE(r.curves.empty());
@@ -87,21 +79,21 @@ TEST(Trace, InvalidRequestsNameTheProblem) {
   const StatusOr<PeriodicOrbit> start =
       testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   ASSERT_TRUE(start.ok());
-  TraceOptions same = IssueBox();
+  TraceOptions same = testing::Issue4Box();
   same.param2 = same.param1;
   EXPECT_EQ(TraceCurves(model, prop, *start, same).summary.status.code(),
             StatusCode::kInvalidArgument);
-  TraceOptions unknown = IssueBox();
+  TraceOptions unknown = testing::Issue4Box();
   unknown.param2 = std::string("zeta");
   const TraceResult u = TraceCurves(model, prop, *start, unknown);
   EXPECT_EQ(u.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(u.summary.status.message().find("zeta"), std::string::npos);
-  TraceOptions outside = IssueBox();
+  TraceOptions outside = testing::Issue4Box();
   outside.min2 = 1.0;  // the start orbit has a = 0.3
   const TraceResult o = TraceCurves(model, prop, *start, outside);
   EXPECT_EQ(o.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(o.summary.status.message().find("a lies outside"), std::string::npos);
-  TraceOptions empty = IssueBox();
+  TraceOptions empty = testing::Issue4Box();
   empty.max1 = empty.min1;
   EXPECT_EQ(TraceCurves(model, prop, *start, empty).summary.status.code(),
             StatusCode::kInvalidArgument);
