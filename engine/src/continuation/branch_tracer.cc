@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "continuation/arclength.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 
@@ -86,13 +87,7 @@ bool BranchTracer::Tangent(const Vec& y, const Vec& prev, Vec* t, double* det) {
   if (!bvp_->Evaluate(y.head(m()), ParamsAt(y[m()]), &g, &gx, &gp).ok()) return false;
   a.topLeftCorner(m(), m()) = gx;
   a.topRightCorner(m(), 1) = gp;
-  a.bottomRows(1) = prev.transpose();
-  Vec e = Vec::Zero(m() + 1);
-  e[m()] = 1.0;
-  *t = a.partialPivLu().solve(e);
-  if (!t->allFinite() || t->norm() == 0.0) return false;
-  t->normalize();
-  if (t->dot(prev) < 0.0) *t = -*t;
+  if (!UnitTangent(a.topRows(m()), prev, t)) return false;
   a.bottomRows(1) = t->transpose();
   *det = Sign(a.partialPivLu().determinant());
   return true;
@@ -469,10 +464,8 @@ bool BranchTracer::Step(ContinuationResult* result) {
     }
     const double h = h_;
     // Adapt the next step to the corrector's effort.
-    const double factor = iterations <= options_.target_iterations - 1  ? 1.6
-                          : iterations > options_.target_iterations + 1 ? 0.6
-                                                                        : 1.0;
-    h_ = std::clamp(h_ * factor, options_.min_step, options_.max_step);
+    h_ = std::clamp(h_ * StepFactor(iterations, options_.target_iterations), options_.min_step,
+                    options_.max_step);
     ++steps_;
 
     const double value = y1[m()];

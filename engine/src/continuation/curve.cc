@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "continuation/arclength.h"
 #include "continuation/tangent_grazing.h"
 #include "orbit/orbit_bvp.h"
 
@@ -196,17 +197,7 @@ class CurveTracer {
   bool Tangent(const Vec& y, const Vec& prev, Vec* t) const {
     Vec f;
     Mat jac;
-    if (!Evaluate(y, &f, &jac)) return false;
-    Mat a(n(), n());
-    a.topRows(n() - 1) = jac;
-    a.bottomRows(1) = prev.transpose();
-    Vec e = Vec::Zero(n());
-    e[n() - 1] = 1.0;
-    *t = a.partialPivLu().solve(e);
-    if (!t->allFinite() || t->norm() == 0.0) return false;
-    t->normalize();
-    if (t->dot(prev) < 0.0) *t = -*t;
-    return true;
+    return Evaluate(y, &f, &jac) && internal::UnitTangent(jac, prev, t);
   }
 
   bool Admissible(const PeriodicOrbit& o, std::string* why) const {
@@ -332,10 +323,8 @@ class CurveTracer {
       }
       sum->newton_iterations += iterations;
       ++sum->steps;
-      const double factor = iterations <= options_.target_iterations - 1  ? 1.6
-                            : iterations > options_.target_iterations + 1 ? 0.6
-                                                                          : 1.0;
-      h = std::clamp(h * factor, options_.min_step, options_.max_step);
+      h = std::clamp(h * internal::StepFactor(iterations, options_.target_iterations),
+                     options_.min_step, options_.max_step);
       const double v1 = y1[m()], v2 = y1[m() + 1];
       if (v1 < options_.min1 || v1 > options_.max1 || v2 < options_.min2 || v2 > options_.max2) {
         return "left the box";
