@@ -81,4 +81,16 @@ StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
   return solved;
 }
 
+Status CheckParamValues(const Params& params, int index,
+                        std::initializer_list<std::pair<const char*, double>> bounds) {
+  for (const auto& [field, v] : bounds) {
+    Params p = params;
+    p[index] = v;
+    if (Status s = Model().ValidateParams(p); !s.ok()) {
+      return InvalidArgument(std::string(field) + ": " + s.message());
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace drillbif::client::internal

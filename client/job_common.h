@@ -5,11 +5,14 @@
 #define DRILLBIF_CLIENT_JOB_COMMON_H_
 
 #include <chrono>
+#include <initializer_list>
 #include <string>
+#include <utility>
 
 #include "drillbif/common/status.h"
 #include "drillbif/model/drifting_oscillator.h"
 #include "drillbif/orbit/periodic_orbit.h"
+#include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/model.pb.h"
 
 namespace drillbif::client::internal {
@@ -37,6 +40,35 @@ Status FailedPrecondition(std::string message);
 // FAILED_PRECONDITION when there is none to be found from x0.
 StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
                                    const StateVector& x0, int transient_periods);
+
+// Every value in `bounds` ({field, value}) is a valid value of parameter `index` with the other
+// parameters as in `params`; else INVALID_ARGUMENT "field: why".
+Status CheckParamValues(const Params& params, int index,
+                        std::initializer_list<std::pair<const char*, double>> bounds);
+
+// Where the start orbit of a request with `initial_state` and `transient_periods` (continue,
+// trace) is looked for: the forcing periods (unset: GuessOptions' default) and the validated
+// initial state. INVALID_ARGUMENT for transient_periods < 0 or an invalid state.
+struct StartSearch {
+  StateVector x0;
+  int transient_periods = 0;
+};
+template <typename Request>
+StatusOr<StartSearch> StartSearchOf(const Request& request, const Params& params) {
+  StartSearch out;
+  out.transient_periods = request.has_transient_periods() ? request.transient_periods()
+                                                          : GuessOptions().transient_periods;
+  if (out.transient_periods < 0) {
+    return InvalidArgument("transient_periods must be >= 0, got " +
+                           std::to_string(out.transient_periods));
+  }
+  out.x0 = ToEngineState(request.has_initial_state(), request.initial_state());
+  if (Status s = Model().ValidateState(out.x0, params, SimulationOptions().state_tolerance);
+      !s.ok()) {
+    return s;
+  }
+  return out;
+}
 
 }  // namespace drillbif::client::internal
 

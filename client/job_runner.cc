@@ -468,12 +468,10 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
   StatusOr<ContinuationOptions> options = ToContinuationOptions(request);
   if (!options.ok()) return options.status();
   // Both ends must be valid values of the parameter (the branch may run up to them).
-  for (const auto& [field, v] : {std::pair{"min", options->min}, std::pair{"max", options->max}}) {
-    Params p = params;
-    p[*index] = v;
-    if (Status s = model.ValidateParams(p); !s.ok()) {
-      return InvalidArgument(std::string(field) + ": " + s.message());
-    }
+  if (Status s = internal::CheckParamValues(params, *index,
+                                            {{"min", options->min}, {"max", options->max}});
+      !s.ok()) {
+    return s;
   }
   const double value = params[*index];
   if (value < options->min || value > options->max) {
@@ -481,19 +479,13 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
                            request.param() + " = " + Num(value) + ", is outside [min, max] = [" +
                            Num(options->min) + ", " + Num(options->max) + "]");
   }
-  const int transient = request.has_transient_periods() ? request.transient_periods()
-                                                        : GuessOptions().transient_periods;
-  if (transient < 0) {
-    return InvalidArgument("transient_periods must be >= 0, got " + std::to_string(transient));
-  }
-  const StateVector x0 = ToEngineState(request.has_initial_state(), request.initial_state());
-  if (Status s = model.ValidateState(x0, params, SimulationOptions().state_tolerance); !s.ok()) {
-    return s;
-  }
+  const StatusOr<internal::StartSearch> search = internal::StartSearchOf(request, params);
+  if (!search.ok()) return search.status();
 
   try {
     ExactPropagator propagator(model);
-    StatusOr<PeriodicOrbit> orbit = StartOrbit(propagator, params, x0, transient);
+    StatusOr<PeriodicOrbit> orbit =
+        StartOrbit(propagator, params, search->x0, search->transient_periods);
     if (!orbit.ok()) return orbit.status();
     // The search for the start orbit is not interruptible; honour a cancel that came meanwhile.
     if (progress && !progress(0.0)) {

@@ -2,6 +2,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <new>
 #include <string>
 
 #include "client/job_common.h"
@@ -44,12 +46,11 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
       return InvalidArgument("min, max of " + name + ": need finite min < max, got [" + Num(lo) +
                              ", " + Num(hi) + "]");
     }
-    for (double v : {lo, hi}) {
-      Params p = params;
-      p[*index] = v;
-      if (Status s = model.ValidateParams(p); !s.ok()) {
-        return InvalidArgument("min, max of " + name + ": " + s.message());
-      }
+    const std::string field = "min, max of " + name;
+    if (Status s =
+            internal::CheckParamValues(params, *index, {{field.c_str(), lo}, {field.c_str(), hi}});
+        !s.ok()) {
+      return s;
     }
     if (params[*index] < lo || params[*index] > hi) {
       return InvalidArgument("params." + name + " = " + Num(params[*index]) +
@@ -68,30 +69,17 @@ void ToProto(const CurvePoint& p, v1::CurveVertex* out) {
   out->set_stable(p.stability.stable);
 }
 
-}  // namespace
-
-StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
-                                   const ProgressCallback& progress) {
-  const auto start = std::chrono::steady_clock::now();
+// Finds the start orbit and traces; the request is valid.
+StatusOr<v1::TraceResult> Trace(const Params& params, const TraceOptions& options,
+                                const internal::StartSearch& search,
+                                const ProgressCallback& progress,
+                                std::chrono::steady_clock::time_point start) {
   const Osc& model = Model();
-  const Params params = internal::ToEngineParams(request.params());
-  if (Status s = model.ValidateParams(params); !s.ok()) return s;
-  StatusOr<TraceOptions> options = ToTraceOptions(request, params);
-  if (!options.ok()) return options.status();
-  const int transient = request.has_transient_periods() ? request.transient_periods()
-                                                        : GuessOptions().transient_periods;
-  if (transient < 0) {
-    return InvalidArgument("transient_periods must be >= 0, got " + std::to_string(transient));
-  }
-  const StateVector x0 =
-      internal::ToEngineState(request.has_initial_state(), request.initial_state());
-  if (Status s = model.ValidateState(x0, params, SimulationOptions().state_tolerance); !s.ok()) {
-    return s;
-  }
   ExactPropagator propagator(model);
-  StatusOr<PeriodicOrbit> orbit = internal::StartOrbit(propagator, params, x0, transient);
+  StatusOr<PeriodicOrbit> orbit =
+      internal::StartOrbit(propagator, params, search.x0, search.transient_periods);
   if (!orbit.ok()) return orbit.status();
-  const TraceResult r = TraceCurves(model, propagator, *orbit, *options, progress);
+  const TraceResult r = TraceCurves(model, propagator, *orbit, options, progress);
   if (!r.summary.status.ok()) return r.summary.status;
 
   v1::TraceResult out;
@@ -128,6 +116,27 @@ StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
   out.set_engine_version(EngineVersion());
   out.set_wall_seconds(internal::Seconds(start));
   return out;
+}
+
+}  // namespace
+
+StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
+                                   const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const Osc& model = Model();
+  const Params params = internal::ToEngineParams(request.params());
+  if (Status s = model.ValidateParams(params); !s.ok()) return s;
+  StatusOr<TraceOptions> options = ToTraceOptions(request, params);
+  if (!options.ok()) return options.status();
+  const StatusOr<internal::StartSearch> search = internal::StartSearchOf(request, params);
+  if (!search.ok()) return search.status();
+  try {
+    return Trace(params, *options, *search, progress, start);
+  } catch (const std::bad_alloc&) {
+    return Internal("out of memory while tracing");
+  } catch (const std::exception& e) {
+    return Internal(std::string("trace failed: ") + e.what());
+  }
 }
 
 }  // namespace drillbif::client
