@@ -172,6 +172,15 @@ void AddRunFlags(CLI::App* cmd, ModelFlags* m) {
       ->capture_default_str();
 }
 
+// For the commands that look for a start orbit (continue, trace).
+void AddStartOrbitFlags(CLI::App* cmd, ModelFlags* m) {
+  cmd->add_option("--transient", m->transient,
+                  "Forcing periods simulated before the start orbit is looked for")
+      ->group("Start orbit")
+      ->check(CLI::Range(0, std::numeric_limits<int>::max()))
+      ->capture_default_str();
+}
+
 v1::ModelParams ToProtoParams(const ModelFlags& m) {
   v1::ModelParams p;
   p.set_a(m.a);
@@ -464,11 +473,7 @@ int Main(int argc, char** argv) {
       ->delimiter(',')
       ->group(c);
   AddModelFlags(cont, &model);
-  cont->add_option("--transient", model.transient,
-                   "Forcing periods simulated before the start orbit is looked for")
-      ->group("Start orbit")
-      ->check(CLI::Range(0, std::numeric_limits<int>::max()))
-      ->capture_default_str();
+  AddStartOrbitFlags(cont, &model);
 
   TraceFlags tr;
   CLI::App* trace = app.add_subcommand(
@@ -492,12 +497,7 @@ int Main(int argc, char** argv) {
       ->expected(2)
       ->group(t);
   AddModelFlags(trace, &model);
-  trace
-      ->add_option("--transient", model.transient,
-                   "Forcing periods simulated before the start orbit is looked for")
-      ->group("Start orbit")
-      ->check(CLI::Range(0, std::numeric_limits<int>::max()))
-      ->capture_default_str();
+  AddStartOrbitFlags(trace, &model);
 
   try {
     app.parse(argc, argv);
