@@ -26,21 +26,11 @@ Status TraceOptions::Validate() const {
 
 namespace {
 
-CurveKind CurveKindOf(SpecialPointKind kind, bool* traceable) {
-  *traceable = true;
-  switch (kind) {
-    case SpecialPointKind::kFold:
-      return CurveKind::kFold;
-    case SpecialPointKind::kPeriodDoubling:
-      return CurveKind::kPeriodDoubling;
-    case SpecialPointKind::kGrazingL1:
-    case SpecialPointKind::kGrazingL2:
-    case SpecialPointKind::kGrazingPi:
-      return CurveKind::kGrazing;
-    default:
-      *traceable = false;
-      return CurveKind::kFold;
-  }
+// Whether ContinueCurve starts from a point of this kind.
+bool Traceable(SpecialPointKind kind) {
+  return kind == SpecialPointKind::kFold || kind == SpecialPointKind::kPeriodDoubling ||
+         kind == SpecialPointKind::kGrazingL1 || kind == SpecialPointKind::kGrazingL2 ||
+         kind == SpecialPointKind::kGrazingPi;
 }
 
 // Distance from (u, v) to the polyline of the curve, in box-scaled coordinates.
@@ -120,9 +110,7 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
       sum.notes.push_back("the " + *a.name + "-branch failed: " + r.summary.message);
     }
     for (const SpecialPoint& s : r.special_points) {
-      bool traceable = false;
-      CurveKindOf(s.kind, &traceable);
-      if (traceable) starts.emplace_back(axis, s);
+      if (Traceable(s.kind)) starts.emplace_back(axis, s);
     }
   }
   for (size_t k = 0; k < starts.size(); ++k) {
@@ -131,12 +119,10 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     }
     const auto& [axis, s] = starts[k];
     const Axis& a = axes[axis];
-    bool traceable = false;
-    const CurveKind kind = CurveKindOf(s.kind, &traceable);
     const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
     const auto on_traced =
         std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
-          return c.curve.kind == kind && c.start.kind == s.kind &&
+          return c.start.kind == s.kind &&
                  DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
         });
     const std::string where = std::string(SpecialPointKindName(s.kind)) + " at " + options.param1 +
