@@ -292,6 +292,37 @@ class CurveTracer {
     return t.dot(known_beyond - ya);
   }
 
+  // The step y -> y1 left the box: the point where it crosses the edge it meets first is solved
+  // with that parameter fixed at the bound and appended, so that a curve ends on the box (the
+  // stability region's polygons need its crossing there). Skipped when the corrector fails or
+  // the orbit there is not admissible.
+  void EndOnBox(const Vec& y, const Vec& y1, std::vector<CurvePoint>* points) const {
+    double first = 2.0, bound = 0.0;
+    int index = -1;
+    for (const int j : {m(), m() + 1}) {
+      const double lo = j == m() ? options_.min1 : options_.min2;
+      const double hi = j == m() ? options_.max1 : options_.max2;
+      for (const double c : {lo, hi}) {
+        if (!std::isfinite(c) || (y1[j] - c) * (y[j] - c) >= 0.0) continue;
+        const double w = (c - y[j]) / (y1[j] - y[j]);
+        if (w < first) first = w, bound = c, index = j;
+      }
+    }
+    if (index < 0) return;
+    Vec guess = y + first * (y1 - y), fixed = Vec::Zero(n()), yc;
+    guess[index] = bound;
+    fixed[index] = 1.0;
+    int iterations = 0;
+    if (!Correct(guess, fixed, &yc, &iterations)) return;
+    yc[index] = bound;  // exactly: the corrector keeps it to rounding
+    CurvePoint p = MakePoint(yc);
+    std::string why;
+    if (yc[m()] >= options_.min1 && yc[m()] <= options_.max1 && yc[m() + 1] >= options_.min2 &&
+        yc[m() + 1] <= options_.max2 && Admissible(p.orbit, &why)) {
+      points->push_back(std::move(p));
+    }
+  }
+
   // Traces one direction from the start; returns why it ended.
   std::string Trace(double sign, std::vector<CurvePoint>* points,
                     std::vector<CurvePoint>* crossings, std::vector<Codim2Point>* codim2,
@@ -327,6 +358,7 @@ class CurveTracer {
                      options_.min_step, options_.max_step);
       const double v1 = y1[m()], v2 = y1[m() + 1];
       if (v1 < options_.min1 || v1 > options_.max1 || v2 < options_.min2 || v2 > options_.max2) {
+        EndOnBox(y, y1, points);
         return "left the box";
       }
       // A curve that creeps (the step collapsed while Newton still converges, as next to a
