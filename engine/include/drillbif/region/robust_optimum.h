@@ -1,0 +1,60 @@
+// The robust optimum: the grid node of maximal ROP inside a stability region
+// (region/stability_region.h) whose distance to the region's boundary curves is at least a margin.
+//
+// Distance is measured in one of two metrics, both normalised so that the margin is 1:
+//   per parameter: max(|d1| / m1, |d2| / m2): the rectangle [p1 +- m1] x [p2 +- m2] (m1 = m2 = m
+//                  when one value is given);
+//   scaled:        sqrt((d1 / (m w1))^2 + (d2 / (m w2))^2), w the box widths: a disk of radius
+//                  m in the box's unit-square coordinates.
+// The obstacles are the polygons' edges that are not box edges: the traced curves (and untraced
+// boundary pieces) that bound the region. A node whose margin neighbourhood meets no obstacle lies
+// inside with that whole neighbourhood inside the region (or beyond the box, where nothing is
+// known: `near_box_edge` says so).
+//
+// Search: the inside nodes by decreasing ROP, each checked against the obstacle segments in the
+// buckets of a uniform grid that its neighbourhood overlaps; the first that passes is the optimum.
+// The answer is resolved to one grid spacing (the region's grid); its cost is one sort plus a few
+// bucket lookups per rejected node.
+#ifndef DRILLBIF_REGION_ROBUST_OPTIMUM_H_
+#define DRILLBIF_REGION_ROBUST_OPTIMUM_H_
+
+#include <string>
+#include <vector>
+
+#include "drillbif/common/status.h"
+#include "drillbif/region/stability_region.h"
+
+namespace drillbif {
+
+struct OptimumOptions {
+  // Per parameter (scaled = false): m1, m2 in the units of param1, param2 (> 0 each; one value
+  // stands for both). Scaled: one value m, a fraction of the box in (0, 0.5].
+  std::vector<double> margin = {0.02};
+  bool scaled = false;
+
+  Status Validate() const;
+};
+
+struct RobustOptimum {
+  Status status;        // OK; NOT_FOUND when no inside node has the margin
+  int node = -1;        // the optimum's grid node (flat index)
+  double value1 = 0.0;  // the optimum's param1
+  double value2 = 0.0;  // and param2
+  double rop = 0.0;     // its ROP
+  // The margin achieved, in the form asked: {k m1, k m2} (per parameter) or {k m} (scaled), k >= 1
+  // the distance to the nearest obstacle in the normalised metric; infinite when the region has
+  // no bounding curve at all.
+  std::vector<double> margin;
+  double distance_scaled = 0.0;  // Euclidean distance to the nearest obstacle, box-scaled units
+  int nearest_curve = RegionVertex::kUntraced;  // the curve of that obstacle (index), or kUntraced
+  bool near_box_edge = false;                   // the margin neighbourhood reaches beyond the box
+  int candidates = 0;  // inside nodes checked (rejected ones + the optimum)
+};
+
+// INVALID_ARGUMENT for bad options or a region without a grid; FAILED_PRECONDITION for a region
+// whose computation did not succeed.
+RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOptions& options);
+
+}  // namespace drillbif
+
+#endif  // DRILLBIF_REGION_ROBUST_OPTIMUM_H_

@@ -1,0 +1,323 @@
+#include "drillbif/region/stability_region.h"
+
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "region/region_boundary.h"
+#include "region/segment_index.h"
+
+namespace drillbif {
+namespace {
+
+constexpr unsigned kRopOnly = 1u << 0;  // ROP is measure 0 (HybridModel::measure_names())
+
+std::string Num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+RegionGrid MakeGrid(const RegionOptions& o) {
+  RegionGrid g;
+  g.n1 = o.n1;
+  g.n2 = o.n2;
+  for (int i = 0; i < o.n1; ++i) g.values1.push_back(o.min1 + (o.max1 - o.min1) * i / (o.n1 - 1));
+  for (int j = 0; j < o.n2; ++j) g.values2.push_back(o.min2 + (o.max2 - o.min2) * j / (o.n2 - 1));
+  g.values1.back() = o.max1;  // exactly: box edges are recognised by equality
+  g.values2.back() = o.max2;
+  g.label.assign(static_cast<size_t>(o.n1) * o.n2, RegionGrid::kOutside);
+  g.rop.assign(g.label.size(), 0.0);
+  return g;
+}
+
+// The traced curves' segments that reach into the box, bucketed by grid cell; tag = curve,
+// part = segment index along it.
+internal::SegmentIndex IndexCurves(const std::vector<RegionCurve>& curves, const RegionOptions& o) {
+  internal::SegmentIndex index({o.min1, o.min2}, {o.max1, o.max2}, o.n1 - 1, o.n2 - 1);
+  for (size_t c = 0; c < curves.size(); ++c) {
+    const RegionCurve& curve = curves[c];
+    const size_t n = std::min(curve.values1.size(), curve.values2.size());
+    for (size_t k = 0; k + 1 < n; ++k) {
+      const Eigen::Vector2d p(curve.values1[k], curve.values2[k]);
+      const Eigen::Vector2d q(curve.values1[k + 1], curve.values2[k + 1]);
+      const Eigen::Vector2d lo = p.cwiseMin(q), hi = p.cwiseMax(q);
+      if (hi[0] < o.min1 || lo[0] > o.max1 || hi[1] < o.min2 || lo[1] > o.max2) continue;
+      index.Add({p, q, static_cast<int>(c), static_cast<int>(k)});
+    }
+  }
+  return index;
+}
+
+// Fills the grid breadth first from the start and locates the boundary crossings.
+class RegionBuilder {
+ public:
+  RegionBuilder(const HybridModel& model, Propagator& propagator,
+                const std::vector<RegionCurve>& curves, const RegionOptions& options,
+                const RegionProgress& progress, StabilityRegion* region)
+      : model_(model),
+        propagator_(propagator),
+        options_(options),
+        progress_(progress),
+        region_(*region),
+        grid_(region->grid),
+        curves_(IndexCurves(curves, options)),
+        orbits_(grid_.label.size()) {
+    k1_ = model.ParamIndex(options.param1).value();
+    k2_ = model.ParamIndex(options.param2).value();
+  }
+
+  enum class Outcome { kInside, kInadmissible, kFailed };
+
+  // The orbit of guess's signature at (v1, v2) by Newton: kInside when it converges to an
+  // admissible, stable orbit; kInadmissible when it converges to a stable orbit that is not
+  // admissible; kFailed otherwise (no convergence, or unstable).
+  Outcome Solve(const PeriodicOrbit& guess, double v1, double v2, PeriodicOrbit* out) {
+    *out = guess;
+    out->params[k1_] = v1;
+    out->params[k2_] = v2;
+    // The durations scale with the forcing period, so that the segments keep their phases.
+    const double ratio =
+        model_.ForcingFrequency(guess.params) / model_.ForcingFrequency(out->params);
+    if (std::isfinite(ratio) && ratio > 0.0) {
+      for (double& tau : out->durations) tau *= ratio;
+    }
+    ++region_.summary.solves;
+    if (SolveOrbit(model_, propagator_, options_.solver, out).status != SolveStatus::kConverged ||
+        !OrbitStability(model_, propagator_, *out).stable) {
+      return Outcome::kFailed;
+    }
+    return CheckAdmissible(model_, propagator_, *out).admissible ? Outcome::kInside
+                                                                 : Outcome::kInadmissible;
+  }
+
+  // The stable period-1 orbit of another signature than `from`'s at (v1, v2), reached by
+  // simulation from `from`'s start state.
+  bool Switch(const PeriodicOrbit& from, double v1, double v2, PeriodicOrbit* out) {
+    if (options_.switch_transient_periods <= 0) return false;
+    Params params = from.params;
+    params[k1_] = v1;
+    params[k2_] = v2;
+    GuessOptions guess;
+    guess.transient_periods = options_.switch_transient_periods;
+    guess.max_period = 1;
+    StatusOr<PeriodicOrbit> found =
+        OrbitFromSimulation(model_, propagator_, params, from.starts[0], guess);
+    if (!found.ok() || found->signature == from.signature) return false;
+    *out = *found;
+    ++region_.summary.solves;
+    return SolveOrbit(model_, propagator_, options_.solver, out).status ==
+               SolveStatus::kConverged &&
+           OrbitStability(model_, propagator_, *out).stable &&
+           CheckAdmissible(model_, propagator_, *out).admissible;
+  }
+
+  // Breadth-first fill from the grid nodes around the start. False when cancelled.
+  bool Fill(const PeriodicOrbit& start) {
+    region_.signatures = {start.signature};
+    std::deque<int> queue;
+    const double f1 = (start.params[k1_] - options_.min1) / (options_.max1 - options_.min1);
+    const double f2 = (start.params[k2_] - options_.min2) / (options_.max2 - options_.min2);
+    const int i0 = std::min(static_cast<int>(f1 * (grid_.n1 - 1)), grid_.n1 - 2);
+    const int j0 = std::min(static_cast<int>(f2 * (grid_.n2 - 1)), grid_.n2 - 2);
+    for (int dj = 0; dj < 2; ++dj) {
+      for (int di = 0; di < 2; ++di) Visit(start, 0, i0 + di, j0 + dj, &queue);
+    }
+    const double total = static_cast<double>(grid_.label.size());
+    int done = 0;
+    while (!queue.empty()) {
+      const int node = queue.front();
+      queue.pop_front();
+      const int i = node % grid_.n1, j = node / grid_.n1;
+      const PeriodicOrbit& from = orbits_[node];  // stays put: orbits_ never grows
+      const int label = grid_.label[node];
+      if (i > 0) Visit(from, label, i - 1, j, &queue);
+      if (i + 1 < grid_.n1) Visit(from, label, i + 1, j, &queue);
+      if (j > 0) Visit(from, label, i, j - 1, &queue);
+      if (j + 1 < grid_.n2) Visit(from, label, i, j + 1, &queue);
+      if (progress_ && ++done % 32 == 0 && !progress_(done / total)) return false;
+    }
+    return true;
+  }
+
+  // Where the boundary crosses the edge from inside node a to outside node b.
+  internal::EdgeCrossing Cross(int a, int b) {
+    ++region_.summary.boundary_edges;
+    const Eigen::Vector2d pa = Position(a), pb = Position(b);
+    internal::EdgeCrossing e;
+    double best = std::numeric_limits<double>::infinity();
+    curves_.ForEachNear(pa.cwiseMin(pb), pa.cwiseMax(pb), [&](const internal::Segment& s) {
+      double t = 0.0, u = 0.0;
+      if (internal::IntersectSegments(pa, pb, s.p, s.q, &t, &u) && t < best) {
+        best = t;
+        e.curve = s.tag;
+        e.curve_position = s.part + u;
+      }
+    });
+    if (best <= 1.0) {
+      const Eigen::Vector2d x = pa + best * (pb - pa);
+      e.value1 = x[0];
+      e.value2 = x[1];
+      return e;
+    }
+    // No traced curve: bisect the edge, keeping the last point where the orbit is still inside.
+    ++region_.summary.untraced_edges;
+    PeriodicOrbit inside = orbits_[a], trial;
+    double lo = 0.0, hi = 1.0;
+    for (int k = 0; k < options_.bisections; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      const Eigen::Vector2d x = pa + mid * (pb - pa);
+      if (Solve(inside, x[0], x[1], &trial) == Outcome::kInside) {
+        lo = mid;
+        inside = trial;
+      } else {
+        hi = mid;
+      }
+    }
+    const Eigen::Vector2d x = pa + lo * (pb - pa);
+    e.value1 = x[0];
+    e.value2 = x[1];
+    e.curve = RegionVertex::kUntraced;
+    return e;
+  }
+
+ private:
+  Eigen::Vector2d Position(int node) const {
+    return {grid_.values1[node % grid_.n1], grid_.values2[node / grid_.n1]};
+  }
+
+  // Solves node (i, j) from `from` (of signature `label`), switching signature beyond a grazing.
+  void Visit(const PeriodicOrbit& from, int label, int i, int j, std::deque<int>* queue) {
+    const int node = grid_.Index(i, j);
+    if (grid_.Inside(node)) return;
+    const double v1 = grid_.values1[i], v2 = grid_.values2[j];
+    PeriodicOrbit orbit;
+    const Outcome outcome = Solve(from, v1, v2, &orbit);
+    if (outcome == Outcome::kFailed) return;
+    if (outcome == Outcome::kInadmissible) {
+      if (!Switch(from, v1, v2, &orbit)) return;
+      ++region_.summary.switches;
+      label = LabelOf(orbit.signature);
+    }
+    grid_.label[node] = label;
+    grid_.rop[node] = OrbitMeasures(model_, propagator_, orbit, kRopOnly)[0];
+    ++region_.summary.inside_nodes;
+    orbits_[node] = std::move(orbit);
+    queue->push_back(node);
+  }
+
+  int LabelOf(const Signature& signature) {
+    for (size_t k = 0; k < region_.signatures.size(); ++k) {
+      if (region_.signatures[k] == signature) return static_cast<int>(k);
+    }
+    region_.signatures.push_back(signature);
+    return static_cast<int>(region_.signatures.size()) - 1;
+  }
+
+  const HybridModel& model_;
+  Propagator& propagator_;
+  const RegionOptions& options_;
+  const RegionProgress& progress_;
+  StabilityRegion& region_;
+  RegionGrid& grid_;
+  internal::SegmentIndex curves_;
+  std::vector<PeriodicOrbit> orbits_;  // at the inside nodes
+  int k1_ = 0, k2_ = 0;
+};
+
+}  // namespace
+
+Status RegionOptions::Validate() const {
+  if (param1.empty() || param2.empty() || param1 == param2) {
+    return InvalidArgument("param1, param2: name two different parameters");
+  }
+  if (!(std::isfinite(min1) && std::isfinite(max1) && min1 < max1)) {
+    return InvalidArgument("min1, max1: need finite min1 < max1, got [" + Num(min1) + ", " +
+                           Num(max1) + "]");
+  }
+  if (!(std::isfinite(min2) && std::isfinite(max2) && min2 < max2)) {
+    return InvalidArgument("min2, max2: need finite min2 < max2, got [" + Num(min2) + ", " +
+                           Num(max2) + "]");
+  }
+  if (n1 < 3 || n2 < 3) {
+    return InvalidArgument("n1, n2: need at least 3 grid nodes per parameter, got " +
+                           std::to_string(n1) + ", " + std::to_string(n2));
+  }
+  if (static_cast<double>(n1) * n2 > 4e6) {
+    return InvalidArgument("n1, n2: at most 4e6 grid nodes, got " + std::to_string(n1) + " x " +
+                           std::to_string(n2));
+  }
+  if (bisections < 0 || bisections > 50) {
+    return InvalidArgument("bisections: need 0..50, got " + std::to_string(bisections));
+  }
+  return solver.Validate();
+}
+
+StabilityRegion ComputeStabilityRegion(const HybridModel& model, Propagator& propagator,
+                                       const PeriodicOrbit& start,
+                                       const std::vector<RegionCurve>& curves,
+                                       const RegionOptions& options,
+                                       const RegionProgress& progress) {
+  StabilityRegion region;
+  region.param1 = options.param1;
+  region.param2 = options.param2;
+  region.min1 = options.min1;
+  region.max1 = options.max1;
+  region.min2 = options.min2;
+  region.max2 = options.max2;
+  RegionSummary& summary = region.summary;
+  if (Status s = options.Validate(); !s.ok()) {
+    summary.status = s;
+    return region;
+  }
+  const StatusOr<int> k1 = model.ParamIndex(options.param1), k2 = model.ParamIndex(options.param2);
+  if (!k1.ok() || !k2.ok()) {
+    summary.status = InvalidArgument((k1.ok() ? k2 : k1).status().message());
+    return region;
+  }
+  const double v1 = start.params[*k1], v2 = start.params[*k2];
+  if (!(v1 >= options.min1 && v1 <= options.max1 && v2 >= options.min2 && v2 <= options.max2)) {
+    summary.status = InvalidArgument("the start orbit (" + options.param1 + " = " + Num(v1) + ", " +
+                                     options.param2 + " = " + Num(v2) + ") is outside the box");
+    return region;
+  }
+  if (start.signature.periods != 1 || !OrbitStability(model, propagator, start).stable) {
+    summary.status = Status(StatusCode::kFailedPrecondition,
+                            "the start orbit is not a stable period-1 orbit: it has no stability "
+                            "region of period-1 motion");
+    return region;
+  }
+  region.grid = MakeGrid(options);
+  RegionBuilder builder(model, propagator, curves, options, progress, &region);
+  if (!builder.Fill(start)) {
+    summary.cancelled = true;
+    summary.message = "cancelled";
+    return region;
+  }
+  if (summary.inside_nodes == 0) {
+    summary.status = Status(StatusCode::kFailedPrecondition,
+                            "no grid node next to the start orbit has a stable orbit of its "
+                            "signature (the start is within one grid spacing of the boundary?)");
+    return region;
+  }
+  for (size_t label = 0; label < region.signatures.size(); ++label) {
+    std::vector<RegionPolygon> rings = internal::TraceBoundary(
+        region.grid, static_cast<int>(label), [&](int a, int b) { return builder.Cross(a, b); },
+        curves);
+    region.polygons.insert(region.polygons.end(), rings.begin(), rings.end());
+  }
+  summary.message =
+      std::to_string(summary.inside_nodes) + " of " + std::to_string(region.grid.label.size()) +
+      " grid nodes inside in " + std::to_string(region.signatures.size()) + " signatures (" +
+      std::to_string(summary.switches) + " switches), " + std::to_string(region.polygons.size()) +
+      " rings, " + std::to_string(summary.boundary_edges) + " boundary edges (" +
+      std::to_string(summary.untraced_edges) + " crossed by no traced curve), " +
+      std::to_string(summary.solves) + " Newton solves";
+  return region;
+}
+
+}  // namespace drillbif
