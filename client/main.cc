@@ -17,12 +17,14 @@
 #include <string>
 
 #include "client/job_runner.h"
+#include "client/optimum_runner.h"
 #include "client/output.h"
 #include "client/progress_bar.h"
 #include "client/trace_runner.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/model/drifting_oscillator.h"
+#include "drillbif/region/robust_optimum.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/simulate/sweep.h"
 #include "drillbif/version.h"
@@ -125,6 +127,13 @@ struct ContinueFlags {
 struct TraceFlags {
   std::vector<std::string> params;
   std::vector<double> min, max;
+  bool region = false;
+  std::vector<int> grid;  // empty: the job's default
+};
+
+struct OptimumFlags {
+  std::vector<double> margin = OptimumOptions().margin;
+  bool scaled = false;
 };
 
 // Accepts finite numbers > 0.
@@ -342,9 +351,51 @@ int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceF
   for (const std::string& name : f.params) request.add_trace_params(name);
   for (double v : f.min) request.add_min(v);
   for (double v : f.max) request.add_max(v);
+  if (f.region || !f.grid.empty()) {
+    v1::RegionRequest* region = request.mutable_region();
+    for (int n : f.grid) region->add_grid(n);
+  }
   return RunAndPrint(
       global, [&](const ProgressCallback& progress) { return RunTrace(request, progress); },
       [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
+}
+
+int RunOptimumCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& t,
+                      const OptimumFlags& f) {
+  v1::OptimumRequest request;
+  v1::TraceRequest* trace = request.mutable_trace();
+  *trace->mutable_params() = ToProtoParams(m);
+  *trace->mutable_initial_state() = ToProtoState(m);
+  trace->set_transient_periods(m.transient);
+  for (const std::string& name : t.params) trace->add_trace_params(name);
+  for (double v : t.min) trace->add_min(v);
+  for (double v : t.max) trace->add_max(v);
+  for (double v : f.margin) request.add_margin(v);
+  request.set_scaled(f.scaled);
+  for (int n : t.grid) request.add_grid(n);
+  return RunAndPrint(
+      global, [&](const ProgressCallback& progress) { return RunOptimum(request, progress); },
+      [](const v1::OptimumResult& r) { return OptimumResultToCsv(r); });
+}
+
+// The plane and box of trace and optimum.
+void AddBoxFlags(CLI::App* cmd, TraceFlags* f) {
+  const std::string g = "Plane";
+  cmd->add_option("--params", f->params, "The two parameters of the plane, e.g. omega,a")
+      ->required()
+      ->delimiter(',')
+      ->expected(2)
+      ->group(g);
+  cmd->add_option("--min", f->min, "Lower bounds, one per parameter, e.g. 0.05,0.01")
+      ->required()
+      ->delimiter(',')
+      ->expected(2)
+      ->group(g);
+  cmd->add_option("--max", f->max, "Upper bounds, one per parameter, e.g. 2,8")
+      ->required()
+      ->delimiter(',')
+      ->expected(2)
+      ->group(g);
 }
 
 int Main(int argc, char** argv) {
@@ -480,24 +531,53 @@ int Main(int argc, char** argv) {
       "trace",
       "Every fold, period-doubling and grazing curve through the start orbit's branches in a box "
       "of two parameters, with the codimension-2 points found on them");
-  const std::string t = "Trace";
-  trace->add_option("--params", tr.params, "The two parameters of the plane, e.g. omega,a")
-      ->required()
+  AddBoxFlags(trace, &tr);
+  trace
+      ->add_flag("--region", tr.region,
+                 "Also compute the stability region of period-1 motion around the start orbit "
+                 "(grid with ROP, polygons bounded by the curves)")
+      ->group("Region");
+  trace
+      ->add_option("--grid", tr.grid,
+                   "Region grid nodes per parameter, e.g. 201,201 (implies --region; default "
+                   "201,201)")
       ->delimiter(',')
       ->expected(2)
-      ->group(t);
-  trace->add_option("--min", tr.min, "Lower bounds, one per parameter, e.g. 0.05,0.01")
-      ->required()
-      ->delimiter(',')
-      ->expected(2)
-      ->group(t);
-  trace->add_option("--max", tr.max, "Upper bounds, one per parameter, e.g. 2,8")
-      ->required()
-      ->delimiter(',')
-      ->expected(2)
-      ->group(t);
+      ->check(CLI::Range(3, 1 << 20))
+      ->group("Region");
   AddModelFlags(trace, &model);
   AddStartOrbitFlags(trace, &model);
+
+  TraceFlags ot;
+  OptimumFlags of;
+  CLI::App* optimum = app.add_subcommand(
+      "optimum",
+      "The operating point of maximal ROP where the period-1 orbit is stable and at least a "
+      "margin from every bifurcation curve bounding its stability region");
+  AddBoxFlags(optimum, &ot);
+  optimum
+      ->add_option("--margin", of.margin,
+                   "Margin in each parameter's units: one value for both or one per parameter "
+                   "(e.g. 0.02 or 0.01,0.05); with --scaled, one fraction of the box")
+      ->delimiter(',')
+      ->expected(1, 2)
+      ->check(PositiveDouble())
+      ->capture_default_str()
+      ->group("Optimum");
+  optimum
+      ->add_flag("--scaled", of.scaled,
+                 "The margin is a Euclidean distance in the box scaled to the unit square")
+      ->group("Optimum");
+  optimum
+      ->add_option("--grid", ot.grid,
+                   "Region grid nodes per parameter, e.g. 401,801 (default: a spacing of half "
+                   "the margin, at most 1001 per parameter)")
+      ->delimiter(',')
+      ->expected(2)
+      ->check(CLI::Range(3, 1 << 20))
+      ->group("Optimum");
+  AddModelFlags(optimum, &model);
+  AddStartOrbitFlags(optimum, &model);
 
   try {
     app.parse(argc, argv);
@@ -520,6 +600,7 @@ int Main(int argc, char** argv) {
   if (simulate->parsed()) return RunSimulateCommand(global, model, sim);
   if (cont->parsed()) return RunContinueCommand(global, model, co);
   if (trace->parsed()) return RunTraceCommand(global, model, tr);
+  if (optimum->parsed()) return RunOptimumCommand(global, model, ot, of);
   return RunSweepCommand(global, model, sw);
 }
 

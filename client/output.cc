@@ -294,6 +294,30 @@ std::string TraceResultToCsv(const v1::TraceResult& result) {
     AppendComment(line, &out);
   }
   for (const std::string& note : result.notes()) AppendComment("note: " + note, &out);
+  if (result.has_region()) {
+    AppendComment("region: " + result.region().message() + " (grid and polygons: JSON output)",
+                  &out);
+  }
+  return out;
+}
+
+std::string OptimumResultToCsv(const v1::OptimumResult& result) {
+  std::string out;
+  AppendStatus(result.status(), result.message(), &out);
+  out.append(
+      "a,b,omega,xi,g,phi0,rop,margin1,margin2,distance_scaled,nearest_curve_kind,signature\n");
+  if (!result.has_params()) return out;
+  const v1::ModelParams& p = result.params();
+  Row row(&out);
+  row.Num(p.a()).Num(p.b()).Num(p.omega()).Num(p.xi()).Num(p.g()).Num(p.phi0()).Num(result.rop());
+  for (int k = 0; k < 2; ++k) {
+    if (k < result.margin_size()) {
+      row.Num(result.margin(k));
+    } else {
+      row.Str("");
+    }
+  }
+  row.Num(result.distance_scaled()).Str(result.nearest_curve_kind()).Str(result.signature()).End();
   return out;
 }
 

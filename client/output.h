@@ -9,6 +9,7 @@
 
 #include "drillbif/common/status.h"
 #include "drillbif/v1/continue.pb.h"
+#include "drillbif/v1/optimum.pb.h"
 #include "drillbif/v1/simulate.pb.h"
 #include "drillbif/v1/sweep.pb.h"
 #include "drillbif/v1/trace.pb.h"
@@ -54,7 +55,14 @@ std::string ContinueResultToCsv(const v1::ContinueResult& result);
 // one row per curve point (curve: its index), curves in order, then one comment line per
 // codimension-2 point and one per note:
 //   # FLIP_GRAZING curve=2 a=... b=... omega=... xi=... g=... phi0=... [detail=...]
+// With a stability region, one comment line summarises it (its grid and polygons are in the JSON
+// output only).
 std::string TraceResultToCsv(const v1::TraceResult& result);
+
+// The optimum as one row (empty margin columns when there is none):
+//   a,b,omega,xi,g,phi0,rop,margin1,margin2,distance_scaled,nearest_curve_kind,signature
+// after the status comment when it did not complete.
+std::string OptimumResultToCsv(const v1::OptimumResult& result);
 
 }  // namespace drillbif::client
 

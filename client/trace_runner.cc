@@ -7,6 +7,7 @@
 #include <string>
 
 #include "client/job_common.h"
+#include "client/region_output.h"
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/orbit/periodic_orbit.h"
@@ -69,19 +70,8 @@ void ToProto(const CurvePoint& p, v1::CurveVertex* out) {
   out->set_stable(p.stability.stable);
 }
 
-// Finds the start orbit and traces; the request is valid.
-StatusOr<v1::TraceResult> Trace(const Params& params, const TraceOptions& options,
-                                const internal::StartSearch& search,
-                                const ProgressCallback& progress,
-                                std::chrono::steady_clock::time_point start) {
-  const Osc& model = Model();
-  ExactPropagator propagator(model);
-  StatusOr<PeriodicOrbit> orbit =
-      internal::StartOrbit(propagator, params, search.x0, search.transient_periods);
-  if (!orbit.ok()) return orbit.status();
-  const TraceResult r = TraceCurves(model, propagator, *orbit, options, progress);
-  if (!r.summary.status.ok()) return r.summary.status;
-
+// The curves as the proto result.
+v1::TraceResult ToProto(const TraceResult& r) {
   v1::TraceResult out;
   bool failed = false;
   for (const std::string& note : r.summary.notes) {
@@ -113,25 +103,103 @@ StatusOr<v1::TraceResult> Trace(const Params& params, const TraceOptions& option
   out.set_message(std::to_string(r.curves.size()) + " curves, " +
                   std::to_string(out.codim2_points_size()) + " codimension-2 points, " +
                   std::to_string(r.summary.notes.size()) + " located points not traced (notes)");
+  return out;
+}
+
+// The region's grid from the request: two values >= 3 (the engine checks the total), or 201 each.
+StatusOr<std::pair<int, int>> RegionGrid(const v1::RegionRequest& request) {
+  if (request.grid_size() == 0) return std::pair<int, int>(201, 201);
+  if (request.grid_size() != 2 || request.grid(0) < 3 || request.grid(1) < 3) {
+    return InvalidArgument("region.grid: give two node counts >= 3 (one per trace parameter)");
+  }
+  return std::pair<int, int>(request.grid(0), request.grid(1));
+}
+
+StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressCallback& progress) {
+  std::pair<int, int> grid;
+  if (request.has_region()) {
+    StatusOr<std::pair<int, int>> g = RegionGrid(request.region());
+    if (!g.ok()) return g.status();
+    grid = *g;
+  }
+  // With a region, the curves take the first 90% of the progress bar.
+  const double share = request.has_region() ? 0.9 : 1.0;
+  ProgressCallback curves_progress;
+  if (progress) curves_progress = [&](double f) { return progress(share * f); };
+  StatusOr<internal::EngineTrace> trace = internal::TraceRequestCurves(request, curves_progress);
+  if (!trace.ok()) return trace.status();
+  v1::TraceResult out = ToProto(trace->result);
+  if (request.has_region() && !trace->result.summary.cancelled) {
+    const Osc& model = Model();
+    ExactPropagator propagator(model);
+    RegionProgress region_progress;
+    if (progress) region_progress = [&](double f) { return progress(share + (1 - share) * f); };
+    const StabilityRegion region = ComputeStabilityRegion(
+        model, propagator, trace->start, internal::RegionCurves(trace->result),
+        internal::RegionOptionsFor(trace->options, grid.first, grid.second), region_progress);
+    if (!region.summary.status.ok()) return region.summary.status;
+    if (region.summary.cancelled) out.set_status("CANCELLED");
+    client::ToProto(model, region, out.mutable_region());
+  }
   out.set_engine_version(EngineVersion());
-  out.set_wall_seconds(internal::Seconds(start));
+  out.set_wall_seconds(internal::Seconds(trace->started));
   return out;
 }
 
 }  // namespace
 
-StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
-                                   const ProgressCallback& progress) {
-  const auto start = std::chrono::steady_clock::now();
+namespace internal {
+
+StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
+                                         const ProgressCallback& progress) {
+  EngineTrace out;
+  out.started = std::chrono::steady_clock::now();
   const Osc& model = Model();
-  const Params params = internal::ToEngineParams(request.params());
+  const Params params = ToEngineParams(request.params());
   if (Status s = model.ValidateParams(params); !s.ok()) return s;
   StatusOr<TraceOptions> options = ToTraceOptions(request, params);
   if (!options.ok()) return options.status();
-  const StatusOr<internal::StartSearch> search = internal::StartSearchOf(request, params);
+  const StatusOr<StartSearch> search = StartSearchOf(request, params);
   if (!search.ok()) return search.status();
+  out.options = *options;
+  ExactPropagator propagator(model);
+  StatusOr<PeriodicOrbit> orbit =
+      StartOrbit(propagator, params, search->x0, search->transient_periods);
+  if (!orbit.ok()) return orbit.status();
+  out.start = *orbit;
+  out.result = TraceCurves(model, propagator, out.start, out.options, progress);
+  if (!out.result.summary.status.ok()) return out.result.summary.status;
+  return out;
+}
+
+std::vector<RegionCurve> RegionCurves(const TraceResult& trace) {
+  std::vector<RegionCurve> curves;
+  for (const TracedCurve& c : trace.curves) {
+    RegionCurve& rc = curves.emplace_back();
+    for (const CurvePoint& p : c.curve.points) {
+      rc.values1.push_back(p.value1);
+      rc.values2.push_back(p.value2);
+    }
+  }
+  return curves;
+}
+
+RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2) {
+  RegionOptions o;
+  o.param1 = trace.param1;
+  o.param2 = trace.param2;
+  o.min1 = trace.min1, o.max1 = trace.max1;
+  o.min2 = trace.min2, o.max2 = trace.max2;
+  o.n1 = n1, o.n2 = n2;
+  return o;
+}
+
+}  // namespace internal
+
+StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
+                                   const ProgressCallback& progress) {
   try {
-    return Trace(params, *options, *search, progress, start);
+    return Trace(request, progress);
   } catch (const std::bad_alloc&) {
     return Internal("out of memory while tracing");
   } catch (const std::exception& e) {

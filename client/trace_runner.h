@@ -3,21 +3,49 @@
 #ifndef DRILLBIF_CLIENT_TRACE_RUNNER_H_
 #define DRILLBIF_CLIENT_TRACE_RUNNER_H_
 
+#include <chrono>
+
 #include "drillbif/common/status.h"
+#include "drillbif/continuation/trace.h"
+#include "drillbif/region/stability_region.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/trace.pb.h"
 
 namespace drillbif::client {
 
-// Finds the start orbit as RunContinue does and traces. Errors: INVALID_ARGUMENT naming the field
-// (trace_params not two different known names, min/max not one finite pair per parameter with
-// min < max, a bound that is not a valid value of its parameter, the start outside the box,
-// invalid params, initial_state or transient_periods); FAILED_PRECONDITION when the start state
-// leads to no periodic orbit. `progress` (optional) is called from the calling thread with the
-// fraction done and returns false to cancel (the result is then CANCELLED, with the curves traced
-// so far).
+// Finds the start orbit as RunContinue does and traces; with `region` set, also computes the
+// stability region around the start (which must then be a stable period-1 orbit). Errors:
+// INVALID_ARGUMENT naming the field (trace_params not two different known names, min/max not one
+// finite pair per parameter with min < max, a bound that is not a valid value of its parameter, the
+// start outside the box, invalid params, initial_state or transient_periods); FAILED_PRECONDITION
+// when the start state leads to no periodic orbit. `progress` (optional) is called from the calling
+// thread with the fraction done and returns false to cancel (the result is then CANCELLED, with the
+// curves traced so far).
 StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
                                    const ProgressCallback& progress = {});
+
+namespace internal {
+
+// The engine side of a trace request, shared with the optimum job.
+struct EngineTrace {
+  PeriodicOrbit start;
+  TraceOptions options;
+  TraceResult result;
+  std::chrono::steady_clock::time_point started;
+};
+
+// Validates the request (errors as RunTrace), finds the start orbit and traces; `progress` as in
+// RunTrace. Exceptions are the caller's to catch.
+StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
+                                         const ProgressCallback& progress);
+
+// The traced curves as the region's candidate boundaries (same order and indices).
+std::vector<RegionCurve> RegionCurves(const TraceResult& trace);
+
+// The region options for the trace's box with an n1 x n2 grid.
+RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2);
+
+}  // namespace internal
 
 }  // namespace drillbif::client
 

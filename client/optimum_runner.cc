@@ -1,0 +1,159 @@
+#include "client/optimum_runner.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <new>
+#include <string>
+#include <utility>
+
+#include "client/job_common.h"
+#include "client/trace_runner.h"
+#include "drillbif/flow/exact_propagator.h"
+#include "drillbif/orbit/signature.h"
+#include "drillbif/region/robust_optimum.h"
+#include "drillbif/version.h"
+
+namespace drillbif::client {
+namespace {
+
+using internal::Model;
+using internal::Seconds;
+
+constexpr int kMaxDefaultNodes = 1001;  // per parameter, when the grid follows the margin
+
+// Engine options from the request, or INVALID_ARGUMENT naming the field.
+StatusOr<OptimumOptions> ToOptimumOptions(const v1::OptimumRequest& request) {
+  OptimumOptions o;
+  if (request.margin_size() > 0) o.margin.assign(request.margin().begin(), request.margin().end());
+  o.scaled = request.scaled();
+  if (Status s = o.Validate(); !s.ok()) return s;
+  if (request.grid_size() != 0 &&
+      (request.grid_size() != 2 || request.grid(0) < 3 || request.grid(1) < 3)) {
+    return InvalidArgument("grid: give two node counts >= 3 (one per trace parameter)");
+  }
+  if (request.trace().has_region()) {
+    return InvalidArgument("trace.region: the optimum computes its own region; set grid instead");
+  }
+  return o;
+}
+
+// The grid asked for, or one whose spacing is half the margin in each parameter.
+std::pair<int, int> GridFor(const v1::OptimumRequest& request, const OptimumOptions& o,
+                            const TraceOptions& box) {
+  if (request.grid_size() == 2) return {request.grid(0), request.grid(1)};
+  const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
+  const double h1 = 0.5 * (o.scaled ? o.margin[0] * w1 : o.margin.front());
+  const double h2 = 0.5 * (o.scaled ? o.margin[0] * w2 : o.margin.back());
+  auto nodes = [](double width, double h) {
+    return static_cast<int>(std::clamp(std::ceil(width / h) + 1.0, 3.0, 1.0 * kMaxDefaultNodes));
+  };
+  return {nodes(w1, h1), nodes(w2, h2)};
+}
+
+StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
+                                    const ProgressCallback& progress) {
+  StatusOr<OptimumOptions> options = ToOptimumOptions(request);
+  if (!options.ok()) return options.status();
+  // The curves take most of the time: 85% of the progress bar.
+  constexpr double kShare = 0.85;
+  ProgressCallback curves_progress;
+  if (progress) curves_progress = [&](double f) { return progress(kShare * f); };
+  StatusOr<internal::EngineTrace> trace =
+      internal::TraceRequestCurves(request.trace(), curves_progress);
+  if (!trace.ok()) {
+    const Status& s = trace.status();
+    return s.code() == StatusCode::kInvalidArgument ? InvalidArgument("trace." + s.message()) : s;
+  }
+  v1::OptimumResult out;
+  out.set_engine_version(EngineVersion());
+  out.set_curves(static_cast<int>(trace->result.curves.size()));
+  out.set_trace_seconds(Seconds(trace->started));
+  if (trace->result.summary.cancelled) {
+    out.set_status("CANCELLED");
+    out.set_message("cancelled while tracing the curves");
+    return out;
+  }
+
+  const auto region_start = std::chrono::steady_clock::now();
+  const auto [n1, n2] = GridFor(request, *options, trace->options);
+  const auto& model = Model();
+  ExactPropagator propagator(model);
+  RegionProgress region_progress;
+  if (progress) region_progress = [&](double f) { return progress(kShare + (1 - kShare) * f); };
+  const StabilityRegion region =
+      ComputeStabilityRegion(model, propagator, trace->start, internal::RegionCurves(trace->result),
+                             internal::RegionOptionsFor(trace->options, n1, n2), region_progress);
+  if (!region.summary.status.ok()) return region.summary.status;
+  out.set_region_seconds(Seconds(region_start));
+  out.add_grid(n1);
+  out.add_grid(n2);
+  out.add_spacing((region.max1 - region.min1) / (n1 - 1));
+  out.add_spacing((region.max2 - region.min2) / (n2 - 1));
+  out.set_inside_nodes(region.summary.inside_nodes);
+  if (region.summary.cancelled) {
+    out.set_status("CANCELLED");
+    out.set_message("cancelled while computing the stability region");
+    return out;
+  }
+
+  const auto query_start = std::chrono::steady_clock::now();
+  const RobustOptimum best = FindRobustOptimum(region, *options);
+  out.set_query_seconds(Seconds(query_start));
+  out.set_candidates(best.candidates);
+  if (!best.status.ok()) {
+    out.set_status(best.status.code() == StatusCode::kNotFound ? "NOT_FOUND" : "FAILED");
+    out.set_message(best.status.message());
+    return out;
+  }
+  Params params = trace->start.params;
+  const int k1 = model.ParamIndex(region.param1).value();
+  const int k2 = model.ParamIndex(region.param2).value();
+  params[k1] = best.value1;
+  params[k2] = best.value2;
+  *out.mutable_params() = internal::ToProtoParams(params);
+  out.set_rop(best.rop);
+  for (double m : best.margin) {
+    if (std::isfinite(m)) out.add_margin(m);
+  }
+  out.set_distance_scaled(std::isfinite(best.distance_scaled) ? best.distance_scaled : 0.0);
+  out.set_nearest_curve(best.nearest_curve);
+  out.set_nearest_curve_kind(
+      best.nearest_curve >= 0 ? CurveKindName(trace->result.curves[best.nearest_curve].curve.kind)
+                              : "UNTRACED");
+  out.set_near_box_edge(best.near_box_edge);
+  out.set_signature(SignatureString(model, region.signatures[region.grid.label[best.node]]));
+
+  bool failed = false;
+  for (const TracedCurve& c : trace->result.curves) {
+    failed |= c.curve.summary.termination == Termination::kFailed;
+  }
+  for (const std::string& note : trace->result.summary.notes) {
+    failed |= note.find(" failed: ") != std::string::npos;
+  }
+  out.set_status(failed ? "FAILED" : "COMPLETED");
+  std::string message = "ROP " + internal::Num(best.rop) + " at " + region.param1 + " = " +
+                        internal::Num(best.value1) + ", " + region.param2 + " = " +
+                        internal::Num(best.value2) + "; " + region.summary.message;
+  if (failed) message += "; a curve failed to trace, so a boundary may be missing";
+  if (best.near_box_edge) message += "; the margin reaches beyond the box, where nothing is known";
+  if (!out.margin_size()) message += "; no bifurcation curve bounds the region in the box";
+  out.set_message(message);
+  return out;
+}
+
+}  // namespace
+
+StatusOr<v1::OptimumResult> RunOptimum(const v1::OptimumRequest& request,
+                                       const ProgressCallback& progress) {
+  try {
+    return Optimum(request, progress);
+  } catch (const std::bad_alloc&) {
+    return Internal("out of memory while computing the optimum");
+  } catch (const std::exception& e) {
+    return Internal(std::string("optimum failed: ") + e.what());
+  }
+}
+
+}  // namespace drillbif::client
