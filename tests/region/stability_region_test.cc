@@ -1,0 +1,362 @@
+// The stability region and the robust optimum in a box around the reference orbit, omega in
+// [0.05, 0.15], a in [0.25, 0.6] at b = 0.15: the start's signature (NC, CwoP, CwP, CwoP, NC)
+// and, beyond the l1 grazing at small omega, NC, CwP, CwoP, NC; bounded by traced fold, PD and
+// grazing curves and by boundaries no traced curve explains. ROP grows towards small omega and
+// large a, up to the region's upper boundary, so the margin decides where the optimum lies (with
+// margins 0.005 and 0.01 it moves from a = 0.495 to 0.4775; the unconstrained maximum is higher).
+//
+// References: an independent fill of the grid (sweeps in four directions until nothing changes,
+// instead of the breadth-first fill), point-in-polygon tests of every node against the polygons,
+// distances of polygon vertices to the traced polylines, and a brute grid search of the optimum
+// over the independent fill.
+#include "drillbif/region/stability_region.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "drillbif/continuation/trace.h"
+#include "drillbif/flow/exact_propagator.h"
+#include "drillbif/region/robust_optimum.h"
+#include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
+
+namespace drillbif {
+namespace {
+
+constexpr int kN1 = 41, kN2 = 41;
+
+TraceOptions Box() {
+  TraceOptions o;
+  o.param1 = std::string("omega");
+  o.param2 = std::string("a");
+  o.min1 = 0.05, o.max1 = 0.15;
+  o.min2 = 0.25, o.max2 = 0.6;
+  return o;
+}
+
+struct Computed {
+  PeriodicOrbit start;
+  TraceResult trace;
+  std::vector<RegionCurve> curves;
+  StabilityRegion region;
+};
+
+const Computed& Shared() {
+  static const Computed* computed = [] {
+    auto* c = new Computed;
+    DriftingOscillator model;
+    ExactPropagator prop(model);
+    c->start = *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+    c->trace = TraceCurves(model, prop, c->start, Box());
+    for (const TracedCurve& t : c->trace.curves) {
+      RegionCurve& rc = c->curves.emplace_back();
+      for (const CurvePoint& p : t.curve.points) {
+        rc.values1.push_back(p.value1);
+        rc.values2.push_back(p.value2);
+      }
+    }
+    RegionOptions ro;
+    ro.param1 = Box().param1, ro.param2 = Box().param2;
+    ro.min1 = Box().min1, ro.max1 = Box().max1, ro.min2 = Box().min2, ro.max2 = Box().max2;
+    ro.n1 = kN1, ro.n2 = kN2;
+    c->region = ComputeStabilityRegion(model, prop, c->start, c->curves, ro);
+    return c;
+  }();
+  return *computed;
+}
+
+// The independent fill: every unlabelled node is tried from each labelled neighbour (Newton from
+// its orbit; beyond a grazing, simulation for a stable period-1 orbit of another signature), in
+// sweeps left, right, down and up until a sweep changes nothing. Labels are signatures.
+struct BruteGrid {
+  std::vector<int> label;  // index into signatures, -1 outside
+  std::vector<Signature> signatures;
+  std::vector<double> rop;
+};
+
+BruteGrid FillBySweeps(const RegionGrid& g, const PeriodicOrbit& start) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  const int n = g.n1 * g.n2;
+  BruteGrid b{std::vector<int>(n, -1), {start.signature}, std::vector<double>(n, 0.0)};
+  std::vector<PeriodicOrbit> orbits(n);
+  auto at = [&](const PeriodicOrbit& from, int node, PeriodicOrbit* out) -> int {
+    Params params = from.params;
+    params[DriftingOscillator::kOmega] = g.values1[node % g.n1];
+    params[DriftingOscillator::kA] = g.values2[node / g.n1];
+    *out = from;
+    out->params = params;
+    for (double& tau : out->durations) {
+      tau *= from.params[DriftingOscillator::kOmega] / params[DriftingOscillator::kOmega];
+    }
+    if (SolveOrbit(model, prop, {}, out).status != SolveStatus::kConverged ||
+        !OrbitStability(model, prop, *out).stable) {
+      return -1;
+    }
+    if (!CheckAdmissible(model, prop, *out).admissible) {
+      GuessOptions guess;
+      guess.transient_periods = 200;
+      guess.max_period = 1;
+      StatusOr<PeriodicOrbit> sim = OrbitFromSimulation(model, prop, params, from.starts[0], guess);
+      if (!sim.ok() || sim->signature == from.signature) return -1;
+      *out = *sim;
+      if (SolveOrbit(model, prop, {}, out).status != SolveStatus::kConverged ||
+          !OrbitStability(model, prop, *out).stable ||
+          !CheckAdmissible(model, prop, *out).admissible) {
+        return -1;
+      }
+    }
+    auto it = std::find(b.signatures.begin(), b.signatures.end(), out->signature);
+    if (it == b.signatures.end()) it = b.signatures.insert(b.signatures.end(), out->signature);
+    return static_cast<int>(it - b.signatures.begin());
+  };
+  auto set = [&](int node, int l, const PeriodicOrbit& o) {
+    b.label[node] = l;
+    b.rop[node] = OrbitMeasures(model, prop, o, 1u)[0];  // ROP is measure 0
+    orbits[node] = o;
+  };
+  // Seed: the four nodes around the start, from the start.
+  const double f1 = (start.params[DriftingOscillator::kOmega] - g.values1[0]) /
+                    (g.values1.back() - g.values1[0]) * (g.n1 - 1);
+  const double f2 = (start.params[DriftingOscillator::kA] - g.values2[0]) /
+                    (g.values2.back() - g.values2[0]) * (g.n2 - 1);
+  for (int dj = 0; dj < 2; ++dj) {
+    for (int di = 0; di < 2; ++di) {
+      const int node = g.Index(static_cast<int>(f1) + di, static_cast<int>(f2) + dj);
+      PeriodicOrbit o;
+      if (const int l = at(start, node, &o); l >= 0) set(node, l, o);
+    }
+  }
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (int sweep = 0; sweep < 4; ++sweep) {
+      for (int k = 0; k < n; ++k) {
+        const int node = sweep % 2 == 0 ? k : n - 1 - k;
+        const int i = node % g.n1, j = node / g.n1;
+        if (b.label[node] >= 0) continue;
+        const int neighbours[4][2] = {{i - 1, j}, {i + 1, j}, {i, j - 1}, {i, j + 1}};
+        for (const auto& nb : neighbours) {
+          if (nb[0] < 0 || nb[1] < 0 || nb[0] >= g.n1 || nb[1] >= g.n2) continue;
+          const int from = g.Index(nb[0], nb[1]);
+          if (b.label[from] < 0) continue;
+          PeriodicOrbit o;
+          if (const int l = at(orbits[from], node, &o); l >= 0) {
+            set(node, l, o);
+            changed = true;
+            break;
+          }
+        }
+      }
+    }
+  }
+  return b;
+}
+
+const BruteGrid& Brute() {
+  static const BruteGrid* b = new BruteGrid(FillBySweeps(Shared().region.grid, Shared().start));
+  return *b;
+}
+
+// Even-odd point-in-polygon over a signature's rings.
+bool InRings(const std::vector<RegionPolygon>& rings, int signature, double x, double y) {
+  bool in = false;
+  for (const RegionPolygon& ring : rings) {
+    if (ring.signature != signature) continue;
+    const auto& v = ring.vertices;
+    for (size_t a = 0, b = v.size() - 1; a < v.size(); b = a++) {
+      if ((v[a].value2 > y) != (v[b].value2 > y) &&
+          x < (v[b].value1 - v[a].value1) * (y - v[a].value2) / (v[b].value2 - v[a].value2) +
+                  v[a].value1) {
+        in = !in;
+      }
+    }
+  }
+  return in;
+}
+
+TEST(StabilityRegion, FillAgreesWithAnIndependentSweepFill) {
+  const StabilityRegion& r = Shared().region;
+  ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+  ASSERT_FALSE(Shared().trace.curves.empty());
+  const BruteGrid& b = Brute();
+  int inside = 0;
+  for (size_t k = 0; k < r.grid.label.size(); ++k) {
+    const int fast = r.grid.label[k], brute = b.label[k];
+    ASSERT_EQ(fast >= 0, brute >= 0) << "node " << k;
+    if (fast < 0) continue;
+    ++inside;
+    EXPECT_TRUE(r.signatures[fast] == b.signatures[brute]) << "node " << k;
+    // Same orbit, solved from different neighbours: ROP agrees to the Newton tolerance (1e-11
+    // scaled) times the ROP's sensitivity (O(1) here), with room for the measure's quadrature.
+    EXPECT_NEAR(r.grid.rop[k], b.rop[k], 1e-8) << "node " << k;
+  }
+  EXPECT_EQ(inside, r.summary.inside_nodes);
+  // The box holds the start's signature and at least one other (beyond the l1 grazing), and a
+  // boundary: otherwise this test would not exercise switching or polygons.
+  EXPECT_GE(r.signatures.size(), 2u);
+  EXPECT_GT(inside, 100);
+  EXPECT_LT(inside, kN1 * kN2);
+}
+
+TEST(StabilityRegion, PolygonsSeparateTheNodesOfEachSignature) {
+  const StabilityRegion& r = Shared().region;
+  ASSERT_TRUE(r.summary.status.ok());
+  ASSERT_FALSE(r.polygons.empty());
+  for (size_t s = 0; s < r.signatures.size(); ++s) {
+    for (int j = 0; j < r.grid.n2; ++j) {
+      for (int i = 0; i < r.grid.n1; ++i) {
+        const bool mine = r.grid.label[r.grid.Index(i, j)] == static_cast<int>(s);
+        // Nodes on the box edge are polygon vertices themselves; test a point nudged inwards by
+        // 1e-9 of a spacing, which no boundary can separate from the node (crossings lie at
+        // least that far from it unless a curve passes through the node itself).
+        const double x = r.grid.values1[i] + (i == 0 ? 1e-12 : i == r.grid.n1 - 1 ? -1e-12 : 0);
+        const double y = r.grid.values2[j] + (j == 0 ? 1e-12 : j == r.grid.n2 - 1 ? -1e-12 : 0);
+        EXPECT_EQ(InRings(r.polygons, static_cast<int>(s), x, y), mine)
+            << "signature " << s << " node (" << i << ", " << j << ")";
+      }
+    }
+  }
+}
+
+TEST(StabilityRegion, CurveVerticesLieOnTheirTracedCurves) {
+  const StabilityRegion& r = Shared().region;
+  const std::vector<RegionCurve>& curves = Shared().curves;
+  int on_curves = 0;
+  for (const RegionPolygon& ring : r.polygons) {
+    for (const RegionVertex& v : ring.vertices) {
+      if (v.curve < 0) continue;
+      ASSERT_LT(v.curve, static_cast<int>(curves.size()));
+      const RegionCurve& c = curves[v.curve];
+      double best = 1e300;
+      for (size_t k = 0; k + 1 < c.values1.size(); ++k) {
+        // Distance to segment k in the box's unit square.
+        const double w1 = r.max1 - r.min1, w2 = r.max2 - r.min2;
+        const double px = (c.values1[k] - v.value1) / w1, py = (c.values2[k] - v.value2) / w2;
+        const double dx = (c.values1[k + 1] - c.values1[k]) / w1,
+                     dy = (c.values2[k + 1] - c.values2[k]) / w2;
+        const double dd = dx * dx + dy * dy;
+        const double t = dd > 0 ? std::clamp(-(px * dx + py * dy) / dd, 0.0, 1.0) : 0.0;
+        best = std::min(best, std::hypot(px + t * dx, py + t * dy));
+      }
+      // Intersections and the curve's own vertices: on the polyline to rounding.
+      EXPECT_LE(best, 1e-12);
+      ++on_curves;
+    }
+  }
+  EXPECT_GT(on_curves, 10);
+}
+
+// The brute optimum: the inside node of maximal ROP such that every grid node within the
+// rectangle [+- r1] x [+- r2] around it has its signature.
+double BruteOptimumRop(double r1, double r2) {
+  const RegionGrid& g = Shared().region.grid;
+  const BruteGrid& b = Brute();
+  double best = -1.0;
+  for (int node = 0; node < g.n1 * g.n2; ++node) {
+    if (b.label[node] < 0 || b.rop[node] <= best) continue;
+    const double x = g.values1[node % g.n1], y = g.values2[node / g.n1];
+    bool clear = true;
+    for (int other = 0; other < g.n1 * g.n2 && clear; ++other) {
+      if (std::abs(g.values1[other % g.n1] - x) <= r1 &&
+          std::abs(g.values2[other / g.n1] - y) <= r2 && b.label[other] != b.label[node]) {
+        clear = false;
+      }
+    }
+    if (clear) best = b.rop[node];
+  }
+  return best;
+}
+
+// Sandwich (per-parameter margins m, spacing h): a node whose rectangle of half-widths m meets no
+// boundary has every grid node within m of its own signature, so the fast optimum is at most the
+// brute one with margin m. Conversely the polygons' edges lie within cells whose corners differ
+// in label, or (curve vertices inserted between two crossings) within two cells of such a corner,
+// so a node whose nodes within m + 3h all share its label is at least m from every edge: the
+// brute optimum with margin m + 3h is at most the fast one.
+TEST(RobustOptimum, AgreesWithABruteGridSearchToTheGridsResolution) {
+  const StabilityRegion& r = Shared().region;
+  const double h1 = (r.max1 - r.min1) / (kN1 - 1), h2 = (r.max2 - r.min2) / (kN2 - 1);
+  for (const double m : {0.005, 0.01}) {
+    OptimumOptions o;
+    o.margin = {m, 2 * m};  // a spans twice omega's width here
+    const RobustOptimum best = FindRobustOptimum(r, o);
+    ASSERT_TRUE(best.status.ok()) << best.status.ToString();
+    EXPECT_GE(best.margin[0], m * (1 - 1e-12));
+    EXPECT_GE(best.margin[1], 2 * m * (1 - 1e-12));
+    const double upper = BruteOptimumRop(m, 2 * m);
+    const double lower = BruteOptimumRop(m + 3 * h1, 2 * m + 3 * h2);
+    EXPECT_LE(best.rop, upper + 1e-8) << "margin " << m;
+    EXPECT_GE(best.rop, lower - 1e-8) << "margin " << m;
+    EXPECT_GT(lower, 0.0) << "the brute search with the wider margin found nothing to compare";
+  }
+}
+
+TEST(RobustOptimum, ScaledMarginIsADiskInTheUnitSquare) {
+  const StabilityRegion& r = Shared().region;
+  OptimumOptions o;
+  o.margin = {0.05};
+  o.scaled = true;
+  const RobustOptimum best = FindRobustOptimum(r, o);
+  ASSERT_TRUE(best.status.ok()) << best.status.ToString();
+  ASSERT_EQ(best.margin.size(), 1u);
+  EXPECT_GE(best.margin[0], 0.05 * (1 - 1e-12));
+  EXPECT_NEAR(best.distance_scaled, best.margin[0], 1e-12);  // the same distance, two ways
+}
+
+TEST(RobustOptimum, TooLargeAMarginIsNotFoundWithTheLargestAvailable) {
+  OptimumOptions o;
+  o.margin = {0.5};
+  o.scaled = true;
+  const RobustOptimum best = FindRobustOptimum(Shared().region, o);
+  EXPECT_EQ(best.status.code(), StatusCode::kNotFound);
+  EXPECT_NE(best.status.message().find("largest margin"), std::string::npos);
+}
+
+TEST(RobustOptimum, InvalidMarginsNameTheField) {
+  for (const auto& [margin, scaled] :
+       std::vector<std::pair<std::vector<double>, bool>>{{{}, false},
+                                                         {{0.1, 0.2, 0.3}, false},
+                                                         {{-0.1}, false},
+                                                         {{NAN}, false},
+                                                         {{0.01, 0.02}, true},
+                                                         {{0.7}, true}}) {
+    OptimumOptions o;
+    o.margin = margin;
+    o.scaled = scaled;
+    const RobustOptimum best = FindRobustOptimum(Shared().region, o);
+    EXPECT_EQ(best.status.code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(best.status.message().rfind("margin", 0), 0u) << best.status.message();
+  }
+}
+
+TEST(StabilityRegion, BadRequestsAreClearErrors) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit& start = Shared().start;
+  RegionOptions ro;
+  ro.param1 = std::string("omega"), ro.param2 = std::string("a");
+  ro.min1 = 0.05, ro.max1 = 0.15, ro.min2 = 0.25, ro.max2 = 0.6;
+  RegionOptions bad = ro;
+  bad.n1 = 2;
+  EXPECT_EQ(ComputeStabilityRegion(model, prop, start, {}, bad).summary.status.code(),
+            StatusCode::kInvalidArgument);
+  bad = ro;
+  bad.param2 = std::string("zeta");
+  EXPECT_NE(
+      ComputeStabilityRegion(model, prop, start, {}, bad).summary.status.message().find("zeta"),
+      std::string::npos);
+  bad = ro;
+  bad.min1 = 0.2, bad.max1 = 0.3;  // the start (omega = 0.1) is outside
+  EXPECT_EQ(ComputeStabilityRegion(model, prop, start, {}, bad).summary.status.code(),
+            StatusCode::kInvalidArgument);
+  bad = ro;
+  bad.max2 = NAN;
+  EXPECT_EQ(ComputeStabilityRegion(model, prop, start, {}, bad).summary.status.code(),
+            StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace drillbif
