@@ -1,0 +1,138 @@
+// The optimum job and the trace job's region: validation naming the field, and a small box
+// (omega in [0.05, 0.15], a in [0.25, 0.6]) where the margin decides the optimum
+// (tests/region/stability_region_test.cc checks the engine against brute force there).
+#include "client/optimum_runner.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "client/output.h"
+#include "client/trace_runner.h"
+
+namespace drillbif::client {
+namespace {
+
+using ::testing::HasSubstr;
+
+v1::TraceRequest Box() {
+  v1::TraceRequest r;
+  r.add_trace_params(std::string("omega"));  // not ("omega"): GCC 12 -Wrestrict false positive
+  r.add_trace_params(std::string("a"));
+  r.add_min(0.05);
+  r.add_min(0.25);
+  r.add_max(0.15);
+  r.add_max(0.6);
+  return r;
+}
+
+v1::OptimumRequest Request() {
+  v1::OptimumRequest r;
+  *r.mutable_trace() = Box();
+  r.add_margin(0.01);
+  r.add_margin(0.02);
+  return r;
+}
+
+void ExpectInvalid(const v1::OptimumRequest& request, const std::string& names) {
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(r.status().message(), HasSubstr(names));
+}
+
+TEST(RunOptimum, InvalidRequestsNameTheField) {
+  v1::OptimumRequest negative = Request();
+  negative.set_margin(0, -0.01);
+  ExpectInvalid(negative, "margin");
+  v1::OptimumRequest three = Request();
+  three.add_margin(0.1);
+  ExpectInvalid(three, "margin");
+  v1::OptimumRequest nan = Request();
+  nan.set_margin(1, std::nan(""));
+  ExpectInvalid(nan, "margin");
+  v1::OptimumRequest scaled_two = Request();
+  scaled_two.set_scaled(true);
+  ExpectInvalid(scaled_two, "margin");
+  v1::OptimumRequest grid = Request();
+  grid.add_grid(2);
+  grid.add_grid(50);
+  ExpectInvalid(grid, "grid");
+  v1::OptimumRequest region = Request();
+  region.mutable_trace()->mutable_region();
+  ExpectInvalid(region, "trace.region");
+  v1::OptimumRequest unknown = Request();
+  unknown.mutable_trace()->set_trace_params(1, "zeta");
+  ExpectInvalid(unknown, "trace.trace_params");
+  v1::OptimumRequest xi = Request();
+  xi.mutable_trace()->mutable_params()->set_xi(-1.0);
+  ExpectInvalid(xi, "xi");
+}
+
+TEST(RunOptimum, FindsAStableOperatingPointWithTheMargin) {
+  v1::OptimumRequest request = Request();
+  request.add_grid(41);
+  request.add_grid(41);
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+  ASSERT_EQ(r->margin_size(), 2);
+  EXPECT_GE(r->margin(0), 0.01 * (1 - 1e-12));
+  EXPECT_GE(r->margin(1), 0.02 * (1 - 1e-12));
+  EXPECT_GE(r->params().omega(), 0.05);
+  EXPECT_LE(r->params().omega(), 0.15);
+  EXPECT_GE(r->params().a(), 0.25);
+  EXPECT_LE(r->params().a(), 0.6);
+  EXPECT_DOUBLE_EQ(r->params().b(), 0.15);  // the other parameters are the request's
+  EXPECT_GT(r->rop(), 0.0);
+  EXPECT_FALSE(r->signature().empty());
+  EXPECT_EQ(r->grid(0), 41);
+  EXPECT_NEAR(r->spacing(1), 0.35 / 40, 1e-15);
+  EXPECT_GT(r->curves(), 0);
+  // CSV: one row after the header.
+  EXPECT_THAT(OptimumResultToCsv(*r), HasSubstr("a,b,omega,xi,g,phi0,rop,margin1,margin2"));
+}
+
+TEST(RunOptimum, DefaultGridFollowsTheMargin) {
+  v1::OptimumRequest request = Request();
+  request.set_margin(0, 0.02);  // spacing 0.01: 11 nodes in omega
+  request.set_margin(1, 0.07);  // spacing 0.035: 11 nodes in a
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(r->grid_size(), 2);
+  EXPECT_EQ(r->grid(0), 11);
+  EXPECT_EQ(r->grid(1), 11);
+}
+
+TEST(RunTrace, RegionOnRequestOnly) {
+  v1::TraceRequest request = Box();
+  const StatusOr<v1::TraceResult> plain = RunTrace(request);
+  ASSERT_TRUE(plain.ok()) << plain.status().ToString();
+  EXPECT_FALSE(plain->has_region());  // compute only what is asked
+  request.mutable_region()->add_grid(21);
+  request.mutable_region()->add_grid(31);
+  const StatusOr<v1::TraceResult> r = RunTrace(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_TRUE(r->has_region());
+  const v1::StabilityRegion& region = r->region();
+  EXPECT_EQ(region.values1_size(), 21);
+  EXPECT_EQ(region.values2_size(), 31);
+  EXPECT_EQ(region.label_size(), 21 * 31);
+  EXPECT_EQ(region.rop_size(), 21 * 31);
+  EXPECT_GE(region.signatures_size(), 1);
+  EXPECT_GT(region.polygons_size(), 0);
+  for (const v1::RegionPolygon& p : region.polygons()) {
+    EXPECT_GE(p.vertices_size(), 3);
+    for (const v1::RegionVertex& v : p.vertices()) EXPECT_LT(v.curve(), r->curves_size());
+  }
+  v1::TraceRequest bad = Box();
+  bad.mutable_region()->add_grid(21);
+  const StatusOr<v1::TraceResult> e = RunTrace(bad);
+  EXPECT_EQ(e.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(e.status().message(), HasSubstr("region.grid"));
+}
+
+}  // namespace
+}  // namespace drillbif::client
