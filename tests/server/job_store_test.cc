@@ -24,6 +24,15 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::MatchesRegex;
 
+// The value of a StatusOr the test expects to be OK. On an error: a test failure and T{} instead
+// of undefined behaviour, so that one wrong result does not crash the checks that follow (and
+// skip the temp dir's cleanup).
+template <typename T>
+T Must(StatusOr<T> result) {
+  EXPECT_TRUE(result.ok()) << result.status().ToString();
+  return result.ok() ? std::move(result).value() : T{};
+}
+
 // A fresh directory under the test temp dir, removed with everything in it.
 class TempDir {
  public:
@@ -135,7 +144,7 @@ TEST_F(JobStoreTest, CompletingTwiceIsRefusedAndKeepsTheFirstResult) {
   EXPECT_EQ(store_->MarkCancelled(id).code(), StatusCode::kFailedPrecondition);
   EXPECT_EQ(store_->UpdateProgress(id, 0.5, std::nullopt, 1).code(),
             StatusCode::kFailedPrecondition);
-  EXPECT_EQ(*store_->GetResult(id), "first");
+  EXPECT_EQ(Must(store_->GetResult(id)), "first");
   EXPECT_EQ(GetOk(id).points, 1);
 }
 
@@ -197,7 +206,7 @@ TEST_F(JobStoreTest, IdenticalRequestAfterSuccessIsACacheHitThatNeverRuns) {
   EXPECT_TRUE(hit.cache_hit);
   EXPECT_EQ(hit.points, 3);
   EXPECT_EQ(hit.attempts, 0);
-  EXPECT_EQ(*store_->GetResult(second->id), "the result");
+  EXPECT_EQ(Must(store_->GetResult(second->id)), "the result");
   EXPECT_TRUE(NothingToClaim());  // No engine run.
 
   StatusOr<StoreStats> stats = store_->Stats();
@@ -205,8 +214,8 @@ TEST_F(JobStoreTest, IdenticalRequestAfterSuccessIsACacheHitThatNeverRuns) {
   EXPECT_EQ(stats->cache_hits_total, 1);
 
   // Another key is not a hit; an empty key never is.
-  EXPECT_FALSE(store_->Submit({"simulate", "body", "cache-L", ""})->cache_hit);
-  EXPECT_FALSE(store_->Submit({"simulate", "body", "", ""})->cache_hit);
+  EXPECT_FALSE(Must(store_->Submit({"simulate", "body", "cache-L", ""})).cache_hit);
+  EXPECT_FALSE(Must(store_->Submit({"simulate", "body", "", ""})).cache_hit);
 }
 
 TEST_F(JobStoreTest, IdenticalRequestWhileRunningSharesTheRun) {
@@ -216,7 +225,7 @@ TEST_F(JobStoreTest, IdenticalRequestWhileRunningSharesTheRun) {
   EXPECT_EQ(b->shared_with, a);
   EXPECT_FALSE(b->cache_hit);
   EXPECT_EQ(GetOk(b->id).shared_with, a);
-  EXPECT_EQ(store_->Stats()->queue_depth, 1);  // Only a can be claimed.
+  EXPECT_EQ(Must(store_->Stats()).queue_depth, 1);  // Only a can be claimed.
 
   ASSERT_EQ(ClaimOk(), a);
   EXPECT_TRUE(NothingToClaim());
@@ -241,10 +250,10 @@ TEST_F(JobStoreTest, IdenticalRequestWhileRunningSharesTheRun) {
     EXPECT_EQ(job.state, JobState::kSucceeded) << id;
     EXPECT_TRUE(job.cache_hit);
     EXPECT_EQ(job.points, 20);
-    EXPECT_EQ(*store_->GetResult(id), "shared result");
+    EXPECT_EQ(Must(store_->GetResult(id)), "shared result");
   }
   EXPECT_FALSE(GetOk(a).cache_hit);
-  EXPECT_EQ(store_->Stats()->cache_hits_total, 2);
+  EXPECT_EQ(Must(store_->Stats()).cache_hits_total, 2);
 }
 
 TEST_F(JobStoreTest, FailureOfASharedRunFailsItsFollowersAndIsNotCached) {
@@ -274,17 +283,17 @@ TEST_F(JobStoreTest, CancelQueuedJobAtOnce) {
   EXPECT_GT(job.finished_ms, 0);
   EXPECT_TRUE(NothingToClaim());
   // Idempotent.
-  EXPECT_EQ(*store_->Cancel(id), JobState::kCancelled);
+  EXPECT_EQ(Must(store_->Cancel(id)), JobState::kCancelled);
 }
 
 TEST_F(JobStoreTest, CancelRunningJobAsksItsWorker) {
   const std::string id = SubmitOk("sweep", "r");
   ASSERT_EQ(ClaimOk(), id);
-  EXPECT_FALSE(*store_->IsCancelRequested(id));
+  EXPECT_FALSE(Must(store_->IsCancelRequested(id)));
   StatusOr<JobState> state = store_->Cancel(id);
   ASSERT_TRUE(state.ok());
   EXPECT_EQ(*state, JobState::kRunning);
-  EXPECT_TRUE(*store_->IsCancelRequested(id));
+  EXPECT_TRUE(Must(store_->IsCancelRequested(id)));
   EXPECT_TRUE(GetOk(id).cancel_requested);
   EXPECT_EQ(GetOk(id).state, JobState::kRunning);
   ASSERT_TRUE(store_->MarkCancelled(id).ok());
@@ -306,7 +315,7 @@ TEST_F(JobStoreTest, CancellingTheSharedRunHandsItToTheOldestFollower) {
   const std::string b = SubmitOk("sweep", "body", "K");
   const std::string c = SubmitOk("sweep", "body", "K");
   ASSERT_EQ(ClaimOk(), a);
-  ASSERT_EQ(*store_->Cancel(a), JobState::kRunning);
+  ASSERT_EQ(Must(store_->Cancel(a)), JobState::kRunning);
   // A job being cancelled takes no new followers: d waits on its own.
   StatusOr<SubmitResult> d = store_->Submit({"sweep", "body", "K", ""});
   ASSERT_TRUE(d.ok());
@@ -321,20 +330,20 @@ TEST_F(JobStoreTest, CancellingTheSharedRunHandsItToTheOldestFollower) {
   EXPECT_EQ(ClaimOk(), b);  // b is older than d.
   ASSERT_TRUE(store_->Complete(b, "R", 1).ok());
   EXPECT_EQ(GetOk(c).state, JobState::kSucceeded);
-  EXPECT_EQ(*store_->GetResult(c), "R");
+  EXPECT_EQ(Must(store_->GetResult(c)), "R");
   EXPECT_EQ(GetOk(a).state, JobState::kCancelled);
   // d is still queued (it runs on its own) and its result row is the same content address.
   EXPECT_EQ(ClaimOk(), d->id);
   ASSERT_TRUE(store_->Complete(d->id, "R", 1).ok());
-  EXPECT_EQ(*store_->GetResult(d->id), "R");
+  EXPECT_EQ(Must(store_->GetResult(d->id)), "R");
 }
 
 TEST_F(JobStoreTest, CancellingAFollowerLeavesTheSharedRunAlone) {
   const std::string a = SubmitOk("sweep", "body", "K");
   const std::string b = SubmitOk("sweep", "body", "K");
   ASSERT_EQ(ClaimOk(), a);
-  EXPECT_EQ(*store_->Cancel(b), JobState::kCancelled);  // Nothing runs for b: at once.
-  EXPECT_FALSE(*store_->IsCancelRequested(a));
+  EXPECT_EQ(Must(store_->Cancel(b)), JobState::kCancelled);  // Nothing runs for b: at once.
+  EXPECT_FALSE(Must(store_->IsCancelRequested(a)));
   ASSERT_TRUE(store_->Complete(a, "R", 1).ok());
   EXPECT_EQ(GetOk(b).state, JobState::kCancelled);
   EXPECT_EQ(GetOk(a).state, JobState::kSucceeded);
@@ -343,7 +352,7 @@ TEST_F(JobStoreTest, CancellingAFollowerLeavesTheSharedRunAlone) {
 TEST_F(JobStoreTest, CancellingAQueuedSharedRunPromotesTheFollower) {
   const std::string a = SubmitOk("sweep", "body", "K");
   const std::string b = SubmitOk("sweep", "body", "K");
-  EXPECT_EQ(*store_->Cancel(a), JobState::kCancelled);
+  EXPECT_EQ(Must(store_->Cancel(a)), JobState::kCancelled);
   EXPECT_TRUE(GetOk(b).shared_with.empty());
   EXPECT_EQ(ClaimOk(), b);
 }
@@ -361,7 +370,7 @@ TEST_F(JobStoreTest, RequeueGivesTheJobBackWithoutCountingTheAttempt) {
   EXPECT_EQ(ClaimOk(), id);
   EXPECT_EQ(GetOk(id).attempts, 1);
   // A cancel asked before the requeue wins.
-  ASSERT_EQ(*store_->Cancel(id), JobState::kRunning);
+  ASSERT_EQ(Must(store_->Cancel(id)), JobState::kRunning);
   ASSERT_TRUE(store_->Requeue(id).ok());
   EXPECT_EQ(GetOk(id).state, JobState::kCancelled);
 }
@@ -391,8 +400,8 @@ TEST_F(JobStoreTest, ACachedResultLivesAsLongAsAJobHoldsIt) {
   ASSERT_TRUE(store_->Complete(a, "R", 1).ok());
   const std::string b = SubmitOk("simulate", "body", "K");  // Cache hit.
   ASSERT_TRUE(store_->Delete(a).ok());
-  EXPECT_EQ(*store_->GetResult(b), "R");
-  EXPECT_TRUE(store_->Submit({"simulate", "body", "K", ""})->cache_hit);  // Still cached.
+  EXPECT_EQ(Must(store_->GetResult(b)), "R");
+  EXPECT_TRUE(Must(store_->Submit({"simulate", "body", "K", ""})).cache_hit);  // Still cached.
   // Delete every job holding it: the result goes, the next request runs.
   StatusOr<ListResult> all = store_->List({});
   ASSERT_TRUE(all.ok());
@@ -401,7 +410,7 @@ TEST_F(JobStoreTest, ACachedResultLivesAsLongAsAJobHoldsIt) {
   ASSERT_TRUE(fresh.ok());
   EXPECT_FALSE(fresh->cache_hit);
   // The counter is monotonic: deleting hits does not lower it.
-  EXPECT_EQ(store_->Stats()->cache_hits_total, 2);
+  EXPECT_EQ(Must(store_->Stats()).cache_hits_total, 2);
 }
 
 TEST_F(JobStoreTest, DeletingARequestIdFreesIt) {
@@ -495,7 +504,7 @@ TEST_F(JobStoreTest, ListLeavesOutRequestBytesUnlessAsked) {
   EXPECT_EQ(plain->jobs[0].kind, "simulate");
   ListRequest with_request;
   with_request.include_request = true;
-  EXPECT_EQ(store_->List(with_request)->jobs[0].request, "big request");
+  EXPECT_EQ(Must(store_->List(with_request)).jobs.at(0).request, "big request");
 }
 
 TEST_F(JobStoreTest, ListRejectsBadPageArguments) {

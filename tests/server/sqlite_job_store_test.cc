@@ -30,6 +30,21 @@ namespace {
 
 using ::testing::HasSubstr;
 
+// The value of a StatusOr the test expects to be OK. On an error: a test failure and T{} instead
+// of undefined behaviour, so that one wrong result does not crash the checks that follow (and
+// skip the temp dir's cleanup).
+template <typename T>
+T Must(StatusOr<T> result) {
+  EXPECT_TRUE(result.ok()) << result.status().ToString();
+  return result.ok() ? std::move(result).value() : T{};
+}
+
+// The id of the job the store hands out next ("" when none).
+std::string ClaimedId(JobStore& store, const std::string& worker) {
+  std::optional<JobRecord> job = Must(store.ClaimNext(worker));
+  return job ? job->id : std::string();
+}
+
 // A fresh directory under the test temp dir, removed with everything in it.
 class TempDir {
  public:
@@ -151,38 +166,38 @@ TEST_F(SqliteJobStoreTest, RestartRequeuesRunningJobsAndKeepsFinishedResults) {
   {
     std::unique_ptr<JobStore> store = OpenOrDie(path);
     ASSERT_NE(store, nullptr);
-    done = store->Submit({"simulate", "1", "", ""})->id;
-    running = store->Submit({"sweep", "2", "K", ""})->id;
-    cancelling = store->Submit({"sweep", "3", "", ""})->id;
-    queued = store->Submit({"sweep", "4", "", ""})->id;
-    follower = store->Submit({"sweep", "2", "K", ""})->id;
-    ASSERT_EQ((*store->ClaimNext("w"))->id, done);
+    done = Must(store->Submit({"simulate", "1", "", ""})).id;
+    running = Must(store->Submit({"sweep", "2", "K", ""})).id;
+    cancelling = Must(store->Submit({"sweep", "3", "", ""})).id;
+    queued = Must(store->Submit({"sweep", "4", "", ""})).id;
+    follower = Must(store->Submit({"sweep", "2", "K", ""})).id;
+    ASSERT_EQ(ClaimedId(*store, "w"), done);
     ASSERT_TRUE(store->Complete(done, "result 1", 5).ok());
-    ASSERT_EQ((*store->ClaimNext("w"))->id, running);
+    ASSERT_EQ(ClaimedId(*store, "w"), running);
     ASSERT_TRUE(store->UpdateProgress(running, 0.5, 0.2, 9).ok());
-    ASSERT_EQ((*store->ClaimNext("w"))->id, cancelling);
-    ASSERT_EQ(*store->Cancel(cancelling), JobState::kRunning);
+    ASSERT_EQ(ClaimedId(*store, "w"), cancelling);
+    ASSERT_EQ(Must(store->Cancel(cancelling)), JobState::kRunning);
     // The process ends here with two jobs RUNNING (the store is closed without any cleanup).
   }
   std::unique_ptr<JobStore> store = OpenOrDie(path);
   ASSERT_NE(store, nullptr);
-  EXPECT_EQ(store->Get(running)->state, JobState::kRunning);  // Open alone does not recover.
+  EXPECT_EQ(Must(store->Get(running)).state, JobState::kRunning);  // Open alone does not recover.
   StatusOr<RecoveryReport> report = store->RecoverAfterRestart();
   ASSERT_TRUE(report.ok()) << report.status().ToString();
   EXPECT_EQ(report->requeued, 1);
   EXPECT_EQ(report->cancelled, 1);
   EXPECT_EQ(report->failed, 0);
 
-  JobRecord requeued = *store->Get(running);
+  JobRecord requeued = Must(store->Get(running));
   EXPECT_EQ(requeued.state, JobState::kQueued);
   EXPECT_EQ(requeued.attempts, 1);
   EXPECT_EQ(requeued.progress, 0.0);  // The interrupted run's progress is gone.
-  EXPECT_EQ(store->Get(follower)->state, JobState::kQueued);
-  EXPECT_EQ(store->Get(follower)->shared_with, running);
-  EXPECT_EQ(store->Get(cancelling)->state, JobState::kCancelled);
-  EXPECT_EQ(store->Get(queued)->state, JobState::kQueued);
-  EXPECT_EQ(store->Get(done)->state, JobState::kSucceeded);
-  EXPECT_EQ(*store->GetResult(done), "result 1");
+  EXPECT_EQ(Must(store->Get(follower)).state, JobState::kQueued);
+  EXPECT_EQ(Must(store->Get(follower)).shared_with, running);
+  EXPECT_EQ(Must(store->Get(cancelling)).state, JobState::kCancelled);
+  EXPECT_EQ(Must(store->Get(queued)).state, JobState::kQueued);
+  EXPECT_EQ(Must(store->Get(done)).state, JobState::kSucceeded);
+  EXPECT_EQ(Must(store->GetResult(done)), "result 1");
 
   // The requeued job runs again, first (it is the oldest), and its follower finishes with it.
   StatusOr<std::optional<JobRecord>> again = store->ClaimNext("w2");
@@ -190,8 +205,8 @@ TEST_F(SqliteJobStoreTest, RestartRequeuesRunningJobsAndKeepsFinishedResults) {
   EXPECT_EQ((*again)->id, running);
   EXPECT_EQ((*again)->attempts, 2);
   ASSERT_TRUE(store->Complete(running, "result 2", 1).ok());
-  EXPECT_EQ(*store->GetResult(follower), "result 2");
-  EXPECT_EQ(store->RecoverAfterRestart()->requeued, 0);  // Nothing left running.
+  EXPECT_EQ(Must(store->GetResult(follower)), "result 2");
+  EXPECT_EQ(Must(store->RecoverAfterRestart()).requeued, 0);  // Nothing left running.
 }
 
 TEST_F(SqliteJobStoreTest, AJobThatKeepsKillingTheProcessFailsAfterMaxAttempts) {
@@ -205,19 +220,19 @@ TEST_F(SqliteJobStoreTest, AJobThatKeepsKillingTheProcessFailsAfterMaxAttempts) 
     StatusOr<RecoveryReport> report = store->RecoverAfterRestart();
     ASSERT_TRUE(report.ok());
     if (restart == 0) {
-      poison = store->Submit({"trace", "poison", "P", ""})->id;
-      follower = store->Submit({"trace", "poison", "P", ""})->id;
+      poison = Must(store->Submit({"trace", "poison", "P", ""})).id;
+      follower = Must(store->Submit({"trace", "poison", "P", ""})).id;
     } else if (restart == 1) {
       EXPECT_EQ(report->requeued, 1);
     } else {
       EXPECT_EQ(report->failed, 1);
       break;
     }
-    ASSERT_EQ((*store->ClaimNext("w"))->id, poison);  // ... and the process dies.
+    ASSERT_EQ(ClaimedId(*store, "w"), poison);  // ... and the process dies.
   }
   std::unique_ptr<JobStore> store = OpenOrDie(path, options);
   for (const std::string& id : {poison, follower}) {
-    JobRecord job = *store->Get(id);
+    JobRecord job = Must(store->Get(id));
     EXPECT_EQ(job.state, JobState::kFailed);
     EXPECT_EQ(job.error_code, StatusCode::kInternal);
     EXPECT_THAT(job.error_message, HasSubstr("2 times"));
@@ -310,12 +325,12 @@ TEST_F(SqliteJobStoreTest, Kill9LosesNoFinishedResultAndCompletesNothingTwice) {
   int running_before = 0;
   int succeeded_before = 0;
   for (const auto& [id, request] : request_of) {
-    const JobRecord job = *store->Get(id);
+    const JobRecord job = Must(store->Get(id));
     running_before += job.state == JobState::kRunning;
     succeeded_before += job.state == JobState::kSucceeded;
     if (logged_set.count(id)) {
       EXPECT_EQ(job.state, JobState::kSucceeded) << id;
-      EXPECT_EQ(*store->GetResult(id), ResultFor("child", request)) << id;
+      EXPECT_EQ(Must(store->GetResult(id)), ResultFor("child", request)) << id;
     }
   }
   // The held job, and maybe the one being computed; at most one commit may be unlogged.
@@ -339,8 +354,8 @@ TEST_F(SqliteJobStoreTest, Kill9LosesNoFinishedResultAndCompletesNothingTwice) {
   }
   EXPECT_EQ(succeeded_before + parent_completed, kJobs);
   for (const auto& [id, request] : request_of) {
-    EXPECT_EQ(store->Get(id)->state, JobState::kSucceeded) << id;
-    const std::string result = *store->GetResult(id);
+    EXPECT_EQ(Must(store->Get(id)).state, JobState::kSucceeded) << id;
+    const std::string result = Must(store->GetResult(id));
     if (logged_set.count(id)) {
       EXPECT_EQ(result, ResultFor("child", request)) << id;
     }
@@ -362,7 +377,7 @@ TEST_F(SqliteJobStoreTest, ConcurrentWorkersCompleteEveryJobExactlyOnce) {
   ASSERT_NE(second, nullptr);
   std::set<std::string> submitted;
   for (int i = 0; i < kJobs; ++i) {
-    submitted.insert(first->Submit({"simulate", std::to_string(i), "", ""})->id);
+    submitted.insert(Must(first->Submit({"simulate", std::to_string(i), "", ""})).id);
   }
   ASSERT_EQ(submitted.size(), static_cast<size_t>(kJobs));
 
@@ -403,10 +418,10 @@ TEST_F(SqliteJobStoreTest, ConcurrentWorkersCompleteEveryJobExactlyOnce) {
   EXPECT_EQ(completed.size(), static_cast<size_t>(kJobs));
   EXPECT_EQ(std::set<std::string>(completed.begin(), completed.end()), submitted);
   for (const std::string& id : submitted) {
-    const JobRecord job = *first->Get(id);
+    const JobRecord job = Must(first->Get(id));
     EXPECT_EQ(job.state, JobState::kSucceeded);
     EXPECT_EQ(job.attempts, 1) << id << " was claimed twice";
-    EXPECT_EQ(*first->GetResult(id), ResultFor(job.worker_id, job.request));
+    EXPECT_EQ(Must(first->GetResult(id)), ResultFor(job.worker_id, job.request));
   }
   // The claims did interleave (at least both threads of one store; SQLite's busy handler backs
   // off, so the other connection may get few or none: docs/store.md, fairness).
