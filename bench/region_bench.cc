@@ -32,13 +32,7 @@ const Setup& Shared() {
     ExactPropagator prop(s->model);
     s->start = *testing::SolvedOrbitFromRest(s->model, prop, testing::ReferenceParams());
     const TraceOptions box = testing::Issue4Box();
-    for (const TracedCurve& c : TraceCurves(s->model, prop, s->start, box).curves) {
-      RegionCurve& rc = s->curves.emplace_back();
-      for (const CurvePoint& p : c.curve.points) {
-        rc.values1.push_back(p.value1);
-        rc.values2.push_back(p.value2);
-      }
-    }
+    s->curves = RegionCurvesOf(TraceCurves(s->model, prop, s->start, box).curves);
     s->options.param1 = box.param1, s->options.param2 = box.param2;
     s->options.min1 = box.min1, s->options.max1 = box.max1;
     s->options.min2 = box.min2, s->options.max2 = box.max2;

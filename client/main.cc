@@ -343,7 +343,8 @@ int RunContinueCommand(const GlobalFlags& global, const ModelFlags& m, const Con
       [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
 }
 
-int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& f) {
+// The start orbit, plane and box of trace and optimum.
+v1::TraceRequest ToTraceRequest(const ModelFlags& m, const TraceFlags& f) {
   v1::TraceRequest request;
   *request.mutable_params() = ToProtoParams(m);
   *request.mutable_initial_state() = ToProtoState(m);
@@ -351,6 +352,11 @@ int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceF
   for (const std::string& name : f.params) request.add_trace_params(name);
   for (double v : f.min) request.add_min(v);
   for (double v : f.max) request.add_max(v);
+  return request;
+}
+
+int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& f) {
+  v1::TraceRequest request = ToTraceRequest(m, f);
   if (f.region || !f.grid.empty()) {
     v1::RegionRequest* region = request.mutable_region();
     for (int n : f.grid) region->add_grid(n);
@@ -363,19 +369,23 @@ int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceF
 int RunOptimumCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& t,
                       const OptimumFlags& f) {
   v1::OptimumRequest request;
-  v1::TraceRequest* trace = request.mutable_trace();
-  *trace->mutable_params() = ToProtoParams(m);
-  *trace->mutable_initial_state() = ToProtoState(m);
-  trace->set_transient_periods(m.transient);
-  for (const std::string& name : t.params) trace->add_trace_params(name);
-  for (double v : t.min) trace->add_min(v);
-  for (double v : t.max) trace->add_max(v);
+  *request.mutable_trace() = ToTraceRequest(m, t);
   for (double v : f.margin) request.add_margin(v);
   request.set_scaled(f.scaled);
   for (int n : t.grid) request.add_grid(n);
   return RunAndPrint(
       global, [&](const ProgressCallback& progress) { return RunOptimum(request, progress); },
       [](const v1::OptimumResult& r) { return OptimumResultToCsv(r); });
+}
+
+// --grid n1,n2 of trace --region and optimum.
+void AddGridFlag(CLI::App* cmd, std::vector<int>* grid, const std::string& help,
+                 const std::string& group) {
+  cmd->add_option("--grid", *grid, help)
+      ->delimiter(',')
+      ->expected(2)
+      ->check(CLI::Range(3, 1 << 20))
+      ->group(group);
 }
 
 // The plane and box of trace and optimum.
@@ -537,14 +547,9 @@ int Main(int argc, char** argv) {
                  "Also compute the stability region of period-1 motion around the start orbit "
                  "(grid with ROP, polygons bounded by the curves)")
       ->group("Region");
-  trace
-      ->add_option("--grid", tr.grid,
-                   "Region grid nodes per parameter, e.g. 201,201 (implies --region; default "
-                   "201,201)")
-      ->delimiter(',')
-      ->expected(2)
-      ->check(CLI::Range(3, 1 << 20))
-      ->group("Region");
+  AddGridFlag(trace, &tr.grid,
+              "Region grid nodes per parameter, e.g. 201,201 (implies --region; default 201,201)",
+              "Region");
   AddModelFlags(trace, &model);
   AddStartOrbitFlags(trace, &model);
 
@@ -568,14 +573,10 @@ int Main(int argc, char** argv) {
       ->add_flag("--scaled", of.scaled,
                  "The margin is a Euclidean distance in the box scaled to the unit square")
       ->group("Optimum");
-  optimum
-      ->add_option("--grid", ot.grid,
-                   "Region grid nodes per parameter, e.g. 401,801 (default: a spacing of half "
-                   "the margin, at most 1001 per parameter)")
-      ->delimiter(',')
-      ->expected(2)
-      ->check(CLI::Range(3, 1 << 20))
-      ->group("Optimum");
+  AddGridFlag(optimum, &ot.grid,
+              "Region grid nodes per parameter, e.g. 401,801 (default: a spacing of half the "
+              "margin, at most 1001 per parameter)",
+              "Optimum");
   AddModelFlags(optimum, &model);
   AddStartOrbitFlags(optimum, &model);
 

@@ -83,7 +83,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   RegionProgress region_progress;
   if (progress) region_progress = [&](double f) { return progress(kShare + (1 - kShare) * f); };
   const StabilityRegion region =
-      ComputeStabilityRegion(model, propagator, trace->start, internal::RegionCurves(trace->result),
+      ComputeStabilityRegion(model, propagator, trace->start, RegionCurvesOf(trace->result.curves),
                              internal::RegionOptionsFor(trace->options, n1, n2), region_progress);
   if (!region.summary.status.ok()) return region.summary.status;
   out.set_region_seconds(Seconds(region_start));

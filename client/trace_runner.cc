@@ -135,7 +135,7 @@ StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressC
     RegionProgress region_progress;
     if (progress) region_progress = [&](double f) { return progress(share + (1 - share) * f); };
     const StabilityRegion region = ComputeStabilityRegion(
-        model, propagator, trace->start, internal::RegionCurves(trace->result),
+        model, propagator, trace->start, RegionCurvesOf(trace->result.curves),
         internal::RegionOptionsFor(trace->options, grid.first, grid.second), region_progress);
     if (!region.summary.status.ok()) return region.summary.status;
     if (region.summary.cancelled) out.set_status("CANCELLED");
@@ -170,18 +170,6 @@ StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
   out.result = TraceCurves(model, propagator, out.start, out.options, progress);
   if (!out.result.summary.status.ok()) return out.result.summary.status;
   return out;
-}
-
-std::vector<RegionCurve> RegionCurves(const TraceResult& trace) {
-  std::vector<RegionCurve> curves;
-  for (const TracedCurve& c : trace.curves) {
-    RegionCurve& rc = curves.emplace_back();
-    for (const CurvePoint& p : c.curve.points) {
-      rc.values1.push_back(p.value1);
-      rc.values2.push_back(p.value2);
-    }
-  }
-  return curves;
 }
 
 RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2) {

@@ -39,9 +39,6 @@ struct EngineTrace {
 StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
                                          const ProgressCallback& progress);
 
-// The traced curves as the region's candidate boundaries (same order and indices).
-std::vector<RegionCurve> RegionCurves(const TraceResult& trace);
-
 // The region options for the trace's box with an n1 x n2 grid.
 RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2);
 

@@ -51,13 +51,7 @@ const Computed& Shared() {
     ExactPropagator prop(model);
     c->start = *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
     c->trace = TraceCurves(model, prop, c->start, Box());
-    for (const TracedCurve& t : c->trace.curves) {
-      RegionCurve& rc = c->curves.emplace_back();
-      for (const CurvePoint& p : t.curve.points) {
-        rc.values1.push_back(p.value1);
-        rc.values2.push_back(p.value2);
-      }
-    }
+    c->curves = RegionCurvesOf(c->trace.curves);
     RegionOptions ro;
     ro.param1 = Box().param1, ro.param2 = Box().param2;
     ro.min1 = Box().min1, ro.max1 = Box().max1, ro.min2 = Box().min2, ro.max2 = Box().max2;

@@ -231,6 +231,18 @@ class RegionBuilder {
 
 }  // namespace
 
+std::vector<RegionCurve> RegionCurvesOf(const std::vector<TracedCurve>& curves) {
+  std::vector<RegionCurve> out;
+  for (const TracedCurve& c : curves) {
+    RegionCurve& rc = out.emplace_back();
+    for (const CurvePoint& p : c.curve.points) {
+      rc.values1.push_back(p.value1);
+      rc.values2.push_back(p.value2);
+    }
+  }
+  return out;
+}
+
 Status RegionOptions::Validate() const {
   if (param1.empty() || param2.empty() || param1 == param2) {
     return InvalidArgument("param1, param2: name two different parameters");

@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "drillbif/common/status.h"
+#include "drillbif/continuation/trace.h"
 #include "drillbif/orbit/periodic_orbit.h"
 
 namespace drillbif {
@@ -41,6 +42,9 @@ namespace drillbif {
 struct RegionCurve {
   std::vector<double> values1, values2;  // vertices in order, same length
 };
+
+// The traced curves' polylines, in the same order (so a vertex's `curve` indexes both).
+std::vector<RegionCurve> RegionCurvesOf(const std::vector<TracedCurve>& curves);
 
 struct RegionOptions {
   std::string param1, param2;                             // e.g. "omega", "a"
