@@ -137,6 +137,8 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     const Axis& other = axes[1 - axis];
     co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
     co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
+    // The options' crossings1 / crossings2 are values of param1 / param2 of the trace.
+    if (axis == 1) std::swap(co.crossings1, co.crossings2);
     CurveResult curve = ContinueCurve(model, propagator, s, co);
     if (curve.summary.termination == Termination::kFailed) {
       sum.notes.push_back(where + ": not traced: " + curve.summary.message);

@@ -29,7 +29,9 @@ struct TraceOptions {
   // issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at most).
   double duplicate_distance = 1e-5;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
-  CurveOptions curve;          // for the curves (params and box are set here)
+  // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
+  // param1 / param2 of these options, whichever order a curve is traced in.
+  CurveOptions curve;
 
   Status Validate() const;
 };
