@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <tuple>
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
@@ -168,6 +170,76 @@ TEST(Curve, OtherStartsAreClearErrors) {
   fold.kind = SpecialPointKind::kFold;
   EXPECT_EQ(ContinueCurve(model, prop, fold, same).summary.status.code(),
             StatusCode::kInvalidArgument);
+}
+
+// Near xi = 0.5 the grazing condition's velocity coefficient (1 - 4 xi^2 in
+// F' = y (1 - 4 xi^2) + 2 xi (a cos(s + phi0) + b - q)) vanishes. Grazing curves in (a, xi) and
+// (omega, a) traced from the reference branches through xi = 0.5 must cross it where the
+// one-parameter continuations at xi = 0.5 locate the grazings, and touch with h = h' = 0 there.
+TEST(Curve, GrazingCurvesCrossXiOneHalfWhereTheBranchesThereLocate) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> reference =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(reference.ok());
+  // The start orbit's family at xi = 0.5 (a = 0.3, omega = 0.1): continued in xi, which also keeps
+  // it period-1 (from rest at xi = 0.5 the simulation settles on a period-2 orbit).
+  ContinuationOptions to_half;
+  to_half.param = "xi";
+  to_half.min = reference->params[DO::kXi];
+  to_half.max = 0.5;
+  to_half.direction = ContinuationDirection::kIncreasing;
+  const ContinuationResult moved = Continue(model, prop, *reference, to_half);
+  ASSERT_EQ(moved.summary.termination, Termination::kCompleted) << moved.summary.message;
+  ASSERT_NEAR(moved.points.back().value, 0.5, 1e-12);
+  PeriodicOrbit half = moved.points.back().orbit;
+  half.params[DO::kXi] = 0.5;  // exactly (the run ends within rounding of it)
+  ASSERT_EQ(SolveOrbit(model, prop, {}, &half).status, SolveStatus::kConverged);
+  int crossings = 0;
+  for (const auto& [param, kind, near, min, max] :
+       {std::tuple{"a", SpecialPointKind::kGrazingL2, 0.1485, 0.01, 8.0},
+        std::tuple{"omega", SpecialPointKind::kGrazingL1, 0.5088, 0.05, 2.0}}) {
+    ContinuationOptions branch;
+    branch.param = param;
+    branch.min = min;
+    branch.max = max;
+    const ContinuationResult at_reference = Continue(model, prop, *reference, branch);
+    const ContinuationResult at_half = Continue(model, prop, half, branch);
+    // The grazing of the reference branch near a = 0.1485 (a-branch) or omega = 0.5088
+    // (omega-branch), and its curve in (param, xi).
+    const SpecialPoint* start = nullptr;
+    for (const SpecialPoint& s : at_reference.special_points) {
+      if (s.kind == kind && std::abs(s.point.value - near) < 1e-3) start = &s;
+    }
+    ASSERT_NE(start, nullptr) << param;
+    CurveOptions opt;
+    opt.param1 = param;
+    opt.param2 = "xi";
+    opt.min1 = min, opt.max1 = max;
+    opt.min2 = 0.01, opt.max2 = 1.0;
+    opt.crossings2 = {0.5};
+    const CurveResult curve = ContinueCurve(model, prop, *start, opt);
+    ASSERT_NE(curve.summary.termination, Termination::kFailed) << curve.summary.message;
+    ASSERT_EQ(curve.crossings.size(), 1u) << param << ": " << curve.summary.message;
+    const CurvePoint& c = curve.crossings[0];
+    double best = std::numeric_limits<double>::infinity();
+    for (const SpecialPoint& s : at_half.special_points) {
+      if (s.kind == kind) best = std::min(best, std::abs(s.point.value - c.value1));
+    }
+    // Both located to 1e-10 (corrector, location); the bound for curves vs branches.
+    EXPECT_LE(best, 1e-7) << param << " crossing at " << c.value1;
+    const auto& segs = c.orbit.signature.segments;
+    int k = 0;
+    while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
+    ASSERT_LT(k, static_cast<int>(segs.size()));
+    const StateVector xe =
+        prop.FlowMap(segs[k].mode, c.orbit.starts[k], c.orbit.durations[k], c.orbit.params, {}).x;
+    const GuardValue g = model.Guard(segs[k].mode, segs[k].guard, xe, c.orbit.params);
+    EXPECT_LE(std::abs(g.h), 1e-9) << param;
+    EXPECT_LE(std::abs(g.dh), 1e-9) << param;
+    ++crossings;
+  }
+  EXPECT_EQ(crossings, 2);
 }
 
 }  // namespace
