@@ -16,10 +16,15 @@ enum class StatusCode {
   kInvalidArgument = 3,
   kDeadlineExceeded = 4,
   kNotFound = 5,
+  kAlreadyExists = 6,
+  kResourceExhausted = 8,
   kFailedPrecondition = 9,
+  kAborted = 10,
   kOutOfRange = 11,
   kUnimplemented = 12,
   kInternal = 13,
+  kUnavailable = 14,
+  kUnauthenticated = 16,
 };
 
 // An OK status or an error code with a human-readable message. Cheap to copy when OK.
