@@ -10,6 +10,8 @@
 #   drillbif::grpc         gRPC C++ (grpc++), DRILLBIF_GRPC_CPP_PLUGIN       (service, later)
 #   spdlog::spdlog         logging                                           (service, later)
 #   SQLite::SQLite3        store                                             (service, later)
+#   OpenSSL::Crypto        SHA-256 of the service's cache keys               (server/)
+#   drillbif::grpc_reflection  gRPC server reflection (grpc++_reflection)    (server/)
 # The engine links only Eigen and SUNDIALS (see /work/shared/ARCHITECTURE.md).
 
 # --- Eigen -------------------------------------------------------------------------------------
@@ -83,3 +85,16 @@ message(STATUS "drillbif: gRPC ${gRPC_VERSION} via ${DRILLBIF_GRPC_HOW}")
 
 find_package(spdlog REQUIRED CONFIG)
 find_package(SQLite3 REQUIRED)
+
+# OpenSSL's libcrypto: SHA-256 for the service's content-addressed cache keys (libssl-dev).
+find_package(OpenSSL REQUIRED COMPONENTS Crypto)
+
+# gRPC server reflection (libgrpc++_reflection, in Debian's libgrpc++-dev).
+add_library(drillbif::grpc_reflection INTERFACE IMPORTED GLOBAL)
+if(TARGET gRPC::grpc++_reflection)
+  target_link_libraries(drillbif::grpc_reflection INTERFACE gRPC::grpc++_reflection)
+else()
+  find_library(DRILLBIF_GRPCPP_REFLECTION_LIBRARY NAMES grpc++_reflection REQUIRED)
+  target_link_libraries(drillbif::grpc_reflection INTERFACE "${DRILLBIF_GRPCPP_REFLECTION_LIBRARY}"
+                        drillbif::grpc)
+endif()

@@ -1,0 +1,78 @@
+// drillbif-server: the service binary (flags in docs/service.md).
+//
+//   drillbif-server --grpc-port 50051 --db drillbif.db [--workers N] [--token T] [--config FILE]
+//
+// SIGTERM and SIGINT shut it down gracefully (Server::Shutdown). The signals are blocked in
+// every thread and taken by sigwait on the main thread, so no work happens in a signal handler.
+#include <signal.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "server/server.h"
+
+int main(int argc, char** argv) {
+  drillbif::server::ServerOptions options;
+  std::string port_file;
+  std::string log_level = "info";
+
+  CLI::App app("drillbif-server: the drillbif computation service (gRPC)");
+  app.set_config("--config", "", "Read flags from this TOML/INI file (flag names as keys)");
+  app.add_option("--host", options.host, "Address to bind")->capture_default_str();
+  app.add_option("--grpc-port", options.grpc_port, "gRPC port; 0 picks a free port")
+      ->capture_default_str();
+  app.add_option("--http-port", options.http_port,
+                 "REST port (accepted; the REST gateway is not built yet)")
+      ->capture_default_str();
+  app.add_option("--db", options.db_path, "SQLite file of the job store")->capture_default_str();
+  app.add_option("--workers", options.workers, "Worker threads; 0: one per core")
+      ->capture_default_str();
+  app.add_option("--token", options.token,
+                 "Bearer token required on every Jobs and Operations rpc (empty: none)");
+  app.add_option("--max-request-bytes", options.max_request_bytes, "Largest request accepted")
+      ->capture_default_str();
+  app.add_option("--max-queued-jobs", options.max_queued_jobs,
+                 "Submits are refused while this many jobs wait")
+      ->capture_default_str();
+  app.add_option("--port-file", port_file,
+                 "Write the gRPC port chosen to this file once serving (for --grpc-port 0)");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  if (drillbif::Status s = options.Validate(); !s.ok()) {
+    spdlog::error("invalid options: {}", s.ToString());
+    return 2;
+  }
+
+  // Block the shutdown signals before any thread starts, so that every thread inherits the mask
+  // and only sigwait below receives them.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  auto server = drillbif::server::Server::Start(options);
+  if (!server.ok()) {
+    spdlog::error("cannot start: {}", server.status().ToString());
+    return 1;
+  }
+  spdlog::info("serving gRPC on {}", (*server)->grpc_address());
+  if (!port_file.empty()) {
+    // Written to a temporary name and renamed, so a reader never sees a partial number.
+    const std::string tmp = port_file + ".tmp";
+    std::ofstream(tmp) << (*server)->grpc_port() << "\n";
+    std::rename(tmp.c_str(), port_file.c_str());
+  }
+
+  int received = 0;
+  sigwait(&signals, &received);
+  spdlog::info("signal {} received", received);
+  (*server)->Shutdown();
+  return 0;
+}

@@ -1,0 +1,175 @@
+#include "server/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+#include <utility>
+
+#include "server/services.h"
+#include "server/store/sqlite_job_store.h"
+#include "server/watch_hub.h"
+#include "server/worker_pool.h"
+
+namespace drillbif::server {
+
+Status ServerOptions::Validate() const {
+  if (host.empty()) return InvalidArgument("host: must not be empty");
+  if (grpc_port < 0 || grpc_port > 65535) {
+    return InvalidArgument("grpc_port: must be in [0, 65535], got " + std::to_string(grpc_port));
+  }
+  if (http_port < 0 || http_port > 65535) {
+    return InvalidArgument("http_port: must be in [0, 65535], got " + std::to_string(http_port));
+  }
+  if (db_path.empty()) return InvalidArgument("db_path: must not be empty");
+  if (workers < 0 || workers > 1024) {
+    return InvalidArgument("workers: must be in [0, 1024], got " + std::to_string(workers));
+  }
+  if (max_request_bytes < 1024) {
+    return InvalidArgument("max_request_bytes: must be >= 1024, got " +
+                           std::to_string(max_request_bytes));
+  }
+  if (max_queued_jobs < 1) {
+    return InvalidArgument("max_queued_jobs: must be >= 1, got " + std::to_string(max_queued_jobs));
+  }
+  if (Status s = executor.Validate(); !s.ok()) return InvalidArgument("executor." + s.message());
+  if (progress_interval_ms < 1) {
+    return InvalidArgument("progress_interval_ms: must be >= 1, got " +
+                           std::to_string(progress_interval_ms));
+  }
+  if (watch_poll_ms < 1) {
+    return InvalidArgument("watch_poll_ms: must be >= 1, got " + std::to_string(watch_poll_ms));
+  }
+  return Status::Ok();
+}
+
+struct Server::Impl {
+  ServiceState state;
+  std::unique_ptr<JobStore> store;
+  std::unique_ptr<WatchHub> hub;
+  std::unique_ptr<WorkerPool> pool;
+  std::unique_ptr<BoundedExecutor> executor;
+  std::unique_ptr<JobsService> jobs;
+  std::unique_ptr<OperationsService> operations;
+  std::unique_ptr<grpc::Server> grpc_server;
+  int port = 0;
+
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool shutdown_started = false;
+  bool shutdown_done = false;
+};
+
+Server::Server(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+Server::~Server() { Shutdown(); }
+
+StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
+  if (Status s = options.Validate(); !s.ok()) return s;
+  auto impl = std::make_unique<Impl>();
+  impl->state.options = options;
+  if (impl->state.options.workers == 0) {
+    impl->state.options.workers = std::max(1u, std::thread::hardware_concurrency());
+  }
+  const ServerOptions& o = impl->state.options;
+
+  SqliteJobStoreOptions store_options;
+  store_options.full_sync = o.full_sync;
+  StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(o.db_path, store_options);
+  if (!store.ok()) return store.status();
+  impl->store = std::move(store).value();
+  // This process owns the file: every RUNNING job was interrupted by the end of the last one.
+  StatusOr<RecoveryReport> recovered = impl->store->RecoverAfterRestart();
+  if (!recovered.ok()) return recovered.status();
+  spdlog::info("store {}: recovered {} requeued, {} cancelled, {} failed", o.db_path,
+               recovered->requeued, recovered->cancelled, recovered->failed);
+  if (Status s = impl->state.optimum_index.Load(*impl->store); !s.ok()) return s;
+
+  impl->hub = std::make_unique<WatchHub>(impl->store.get(), o.watch_poll_ms);
+  WorkerPoolOptions pool_options;
+  pool_options.workers = o.workers;
+  pool_options.progress_interval_ms = o.progress_interval_ms;
+  Impl* raw = impl.get();
+  impl->pool = std::make_unique<WorkerPool>(impl->store.get(), impl->hub.get(), pool_options,
+                                            [raw](const std::string& id, const std::string& key) {
+                                              raw->state.optimum_index.Add(key, id);
+                                            });
+  impl->executor = std::make_unique<BoundedExecutor>(o.executor);
+  impl->state.store = impl->store.get();
+  impl->state.hub = impl->hub.get();
+  impl->state.pool = impl->pool.get();
+  impl->state.executor = impl->executor.get();
+  impl->jobs = std::make_unique<JobsService>(&impl->state);
+  impl->operations = std::make_unique<OperationsService>(&impl->state);
+
+  // Process-wide switches, read by the builder: idempotent.
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  const std::string address = o.host + ":" + std::to_string(o.grpc_port);
+  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &impl->port);
+  builder.SetMaxReceiveMessageSize(o.max_request_bytes);
+  builder.RegisterService(impl->jobs.get());
+  builder.RegisterService(impl->operations.get());
+  impl->grpc_server = builder.BuildAndStart();
+  if (impl->grpc_server == nullptr || impl->port == 0) {
+    impl->executor->Stop();
+    impl->hub->Stop();
+    return Status(StatusCode::kUnavailable, "cannot listen on " + address);
+  }
+  impl->grpc_server->GetHealthCheckService()->SetServingStatus(true);
+  impl->pool->Start();
+  spdlog::info("drillbif-server: gRPC on {}:{} ({} workers, db {})", o.host, impl->port, o.workers,
+               o.db_path);
+  return std::unique_ptr<Server>(new Server(std::move(impl)));
+}
+
+int Server::grpc_port() const { return impl_->port; }
+
+std::string Server::grpc_address() const {
+  return impl_->state.options.host + ":" + std::to_string(impl_->port);
+}
+
+void Server::Shutdown() {
+  {
+    std::unique_lock<std::mutex> lock(impl_->mutex);
+    if (impl_->shutdown_started) {
+      impl_->cv.wait(lock, [this] { return impl_->shutdown_done; });
+      return;
+    }
+    impl_->shutdown_started = true;
+  }
+  spdlog::info("drillbif-server: shutting down");
+  impl_->state.shutting_down = true;
+  impl_->grpc_server->GetHealthCheckService()->SetServingStatus(false);
+  // Running jobs stop at their next progress callback and go back to the queue.
+  impl_->pool->Shutdown();
+  // Open Watch and Wait calls end with UNAVAILABLE.
+  impl_->hub->Stop();
+  // In-flight unary calls finish on the executor (still running); then gRPC cancels the rest.
+  impl_->grpc_server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  impl_->executor->Stop();
+  impl_->grpc_server->Wait();
+  spdlog::info("drillbif-server: stopped");
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->shutdown_done = true;
+  }
+  impl_->cv.notify_all();
+}
+
+void Server::Wait() {
+  std::unique_lock<std::mutex> lock(impl_->mutex);
+  impl_->cv.wait(lock, [this] { return impl_->shutdown_done; });
+}
+
+int64_t Server::engine_runs() const { return impl_->pool->engine_runs(); }
+
+JobStore& Server::store() { return *impl_->store; }
+
+}  // namespace drillbif::server

@@ -1,0 +1,103 @@
+// The drillbif server: the gRPC services (drillbif.v1.Jobs and google.longrunning.Operations,
+// proto/drillbif/v1/service.proto), health checking (grpc.health.v1) and server reflection on
+// one port, over the SQLite job store, a bounded executor for the RPCs' store work, a worker pool
+// for the engine and a watch hub for progress. docs/service.md describes the whole.
+//
+//   auto server = Server::Start(options);      // recovers the store, starts serving
+//   ... (*server)->grpc_port() ...
+//   (*server)->Shutdown();                     // graceful: NOT_SERVING, requeue, stop
+#ifndef DRILLBIF_SERVER_SERVER_H_
+#define DRILLBIF_SERVER_SERVER_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "drillbif/common/status.h"
+#include "server/executor.h"
+#include "server/store/job_store.h"
+
+namespace drillbif::server {
+
+// Everything the server can be configured with (the flags of drillbif-server).
+struct ServerOptions {
+  // Address to bind. 127.0.0.1 by default: the service is local unless asked otherwise.
+  std::string host = "127.0.0.1";
+  // gRPC port; 0 picks a free port (Server::grpc_port() tells which).
+  int grpc_port = 50051;
+  // REST port (the REST gateway is not built yet: the value is only validated).
+  int http_port = 8080;
+  // SQLite file of the job store (created if missing).
+  std::string db_path = "drillbif.db";
+  // Worker threads running jobs; 0: one per core (std::thread::hardware_concurrency).
+  int workers = 0;
+  // Bearer token every Jobs and Operations rpc must carry ("authorization: Bearer <token>");
+  // empty: no authentication. Health and reflection are always open (probes carry no token).
+  std::string token;
+  // Largest request message accepted, in bytes; a larger one fails with RESOURCE_EXHAUSTED
+  // before it is parsed. 4 MiB (gRPC's default): requests are parameters, not data.
+  int max_request_bytes = 4 << 20;
+  // Submits are refused with RESOURCE_EXHAUSTED while this many jobs wait in the store's queue
+  // (the bound of the job queue; jobs are persistent, so the bound protects the disk and the
+  // latency of the jobs already waiting).
+  int max_queued_jobs = 10000;
+  // The executor that runs the RPCs' store work (its queue bound gives RESOURCE_EXHAUSTED).
+  ExecutorOptions executor;
+  // Shortest time between two progress writes of one job (and store cancel polls).
+  // Milliseconds. See WorkerPoolOptions.
+  int progress_interval_ms = 250;
+  // Longest time between two looks of the watch hub at the jobs being watched or waited on.
+  // Milliseconds. Changes made by this process are delivered at once anyway; this bounds the
+  // delay of timeouts.
+  int watch_poll_ms = 50;
+  // The store's PRAGMA synchronous = FULL (see SqliteJobStoreOptions::full_sync).
+  bool full_sync = true;
+
+  // INVALID_ARGUMENT naming the field when a value is out of range.
+  Status Validate() const;
+};
+
+// A running server. Thread-safe.
+class Server {
+ public:
+  // Opens the store, recovers the jobs of a previous run (RecoverAfterRestart: running jobs are
+  // queued again), starts the workers and serves on host:grpc_port. Errors: INVALID_ARGUMENT for
+  // bad options; the store's errors; UNAVAILABLE when the port cannot be bound.
+  static StatusOr<std::unique_ptr<Server>> Start(const ServerOptions& options);
+
+  // Shutdown().
+  ~Server();
+
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // The gRPC port bound (the free port picked when grpc_port was 0).
+  int grpc_port() const;
+
+  // "host:port" of the gRPC service.
+  std::string grpc_address() const;
+
+  // Graceful shutdown: health reports NOT_SERVING, submits fail with UNAVAILABLE, running jobs
+  // are interrupted and requeued in the store (they resume at the next start; a job that
+  // finishes first is recorded), open Watch and Wait calls end with UNAVAILABLE, in-flight RPCs
+  // get up to 2 s, then the server stops. Idempotent.
+  void Shutdown();
+
+  // Blocks until Shutdown() has been called and completed.
+  void Wait();
+
+  // Job runs started by the worker pool (each a call of a job runner): a cache hit adds none.
+  int64_t engine_runs() const;
+
+  // The job store (for tests and metrics).
+  JobStore& store();
+
+ private:
+  struct Impl;
+  explicit Server(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace drillbif::server
+
+#endif  // DRILLBIF_SERVER_SERVER_H_

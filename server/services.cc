@@ -1,0 +1,702 @@
+#include "server/services.h"
+
+#include <google/protobuf/util/time_util.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <functional>
+#include <optional>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "server/job_kinds.h"
+
+namespace drillbif::server {
+namespace {
+
+using google::longrunning::Operation;
+using google::protobuf::util::TimeUtil;
+using Clock = std::chrono::steady_clock;
+
+constexpr std::string_view kOperationsPrefix = "operations/";
+// Longest a WaitOperation or a computing QueryOptimum waits (when the client set no shorter
+// deadline or timeout): an rpc must end some time, and the client can wait again.
+constexpr std::chrono::minutes kMaxWait{10};
+// A wait ends this much before the client's deadline, so that the client receives the current
+// operation rather than DEADLINE_EXCEEDED.
+constexpr std::chrono::milliseconds kDeadlineMargin{50};
+// Longest request_id.
+constexpr size_t kMaxRequestIdBytes = 128;
+
+grpc::Status Error(grpc::StatusCode code, std::string message) {
+  return grpc::Status(code, std::move(message));
+}
+
+// UNAUTHENTICATED unless the call carries "authorization: Bearer <token>" (or no token is
+// configured). The comparison takes the same time wherever the first difference is, so that the
+// token cannot be guessed byte by byte from response times.
+grpc::Status Authorize(const ServiceState& state, const grpc::CallbackServerContext* context) {
+  const std::string& token = state.options.token;
+  if (token.empty()) return grpc::Status::OK;
+  const auto& metadata = context->client_metadata();
+  auto it = metadata.find("authorization");
+  if (it == metadata.end()) {
+    return Error(grpc::StatusCode::UNAUTHENTICATED,
+                 "missing bearer token (metadata \"authorization: Bearer <token>\")");
+  }
+  const std::string expected = "Bearer " + token;
+  const std::string_view given(it->second.data(), it->second.size());
+  unsigned char diff = given.size() == expected.size() ? 0 : 1;
+  for (size_t i = 0; i < expected.size(); ++i) {
+    diff |= static_cast<unsigned char>(expected[i] ^ (i < given.size() ? given[i] : 0));
+  }
+  if (diff != 0) return Error(grpc::StatusCode::UNAUTHENTICATED, "wrong bearer token");
+  return grpc::Status::OK;
+}
+
+// The job id of an operation name; INVALID_ARGUMENT naming the field otherwise.
+StatusOr<std::string> IdOf(const std::string& name, const char* field = "name") {
+  if (name.size() != kOperationsPrefix.size() + 32 ||
+      name.compare(0, kOperationsPrefix.size(), kOperationsPrefix) != 0) {
+    return InvalidArgument(std::string(field) +
+                           ": not an operation name (\"operations/\" and 32 "
+                           "hex digits): '" +
+                           name.substr(0, 100) + "'");
+  }
+  std::string id = name.substr(kOperationsPrefix.size());
+  for (char c : id) {
+    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) {
+      return InvalidArgument(std::string(field) + ": not an operation name: '" + name + "'");
+    }
+  }
+  return id;
+}
+
+google::protobuf::Timestamp TimestampOfMs(int64_t ms) {
+  return TimeUtil::MillisecondsToTimestamp(ms);
+}
+
+v1::JobState StateOf(JobState state) {
+  switch (state) {
+    case JobState::kQueued:
+      return v1::QUEUED;
+    case JobState::kRunning:
+      return v1::RUNNING;
+    case JobState::kSucceeded:
+      return v1::SUCCEEDED;
+    case JobState::kFailed:
+      return v1::FAILED;
+    case JobState::kCancelled:
+      return v1::CANCELLED;
+  }
+  return v1::JOB_STATE_UNSPECIFIED;
+}
+
+// The Operation of a job. With include_response, a SUCCEEDED job's result bytes go into
+// `response` as they are stored (no parse: the Any carries the serialized message).
+StatusOr<Operation> OperationOf(JobStore& store, const JobRecord& record, bool include_response) {
+  Operation op;
+  op.set_name(OperationName(record.id));
+  op.mutable_metadata()->PackFrom(MetadataOf(record));
+  op.set_done(IsFinished(record.state));
+  if (record.state == JobState::kFailed) {
+    op.mutable_error()->set_code(static_cast<int>(record.error_code));
+    op.mutable_error()->set_message(record.error_message);
+  } else if (record.state == JobState::kCancelled) {
+    op.mutable_error()->set_code(static_cast<int>(StatusCode::kCancelled));
+    op.mutable_error()->set_message("the operation was cancelled");
+  } else if (record.state == JobState::kSucceeded && include_response) {
+    StatusOr<std::string> bytes = store.GetResult(record.id);
+    if (!bytes.ok()) return bytes.status();
+    google::protobuf::Any* any = op.mutable_response();
+    any->set_type_url("type.googleapis.com/" + ResultTypeName(KindOf(record.kind)));
+    any->set_value(std::move(bytes).value());
+  }
+  return op;
+}
+
+// The reactor's default reactor, finished with `status` at once.
+grpc::ServerUnaryReactor* FinishNow(grpc::CallbackServerContext* context, grpc::Status status) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  reactor->Finish(std::move(status));
+  return reactor;
+}
+
+// Checks the token, then runs `work` on the executor and finishes the call with its status.
+grpc::ServerUnaryReactor* Offload(ServiceState* state, grpc::CallbackServerContext* context,
+                                  std::function<grpc::Status()> work) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  if (grpc::Status auth = Authorize(*state, context); !auth.ok()) {
+    reactor->Finish(auth);
+    return reactor;
+  }
+  if (!state->executor->TrySubmit(
+          [reactor, work = std::move(work)]() { reactor->Finish(work()); })) {
+    reactor->Finish(Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          "the server is busy: its request queue is full; retry later"));
+  }
+  return reactor;
+}
+
+// Validates, keys and submits a request of `kind`; fills `op`. Runs on the executor.
+grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobuf::Message& request,
+                    const std::string& request_id, Operation* op, std::string* id_out = nullptr) {
+  if (state.shutting_down.load()) {
+    return Error(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+  }
+  if (request_id.size() > kMaxRequestIdBytes) {
+    return Error(grpc::StatusCode::INVALID_ARGUMENT,
+                 "request_id: at most 128 bytes, got " + std::to_string(request_id.size()));
+  }
+  if (Status s = ValidateAtSubmit(kind, request); !s.ok()) return ToGrpc(s);
+  SubmitRequest submit;
+  submit.kind = KindName(kind);
+  submit.request = DeterministicBytes(request);
+  submit.cache_key = CacheKey(kind, submit.request);
+  submit.request_id = request_id;
+  StatusOr<StoreStats> stats = state.store->Stats();
+  if (!stats.ok()) return ToGrpc(stats.status());
+  if (stats->queue_depth >= state.options.max_queued_jobs) {
+    return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, "the job queue is full (" +
+                                                           std::to_string(stats->queue_depth) +
+                                                           " jobs waiting); retry later");
+  }
+  StatusOr<SubmitResult> submitted = state.store->Submit(submit);
+  if (!submitted.ok()) return ToGrpc(submitted.status());
+  if (!submitted->cache_hit && !submitted->deduplicated && submitted->shared_with.empty()) {
+    state.pool->Wake();
+  }
+  state.hub->Notify();
+  StatusOr<JobRecord> record = state.store->Get(submitted->id);
+  if (!record.ok()) return ToGrpc(record.status());
+  StatusOr<Operation> operation = OperationOf(*state.store, *record, /*include_response=*/true);
+  if (!operation.ok()) return ToGrpc(operation.status());
+  *op = std::move(operation).value();
+  if (id_out != nullptr) *id_out = submitted->id;
+  spdlog::debug("submit {} -> job {}{}{}", submit.kind, submitted->id,
+                submitted->cache_hit ? " (cache hit)" : "",
+                submitted->deduplicated ? " (repeated request_id)" : "");
+  return grpc::Status::OK;
+}
+
+// A JobWatcher that calls `done` once, when the job is finished, unreadable, or the deadline
+// passed (`timed_out`), or with UNAVAILABLE at shutdown.
+class WaitWatcher : public JobWatcher {
+ public:
+  using Done = std::function<void(const StatusOr<JobRecord>& record, bool timed_out)>;
+  WaitWatcher(Clock::time_point deadline, Done done)
+      : deadline_(deadline), done_(std::move(done)) {}
+
+  bool OnRecord(const StatusOr<JobRecord>& record, Clock::time_point now) override {
+    const bool finished = !record.ok() || IsFinished(record->state);
+    if (!finished && now < deadline_) return false;
+    done_(record, !finished);
+    return true;
+  }
+  void OnShutdown() override {
+    done_(Status(StatusCode::kUnavailable, "the server is shutting down"), false);
+  }
+
+ private:
+  const Clock::time_point deadline_;
+  const Done done_;
+};
+
+// When a wait started now must end: the earliest of the timeout (if > 0), the client's deadline
+// (less a margin) and kMaxWait.
+Clock::time_point WaitDeadline(const grpc::CallbackServerContext* context,
+                               const google::protobuf::Duration* timeout) {
+  const Clock::time_point now = Clock::now();
+  Clock::time_point deadline = now + kMaxWait;
+  if (timeout != nullptr && (timeout->seconds() > 0 || timeout->nanos() > 0)) {
+    const auto ms = std::chrono::milliseconds(TimeUtil::DurationToMilliseconds(*timeout));
+    deadline = std::min(deadline, now + ms);
+  }
+  const auto client = context->deadline();
+  if (client != std::chrono::system_clock::time_point::max()) {
+    const auto left = client - std::chrono::system_clock::now();
+    deadline = std::min(deadline,
+                        now + std::chrono::duration_cast<Clock::duration>(left) - kDeadlineMargin);
+  }
+  return deadline;
+}
+
+// Streams a job's metadata (Watch). The hub delivers records; the reactor writes the newest one
+// not yet written, one write at a time, and finishes after writing a final state.
+class WatchReactor : public grpc::ServerWriteReactor<v1::JobMetadata> {
+ public:
+  // The hub's side: shared so that it survives the reactor (which gRPC deletes in OnDone).
+  class Sink : public JobWatcher {
+   public:
+    explicit Sink(WatchReactor* reactor) : reactor_(reactor) {}
+
+    bool OnRecord(const StatusOr<JobRecord>& record, Clock::time_point) override {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (reactor_ == nullptr || finishing_) return true;
+      if (!record.ok()) {
+        FinishLocked(ToGrpc(record.status()));
+        return true;
+      }
+      v1::JobMetadata metadata = MetadataOf(*record);
+      const bool final = IsFinished(record->state);
+      std::string bytes = metadata.SerializeAsString();
+      if (bytes != last_bytes_) {
+        last_bytes_ = std::move(bytes);
+        pending_ = std::move(metadata);
+        pending_final_ = final;
+        if (!writing_) WriteLocked();
+      }
+      return final;
+    }
+
+    void OnShutdown() override {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (reactor_ != nullptr && !finishing_) {
+        FinishLocked(Error(grpc::StatusCode::UNAVAILABLE, "the server is shutting down"));
+      }
+    }
+
+    void WriteDone(bool ok) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      writing_ = false;
+      if (reactor_ == nullptr) return;
+      if (!ok) {
+        // The stream broke (client gone): end the call.
+        FinishLocked(Error(grpc::StatusCode::CANCELLED, "the stream was cancelled"));
+        return;
+      }
+      if (finish_wanted_) {
+        reactor_->Finish(*finish_wanted_);
+        finish_wanted_.reset();
+        return;
+      }
+      if (pending_) WriteLocked();
+    }
+
+    void Cancelled() {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (reactor_ != nullptr && !finishing_) {
+        FinishLocked(Error(grpc::StatusCode::CANCELLED, "the call was cancelled"));
+      }
+    }
+
+    void Detach() {
+      std::lock_guard<std::mutex> lock(mutex_);
+      reactor_ = nullptr;
+    }
+
+   private:
+    void WriteLocked() {
+      current_ = std::move(*pending_);
+      pending_.reset();
+      writing_ = true;
+      if (pending_final_) {
+        finishing_ = true;
+        reactor_->StartWriteAndFinish(&current_, grpc::WriteOptions(), grpc::Status::OK);
+      } else {
+        reactor_->StartWrite(&current_);
+      }
+    }
+
+    // Finishes once; after a write in flight completes if there is one (gRPC allows one
+    // operation of each kind at a time, and a finish must not overtake its last write).
+    void FinishLocked(grpc::Status status) {
+      finishing_ = true;
+      if (writing_) {
+        finish_wanted_ = std::move(status);
+      } else {
+        reactor_->Finish(std::move(status));
+      }
+    }
+
+    std::mutex mutex_;
+    WatchReactor* reactor_;
+    bool writing_ = false;
+    bool finishing_ = false;
+    bool pending_final_ = false;
+    std::optional<grpc::Status> finish_wanted_;
+    std::optional<v1::JobMetadata> pending_;
+    v1::JobMetadata current_;
+    std::string last_bytes_;
+  };
+
+  WatchReactor() : sink_(std::make_shared<Sink>(this)) {}
+
+  std::shared_ptr<Sink> sink() { return sink_; }
+
+  void OnWriteDone(bool ok) override { sink_->WriteDone(ok); }
+  void OnCancel() override { sink_->Cancelled(); }
+  void OnDone() override {
+    sink_->Detach();
+    delete this;
+  }
+
+ private:
+  std::shared_ptr<Sink> sink_;
+};
+
+// The filter of ListOperations: "" or terms "state=NAME" / "kind=name" joined by " AND ".
+Status ParseFilter(const std::string& filter, ListRequest* list) {
+  std::string_view rest(filter);
+  while (!rest.empty()) {
+    const size_t and_at = rest.find(" AND ");
+    std::string_view term = rest.substr(0, and_at);
+    rest = and_at == std::string_view::npos ? std::string_view() : rest.substr(and_at + 5);
+    while (!term.empty() && term.front() == ' ') term.remove_prefix(1);
+    while (!term.empty() && term.back() == ' ') term.remove_suffix(1);
+    const size_t eq = term.find('=');
+    const std::string key(term.substr(0, eq));
+    const std::string value(eq == std::string_view::npos ? "" : term.substr(eq + 1));
+    if (key == "state") {
+      v1::JobState state;
+      if (!v1::JobState_Parse(value, &state) || state == v1::JOB_STATE_UNSPECIFIED) {
+        return InvalidArgument("filter: unknown state '" + value + "'");
+      }
+      list->state = static_cast<JobState>(static_cast<int>(state) - 1);
+    } else if (key == "kind") {
+      if (KindOf(value) == v1::JOB_KIND_UNSPECIFIED) {
+        return InvalidArgument("filter: unknown kind '" + value + "'");
+      }
+      list->kind = value;
+    } else {
+      return InvalidArgument(
+          "filter: expected terms state=STATE or kind=KIND joined by \" AND \", "
+          "got '" +
+          std::string(term) + "'");
+    }
+  }
+  return Status::Ok();
+}
+
+// Fills a QueryOptimum response from the stored result of job `id`.
+grpc::Status AnswerFromStore(ServiceState& state, const std::string& key, const std::string& id,
+                             bool stored, v1::QueryOptimumResponse* response) {
+  StatusOr<std::string> bytes = state.store->GetResult(id);
+  if (!bytes.ok()) return ToGrpc(bytes.status());
+  auto result = std::make_shared<v1::OptimumResult>();
+  if (!result->ParseFromString(*bytes)) {
+    return Error(grpc::StatusCode::INTERNAL, "the stored optimum result does not parse");
+  }
+  state.optimum_index.Add(key, id);
+  state.optimum_index.SetResult(key, result);
+  *response->mutable_optimum() = *result;
+  response->set_operation(OperationName(id));
+  response->set_stored(stored);
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+grpc::Status ToGrpc(const Status& status) {
+  if (status.ok()) return grpc::Status::OK;
+  return grpc::Status(static_cast<grpc::StatusCode>(static_cast<int>(status.code())),
+                      status.message());
+}
+
+std::string OperationName(const std::string& id) { return std::string(kOperationsPrefix) + id; }
+
+v1::JobMetadata MetadataOf(const JobRecord& record) {
+  v1::JobMetadata m;
+  m.set_name(OperationName(record.id));
+  m.set_kind(KindOf(record.kind));
+  m.set_state(StateOf(record.state));
+  m.set_progress(record.progress);
+  if (record.current_value) m.set_current_value(*record.current_value);
+  m.set_points(record.points);
+  if (record.created_ms > 0) *m.mutable_create_time() = TimestampOfMs(record.created_ms);
+  if (record.started_ms > 0) *m.mutable_start_time() = TimestampOfMs(record.started_ms);
+  if (record.finished_ms > 0) *m.mutable_end_time() = TimestampOfMs(record.finished_ms);
+  m.set_cache_hit(record.cache_hit);
+  if (!record.shared_with.empty()) m.set_shared_with(OperationName(record.shared_with));
+  m.set_attempts(record.attempts);
+  m.set_request_id(record.request_id);
+  return m;
+}
+
+void OptimumIndex::Add(const std::string& key, const std::string& id) {
+  if (key.empty()) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  entries_.try_emplace(key, Entry{id, nullptr});
+}
+
+void OptimumIndex::RemoveJob(const std::string& id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::erase_if(entries_, [&id](const auto& entry) { return entry.second.id == id; });
+}
+
+bool OptimumIndex::Find(const std::string& key, std::string* id,
+                        std::shared_ptr<const v1::OptimumResult>* result) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = entries_.find(key);
+  if (it == entries_.end()) return false;
+  *id = it->second.id;
+  *result = it->second.result;
+  return true;
+}
+
+void OptimumIndex::SetResult(const std::string& key,
+                             std::shared_ptr<const v1::OptimumResult> result) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = entries_.find(key);
+  if (it != entries_.end()) it->second.result = std::move(result);
+}
+
+Status OptimumIndex::Load(JobStore& store) {
+  ListRequest list;
+  list.state = JobState::kSucceeded;
+  list.kind = KindName(v1::OPTIMUM);
+  list.page_size = 1000;
+  do {
+    StatusOr<ListResult> page = store.List(list);
+    if (!page.ok()) return page.status();
+    for (const JobRecord& job : page->jobs) Add(job.cache_key, job.id);
+    list.page_token = page->next_page_token;
+  } while (!list.page_token.empty());
+  return Status::Ok();
+}
+
+// --- Jobs --------------------------------------------------------------------------------------
+
+grpc::ServerUnaryReactor* JobsService::SubmitSimulate(grpc::CallbackServerContext* context,
+                                                      const v1::SubmitSimulateRequest* request,
+                                                      Operation* response) {
+  return Offload(state_, context, [this, request, response] {
+    return Submit(*state_, v1::SIMULATE, request->request(), request->request_id(), response);
+  });
+}
+
+grpc::ServerUnaryReactor* JobsService::SubmitSweep(grpc::CallbackServerContext* context,
+                                                   const v1::SubmitSweepRequest* request,
+                                                   Operation* response) {
+  return Offload(state_, context, [this, request, response] {
+    return Submit(*state_, v1::SWEEP, request->request(), request->request_id(), response);
+  });
+}
+
+grpc::ServerUnaryReactor* JobsService::SubmitContinue(grpc::CallbackServerContext* context,
+                                                      const v1::SubmitContinueRequest* request,
+                                                      Operation* response) {
+  return Offload(state_, context, [this, request, response] {
+    return Submit(*state_, v1::CONTINUE, request->request(), request->request_id(), response);
+  });
+}
+
+grpc::ServerUnaryReactor* JobsService::SubmitTrace(grpc::CallbackServerContext* context,
+                                                   const v1::SubmitTraceRequest* request,
+                                                   Operation* response) {
+  return Offload(state_, context, [this, request, response] {
+    return Submit(*state_, v1::TRACE, request->request(), request->request_id(), response);
+  });
+}
+
+grpc::ServerUnaryReactor* JobsService::SubmitOptimum(grpc::CallbackServerContext* context,
+                                                     const v1::SubmitOptimumRequest* request,
+                                                     Operation* response) {
+  return Offload(state_, context, [this, request, response] {
+    return Submit(*state_, v1::OPTIMUM, request->request(), request->request_id(), response);
+  });
+}
+
+grpc::ServerUnaryReactor* JobsService::GetResult(grpc::CallbackServerContext* context,
+                                                 const v1::GetResultRequest* request,
+                                                 v1::GetResultResponse* response) {
+  return Offload(state_, context, [this, request, response] {
+    StatusOr<std::string> id = IdOf(request->name());
+    if (!id.ok()) return ToGrpc(id.status());
+    StatusOr<JobRecord> record = state_->store->Get(*id);
+    if (!record.ok()) return ToGrpc(record.status());
+    if (record->state != JobState::kSucceeded) {
+      return Error(grpc::StatusCode::FAILED_PRECONDITION,
+                   "operation " + request->name() + " is " + JobStateName(record->state) +
+                       ", not SUCCEEDED: it has no result (GetOperation shows its error)");
+    }
+    StatusOr<std::string> bytes = state_->store->GetResult(*id);
+    if (!bytes.ok()) return ToGrpc(bytes.status());
+    response->set_name(request->name());
+    return ToGrpc(PageResult(KindOf(record->kind), *bytes, request->page_size(),
+                             request->page_token(), response));
+  });
+}
+
+grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext* context,
+                                                    const v1::QueryOptimumRequest* request,
+                                                    v1::QueryOptimumResponse* response) {
+  if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
+    return FinishNow(context, auth);
+  }
+  if (Status s = ValidateAtSubmit(v1::OPTIMUM, request->request()); !s.ok()) {
+    return FinishNow(context, ToGrpc(s));
+  }
+  const std::string key = CacheKey(v1::OPTIMUM, DeterministicBytes(request->request()));
+  std::string id;
+  std::shared_ptr<const v1::OptimumResult> cached;
+  const bool known = state_->optimum_index.Find(key, &id, &cached);
+  if (known && cached != nullptr) {
+    // The hot path: an answer already in memory, no store and no engine.
+    *response->mutable_optimum() = *cached;
+    response->set_operation(OperationName(id));
+    response->set_stored(true);
+    return FinishNow(context, grpc::Status::OK);
+  }
+  if (!known && !request->compute()) {
+    return FinishNow(context, Error(grpc::StatusCode::NOT_FOUND,
+                                    "no stored optimum for this request; set compute to run it"));
+  }
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const Clock::time_point deadline = WaitDeadline(context, &request->timeout());
+  ServiceState* state = state_;
+  const bool submitted = state_->executor->TrySubmit([=] {
+    if (known) {
+      grpc::Status s = AnswerFromStore(*state, key, id, /*stored=*/true, response);
+      if (s.ok() || !request->compute()) {
+        reactor->Finish(s);
+        return;
+      }
+      state->optimum_index.RemoveJob(id);  // Deleted meanwhile: compute it again.
+    }
+    Operation op;
+    std::string job_id;
+    if (grpc::Status s = Submit(*state, v1::OPTIMUM, request->request(), "", &op, &job_id);
+        !s.ok()) {
+      reactor->Finish(s);
+      return;
+    }
+    response->set_operation(op.name());
+    auto done = [state, reactor, response, key, job_id](const StatusOr<JobRecord>& record,
+                                                        bool timed_out) {
+      if (!record.ok()) return reactor->Finish(ToGrpc(record.status()));
+      if (timed_out) return reactor->Finish(grpc::Status::OK);  // `operation` names the job.
+      switch (record->state) {
+        case JobState::kSucceeded:
+          return reactor->Finish(AnswerFromStore(*state, key, job_id, record->cache_hit, response));
+        case JobState::kFailed:
+          return reactor->Finish(ToGrpc(Status(record->error_code, record->error_message)));
+        default:
+          return reactor->Finish(Error(grpc::StatusCode::ABORTED, "the optimum job was cancelled"));
+      }
+    };
+    state->hub->Add(job_id, std::make_shared<WaitWatcher>(deadline, std::move(done)));
+  });
+  if (!submitted) {
+    reactor->Finish(Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          "the server is busy: its request queue is full; retry later"));
+  }
+  return reactor;
+}
+
+grpc::ServerWriteReactor<v1::JobMetadata>* JobsService::Watch(grpc::CallbackServerContext* context,
+                                                              const v1::WatchRequest* request) {
+  auto* reactor = new WatchReactor();
+  if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
+    reactor->Finish(auth);
+    return reactor;
+  }
+  StatusOr<std::string> id = IdOf(request->name());
+  if (!id.ok()) {
+    reactor->Finish(ToGrpc(id.status()));
+    return reactor;
+  }
+  // The first record (and NOT_FOUND for an unknown job) comes from the hub at once.
+  state_->hub->Add(*id, reactor->sink());
+  return reactor;
+}
+
+// --- Operations --------------------------------------------------------------------------------
+
+grpc::ServerUnaryReactor* OperationsService::ListOperations(
+    grpc::CallbackServerContext* context, const google::longrunning::ListOperationsRequest* request,
+    google::longrunning::ListOperationsResponse* response) {
+  return Offload(state_, context, [this, request, response] {
+    if (!request->name().empty() && request->name() != "operations") {
+      return Error(grpc::StatusCode::INVALID_ARGUMENT,
+                   "name: the parent is \"operations\" (or empty), got '" + request->name() + "'");
+    }
+    ListRequest list;
+    if (Status s = ParseFilter(request->filter(), &list); !s.ok()) return ToGrpc(s);
+    list.page_size = request->page_size();
+    list.page_token = request->page_token();
+    StatusOr<ListResult> page = state_->store->List(list);
+    if (!page.ok()) return ToGrpc(page.status());
+    for (const JobRecord& job : page->jobs) {
+      // Results are left out of lists (they can be large): GetOperation or GetResult has them.
+      StatusOr<Operation> op = OperationOf(*state_->store, job, /*include_response=*/false);
+      if (!op.ok()) return ToGrpc(op.status());
+      *response->add_operations() = std::move(op).value();
+    }
+    response->set_next_page_token(page->next_page_token);
+    return grpc::Status::OK;
+  });
+}
+
+grpc::ServerUnaryReactor* OperationsService::GetOperation(
+    grpc::CallbackServerContext* context, const google::longrunning::GetOperationRequest* request,
+    Operation* response) {
+  return Offload(state_, context, [this, request, response] {
+    StatusOr<std::string> id = IdOf(request->name());
+    if (!id.ok()) return ToGrpc(id.status());
+    StatusOr<JobRecord> record = state_->store->Get(*id);
+    if (!record.ok()) return ToGrpc(record.status());
+    StatusOr<Operation> op = OperationOf(*state_->store, *record, /*include_response=*/true);
+    if (!op.ok()) return ToGrpc(op.status());
+    *response = std::move(op).value();
+    return grpc::Status::OK;
+  });
+}
+
+grpc::ServerUnaryReactor* OperationsService::DeleteOperation(
+    grpc::CallbackServerContext* context,
+    const google::longrunning::DeleteOperationRequest* request, google::protobuf::Empty*) {
+  return Offload(state_, context, [this, request] {
+    StatusOr<std::string> id = IdOf(request->name());
+    if (!id.ok()) return ToGrpc(id.status());
+    if (Status s = state_->store->Delete(*id); !s.ok()) return ToGrpc(s);
+    state_->optimum_index.RemoveJob(*id);
+    state_->hub->Notify();
+    return grpc::Status::OK;
+  });
+}
+
+grpc::ServerUnaryReactor* OperationsService::CancelOperation(
+    grpc::CallbackServerContext* context,
+    const google::longrunning::CancelOperationRequest* request, google::protobuf::Empty*) {
+  return Offload(state_, context, [this, request] {
+    StatusOr<std::string> id = IdOf(request->name());
+    if (!id.ok()) return ToGrpc(id.status());
+    StatusOr<JobState> after = state_->store->Cancel(*id);
+    if (!after.ok()) return ToGrpc(after.status());
+    // A running job stops at its engine's next progress callback.
+    if (*after == JobState::kRunning) state_->pool->Cancel(*id);
+    state_->hub->Notify();
+    return grpc::Status::OK;
+  });
+}
+
+grpc::ServerUnaryReactor* OperationsService::WaitOperation(
+    grpc::CallbackServerContext* context, const google::longrunning::WaitOperationRequest* request,
+    Operation* response) {
+  if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
+    return FinishNow(context, auth);
+  }
+  StatusOr<std::string> id = IdOf(request->name());
+  if (!id.ok()) return FinishNow(context, ToGrpc(id.status()));
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  ServiceState* state = state_;
+  auto done = [state, reactor, response](const StatusOr<JobRecord>& record, bool) {
+    if (!record.ok()) return reactor->Finish(ToGrpc(record.status()));
+    StatusOr<Operation> op = OperationOf(*state->store, *record, /*include_response=*/true);
+    if (!op.ok()) return reactor->Finish(ToGrpc(op.status()));
+    *response = std::move(op).value();
+    reactor->Finish(grpc::Status::OK);
+  };
+  state_->hub->Add(
+      *id, std::make_shared<WaitWatcher>(
+               WaitDeadline(context, request->has_timeout() ? &request->timeout() : nullptr),
+               std::move(done)));
+  return reactor;
+}
+
+}  // namespace drillbif::server
