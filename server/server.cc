@@ -145,17 +145,24 @@ void Server::Shutdown() {
     impl_->shutdown_started = true;
   }
   spdlog::info("drillbif-server: shutting down");
+  const auto started = std::chrono::steady_clock::now();
+  const auto elapsed_ms = [&started] {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started)
+        .count();
+  };
   impl_->state.shutting_down = true;
   impl_->grpc_server->GetHealthCheckService()->SetServingStatus(false);
   // Running jobs stop at their next progress callback and go back to the queue.
   impl_->pool->Shutdown();
+  spdlog::info("drillbif-server: workers stopped after {:.0f} ms", elapsed_ms());
   // Open Watch and Wait calls end with UNAVAILABLE.
   impl_->hub->Stop();
   // In-flight unary calls finish on the executor (still running); then gRPC cancels the rest.
   impl_->grpc_server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  spdlog::info("drillbif-server: gRPC stopped after {:.0f} ms", elapsed_ms());
   impl_->executor->Stop();
   impl_->grpc_server->Wait();
-  spdlog::info("drillbif-server: stopped");
+  spdlog::info("drillbif-server: stopped after {:.0f} ms", elapsed_ms());
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     impl_->shutdown_done = true;
