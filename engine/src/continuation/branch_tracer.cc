@@ -32,6 +32,8 @@ Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_star
   y_.resize(m() + 1);
   y_.head(m()) = bvp_->Pack(start);
   y_[m()] = start.params[param_];
+  start_y_ = y_;
+  start_signature_ = start.signature;
   Vec prev = Vec::Zero(m() + 1);
   prev[m()] = sign > 0 ? 1.0 : -1.0;
   double det = 0.0;
@@ -504,6 +506,17 @@ bool BranchTracer::Step(ContinuationResult* result) {
     }
     const TestValues tests1 = Tests(y1, t1, det, p1);
     if (options_.locate) DetectSpecialPoints(h, tests1, result);
+    // Back within one step of the start, in its signature, after going round: a closed branch
+    // (an isola, or a period-2n branch that joins two period doublings of its parent). Going on
+    // would retrace it until max_steps.
+    constexpr int kMinLoopSteps = 10;
+    if (steps_ > kMinLoopSteps && y1.size() == start_y_.size() &&
+        p1.orbit.signature == start_signature_ && (y1 - start_y_).norm() < h) {
+      result->points.push_back(std::move(p1));
+      closed_ = true;
+      Finish(Termination::kCompleted, "returned to its start (a closed branch)");
+      return false;
+    }
     y_ = y1;
     t_ = t1;
     point_ = std::move(p1);

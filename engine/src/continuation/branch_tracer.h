@@ -41,6 +41,9 @@ class BranchTracer {
   Termination termination() const { return termination_; }
   const std::string& message() const { return message_; }
   int steps() const { return steps_; }
+  // The branch came back to its start (a closed branch): the other direction would only run
+  // round it again.
+  bool closed() const { return closed_; }
   int rejected() const { return rejected_; }
   int newton_iterations() const { return newton_; }
 
@@ -91,6 +94,9 @@ class BranchTracer {
   Params base_;
   std::unique_ptr<OrbitBvp> bvp_;
   Vec y_, t_;                                // current point (X, lambda) and unit tangent
+  Vec start_y_;                              // the start point, to notice a closed branch
+  Signature start_signature_;
+  bool closed_ = false;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;  // the last corrector iteration's bordered matrix
   double h_ = 0.0;                           // next step length
   ContinuationPoint point_;

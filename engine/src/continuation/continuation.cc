@@ -110,6 +110,7 @@ ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
     } else {
       backward = std::move(part.points);
     }
+    if (tracer.closed()) break;  // the other direction would retrace the same loop
   }
   // Branch order: the decreasing part reversed, then the start and the increasing part.
   std::reverse(backward.begin(), backward.end());
