@@ -95,26 +95,56 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     return !sum.cancelled;
   };
   std::vector<std::pair<int, SpecialPoint>> starts;  // (axis, located point)
-  for (int axis = 0; axis < 2; ++axis) {
+  // The branch through `orbit` in the axis' parameter over the box; its traceable points are
+  // appended to `starts`. False when cancelled.
+  auto branch_starts = [&](const PeriodicOrbit& orbit, int axis, double from, double to) {
     const Axis& a = axes[axis];
     ContinuationOptions branch = options.branch;
     branch.param = *a.name;
     branch.min = a.min;
     branch.max = a.max;
-    const ContinuationResult r =
-        Continue(model, propagator, start, branch,
-                 [&](const ContinuationPoint&, double f) { return report(0.05 * (axis + f)); });
-    if (sum.cancelled) return result;
+    const ContinuationResult r = Continue(
+        model, propagator, orbit, branch,
+        [&](const ContinuationPoint&, double f) { return report(from + (to - from) * f); });
+    if (sum.cancelled) return false;
     sum.branch_points += static_cast<int>(r.points.size());
     if (r.summary.termination == Termination::kFailed) {
-      sum.notes.push_back("the " + *a.name + "-branch failed: " + r.summary.message);
+      sum.notes.push_back("the " + std::string(orbit.signature.periods == 1 ? "" : "period-2 ") +
+                          *a.name + "-branch failed: " + r.summary.message);
     }
     for (const SpecialPoint& s : r.special_points) {
       if (Traceable(s.kind)) starts.emplace_back(axis, s);
     }
+    return true;
+  };
+  for (int axis = 0; axis < 2; ++axis) {
+    if (!branch_starts(start, axis, 0.05 * axis, 0.05 * (axis + 1))) return result;
   }
+  if (options.period2) {
+    // The period-2 branches born at the period-1 branches' period doublings.
+    const std::vector<std::pair<int, SpecialPoint>> period1 = starts;
+    for (size_t k = 0; k < period1.size(); ++k) {
+      const auto& [axis, s] = period1[k];
+      if (s.kind != SpecialPointKind::kPeriodDoubling || s.point.orbit.signature.periods != 1) {
+        continue;
+      }
+      const StatusOr<PeriodicOrbit> doubled =
+          SwitchAtPeriodDoubling(model, propagator, s, *axes[axis].name);
+      if (!doubled.ok()) {
+        sum.notes.push_back(std::string("PERIOD_DOUBLING at ") + options.param1 + " = " +
+                            std::to_string(s.point.orbit.params[*i1]) + ", " + options.param2 +
+                            " = " + std::to_string(s.point.orbit.params[*i2]) +
+                            ": no period-2 branch: " + doubled.status().message());
+        continue;
+      }
+      const double from = 0.1 + 0.1 * k / period1.size(), to = 0.1 + 0.1 * (k + 1) / period1.size();
+      if (!branch_starts(*doubled, axis, from, to)) return result;
+    }
+  }
+  const double curves_from = options.period2 ? 0.2 : 0.1;
   for (size_t k = 0; k < starts.size(); ++k) {
-    if (!report(0.1 + 0.9 * static_cast<double>(k) / static_cast<double>(starts.size()))) {
+    if (!report(curves_from + (1.0 - curves_from) * static_cast<double>(k) /
+                                  static_cast<double>(starts.size()))) {
       return result;
     }
     const auto& [axis, s] = starts[k];
@@ -123,9 +153,12 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     const auto on_traced =
         std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
           return c.start.kind == s.kind &&
+                 c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
                  DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
         });
-    const std::string where = std::string(SpecialPointKindName(s.kind)) + " at " + options.param1 +
+    const int periods = s.point.orbit.signature.periods;
+    const std::string where = (periods == 1 ? "" : "period-" + std::to_string(periods) + " ") +
+                              std::string(SpecialPointKindName(s.kind)) + " at " + options.param1 +
                               " = " + std::to_string(u) + ", " + options.param2 + " = " +
                               std::to_string(v);
     if (on_traced != result.curves.end()) {

@@ -235,6 +235,7 @@ std::vector<RegionCurve> RegionCurvesOf(const std::vector<TracedCurve>& curves) 
   std::vector<RegionCurve> out;
   for (const TracedCurve& c : curves) {
     RegionCurve& rc = out.emplace_back();
+    if (c.start.point.orbit.signature.periods != 1) continue;
     for (const CurvePoint& p : c.curve.points) {
       rc.values1.push_back(p.value1);
       rc.values2.push_back(p.value2);

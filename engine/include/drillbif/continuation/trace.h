@@ -5,8 +5,10 @@
 // traced from another start of the same kind (within `duplicate_distance` of its polyline in the
 // box's scaled coordinates) is not traced again; the skipped starts are named in the notes.
 //
-// Not yet: curves leaving the codimension-2 points (switching), curves of period-n orbits born at
-// the period doublings, NS curves.
+// With `period2`, the same for the period-2 branches born at the period-1 branches' period
+// doublings.
+//
+// Not yet: curves leaving the codimension-2 points (switching), NS curves, period-4 and beyond.
 #ifndef DRILLBIF_CONTINUATION_TRACE_H_
 #define DRILLBIF_CONTINUATION_TRACE_H_
 
@@ -28,6 +30,11 @@ struct TraceOptions {
   // times the curvature) can exceed it; the curve would then be traced twice (not seen in
   // issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at most).
   double duplicate_distance = 1e-5;
+  // Also the period-2 curves: at every period doubling of the period-1 branches the period-2
+  // branch born there (SwitchAtPeriodDoubling) is continued over the box in the same parameter,
+  // and the curves of its folds, period doublings and grazings are traced. Off by default: it is
+  // asked for, not implied (it roughly doubles the work).
+  bool period2 = false;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
   // param1 / param2 of these options, whichever order a curve is traced in.
