@@ -129,6 +129,7 @@ struct TraceFlags {
   std::vector<double> min, max;
   bool region = false;
   std::vector<int> grid;  // empty: the job's default
+  bool period2 = false;
 };
 
 struct OptimumFlags {
@@ -357,6 +358,7 @@ v1::TraceRequest ToTraceRequest(const ModelFlags& m, const TraceFlags& f) {
 
 int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& f) {
   v1::TraceRequest request = ToTraceRequest(m, f);
+  request.set_period2(f.period2);
   if (f.region || !f.grid.empty()) {
     v1::RegionRequest* region = request.mutable_region();
     for (int n : f.grid) region->add_grid(n);
@@ -547,6 +549,10 @@ int Main(int argc, char** argv) {
                  "Also compute the stability region of period-1 motion around the start orbit "
                  "(grid with ROP, polygons bounded by the curves)")
       ->group("Region");
+  trace
+      ->add_flag("--period2", tr.period2,
+                 "Also trace the curves of the period-2 branches born at the period doublings")
+      ->group("Trace");
   AddGridFlag(trace, &tr.grid,
               "Region grid nodes per parameter, e.g. 201,201 (implies --region; default 201,201)",
               "Region");

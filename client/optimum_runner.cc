@@ -36,6 +36,11 @@ StatusOr<OptimumOptions> ToOptimumOptions(const v1::OptimumRequest& request) {
   if (request.trace().has_region()) {
     return InvalidArgument("trace.region: the optimum computes its own region; set grid instead");
   }
+  if (request.trace().period2()) {
+    return InvalidArgument(
+        "trace.period2: the optimum is over period-1 motion; its boundaries "
+        "are the period-1 curves");
+  }
   return o;
 }
 

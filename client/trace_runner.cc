@@ -61,6 +61,7 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     (k == 0 ? opt.min1 : opt.min2) = lo;
     (k == 0 ? opt.max1 : opt.max2) = hi;
   }
+  opt.period2 = request.period2();
   return opt;
 }
 

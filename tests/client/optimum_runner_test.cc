@@ -63,6 +63,9 @@ TEST(RunOptimum, InvalidRequestsNameTheField) {
   v1::OptimumRequest region = Request();
   region.mutable_trace()->mutable_region();
   ExpectInvalid(region, "trace.region");
+  v1::OptimumRequest period2 = Request();
+  period2.mutable_trace()->set_period2(true);
+  ExpectInvalid(period2, "trace.period2");
   v1::OptimumRequest unknown = Request();
   unknown.mutable_trace()->set_trace_params(1, "zeta");
   ExpectInvalid(unknown, "trace.trace_params");
