@@ -158,11 +158,18 @@ TEST(Curve, OtherStartsAreClearErrors) {
   opt.min1 = 0.0, opt.max1 = 1.0, opt.min2 = 0.0, opt.max2 = 1.0;
   EXPECT_EQ(ContinueCurve(model, prop, rop_max, opt).summary.status.code(),
             StatusCode::kInvalidArgument);
-  SpecialPoint graze;  // a grazing whose orbit has no vanishing segment
+  SpecialPoint graze;  // a malformed orbit (no start states, no parameters)
   graze.kind = SpecialPointKind::kGrazingPi;
   graze.point.orbit.signature.segments = {{0, 0}, {1, 1}, {0, -1}};
   graze.point.orbit.durations = {1.0, 1.0, 1.0};
   EXPECT_EQ(ContinueCurve(model, prop, graze, opt).summary.status.code(),
+            StatusCode::kUnimplemented);
+  // The reference orbit called a grazing: no segment vanishes and no guard touches zero inside a
+  // segment (each only reaches it at the segment's end), so there is no tangent form.
+  SpecialPoint not_grazing;
+  not_grazing.kind = SpecialPointKind::kGrazingPi;
+  not_grazing.point.orbit = *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  EXPECT_EQ(ContinueCurve(model, prop, not_grazing, opt).summary.status.code(),
             StatusCode::kUnimplemented);
   CurveOptions same = opt;
   same.param2 = "b";
@@ -240,6 +247,66 @@ TEST(Curve, GrazingCurvesCrossXiOneHalfWhereTheBranchesThereLocate) {
     ++crossings;
   }
   EXPECT_EQ(crossings, 2);
+}
+
+// A grazing seen from the side without the event: on the a-branch at omega = 0.1 the free flight
+// touches Pi at a = 0.29848 with no segment vanishing (it is the impacting orbit beyond). The curve
+// is traced from the flight split at its touching point: at every point the tangent end has
+// h = h' = 0 (to the corrector's accuracy) and h'' > 0 (the flight turns back from Pi, a touch,
+// not a crossing), and the curve crosses a = 0.3 where the omega-branch locates its Pi grazing.
+TEST(Curve, PiGrazingCurveFromTheNonImpactingSide) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> reference =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(reference.ok());
+  ContinuationOptions a_branch;
+  a_branch.param = "a";
+  a_branch.min = 0.25, a_branch.max = 0.35;
+  const ContinuationResult ra = Continue(model, prop, *reference, a_branch);
+  const SpecialPoint* start = nullptr;
+  for (const SpecialPoint& s : ra.special_points) {
+    if (s.kind == SpecialPointKind::kGrazingPi && std::abs(s.point.value - 0.29848) < 1e-4) {
+      start = &s;
+    }
+  }
+  ASSERT_NE(start, nullptr);
+  for (double d : start->point.orbit.durations) EXPECT_GT(std::abs(d), 1e-3);  // none vanishes
+  CurveOptions opt;
+  opt.param1 = "a";
+  opt.param2 = "omega";
+  opt.min1 = 0.25, opt.max1 = 0.35;
+  opt.min2 = 0.05, opt.max2 = 0.2;
+  opt.crossings1 = {0.3};
+  const CurveResult curve = ContinueCurve(model, prop, *start, opt);
+  ASSERT_NE(curve.summary.termination, Termination::kFailed) << curve.summary.message;
+  ASSERT_GT(curve.points.size(), 10u);
+  for (size_t n = 0; n < curve.points.size(); n += curve.points.size() / 10) {
+    const PeriodicOrbit& o = curve.points[n].orbit;
+    const auto& segs = o.signature.segments;
+    int k = 0;
+    while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
+    ASSERT_LT(k, static_cast<int>(segs.size()));
+    EXPECT_EQ(model.guards(segs[k].mode)[segs[k].guard].surface, "Pi");
+    const StateVector xe = prop.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x;
+    const GuardValue g = model.Guard(segs[k].mode, segs[k].guard, xe, o.params);
+    EXPECT_LE(std::abs(g.h), 1e-9) << "point " << n;
+    EXPECT_LE(std::abs(g.dh), 1e-9) << "point " << n;
+    EXPECT_GT(g.ddh, 0.0) << "point " << n;
+  }
+  ContinuationOptions omega_branch;
+  omega_branch.param = "omega";
+  omega_branch.min = 0.05, omega_branch.max = 0.2;
+  const ContinuationResult ro = Continue(model, prop, *reference, omega_branch);
+  ASSERT_FALSE(curve.crossings.empty());
+  for (const CurvePoint& x : curve.crossings) {
+    double best = 1e300;
+    for (const SpecialPoint& s : ro.special_points) {
+      if (s.kind == SpecialPointKind::kGrazingPi)
+        best = std::min(best, std::abs(s.point.value - x.value2));
+    }
+    EXPECT_LE(best, 1e-7) << "crossing a = 0.3 at omega = " << x.value2;  // issue 4's bound
+  }
 }
 
 }  // namespace

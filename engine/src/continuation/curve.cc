@@ -466,7 +466,9 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
     case SpecialPointKind::kGrazingL2:
     case SpecialPointKind::kGrazingPi: {
       // The touching point: the vanishing segment i (zero length at the located point) goes, and
-      // segment i - 1, in the same mode as i + 1, ends tangentially on its guard instead.
+      // segment i - 1, in the same mode as i + 1, ends tangentially on its guard instead. Without
+      // a vanishing segment (the grazing seen from the side where the guard is not reached, e.g.
+      // a free flight touching Pi), the segment where a guard touches zero is split there.
       result.kind = CurveKind::kGrazing;
       const auto& d = orbit.durations;
       const int i = static_cast<int>(
@@ -475,9 +477,12 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
           d.begin());
       StatusOr<PeriodicOrbit> tangent = internal::TangentForm(orbit, i);
       if (std::abs(d[i]) > 1e-6 || !tangent.ok()) {
+        tangent = internal::TouchForm(model, propagator, orbit);
+      }
+      if (!tangent.ok()) {
         return fail(Status(StatusCode::kUnimplemented,
-                           "grazing curves are traced only from grazings where a segment "
-                           "vanishes between two segments of the same mode"));
+                           "no tangent form of the grazing: neither a segment vanishing between "
+                           "two segments of one mode nor a guard touching zero inside a segment"));
       }
       tangent_orbit = *std::move(tangent);
       break;

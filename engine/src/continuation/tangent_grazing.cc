@@ -1,8 +1,10 @@
 #include "continuation/tangent_grazing.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "orbit/orbit_bvp.h"
 
@@ -22,6 +24,70 @@ StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i) {
   ts.erase(ts.begin() + i);
   t.durations.erase(t.durations.begin() + i);
   t.starts.erase(t.starts.begin() + i);
+  return t;
+}
+
+StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagator,
+                                  const PeriodicOrbit& orbit, double tolerance) {
+  // Interior local minima of each guard along each segment: bracketed on a grid of samples, then
+  // polished by Newton on h'(t) = 0 with h'' (both along the flow, from the model).
+  constexpr int kSamples = 200;
+  const auto& segs = orbit.signature.segments;
+  if (orbit.starts.size() != segs.size() || orbit.durations.size() != segs.size() ||
+      orbit.params.size() != model.num_params()) {
+    return InvalidArgument("the orbit's segments, starts, durations or parameters do not match");
+  }
+  double best_h = std::numeric_limits<double>::infinity();
+  int best_segment = -1, best_guard = -1;
+  double best_t = 0.0;
+  for (int k = 0; k < static_cast<int>(segs.size()); ++k) {
+    const double tau = orbit.durations[k];
+    if (!(tau > 0.0)) continue;
+    const int guards = static_cast<int>(model.guards(segs[k].mode).size());
+    for (int e = 0; e < guards; ++e) {
+      auto at = [&](double t) {
+        const StateVector x =
+            propagator.FlowMap(segs[k].mode, orbit.starts[k], t, orbit.params, {}).x;
+        return model.Guard(segs[k].mode, e, x, orbit.params);
+      };
+      std::vector<double> h(kSamples + 1);
+      for (int j = 0; j <= kSamples; ++j) h[j] = at(tau * j / kSamples).h;
+      for (int j = 1; j < kSamples; ++j) {
+        if (!(h[j] <= h[j - 1] && h[j] <= h[j + 1])) continue;
+        double t = tau * j / kSamples;
+        const double lo = tau * (j - 1) / kSamples, hi = tau * (j + 1) / kSamples;
+        for (int it = 0; it < 20; ++it) {
+          const GuardValue g = at(t);
+          if (!(g.ddh > 0.0)) break;
+          const double next = std::clamp(t - g.dh / g.ddh, lo, hi);
+          const bool done = std::abs(next - t) <= 1e-14 * (1.0 + tau);
+          t = next;
+          if (done) break;
+        }
+        const double ht = at(t).h;
+        if (std::abs(ht) < best_h) {
+          best_h = std::abs(ht);
+          best_segment = k, best_guard = e, best_t = t;
+        }
+      }
+    }
+  }
+  if (best_segment < 0 || best_h > tolerance) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "no guard touches zero inside a segment of the orbit");
+  }
+  PeriodicOrbit t = orbit;
+  auto& ts = t.signature.segments;
+  const int k = best_segment;
+  const StateVector touch =
+      propagator.FlowMap(ts[k].mode, orbit.starts[k], best_t, orbit.params, {}).x;
+  SegmentSpec first = ts[k];
+  first.guard = best_guard;
+  first.tangent = true;
+  ts.insert(ts.begin() + k, first);
+  t.starts.insert(t.starts.begin() + k + 1, touch);
+  t.durations[k] = best_t;
+  t.durations.insert(t.durations.begin() + k + 1, orbit.durations[k] - best_t);
   return t;
 }
 

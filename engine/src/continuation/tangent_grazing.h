@@ -15,6 +15,14 @@ namespace drillbif::internal {
 // INVALID_ARGUMENT unless 0 < i < k - 1 and segments i - 1 and i + 1 share their mode.
 StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i);
 
+// The orbit re-expressed at an interior touch: where a guard of some segment's mode comes down to
+// zero inside the segment and turns back (a local minimum of h, h' = 0; the grazing of a free
+// flight with the impact surface seen from the side without impact), that segment is split there
+// into a part ending tangentially on that guard and the rest, in the same mode. The touch with the
+// smallest h is taken; FAILED_PRECONDITION when none comes within `tolerance` of zero.
+StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagator,
+                                  const PeriodicOrbit& orbit, double tolerance = 1e-6);
+
 // h' at the end of the orbit's tangent segment (the guard's rate where it touches zero); the
 // first tangent segment when there are several. NaN when the orbit has none.
 double TangentEndRate(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit);
