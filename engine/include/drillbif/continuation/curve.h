@@ -18,7 +18,9 @@
 //                      (SegmentSpec::tangent: h = 0 there, then the same mode goes on)
 // Grazing curves start from grazings where a segment vanishes between two segments of the same
 // mode (l1: the CwP phase between two contact phases; Pi: a contact phase between free flights);
-// the vanishing segment is dropped and the one before it ends tangentially.
+// the vanishing segment is dropped and the one before it ends tangentially. From the other side
+// (no segment vanishes: a free flight touches Pi and turns back) the segment where a guard
+// touches zero is split there, its first part ending tangentially.
 // A curve is traced while its orbits stay admissible; it ends where one is not (a codimension-2
 // point, see Codim2Point), at the box bounds, where it stalls, or after max_steps.
 #ifndef DRILLBIF_CONTINUATION_CURVE_H_
@@ -94,7 +96,8 @@ struct CurveResult {
 
 // Traces the curve through `start` (a FOLD, PERIOD_DOUBLING or GRAZING_* point) in both
 // directions. INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a
-// grazing without a vanishing segment between two segments of the same mode.
+// grazing with neither a vanishing segment between two segments of one mode nor a guard touching
+// zero inside a segment.
 CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                           const SpecialPoint& start, const CurveOptions& options);
 
