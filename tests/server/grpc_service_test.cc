@@ -29,6 +29,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/server.h"
+#include "support/temp_dir.h"
 
 namespace drillbif::server {
 namespace {
@@ -41,22 +42,7 @@ constexpr char kToken[] = "test-token";
 // Requests larger than this are refused by the test server (ServerOptions::max_request_bytes).
 constexpr int kMaxRequestBytes = 64 * 1024;
 
-// A fresh directory under the test temp dir, removed with everything in it.
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = ::testing::TempDir() + "drillbif_grpc_XXXXXX";
-    path_ = mkdtemp(pattern.data()) != nullptr ? pattern : std::string();
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    if (!path_.empty()) std::filesystem::remove_all(path_, ignored);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using drillbif::testing::TempDir;
 
 // One server for the whole suite (starting one per test would cost a store and a port each);
 // tests use requests of their own so that the shared cache does not couple them, except where
@@ -64,7 +50,7 @@ class TempDir {
 class GrpcServiceTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new TempDir();
+    dir_ = new TempDir("drillbif_grpc");
     ServerOptions options;
     options.grpc_port = 0;
     options.db_path = dir_->path() + "/jobs.db";

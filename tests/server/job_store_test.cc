@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "server/store/sqlite_job_store.h"
+#include "support/temp_dir.h"
 
 namespace drillbif::server {
 namespace {
@@ -33,22 +34,7 @@ T Must(StatusOr<T> result) {
   return result.ok() ? std::move(result).value() : T{};
 }
 
-// A fresh directory under the test temp dir, removed with everything in it.
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = ::testing::TempDir() + "drillbif_store_XXXXXX";
-    path_ = mkdtemp(pattern.data()) != nullptr ? pattern : std::string();
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    if (!path_.empty()) std::filesystem::remove_all(path_, ignored);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using drillbif::testing::TempDir;
 
 class JobStoreTest : public ::testing::Test {
  protected:
@@ -85,7 +71,7 @@ class JobStoreTest : public ::testing::Test {
     return job.ok() && !job->has_value();
   }
 
-  TempDir dir_;
+  TempDir dir_{"drillbif_store"};
   std::unique_ptr<JobStore> store_;
 };
 

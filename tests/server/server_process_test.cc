@@ -24,6 +24,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/store/sqlite_job_store.h"
+#include "support/temp_dir.h"
 
 #ifndef DRILLBIF_SERVER_BINARY
 #error "DRILLBIF_SERVER_BINARY must name the drillbif-server executable"
@@ -35,21 +36,7 @@ namespace {
 using google::longrunning::Operation;
 using google::protobuf::util::MessageDifferencer;
 
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = ::testing::TempDir() + "drillbif_process_XXXXXX";
-    path_ = mkdtemp(pattern.data()) != nullptr ? pattern : std::string();
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    if (!path_.empty()) std::filesystem::remove_all(path_, ignored);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using drillbif::testing::TempDir;
 
 // A drillbif-server child process on a free port of 127.0.0.1.
 class ServerProcess {
@@ -216,7 +203,7 @@ void ExpectAllCompleteOnce(ServerProcess& server, const std::vector<v1::SweepReq
 }
 
 TEST(ServerProcess, KillNineWithJobsQueuedAndRunningThenRestartCompletesEveryJobOnce) {
-  TempDir dir;
+  TempDir dir("drillbif_process");
   const std::string db = dir.path() + "/jobs.db";
   std::vector<v1::SweepRequest> requests;
   std::vector<std::string> names;
@@ -238,7 +225,7 @@ TEST(ServerProcess, KillNineWithJobsQueuedAndRunningThenRestartCompletesEveryJob
 }
 
 TEST(ServerProcess, SigtermRequeuesTheRunningJobAndExitsCleanly) {
-  TempDir dir;
+  TempDir dir("drillbif_process");
   const std::string db = dir.path() + "/jobs.db";
   std::vector<v1::SweepRequest> requests;
   std::vector<std::string> names;

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "server/store/job_store.h"
+#include "support/temp_dir.h"
 
 namespace drillbif::server {
 namespace {
@@ -45,22 +46,7 @@ std::string ClaimedId(JobStore& store, const std::string& worker) {
   return job ? job->id : std::string();
 }
 
-// A fresh directory under the test temp dir, removed with everything in it.
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = ::testing::TempDir() + "drillbif_sqlite_XXXXXX";
-    path_ = mkdtemp(pattern.data()) != nullptr ? pattern : std::string();
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    if (!path_.empty()) std::filesystem::remove_all(path_, ignored);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using drillbif::testing::TempDir;
 
 std::unique_ptr<JobStore> OpenOrDie(const std::string& path,
                                     const SqliteJobStoreOptions& options = {}) {
@@ -100,7 +86,7 @@ class SqliteJobStoreTest : public ::testing::Test {
   void SetUp() override { ASSERT_FALSE(dir_.path().empty()) << "mkdtemp failed"; }
   std::string Path(const char* name) const { return dir_.path() + "/" + name; }
 
-  TempDir dir_;
+  TempDir dir_{"drillbif_sqlite"};
 };
 
 TEST_F(SqliteJobStoreTest, OpensInWalModeAtTheCurrentSchemaVersion) {
