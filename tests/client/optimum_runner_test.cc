@@ -11,26 +11,16 @@
 
 #include "client/output.h"
 #include "client/trace_runner.h"
+#include "support/small_requests.h"
 
 namespace drillbif::client {
 namespace {
 
 using ::testing::HasSubstr;
 
-v1::TraceRequest Box() {
-  v1::TraceRequest r;
-  r.add_trace_params(std::string("omega"));  // not ("omega"): GCC 12 -Wrestrict false positive
-  r.add_trace_params(std::string("a"));
-  r.add_min(0.05);
-  r.add_min(0.25);
-  r.add_max(0.15);
-  r.add_max(0.6);
-  return r;
-}
-
 v1::OptimumRequest Request() {
   v1::OptimumRequest r;
-  *r.mutable_trace() = Box();
+  *r.mutable_trace() = testing::SmallBoxTrace();
   r.add_margin(0.01);
   r.add_margin(0.02);
   return r;
@@ -110,7 +100,7 @@ TEST(RunOptimum, DefaultGridFollowsTheMargin) {
 }
 
 TEST(RunTrace, RegionOnRequestOnly) {
-  v1::TraceRequest request = Box();
+  v1::TraceRequest request = testing::SmallBoxTrace();
   const StatusOr<v1::TraceResult> plain = RunTrace(request);
   ASSERT_TRUE(plain.ok()) << plain.status().ToString();
   EXPECT_FALSE(plain->has_region());  // compute only what is asked
@@ -130,7 +120,7 @@ TEST(RunTrace, RegionOnRequestOnly) {
     EXPECT_GE(p.vertices_size(), 3);
     for (const v1::RegionVertex& v : p.vertices()) EXPECT_LT(v.curve(), r->curves_size());
   }
-  v1::TraceRequest bad = Box();
+  v1::TraceRequest bad = testing::SmallBoxTrace();
   bad.mutable_region()->add_grid(21);
   const StatusOr<v1::TraceResult> e = RunTrace(bad);
   EXPECT_EQ(e.status().code(), StatusCode::kInvalidArgument);

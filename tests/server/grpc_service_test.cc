@@ -29,6 +29,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/server.h"
+#include "support/small_requests.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
@@ -42,6 +43,8 @@ constexpr char kToken[] = "test-token";
 // Requests larger than this are refused by the test server (ServerOptions::max_request_bytes).
 constexpr int kMaxRequestBytes = 64 * 1024;
 
+using drillbif::testing::SmallBoxTrace;
+using drillbif::testing::SmallSweep;
 using drillbif::testing::TempDir;
 
 // One server for the whole suite (starting one per test would cost a store and a port each);
@@ -157,27 +160,6 @@ void ExpectSameResult(Result served, Result direct) {
 }
 
 // The small box of the issue-4 tests: omega in [0.05, 0.15], a in [0.25, 0.6].
-v1::TraceRequest SmallBoxTrace() {
-  v1::TraceRequest trace;
-  trace.add_trace_params("omega");
-  trace.add_trace_params("a");
-  trace.add_min(0.05);
-  trace.add_min(0.25);
-  trace.add_max(0.15);
-  trace.add_max(0.6);
-  return trace;
-}
-
-v1::SweepRequest SmallSweep(double min, int steps) {
-  v1::SweepRequest sweep;
-  sweep.set_param("b");
-  sweep.set_min(min);
-  sweep.set_max(0.2);
-  sweep.set_steps(steps);
-  sweep.set_threads(1);
-  return sweep;
-}
-
 TEST_F(GrpcServiceTest, SimulateGivesTheRunnersResult) {
   v1::SubmitSimulateRequest request;
   request.mutable_request()->set_sample_periods(20);

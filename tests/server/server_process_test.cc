@@ -24,6 +24,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/store/sqlite_job_store.h"
+#include "support/small_requests.h"
 #include "support/temp_dir.h"
 
 #ifndef DRILLBIF_SERVER_BINARY
@@ -36,6 +37,7 @@ namespace {
 using google::longrunning::Operation;
 using google::protobuf::util::MessageDifferencer;
 
+using drillbif::testing::SmallSweep;
 using drillbif::testing::TempDir;
 
 // A drillbif-server child process on a free port of 127.0.0.1.
@@ -99,16 +101,6 @@ std::unique_ptr<grpc::ClientContext> Context(double seconds = 20) {
   return context;
 }
 
-v1::SweepRequest Sweep(double min, int steps) {
-  v1::SweepRequest sweep;
-  sweep.set_param("b");
-  sweep.set_min(min);
-  sweep.set_max(0.2);
-  sweep.set_steps(steps);
-  sweep.set_threads(1);
-  return sweep;
-}
-
 Operation Get(google::longrunning::Operations::Stub& stub, const std::string& name) {
   google::longrunning::GetOperationRequest request;
   request.set_name(name);
@@ -146,8 +138,8 @@ Operation WaitDone(google::longrunning::Operations::Stub& stub, const std::strin
 // returns the requests and operation names, the long one first.
 void SubmitJobs(v1::Jobs::Stub& jobs, std::vector<v1::SweepRequest>* requests,
                 std::vector<std::string>* names) {
-  requests->push_back(Sweep(0.0, 300));
-  for (int i = 1; i <= 3; ++i) requests->push_back(Sweep(0.1 + 0.01 * i, 5));
+  requests->push_back(SmallSweep(0.0, 300));
+  for (int i = 1; i <= 3; ++i) requests->push_back(SmallSweep(0.1 + 0.01 * i, 5));
   for (const v1::SweepRequest& sweep : *requests) {
     v1::SubmitSweepRequest submit;
     *submit.mutable_request() = sweep;

@@ -1,0 +1,39 @@
+// Small job requests shared by the client and service tests (seconds or less each).
+#ifndef DRILLBIF_TESTS_SUPPORT_SMALL_REQUESTS_H_
+#define DRILLBIF_TESTS_SUPPORT_SMALL_REQUESTS_H_
+
+#include <string>
+
+#include "drillbif/v1/sweep.pb.h"
+#include "drillbif/v1/trace.pb.h"
+
+namespace drillbif::testing {
+
+// omega in [0.05, 0.15], a in [0.25, 0.6] around the reference start (omega = 0.1, a = 0.3): a
+// few curves, two signatures of stable period-1 motion, and an optimum the margin decides
+// (tests/region/stability_region_test.cc).
+inline v1::TraceRequest SmallBoxTrace() {
+  v1::TraceRequest r;
+  r.add_trace_params(std::string("omega"));  // not ("omega"): GCC 12 -Wrestrict false positive
+  r.add_trace_params(std::string("a"));
+  r.add_min(0.05);
+  r.add_min(0.25);
+  r.add_max(0.15);
+  r.add_max(0.6);
+  return r;
+}
+
+// A brute-force sweep of b over [min, 0.2] in `steps` values on one thread.
+inline v1::SweepRequest SmallSweep(double min, int steps) {
+  v1::SweepRequest sweep;
+  sweep.set_param(std::string("b"));
+  sweep.set_min(min);
+  sweep.set_max(0.2);
+  sweep.set_steps(steps);
+  sweep.set_threads(1);
+  return sweep;
+}
+
+}  // namespace drillbif::testing
+
+#endif  // DRILLBIF_TESTS_SUPPORT_SMALL_REQUESTS_H_
