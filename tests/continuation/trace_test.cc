@@ -118,6 +118,66 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   // issue: the fold curve from a = 0.15662 comes back at a = 0.15688).
   EXPECT_GE(away_from_start, 5);
   EXPECT_GE(turning, 2);
+
+  // Switching at codimension-2 points: a fold / PD curve leaving a FOLD_GRAZING / FLIP_GRAZING
+  // root of a grazing curve ends back at that point (its orbit grazes there), and both defining
+  // conditions hold there, each checked on the computation that located it: the grazing curve's
+  // point has h = h' = 0 at its tangent end and the multiplier +1 / -1 (det root to 1e-10), and
+  // the switched curve's end, bisected independently, has the multiplier +1 / -1 and lies at the
+  // same parameters. A grazing curve leaving a fold / PD curve's end passes through that end.
+  auto multiplier_gap = [](const Stability& st, double target) {
+    double gap = 1e300;
+    for (const auto& mu : st.multipliers) gap = std::min(gap, std::abs(mu - target));
+    return gap;
+  };
+  const double w1 = opt.max1 - opt.min1, w2 = opt.max2 - opt.min2;
+  int switched_fold_pd = 0, switched_grazing = 0;
+  for (const TracedCurve& c : r.curves) {
+    if (c.from_curve < 0) continue;
+    ASSERT_LT(c.from_curve, static_cast<int>(r.curves.size()));
+    const CurveResult& from = r.curves[c.from_curve].curve;
+    const double u = c.start.point.orbit.params[DO::kOmega], v = c.start.point.orbit.params[DO::kA];
+    auto dist = [&](const CurvePoint& p) {
+      return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
+    };
+    if (c.curve.kind != CurveKind::kGrazing) {
+      ++switched_fold_pd;
+      const double target = c.curve.kind == CurveKind::kFold ? 1.0 : -1.0;
+      const Codim2Point* seed = nullptr;
+      for (const Codim2Point& q : from.codim2) {
+        if (dist(q.point) < 1e-12) seed = &q;
+      }
+      ASSERT_NE(seed, nullptr);
+      EXPECT_LE(multiplier_gap(seed->point.stability, target), 1e-8);
+      const auto& segs = seed->point.orbit.signature.segments;
+      int k = 0;
+      while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
+      ASSERT_LT(k, static_cast<int>(segs.size()));
+      const PeriodicOrbit& o = seed->point.orbit;
+      const GuardValue g = model.Guard(
+          segs[k].mode, segs[k].guard,
+          prop.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x, o.params);
+      EXPECT_LE(std::abs(g.h), 1e-9);
+      EXPECT_LE(std::abs(g.dh), 1e-9);
+      double end = 1e300;
+      const Codim2Point* back = nullptr;
+      for (const Codim2Point& q : c.curve.codim2) {
+        if (dist(q.point) < end) end = dist(q.point), back = &q;
+      }
+      ASSERT_NE(back, nullptr);
+      EXPECT_LE(end, 1e-8) << "the switched curve does not end at its codimension-2 point";
+      EXPECT_LE(multiplier_gap(back->point.stability, target), 1e-8);
+    } else {
+      ++switched_grazing;
+      double nearest = 1e300;
+      for (const CurvePoint& p : c.curve.points) nearest = std::min(nearest, dist(p));
+      for (const Codim2Point& q : c.curve.codim2) nearest = std::min(nearest, dist(q.point));
+      // Its start is corrected onto the curve from the end orbit (bisected to its bracket).
+      EXPECT_LE(nearest, 1e-6);
+    }
+  }
+  EXPECT_GE(switched_fold_pd, 5);
+  EXPECT_GE(switched_grazing, 1);
 }
 
 TEST(Trace, InvalidRequestsNameTheProblem) {

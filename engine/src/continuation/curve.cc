@@ -470,20 +470,8 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
       // a vanishing segment (the grazing seen from the side where the guard is not reached, e.g.
       // a free flight touching Pi), the segment where a guard touches zero is split there.
       result.kind = CurveKind::kGrazing;
-      const auto& d = orbit.durations;
-      const int i = static_cast<int>(
-          std::min_element(d.begin(), d.end(),
-                           [](double x, double y) { return std::abs(x) < std::abs(y); }) -
-          d.begin());
-      StatusOr<PeriodicOrbit> tangent = internal::TangentForm(orbit, i);
-      if (std::abs(d[i]) > 1e-6 || !tangent.ok()) {
-        tangent = internal::TouchForm(model, propagator, orbit);
-      }
-      if (!tangent.ok()) {
-        return fail(Status(StatusCode::kUnimplemented,
-                           "no tangent form of the grazing: neither a segment vanishing between "
-                           "two segments of one mode nor a guard touching zero inside a segment"));
-      }
+      StatusOr<PeriodicOrbit> tangent = internal::GrazingTangentForm(model, propagator, orbit);
+      if (!tangent.ok()) return fail(tangent.status());
       tangent_orbit = *std::move(tangent);
       break;
     }

@@ -91,6 +91,41 @@ StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagat
   return t;
 }
 
+StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator& propagator,
+                                           const PeriodicOrbit& orbit) {
+  const auto& d = orbit.durations;
+  if (d.empty()) return InvalidArgument("the orbit has no segments");
+  const int i = static_cast<int>(
+      std::min_element(d.begin(), d.end(),
+                       [](double x, double y) { return std::abs(x) < std::abs(y); }) -
+      d.begin());
+  StatusOr<PeriodicOrbit> tangent = TangentForm(orbit, i);
+  if (std::abs(d[i]) > 1e-6 || !tangent.ok()) tangent = TouchForm(model, propagator, orbit);
+  if (!tangent.ok()) {
+    return Status(StatusCode::kUnimplemented,
+                  "no tangent form of the grazing: neither a segment vanishing between two "
+                  "segments of one mode nor a guard touching zero inside a segment");
+  }
+  return tangent;
+}
+
+StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit) {
+  PeriodicOrbit o = tangent_orbit;
+  auto& segs = o.signature.segments;
+  for (size_t k = 0; k + 1 < segs.size(); ++k) {
+    if (!segs[k].tangent) continue;
+    if (segs[k + 1].mode != segs[k].mode) break;
+    segs[k].guard = segs[k + 1].guard;
+    segs[k].tangent = segs[k + 1].tangent;
+    o.durations[k] += o.durations[k + 1];
+    segs.erase(segs.begin() + k + 1);
+    o.durations.erase(o.durations.begin() + k + 1);
+    o.starts.erase(o.starts.begin() + k + 1);
+    return o;
+  }
+  return InvalidArgument("the orbit has no tangent segment followed by one of the same mode");
+}
+
 double TangentEndRate(const HybridModel& model, Propagator& propagator,
                       const PeriodicOrbit& orbit) {
   const auto& segs = orbit.signature.segments;

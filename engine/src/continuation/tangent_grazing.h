@@ -23,6 +23,19 @@ StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i);
 StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagator,
                                   const PeriodicOrbit& orbit, double tolerance = 1e-6);
 
+// The tangent form of a grazing orbit (a located grazing, or the last admissible orbit of a curve
+// that ends where its orbit grazes): TangentForm at its shortest segment when that one vanishes
+// (duration <= 1e-6) between two segments of one mode, else TouchForm. UNIMPLEMENTED when neither
+// applies.
+StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator& propagator,
+                                           const PeriodicOrbit& orbit);
+
+// The orbit without its tangent end: the (first) tangent segment and the one after it, in the same
+// mode, merged into one segment. At a grazing this is the orbit of the signature without the
+// vanishing segment, touching the guard inside a segment. INVALID_ARGUMENT without a tangent
+// segment.
+StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit);
+
 // h' at the end of the orbit's tangent segment (the guard's rate where it touches zero); the
 // first tangent segment when there are several. NaN when the orbit has none.
 double TangentEndRate(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit);

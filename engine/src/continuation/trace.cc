@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <utility>
 #include <vector>
+
+#include "continuation/tangent_grazing.h"
 
 namespace drillbif {
 
@@ -54,6 +57,121 @@ void SwapValues(CurveResult* c) {
   for (CurvePoint& p : c->points) std::swap(p.value1, p.value2);
   for (CurvePoint& p : c->crossings) std::swap(p.value1, p.value2);
   for (Codim2Point& q : c->codim2) std::swap(q.point.value1, q.point.value2);
+}
+
+// A grazing start kind named after the surface of the tangent segment's guard.
+SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tangent_orbit) {
+  for (const SegmentSpec& seg : tangent_orbit.signature.segments) {
+    if (!seg.tangent) continue;
+    const std::string& surface = model.guards(seg.mode)[seg.guard].surface;
+    if (surface == "l1") return SpecialPointKind::kGrazingL1;
+    if (surface == "l2") return SpecialPointKind::kGrazingL2;
+  }
+  return SpecialPointKind::kGrazingPi;
+}
+
+// The curves that leave the codimension-2 points of the traced curves (TraceOptions::
+// switch_at_codim2), appended to result->curves until none is new or the cap is reached. False
+// when cancelled.
+bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const TraceOptions& options,
+                    const std::function<bool(double)>& report, TraceResult* result) {
+  TraceSummary& sum = result->summary;
+  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const int i1 = model.ParamIndex(options.param1).value();
+  const int i2 = model.ParamIndex(options.param2).value();
+  CurveOptions co = options.curve;
+  co.param1 = options.param1, co.min1 = options.min1, co.max1 = options.max1;
+  co.param2 = options.param2, co.min2 = options.min2, co.max2 = options.max2;
+  int added = 0, wide = 0, no_form = 0;
+  // result->curves grows while it is walked: index, not iterator.
+  for (size_t c = 0; c < result->curves.size(); ++c) {
+    for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
+      if (!report(0.99)) return false;
+      const TracedCurve& from = result->curves[c];
+      const Codim2Point& point = from.curve.codim2[q];
+      const bool fold = point.kind == Codim2Kind::kFoldGrazing;
+      if (!fold && point.kind != Codim2Kind::kFlipGrazing) continue;
+      // The candidate's start, and the signature of the orbits on its curve.
+      SpecialPoint seed;
+      seed.point.value = point.point.value1;
+      StatusOr<PeriodicOrbit> orbit = Status(StatusCode::kUnimplemented, "");
+      Signature curve_signature;
+      CurveKind kind = CurveKind::kGrazing;
+      if (from.curve.kind == CurveKind::kGrazing && point.bracket == 0.0) {
+        // A root along a grazing curve: the orbit without the vanishing segment folds / doubles.
+        orbit = internal::MergedForm(point.point.orbit);
+        seed.kind = fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
+        kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
+        if (orbit.ok()) curve_signature = orbit->signature;
+      } else if (from.curve.kind != CurveKind::kGrazing) {
+        // A fold / PD curve's end where its orbit grazes: the grazing curve through it.
+        orbit = point.point.orbit;
+        const StatusOr<PeriodicOrbit> tangent =
+            internal::GrazingTangentForm(model, propagator, point.point.orbit);
+        if (tangent.ok()) {
+          curve_signature = tangent->signature;
+          seed.kind = GrazingKind(model, *tangent);
+        } else {
+          orbit = tangent.status();
+        }
+      } else {
+        continue;  // a grazing curve's end: a double grazing or a bracketed root
+      }
+      if (!orbit.ok()) {
+        ++(point.bracket > 1e-6 ? wide : no_form);
+        continue;
+      }
+      seed.point.orbit = *orbit;
+      seed.point.stability = OrbitStability(model, propagator, *orbit);
+      seed.point.measures = OrbitMeasures(model, propagator, *orbit);
+      const double u = orbit->params[i1], v = orbit->params[i2];
+      // Known: on a traced curve of the same kind, by its polyline or by one of its
+      // codimension-2 points (which lie between its vertices, off the chords by up to the chord
+      // error); for a fold or PD candidate also of the same signature (at a fold-grazing the fold
+      // curves of the orbits with and without the vanishing segment both pass). A grazing
+      // candidate is compared by kind only: where its orbit has several near touches the tangent
+      // form picks one, and the grazing curve it came from may be another.
+      const bool known =
+          std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+            if (t.curve.kind != kind || t.curve.points.empty() ||
+                (kind != CurveKind::kGrazing &&
+                 !(t.curve.points.front().orbit.signature == curve_signature))) {
+              return false;
+            }
+            if (DistanceToCurve(t.curve, u, v, w1, w2) <= options.duplicate_distance) return true;
+            return std::any_of(
+                t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
+                  return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
+                         options.duplicate_distance;
+                });
+          });
+      if (known) continue;
+      if (added == options.max_switched_curves) {
+        sum.notes.push_back("switching stopped after " + std::to_string(added) +
+                            " curves (max_switched_curves)");
+        return true;
+      }
+      CurveResult curve = ContinueCurve(model, propagator, seed, co);
+      const std::string where = std::string(Codim2KindName(point.kind)) + " at " + options.param1 +
+                                " = " + std::to_string(u) + ", " + options.param2 + " = " +
+                                std::to_string(v);
+      if (curve.summary.termination == Termination::kFailed) {
+        sum.notes.push_back(where + ": the " + CurveKindName(kind) +
+                            " curve leaving it not traced: " + curve.summary.message);
+        continue;
+      }
+      result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c)});
+      ++added;
+    }
+  }
+  if (wide + no_form > 0) {
+    sum.notes.push_back(
+        std::to_string(wide + no_form) + " codimension-2 points at curve ends not switched at: " +
+        std::to_string(wide) + " located only to a bracket > 1e-6, " + std::to_string(no_form) +
+        " where the end orbit has no tangent form (no segment within 1e-6 of vanishing between "
+        "two of one mode, no guard within 1e-6 of touching inside a segment)");
+  }
+  return true;
 }
 
 }  // namespace
@@ -179,6 +297,9 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     }
     if (axis == 1) SwapValues(&curve);
     result.curves.push_back({s, *a.name, std::move(curve)});
+  }
+  if (options.switch_at_codim2 && !SwitchAtCodim2(model, propagator, options, report, &result)) {
+    return result;
   }
   report(1.0);
   return result;

@@ -8,7 +8,11 @@
 // With `period2`, the same for the period-2 branches born at the period-1 branches' period
 // doublings.
 //
-// Not yet: curves leaving the codimension-2 points (switching), NS curves, period-4 and beyond.
+// Then, with switch_at_codim2, the curves that leave the codimension-2 points found on them.
+//
+// Not yet: switching at DOUBLE_GRAZING points (the second grazing curve through them), at
+// codimension-2 ends certified only to a wide bracket, and onto period-2 curves at flip-grazings;
+// NS curves, period 4 and beyond.
 #ifndef DRILLBIF_CONTINUATION_TRACE_H_
 #define DRILLBIF_CONTINUATION_TRACE_H_
 
@@ -35,7 +39,15 @@ struct TraceOptions {
   // and the curves of its folds, period doublings and grazings are traced. Off by default: it is
   // asked for, not implied (it roughly doubles the work).
   bool period2 = false;
-  ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
+  // Also the curves that leave the codimension-2 points found (switching), repeatedly until no new
+  // curve appears: from a FOLD_GRAZING / FLIP_GRAZING located as a root along a grazing curve,
+  // the fold / PD curve of the orbit without the vanishing segment (the grazing orbit with its
+  // tangent end merged away has the multiplier +1 / -1 there); from a fold or PD curve ending at
+  // a FOLD_GRAZING / FLIP_GRAZING, the grazing curve through that end. A candidate on a curve
+  // already traced with the same kind and signature is skipped.
+  bool switch_at_codim2 = true;
+  int max_switched_curves = 200;  // cap on the curves added by switching (a note says when hit)
+  ContinuationOptions branch;     // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
   // param1 / param2 of these options, whichever order a curve is traced in.
   CurveOptions curve;
@@ -46,8 +58,9 @@ struct TraceOptions {
 // Where a traced curve came from.
 struct TracedCurve {
   SpecialPoint start;       // the located point it was traced from
-  std::string start_param;  // the parameter of the branch that located it
+  std::string start_param;  // the parameter of the branch that located it ("" after switching)
   CurveResult curve;        // points as (value1, value2) = (param1, param2) of TraceOptions
+  int from_curve = -1;      // after switching: the curve whose codimension-2 point it leaves
 };
 
 struct TraceSummary {
