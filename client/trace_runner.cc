@@ -88,6 +88,7 @@ v1::TraceResult ToProto(const TraceResult& r) {
     v1::SpecialPoint::Kind_Parse(SpecialPointKindName(c.start.kind), &kind);
     curve->set_start_kind(kind);
     curve->set_start_param(c.start_param);
+    curve->set_from_curve(c.from_curve);
     curve->set_message(c.curve.summary.message);
     failed |= c.curve.summary.termination == Termination::kFailed;
     for (const CurvePoint& p : c.curve.points) ToProto(p, curve->add_points());
