@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "drillbif/continuation/continuation.h"
+#include "drillbif/continuation/curve.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/forced_rotation.h"
 
@@ -53,6 +54,61 @@ TEST(NeimarkSacker, LocatedWhereTheComplexPairCrossesTheUnitCircle) {
   }
   EXPECT_EQ(ns, 1);
   EXPECT_FALSE(r.points.back().stability.stable);
+}
+
+// The Neimark-Sacker curve in (mu, omega): multipliers exp((mu +- i) T) lie on the unit circle
+// exactly where mu = 0, for every forcing frequency, so the curve is the line mu = 0. Traced from
+// the located point through the bialternate condition sigma(M (.) M - I), every point has
+// |mu| <= 1e-9 (the corrector's 1e-10 on the unknowns, with d sigma / d mu = O(T) = O(10)) and
+// its pair on the unit circle, and the curve spans the omega range asked. At omega = 2/3 (T = 3 pi)
+// the pair meets at -1, a 1:2 strong resonance the curve passes through. (The box starts at
+// 0.55: at omega = 0.5, T = 4 pi, the pair meets at +1, the forced orbit's own Jacobian is
+// singular there and the curve cannot end exactly on that edge; it steps across it.)
+TEST(NeimarkSacker, CurveInTwoParametersIsTheLineMuZero) {
+  ForcedRotation model;
+  ExactPropagator prop(model);
+  PeriodicOrbit start;
+  start.params = ForcedRotation::MakeParams(-0.05);
+  start.signature.periods = 1;
+  start.signature.segments = {{0, -1}};
+  start.starts = {(StateVector(3) << 0.0, 0.0, 0.0).finished()};
+  start.durations = {kTwoPi / start.params[ForcedRotation::kOmega]};
+  ASSERT_EQ(SolveOrbit(model, prop, {}, &start).status, SolveStatus::kConverged);
+  ContinuationOptions opt;
+  opt.param = "mu";
+  opt.min = -0.05, opt.max = 0.05;
+  const ContinuationResult r = Continue(model, prop, start, opt);
+  const SpecialPoint* ns = nullptr;
+  for (const SpecialPoint& s : r.special_points) {
+    if (s.kind == SpecialPointKind::kNeimarkSacker) ns = &s;
+  }
+  ASSERT_NE(ns, nullptr);
+  CurveOptions co;
+  co.param1 = "mu";
+  co.param2 = "omega";
+  co.min1 = -0.05, co.max1 = 0.05;
+  co.min2 = 0.55, co.max2 = 0.9;
+  co.crossings2 = {0.6, 2.0 / 3.0, 0.8};
+  const CurveResult curve = ContinueCurve(model, prop, *ns, co);
+  ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+  EXPECT_EQ(curve.kind, CurveKind::kNeimarkSacker);
+  ASSERT_GT(curve.points.size(), 3u);
+  double lo = 1e300, hi = -1e300;
+  for (const CurvePoint& p : curve.points) {
+    EXPECT_NEAR(p.value1, 0.0, 1e-9) << "omega = " << p.value2;
+    for (const auto& mu : p.stability.multipliers) EXPECT_NEAR(std::abs(mu), 1.0, 1e-8);
+    lo = std::min(lo, p.value2), hi = std::max(hi, p.value2);
+  }
+  // Both box edges reached in omega (the curve ends on them).
+  EXPECT_DOUBLE_EQ(lo, 0.55) << curve.summary.message;
+  EXPECT_DOUBLE_EQ(hi, 0.9);
+  ASSERT_EQ(curve.crossings.size(), 3u);
+  for (const CurvePoint& x : curve.crossings) {
+    EXPECT_NEAR(x.value1, 0.0, 1e-9);
+    if (std::abs(x.value2 - 2.0 / 3.0) > 1e-12) continue;
+    // exp((mu +- i) 3 pi) = -1 at mu = 0: both multipliers at -1, to the mu error times T.
+    for (const auto& mu : x.stability.multipliers) EXPECT_NEAR(std::abs(mu + 1.0), 0.0, 1e-7);
+  }
 }
 
 }  // namespace

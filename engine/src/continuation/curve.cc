@@ -21,6 +21,8 @@ const char* CurveKindName(CurveKind kind) {
       return "PERIOD_DOUBLING";
     case CurveKind::kGrazing:
       return "GRAZING";
+    case CurveKind::kNeimarkSacker:
+      return "NEIMARK_SACKER";
   }
   return "?";
 }
@@ -35,6 +37,8 @@ const char* Codim2KindName(Codim2Kind kind) {
       return "FOLD_FLIP";
     case Codim2Kind::kDoubleGrazing:
       return "DOUBLE_GRAZING";
+    case Codim2Kind::kNsGrazing:
+      return "NS_GRAZING";
   }
   return "?";
 }
@@ -61,6 +65,27 @@ namespace {
 
 using Vec = Eigen::VectorXd;
 using Mat = Eigen::MatrixXd;
+
+// The bialternate square M (.) M: rows and columns indexed by pairs (p, q), p > q, entry
+// det [[m_pr, m_ps], [m_qr, m_qs]] for column (r, s); its eigenvalues are mu_i mu_j, i < j
+// (Govaerts 2000, sec. 4.4.4).
+Mat BialternateSquare(const Mat& m) {
+  const int n = static_cast<int>(m.rows());
+  const int size = n * (n - 1) / 2;
+  Mat out(size, size);
+  int row = 0;
+  for (int p = 1; p < n; ++p) {
+    for (int q = 0; q < p; ++q, ++row) {
+      int col = 0;
+      for (int r = 1; r < n; ++r) {
+        for (int s = 0; s < r; ++s, ++col) {
+          out(row, col) = m(p, r) * m(q, s) - m(p, s) * m(q, r);
+        }
+      }
+    }
+  }
+  return out;
+}
 
 class CurveTracer {
  public:
@@ -116,9 +141,13 @@ class CurveTracer {
     return o;
   }
 
-  // M - I (fold) or M + I (period doubling) of the orbit.
+  // M - I (fold), M + I (period doubling) or M (.) M - I (Neimark-Sacker) of the orbit.
   Mat Shifted(const PeriodicOrbit& o) const {
     const Mat mono = OrbitStability(model_, propagator_, o).monodromy;
+    if (kind_ == CurveKind::kNeimarkSacker) {
+      const Mat b = BialternateSquare(mono);
+      return b - Mat::Identity(b.rows(), b.cols());
+    }
     const double shift = kind_ == CurveKind::kFold ? -1.0 : 1.0;
     return mono + shift * Mat::Identity(mono.rows(), mono.cols());
   }
@@ -233,6 +262,8 @@ class CurveTracer {
         return {{+1.0, Codim2Kind::kFoldFlip}};
       case CurveKind::kPeriodDoubling:
         return {{-1.0, Codim2Kind::kFoldFlip}};
+      case CurveKind::kNeimarkSacker:
+        return {};
     }
     return {};
   }
@@ -385,9 +416,10 @@ class CurveTracer {
         // grazing (a second boundary touched at once).
         Vec boundary;
         const double width = LocateBoundary(y, y1, t, &boundary, &why);
-        const Codim2Kind k = kind_ == CurveKind::kFold      ? Codim2Kind::kFoldGrazing
-                             : kind_ == CurveKind::kGrazing ? Codim2Kind::kDoubleGrazing
-                                                            : Codim2Kind::kFlipGrazing;
+        const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
+                             : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
+                             : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
+                                                                  : Codim2Kind::kFlipGrazing;
         codim2->push_back({k, MakePoint(boundary), why, width});
         return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
       }
@@ -462,6 +494,9 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
     case SpecialPointKind::kPeriodDoubling:
       result.kind = CurveKind::kPeriodDoubling;
       break;
+    case SpecialPointKind::kNeimarkSacker:
+      result.kind = CurveKind::kNeimarkSacker;
+      break;
     case SpecialPointKind::kGrazingL1:
     case SpecialPointKind::kGrazingL2:
     case SpecialPointKind::kGrazingPi: {
@@ -476,10 +511,9 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
       break;
     }
     default:
-      return fail(
-          InvalidArgument(std::string("a curve starts at a FOLD, PERIOD_DOUBLING or GRAZING "
-                                      "point, not at ") +
-                          SpecialPointKindName(start.kind)));
+      return fail(InvalidArgument(std::string("a curve starts at a FOLD, PERIOD_DOUBLING, "
+                                              "NEIMARK_SACKER or GRAZING point, not at ") +
+                                  SpecialPointKindName(start.kind)));
   }
   CurveTracer tracer(model, propagator, options, result.kind, *i1, *i2,
                      result.kind == CurveKind::kGrazing ? tangent_orbit : orbit);

@@ -32,8 +32,8 @@ namespace {
 // Whether ContinueCurve starts from a point of this kind.
 bool Traceable(SpecialPointKind kind) {
   return kind == SpecialPointKind::kFold || kind == SpecialPointKind::kPeriodDoubling ||
-         kind == SpecialPointKind::kGrazingL1 || kind == SpecialPointKind::kGrazingL2 ||
-         kind == SpecialPointKind::kGrazingPi;
+         kind == SpecialPointKind::kNeimarkSacker || kind == SpecialPointKind::kGrazingL1 ||
+         kind == SpecialPointKind::kGrazingL2 || kind == SpecialPointKind::kGrazingPi;
 }
 
 // Distance from (u, v) to the polyline of the curve, in box-scaled coordinates.

@@ -6,6 +6,10 @@
 // (orbit/periodic_orbit.h); equations G(X; lambda) = 0 plus one defining condition:
 //   fold:              sigma(M - I) = 0
 //   period doubling:   sigma(M + I) = 0
+//   Neimark-Sacker:    sigma(M (.) M - I) = 0, M (.) M the bialternate square of M (eigenvalues
+//                      mu_i mu_j, i < j): a complex pair on the unit circle has mu mu-bar = 1
+//                      (also a real pair with mu_i mu_j = 1, a neutral saddle; Kuznetsov,
+//                      "Elements of Applied Bifurcation Theory", 2004, sec. 10.3)
 // where M is the monodromy (state without phase) and sigma(A) the last component of the solution
 // of the bordered system [[A, b], [c^T, 0]] (v, sigma) = (0, 1), with b and c the singular vectors
 // of A's smallest singular value at the start point (Govaerts, "Numerical Methods for
@@ -34,7 +38,7 @@
 
 namespace drillbif {
 
-enum class CurveKind { kFold, kPeriodDoubling, kGrazing };
+enum class CurveKind { kFold, kPeriodDoubling, kGrazing, kNeimarkSacker };
 const char* CurveKindName(CurveKind kind);
 
 struct CurveOptions {
@@ -71,8 +75,9 @@ struct CurvePoint {
 // (period doubling), located by a safeguarded secant along the curve until |det| <= 1e-10:
 // on a grazing curve FOLD_GRAZING / FLIP_GRAZING, on a fold curve (PD test) or a PD curve (fold
 // test) FOLD_FLIP. A curve that ends where its orbit grazes ends at a FOLD_GRAZING (fold curve),
-// FLIP_GRAZING (PD curve) or DOUBLE_GRAZING (grazing curve: a second boundary touched).
-enum class Codim2Kind { kFoldGrazing, kFlipGrazing, kFoldFlip, kDoubleGrazing };
+// FLIP_GRAZING (PD curve), NS_GRAZING (Neimark-Sacker curve) or DOUBLE_GRAZING (grazing curve: a
+// second boundary touched).
+enum class Codim2Kind { kFoldGrazing, kFlipGrazing, kFoldFlip, kDoubleGrazing, kNsGrazing };
 const char* Codim2KindName(Codim2Kind kind);
 
 // A root of a determinant is located as above; a curve's end where its orbit stops being
@@ -94,8 +99,8 @@ struct CurveResult {
   ContinuationSummary summary;
 };
 
-// Traces the curve through `start` (a FOLD, PERIOD_DOUBLING or GRAZING_* point) in both
-// directions. INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a
+// Traces the curve through `start` (a FOLD, PERIOD_DOUBLING, NEIMARK_SACKER or GRAZING_* point) in
+// both directions. INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a
 // grazing with neither a vanishing segment between two segments of one mode nor a guard touching
 // zero inside a segment.
 CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
