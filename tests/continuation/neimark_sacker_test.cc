@@ -3,7 +3,9 @@
 // crossing the unit circle at mu = 0.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/continuation/curve.h"
@@ -60,7 +62,8 @@ TEST(NeimarkSacker, LocatedWhereTheComplexPairCrossesTheUnitCircle) {
 // exactly where mu = 0, for every forcing frequency, so the curve is the line mu = 0. Traced from
 // the located point through the bialternate condition sigma(M (.) M - I), every point has
 // |mu| <= 1e-9 (the corrector's 1e-10 on the unknowns, with d sigma / d mu = O(T) = O(10)) and
-// its pair on the unit circle, and the curve spans the omega range asked. At omega = 2/3 (T = 3 pi)
+// its pair on the unit circle, the curve spans the omega range asked, and the strong resonances
+// 1:3 and 1:4 are found where cos T = -1/2 and 0. At omega = 2/3 (T = 3 pi)
 // the pair meets at -1, a 1:2 strong resonance the curve passes through. (The box starts at
 // 0.55: at omega = 0.5, T = 4 pi, the pair meets at +1, the forced orbit's own Jacobian is
 // singular there and the curve cannot end exactly on that edge; it steps across it.)
@@ -109,6 +112,25 @@ TEST(NeimarkSacker, CurveInTwoParametersIsTheLineMuZero) {
     // exp((mu +- i) 3 pi) = -1 at mu = 0: both multipliers at -1, to the mu error times T.
     for (const auto& mu : x.stability.multipliers) EXPECT_NEAR(std::abs(mu + 1.0), 0.0, 1e-7);
   }
+  // Strong resonances along the curve, where the pair exp(+-i T) has kappa = cos T = -1/2 (1:3,
+  // T = 10 pi / 3 and 8 pi / 3: omega = 0.6, 0.75) or 0 (1:4, T = 7 pi / 2 and 5 pi / 2:
+  // omega = 4/7, 0.8). Located to |kappa - c| <= 1e-10 with d kappa / d omega = O(10): omega to
+  // 1e-9. (1:2 at omega = 2/3 is a touch of kappa = -1 in this family, not a crossing: not
+  // reported.)
+  std::vector<double> r13, r14;
+  for (const Codim2Point& q : curve.codim2) {
+    if (q.kind == Codim2Kind::kResonance13) r13.push_back(q.point.value2);
+    if (q.kind == Codim2Kind::kResonance14) r14.push_back(q.point.value2);
+    EXPECT_NEAR(q.point.value1, 0.0, 1e-9);
+  }
+  std::sort(r13.begin(), r13.end());
+  std::sort(r14.begin(), r14.end());
+  ASSERT_EQ(r13.size(), 2u);
+  ASSERT_EQ(r14.size(), 2u);
+  EXPECT_NEAR(r13[0], 0.6, 1e-9);
+  EXPECT_NEAR(r13[1], 0.75, 1e-9);
+  EXPECT_NEAR(r14[0], 4.0 / 7.0, 1e-9);
+  EXPECT_NEAR(r14[1], 0.8, 1e-9);
 }
 
 }  // namespace

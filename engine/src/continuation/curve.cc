@@ -2,9 +2,12 @@
 #include "drillbif/continuation/curve.h"
 
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <limits>
 #include <memory>
 
 #include "continuation/arclength.h"
@@ -39,6 +42,14 @@ const char* Codim2KindName(Codim2Kind kind) {
       return "DOUBLE_GRAZING";
     case Codim2Kind::kNsGrazing:
       return "NS_GRAZING";
+    case Codim2Kind::kResonance11:
+      return "RESONANCE_1_1";
+    case Codim2Kind::kResonance12:
+      return "RESONANCE_1_2";
+    case Codim2Kind::kResonance13:
+      return "RESONANCE_1_3";
+    case Codim2Kind::kResonance14:
+      return "RESONANCE_1_4";
   }
   return "?";
 }
@@ -245,34 +256,61 @@ class CurveTracer {
     return p;
   }
 
-  // det(M - I) (shift -1) or det(M + I) (shift +1) at a curve point.
+  // A codimension-2 test function of the monodromy and the point it marks where it changes sign.
+  struct Codim2Test {
+    std::function<double(const Mat&)> f;
+    Codim2Kind kind;
+  };
+  double TestValue(const Codim2Test& test, const Vec& y) const {
+    return test.f(OrbitStability(model_, propagator_, Unpack(y)).monodromy);
+  }
+
+  // det(M - I) (shift -1) or det(M + I) (shift +1).
   static double ShiftedDet(const Mat& mono, double shift) {
     return (mono + shift * Mat::Identity(mono.rows(), mono.cols())).determinant();
   }
-  double ShiftedDet(const Vec& y, double shift) const {
-    return ShiftedDet(OrbitStability(model_, propagator_, Unpack(y)).monodromy, shift);
+
+  // On a Neimark-Sacker curve, kappa = Re(mu1 + mu2) / 2 of the critical pair (the two multipliers
+  // whose product is nearest 1; on the curve a complex pair on the unit circle, kappa = cos theta):
+  // kappa = 1, -1, -1/2, 0 at the strong resonances 1:1, 1:2, 1:3, 1:4 (Kuznetsov 2004,
+  // sec. 9.5). Beyond a 1:1 or 1:2 point the pair is real with product 1 and kappa passes +-1.
+  static double Kappa(const Mat& mono) {
+    const Eigen::VectorXcd mu = Eigen::EigenSolver<Mat>(mono, false).eigenvalues();
+    double best = std::numeric_limits<double>::infinity(), kappa = 0.0;
+    for (int i = 0; i < mu.size(); ++i) {
+      for (int j = i + 1; j < mu.size(); ++j) {
+        const double gap = std::abs(mu[i] * mu[j] - 1.0);
+        if (gap < best) best = gap, kappa = 0.5 * (mu[i] + mu[j]).real();
+      }
+    }
+    return kappa;
   }
 
-  // The codimension-2 test functions this curve carries: (shift, kind) pairs.
-  std::vector<std::pair<double, Codim2Kind>> Codim2Tests() const {
+  // The codimension-2 test functions this curve carries.
+  std::vector<Codim2Test> Codim2Tests() const {
+    auto det = [](double shift) { return [shift](const Mat& m) { return ShiftedDet(m, shift); }; };
+    auto kappa = [](double at) { return [at](const Mat& m) { return Kappa(m) - at; }; };
     switch (kind_) {
       case CurveKind::kGrazing:
-        return {{-1.0, Codim2Kind::kFoldGrazing}, {+1.0, Codim2Kind::kFlipGrazing}};
+        return {{det(-1.0), Codim2Kind::kFoldGrazing}, {det(+1.0), Codim2Kind::kFlipGrazing}};
       case CurveKind::kFold:
-        return {{+1.0, Codim2Kind::kFoldFlip}};
+        return {{det(+1.0), Codim2Kind::kFoldFlip}};
       case CurveKind::kPeriodDoubling:
-        return {{-1.0, Codim2Kind::kFoldFlip}};
+        return {{det(-1.0), Codim2Kind::kFoldFlip}};
       case CurveKind::kNeimarkSacker:
-        return {};
+        return {{kappa(1.0), Codim2Kind::kResonance11},
+                {kappa(-1.0), Codim2Kind::kResonance12},
+                {kappa(-0.5), Codim2Kind::kResonance13},
+                {kappa(0.0), Codim2Kind::kResonance14}};
     }
     return {};
   }
 
-  // The root of det(M -+ I) on the step from y along t of length h (values d0, d1 at its ends):
-  // Illinois on the arclength, each trial point corrected onto the curve, until |det| <= 1e-10
-  // or the bracket is below 1e-14 of the step.
-  bool LocateCodim2(const Vec& y, const Vec& t, double h, double shift, double d0, double d1,
-                    Vec* root) const {
+  // The root of a test function on the step from y along t of length h (values d0, d1 at its
+  // ends): Illinois on the arclength, each trial point corrected onto the curve, until
+  // |value| <= 1e-10 or the bracket is below 1e-14 of the step.
+  bool LocateCodim2(const Vec& y, const Vec& t, double h, const Codim2Test& test, double d0,
+                    double d1, Vec* root) const {
     double a = 0.0, fa = d0, b = h, fb = d1;
     int side = 0;
     for (int it = 0; it < 100; ++it) {
@@ -280,7 +318,7 @@ class CurveTracer {
       if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
       int iterations = 0;
       if (!Correct(y + sigma * t, t, root, &iterations)) return false;
-      const double f = ShiftedDet(*root, shift);
+      const double f = TestValue(test, *root);
       if (std::abs(f) <= 1e-10 || b - a <= 1e-14 * std::max(1.0, h)) return true;
       if ((f > 0.0) == (fa > 0.0)) {
         a = sigma, fa = f;
@@ -365,7 +403,7 @@ class CurveTracer {
     double h = options_.initial_step;
     const auto tests = Codim2Tests();
     std::vector<double> dets;
-    for (const auto& [shift, kind] : tests) dets.push_back(ShiftedDet(y, shift));
+    for (const Codim2Test& test : tests) dets.push_back(TestValue(test, y));
     // Stall watch: parameters (scaled by the box where it is finite) 50 accepted steps back.
     constexpr int kStallWindow = 50;
     std::vector<Eigen::Vector2d> recent;
@@ -436,14 +474,14 @@ class CurveTracer {
           if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
         }
       }
-      // Codimension-2 points on this step: sign changes of det(M -+ I).
+      // Codimension-2 points on this step: sign changes of the test functions.
       for (size_t k = 0; k < tests.size(); ++k) {
-        const double d1 = ShiftedDet(p.stability.monodromy, tests[k].first);
+        const double d1 = tests[k].f(p.stability.monodromy);
         Vec root;
         const double step_length = t.dot(y1 - y);
         if ((dets[k] > 0.0) != (d1 > 0.0) &&
-            LocateCodim2(y, t, step_length, tests[k].first, dets[k], d1, &root)) {
-          codim2->push_back({tests[k].second, MakePoint(root), "", 0.0});
+            LocateCodim2(y, t, step_length, tests[k], dets[k], d1, &root)) {
+          codim2->push_back({tests[k].kind, MakePoint(root), "", 0.0});
         }
         dets[k] = d1;
       }

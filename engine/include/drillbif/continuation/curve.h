@@ -77,7 +77,19 @@ struct CurvePoint {
 // test) FOLD_FLIP. A curve that ends where its orbit grazes ends at a FOLD_GRAZING (fold curve),
 // FLIP_GRAZING (PD curve), NS_GRAZING (Neimark-Sacker curve) or DOUBLE_GRAZING (grazing curve: a
 // second boundary touched).
-enum class Codim2Kind { kFoldGrazing, kFlipGrazing, kFoldFlip, kDoubleGrazing, kNsGrazing };
+// On a Neimark-Sacker curve, RESONANCE_1_q (q = 1..4): the critical pair's kappa = Re(mu) passes
+// 1, -1, -1/2, 0 (the strong resonances; for 1:1 and 1:2 generically where the pair turns real).
+enum class Codim2Kind {
+  kFoldGrazing,
+  kFlipGrazing,
+  kFoldFlip,
+  kDoubleGrazing,
+  kNsGrazing,
+  kResonance11,
+  kResonance12,
+  kResonance13,
+  kResonance14,
+};
 const char* Codim2KindName(Codim2Kind kind);
 
 // A root of a determinant is located as above; a curve's end where its orbit stops being
