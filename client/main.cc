@@ -1,11 +1,14 @@
-// drillctl: the command line client. Flags become a request proto, the job runner runs it (in this
-// process with --local; the gRPC service comes later) and the result proto is printed as JSON or
-// CSV.
+// drillctl: the command line client. Flags become a request proto, which is run either in this
+// process by the job runner (--local) or as a job of a drillbif server (--server HOST:PORT, else
+// DRILLBIF_SERVER, else localhost:50051; client/remote.h), and the result proto is printed as
+// JSON or CSV, the same in both modes. `drillctl jobs ...` manages the server's jobs
+// (client/jobs_command.h).
 //
-// Exit codes: 0 completed; 1 the run failed (the partial result is still printed); 2 invalid
-// input (bad flags or parameter values), nothing run; 130 interrupted (Ctrl-C), partial result
-// printed.
+// Exit codes: 0 completed; 1 the run failed (the partial result is still printed) or the server
+// could not be reached; 2 invalid input (bad flags or parameter values, a token the server
+// refuses), nothing run; 130 interrupted (Ctrl-C), partial result printed.
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
@@ -14,12 +17,15 @@
 #include <fstream>
 #include <iostream>
 #include <limits>
+#include <memory>
 #include <string>
 
 #include "client/job_runner.h"
+#include "client/jobs_command.h"
 #include "client/optimum_runner.h"
 #include "client/output.h"
 #include "client/progress_bar.h"
+#include "client/remote.h"
 #include "client/trace_runner.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
@@ -36,12 +42,18 @@ constexpr int kExitFailed = 1;
 constexpr int kExitUsage = 2;
 constexpr int kExitInterrupted = 130;
 
-volatile std::sig_atomic_t g_interrupted = 0;
+// Set by SIGINT; read by the progress callbacks and, in server mode, by the thread that cancels a
+// Watch stream. A lock-free atomic is safe to store from a signal handler.
+std::atomic<bool> g_interrupted = false;
+static_assert(std::atomic<bool>::is_always_lock_free);
 
-extern "C" void OnInterrupt(int) { g_interrupted = 1; }
+extern "C" void OnInterrupt(int) { g_interrupted = true; }
 
-// Ctrl-C cancels the run through the progress callback (the partial result is printed); a second
-// Ctrl-C kills the process (SA_RESETHAND restores the default action).
+bool Interrupted() { return g_interrupted.load(); }
+
+// Ctrl-C cancels the run through the progress callback (the partial result is printed; in server
+// mode the job is cancelled on the server); a second Ctrl-C kills the process (SA_RESETHAND
+// restores the default action).
 void InstallInterruptHandler() {
   struct sigaction action {};
   action.sa_handler = OnInterrupt;
@@ -55,7 +67,8 @@ int Error(const std::string& message, int code) {
   return code;
 }
 
-// Invalid input of any kind exits 2; anything else (internal errors) exits 1.
+// Invalid input of any kind exits 2, and so does a token the server refuses (nothing ran);
+// anything else (internal errors, an unreachable server) exits 1.
 int ErrorStatus(const Status& status) {
   switch (status.code()) {
     case StatusCode::kInvalidArgument:
@@ -64,6 +77,8 @@ int ErrorStatus(const Status& status) {
     case StatusCode::kFailedPrecondition:
     case StatusCode::kUnimplemented:
       return Error("invalid input: " + status.message(), kExitUsage);
+    case StatusCode::kUnauthenticated:
+      return Error(status.message(), kExitUsage);
     default:
       return Error(status.ToString(), kExitFailed);
   }
@@ -74,6 +89,11 @@ struct GlobalFlags {
   std::string format = "json";
   std::string output;  // empty: stdout
   bool compact = false;
+  // Server mode (without --local).
+  std::string server;  // empty: DRILLBIF_SERVER, else localhost:50051
+  std::string token;   // empty: DRILLBIF_TOKEN, else none
+  bool detach = false;
+  double timeout = RemoteOptions().rpc_timeout_seconds;
 };
 
 struct ModelFlags {
@@ -258,7 +278,31 @@ int RunAndPrint(const GlobalFlags& global, const Run& run, const ToCsv& to_csv) 
   return Finish(result->status(), result->message());
 }
 
-int RunSimulateCommand(const GlobalFlags& global, const ModelFlags& m, const SimulateFlags& f) {
+// Runs a job in this process (`remote` null: the job runner `local`) or on the server: submitted,
+// followed with the progress bar, and printed as RunAndPrint prints a local run; with --detach
+// only submitted, and its operation name printed.
+template <typename Result, typename Request, typename Local, typename ToCsv>
+int RunJob(const GlobalFlags& global, RemoteClient* remote, const Request& request,
+           const Local& local, const ToCsv& to_csv) {
+  if (remote == nullptr) {
+    return RunAndPrint(
+        global, [&](const ProgressCallback& progress) { return local(request, progress); }, to_csv);
+  }
+  if (global.detach) {
+    StatusOr<google::longrunning::Operation> op = remote->Submit(request);
+    if (!op.ok()) return ErrorStatus(op.status());
+    return Write(global, op->name() + "\n") ? 0 : kExitFailed;
+  }
+  return RunAndPrint(
+      global,
+      [&](const ProgressCallback& progress) {
+        return RunRemote<Result>(*remote, request, progress, Interrupted);
+      },
+      to_csv);
+}
+
+int RunSimulateCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
+                       const SimulateFlags& f) {
   v1::SimulateRequest request;
   *request.mutable_params() = ToProtoParams(m);
   *request.mutable_initial_state() = ToProtoState(m);
@@ -284,12 +328,14 @@ int RunSimulateCommand(const GlobalFlags& global, const ModelFlags& m, const Sim
     table = *t;
   }
 
-  return RunAndPrint(
-      global, [&](const ProgressCallback& progress) { return RunSimulate(request, progress); },
+  return RunJob<v1::SimulateResult>(
+      global, remote, request,
+      [](const v1::SimulateRequest& r, const ProgressCallback& p) { return RunSimulate(r, p); },
       [table](const v1::SimulateResult& r) { return SimulateResultToCsv(r, table); });
 }
 
-int RunSweepCommand(const GlobalFlags& global, const ModelFlags& m, const SweepFlags& f) {
+int RunSweepCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
+                    const SweepFlags& f) {
   v1::SweepRequest request;
   *request.mutable_params() = ToProtoParams(m);
   *request.mutable_initial_state() = ToProtoState(m);
@@ -304,12 +350,14 @@ int RunSweepCommand(const GlobalFlags& global, const ModelFlags& m, const SweepF
                                                 : v1::SweepRequest::UP);
   request.set_threads(f.threads);
 
-  return RunAndPrint(
-      global, [&](const ProgressCallback& progress) { return RunSweep(request, progress); },
+  return RunJob<v1::SweepResult>(
+      global, remote, request,
+      [](const v1::SweepRequest& r, const ProgressCallback& p) { return RunSweep(r, p); },
       [](const v1::SweepResult& r) { return SweepResultToCsv(r); });
 }
 
-int RunContinueCommand(const GlobalFlags& global, const ModelFlags& m, const ContinueFlags& f) {
+int RunContinueCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
+                       const ContinueFlags& f) {
   v1::ContinueRequest request;
   *request.mutable_params() = ToProtoParams(m);
   *request.mutable_initial_state() = ToProtoState(m);
@@ -339,8 +387,9 @@ int RunContinueCommand(const GlobalFlags& global, const ModelFlags& m, const Con
   }
   request.set_transient_periods(m.transient);
 
-  return RunAndPrint(
-      global, [&](const ProgressCallback& progress) { return RunContinue(request, progress); },
+  return RunJob<v1::ContinueResult>(
+      global, remote, request,
+      [](const v1::ContinueRequest& r, const ProgressCallback& p) { return RunContinue(r, p); },
       [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
 }
 
@@ -356,27 +405,30 @@ v1::TraceRequest ToTraceRequest(const ModelFlags& m, const TraceFlags& f) {
   return request;
 }
 
-int RunTraceCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& f) {
+int RunTraceCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
+                    const TraceFlags& f) {
   v1::TraceRequest request = ToTraceRequest(m, f);
   request.set_period2(f.period2);
   if (f.region || !f.grid.empty()) {
     v1::RegionRequest* region = request.mutable_region();
     for (int n : f.grid) region->add_grid(n);
   }
-  return RunAndPrint(
-      global, [&](const ProgressCallback& progress) { return RunTrace(request, progress); },
+  return RunJob<v1::TraceResult>(
+      global, remote, request,
+      [](const v1::TraceRequest& r, const ProgressCallback& p) { return RunTrace(r, p); },
       [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
 }
 
-int RunOptimumCommand(const GlobalFlags& global, const ModelFlags& m, const TraceFlags& t,
-                      const OptimumFlags& f) {
+int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
+                      const TraceFlags& t, const OptimumFlags& f) {
   v1::OptimumRequest request;
   *request.mutable_trace() = ToTraceRequest(m, t);
   for (double v : f.margin) request.add_margin(v);
   request.set_scaled(f.scaled);
   for (int n : t.grid) request.add_grid(n);
-  return RunAndPrint(
-      global, [&](const ProgressCallback& progress) { return RunOptimum(request, progress); },
+  return RunJob<v1::OptimumResult>(
+      global, remote, request,
+      [](const v1::OptimumRequest& r, const ProgressCallback& p) { return RunOptimum(r, p); },
       [](const v1::OptimumResult& r) { return OptimumResultToCsv(r); });
 }
 
@@ -410,18 +462,94 @@ void AddBoxFlags(CLI::App* cmd, TraceFlags* f) {
       ->group(g);
 }
 
+struct JobsFlags {
+  JobsListOptions list;
+  std::string id;  // get, watch, cancel, result
+};
+
+enum class JobsCommand { kList, kGet, kWatch, kCancel, kResult };
+
+// `drillctl jobs ...`. Exit codes: list, get, cancel 0 (or an error's); watch 0 when the job
+// SUCCEEDED, 1 when it FAILED or was CANCELLED, 130 on Ctrl-C (the job goes on); result as the
+// command that ran the job.
+int RunJobsCommand(const GlobalFlags& global, RemoteClient& remote, JobsCommand command,
+                   const JobsFlags& flags) {
+  OutputStyle style;
+  style.csv = global.format == "csv";
+  style.pretty = !global.compact;
+  StatusOr<std::string> text = std::string();
+  switch (command) {
+    case JobsCommand::kList:
+      text = JobsList(remote, flags.list, style);
+      break;
+    case JobsCommand::kGet:
+      text = JobsGet(remote, flags.id, style);
+      break;
+    case JobsCommand::kCancel:
+      text = JobsCancel(remote, flags.id, style);
+      break;
+    case JobsCommand::kResult: {
+      StatusOr<FormattedResult> result = JobsResult(remote, flags.id, style);
+      if (!result.ok()) return ErrorStatus(result.status());
+      if (!Write(global, result->text)) return kExitFailed;
+      return Finish(result->status, result->message);
+    }
+    case JobsCommand::kWatch: {
+      // Lines are written as they come (to --output too: appended as they come).
+      std::ofstream file;
+      if (!global.output.empty()) file.open(global.output, std::ios::binary | std::ios::trunc);
+      std::ostream& out = global.output.empty() ? std::cout : file;
+      StatusOr<v1::JobMetadata> last = JobsWatch(
+          remote, flags.id, style, [&out](const std::string& line) { out << line << std::flush; },
+          Interrupted);
+      if (!last.ok()) {
+        if (last.status().code() == StatusCode::kCancelled && Interrupted()) {
+          return Error("interrupted (the job goes on)", kExitInterrupted);
+        }
+        return ErrorStatus(last.status());
+      }
+      if (!out) return Error("cannot write the progress", kExitFailed);
+      if (last->state() == v1::SUCCEEDED) return 0;
+      return Error(last->name() + " ended " + v1::JobState_Name(last->state()) +
+                       " (drillctl jobs get " + last->name() + " has its error)",
+                   kExitFailed);
+    }
+  }
+  if (!text.ok()) return ErrorStatus(text.status());
+  return Write(global, *text) ? 0 : kExitFailed;
+}
+
 int Main(int argc, char** argv) {
   CLI::App app{"drillctl: bifurcation analysis of the drifting impact oscillator", "drillctl"};
   app.set_version_flag("--version", EngineVersion());
   app.require_subcommand(1);
   app.fallthrough();  // global flags may also follow the subcommand
   app.footer(
-      "Exit codes: 0 completed, 1 run failed (partial result printed), 2 invalid input, "
-      "130 interrupted.");
+      "Exit codes: 0 completed, 1 run failed (partial result printed) or server unreachable, "
+      "2 invalid input or token refused, 130 interrupted.");
 
   GlobalFlags global;
-  app.add_flag("--local", global.local,
-               "Run the engine in this process (required until the server exists)");
+  const std::string remote_group = "Server mode (without --local)";
+  CLI::Option* local_flag =
+      app.add_flag("--local", global.local,
+                   "Run the engine in this process (default: submit the job to the server)");
+  app.add_option("--server", global.server,
+                 "drillbif server HOST:PORT (default: $DRILLBIF_SERVER, else localhost:50051)")
+      ->excludes(local_flag)
+      ->group(remote_group);
+  app.add_option("--token", global.token,
+                 "Bearer token for the server (default: $DRILLBIF_TOKEN, else none)")
+      ->excludes(local_flag)
+      ->group(remote_group);
+  app.add_flag("--detach", global.detach,
+               "Submit the job, print its operation name (operations/ID) and return")
+      ->excludes(local_flag)
+      ->group(remote_group);
+  app.add_option("--timeout", global.timeout, "Deadline of each rpc, in seconds")
+      ->check(PositiveDouble())
+      ->capture_default_str()
+      ->excludes(local_flag)
+      ->group(remote_group);
   app.add_option("--format", global.format, "Output format: json or csv")
       ->check(CLI::IsMember({"json", "csv"}))
       ->capture_default_str();
@@ -586,14 +714,58 @@ int Main(int argc, char** argv) {
   AddModelFlags(optimum, &model);
   AddStartOrbitFlags(optimum, &model);
 
+  CLI::App* health = app.add_subcommand(
+      "health",
+      "Ask the server's gRPC health service: prints SERVING and exits 0, else prints the status "
+      "and exits 1 (no token needed; for container and service health checks)");
+
+  JobsFlags jf;
+  CLI::App* jobs = app.add_subcommand("jobs", "Manage the jobs of a drillbif server");
+  jobs->require_subcommand(1);
+  jobs->fallthrough();
+  CLI::App* jobs_list = jobs->add_subcommand("list", "List jobs, oldest first, one page");
+  jobs_list
+      ->add_option("--state", jf.list.state,
+                   "Only jobs in this state: QUEUED, RUNNING, SUCCEEDED, FAILED, CANCELLED")
+      ->check(CLI::IsMember({"QUEUED", "RUNNING", "SUCCEEDED", "FAILED", "CANCELLED"}));
+  jobs_list->add_option("--kind", jf.list.kind, "Only jobs of this kind, e.g. sweep")
+      ->check(CLI::IsMember({"simulate", "sweep", "continue", "trace", "optimum"}));
+  jobs_list->add_option("--page-size", jf.list.page_size, "Jobs per page (0: the server's 50)")
+      ->check(CLI::Range(0, 1000));
+  jobs_list->add_option("--page-token", jf.list.page_token, "Token of the page to list");
+  jobs_list->add_flag("--all", jf.list.all, "Every page");
+  CLI::App* jobs_get = jobs->add_subcommand("get", "A job's operation (with its result)");
+  CLI::App* jobs_watch = jobs->add_subcommand("watch", "Stream a job's progress until it finishes");
+  CLI::App* jobs_cancel = jobs->add_subcommand("cancel", "Cancel a job");
+  CLI::App* jobs_result = jobs->add_subcommand(
+      "result", "A finished job's result, printed as the command that ran it prints it");
+  for (CLI::App* sub : {jobs_get, jobs_watch, jobs_cancel, jobs_result}) {
+    sub->add_option("ID", jf.id, "The job: operations/ID or ID")->required();
+    sub->fallthrough();
+  }
+  jobs_list->fallthrough();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);  // prints help, version or the error
     return code == 0 ? 0 : kExitUsage;
   }
+  if (global.local && jobs->parsed()) {
+    return Error("jobs manages a server's jobs: drop --local", kExitUsage);
+  }
+  if (global.local && health->parsed()) {
+    return Error("health asks a server: drop --local", kExitUsage);
+  }
+  std::unique_ptr<RemoteClient> remote;
   if (!global.local) {
-    return Error("server mode not implemented yet; use --local", kExitUsage);
+    RemoteOptions options;
+    options.target = ResolveServer(global.server);
+    options.token = ResolveToken(global.token);
+    options.rpc_timeout_seconds = global.timeout;
+    StatusOr<std::unique_ptr<RemoteClient>> client = RemoteClient::Connect(options);
+    if (!client.ok()) return ErrorStatus(client.status());
+    remote = std::move(client).value();
   }
   // Fail on an unwritable --output before computing anything.
   if (!global.output.empty()) {
@@ -604,11 +776,25 @@ int Main(int argc, char** argv) {
     }
   }
   InstallInterruptHandler();
-  if (simulate->parsed()) return RunSimulateCommand(global, model, sim);
-  if (cont->parsed()) return RunContinueCommand(global, model, co);
-  if (trace->parsed()) return RunTraceCommand(global, model, tr);
-  if (optimum->parsed()) return RunOptimumCommand(global, model, ot, of);
-  return RunSweepCommand(global, model, sw);
+  if (health->parsed()) {
+    StatusOr<std::string> serving = remote->Health();
+    if (!serving.ok()) return Error(serving.status().ToString(), kExitFailed);
+    if (!Write(global, *serving + "\n")) return kExitFailed;
+    return *serving == "SERVING" ? 0 : kExitFailed;
+  }
+  if (jobs->parsed()) {
+    const JobsCommand command = jobs_list->parsed()     ? JobsCommand::kList
+                                : jobs_get->parsed()    ? JobsCommand::kGet
+                                : jobs_watch->parsed()  ? JobsCommand::kWatch
+                                : jobs_cancel->parsed() ? JobsCommand::kCancel
+                                                        : JobsCommand::kResult;
+    return RunJobsCommand(global, *remote, command, jf);
+  }
+  if (simulate->parsed()) return RunSimulateCommand(global, remote.get(), model, sim);
+  if (cont->parsed()) return RunContinueCommand(global, remote.get(), model, co);
+  if (trace->parsed()) return RunTraceCommand(global, remote.get(), model, tr);
+  if (optimum->parsed()) return RunOptimumCommand(global, remote.get(), model, ot, of);
+  return RunSweepCommand(global, remote.get(), model, sw);
 }
 
 }  // namespace

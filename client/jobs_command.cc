@@ -1,0 +1,270 @@
+#include "client/jobs_command.h"
+
+#include <google/protobuf/util/time_util.h>
+
+#include <charconv>
+#include <string_view>
+
+#include "client/output.h"
+
+namespace drillbif::client {
+namespace {
+
+using google::longrunning::Operation;
+
+constexpr char kCsvHeader[] =
+    "name,kind,state,progress,points,cache_hit,attempts,create_time,start_time,end_time,error\n";
+
+// A CSV field: quoted (quotes doubled) when it holds a comma, a quote or a line break.
+std::string CsvField(std::string_view text) {
+  if (text.find_first_of(",\"\n\r") == std::string_view::npos) return std::string(text);
+  std::string out("\"");
+  for (char c : text) {
+    if (c == '"') out.push_back('"');
+    out.push_back(c);
+  }
+  out.push_back('"');
+  return out;
+}
+
+std::string Number(double v) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), v);
+  return std::string(buf, ec == std::errc() ? end : buf);
+}
+
+std::string Time(bool has, const google::protobuf::Timestamp& t) {
+  return has ? google::protobuf::util::TimeUtil::ToString(t) : std::string();
+}
+
+std::string KindText(v1::JobKind kind) {
+  switch (kind) {
+    case v1::SIMULATE:
+      return "simulate";
+    case v1::SWEEP:
+      return "sweep";
+    case v1::CONTINUE:
+      return "continue";
+    case v1::TRACE:
+      return "trace";
+    case v1::OPTIMUM:
+      return "optimum";
+    default:
+      return std::string();
+  }
+}
+
+// One CSV row of kCsvHeader. (Fields are appended one by one: `"," + std::string` trips GCC 12's
+// -Wrestrict false positive.)
+std::string Row(const v1::JobMetadata& m, const std::string& error) {
+  std::string row;
+  auto field = [&row](const std::string& text) {
+    if (!row.empty()) row.push_back(',');
+    row.append(text);
+  };
+  field(CsvField(m.name()));
+  field(KindText(m.kind()));
+  field(v1::JobState_Name(m.state()));
+  field(Number(m.progress()));
+  field(std::to_string(m.points()));
+  field(m.cache_hit() ? std::string("true") : std::string("false"));
+  field(std::to_string(m.attempts()));
+  field(Time(m.has_create_time(), m.create_time()));
+  field(Time(m.has_start_time(), m.start_time()));
+  field(Time(m.has_end_time(), m.end_time()));
+  row.push_back(',');
+  row.append(CsvField(error));
+  row.push_back('\n');
+  return row;
+}
+
+std::string ErrorText(const Operation& op) {
+  if (!op.has_error() || op.error().code() == 0) return std::string();
+  const Status s(static_cast<StatusCode>(op.error().code()), op.error().message());
+  return s.ToString();
+}
+
+// The operation's row; its name from the operation when the metadata has none.
+std::string OperationRow(const Operation& op) {
+  v1::JobMetadata m = MetadataOf(op);
+  if (m.name().empty()) m.set_name(op.name());
+  return Row(m, ErrorText(op));
+}
+
+StatusOr<std::string> FormatOperation(const Operation& op, const OutputStyle& style) {
+  if (style.csv) return std::string(kCsvHeader) + OperationRow(op);
+  return ToJson(op, style.pretty);
+}
+
+// The simulate CSV table of the one output a result holds.
+StatusOr<SimulateTable> TableOf(const v1::SimulateResult& r) {
+  v1::SimulateRequest::Outputs present;
+  present.set_poincare(r.poincare_size() > 0);
+  present.set_events(r.events_size() > 0);
+  present.set_modes(r.period_modes_size() > 0);
+  present.set_trajectory_dt(r.trajectory_size() > 0 ? 1.0 : 0.0);
+  return CsvTableFor(present);
+}
+
+template <typename Result, typename ToCsv>
+StatusOr<FormattedResult> Format(const Result& result, const OutputStyle& style,
+                                 const ToCsv& to_csv) {
+  FormattedResult out;
+  out.status = result.status();
+  out.message = result.message();
+  if (style.csv) {
+    StatusOr<std::string> text = to_csv(result);
+    if (!text.ok()) return text.status();
+    out.text = *text;
+  } else {
+    StatusOr<std::string> json = ToJson(result, style.pretty);
+    if (!json.ok()) return json.status();
+    out.text = *json;
+  }
+  return out;
+}
+
+}  // namespace
+
+StatusOr<std::string> ListFilter(const JobsListOptions& options) {
+  std::string filter;
+  if (!options.state.empty()) {
+    v1::JobState state;
+    if (!v1::JobState_Parse(options.state, &state) || state == v1::JOB_STATE_UNSPECIFIED) {
+      return InvalidArgument("--state: unknown state '" + options.state +
+                             "' (QUEUED, RUNNING, SUCCEEDED, FAILED, CANCELLED)");
+    }
+    filter = "state=" + options.state;
+  }
+  if (!options.kind.empty()) {
+    bool known = false;
+    for (v1::JobKind kind : {v1::SIMULATE, v1::SWEEP, v1::CONTINUE, v1::TRACE, v1::OPTIMUM}) {
+      known = known || KindText(kind) == options.kind;
+    }
+    if (!known) {
+      return InvalidArgument("--kind: unknown kind '" + options.kind +
+                             "' (simulate, sweep, continue, trace, optimum)");
+    }
+    if (!filter.empty()) filter += " AND ";
+    filter += "kind=" + options.kind;
+  }
+  return filter;
+}
+
+StatusOr<std::string> JobsList(RemoteClient& client, const JobsListOptions& options,
+                               const OutputStyle& style) {
+  StatusOr<std::string> filter = ListFilter(options);
+  if (!filter.ok()) return filter.status();
+  google::longrunning::ListOperationsResponse all;
+  std::string token = options.page_token;
+  do {
+    StatusOr<google::longrunning::ListOperationsResponse> page =
+        client.List(*filter, options.page_size, token);
+    if (!page.ok()) return page.status();
+    for (const Operation& op : page->operations()) *all.add_operations() = op;
+    token = page->next_page_token();
+  } while (options.all && !token.empty());
+  if (!options.all) all.set_next_page_token(token);
+
+  if (!style.csv) return ToJson(all, style.pretty);
+  std::string text(kCsvHeader);
+  for (const Operation& op : all.operations()) text += OperationRow(op);
+  if (!all.next_page_token().empty()) text += "# next_page_token=" + all.next_page_token() + "\n";
+  return text;
+}
+
+StatusOr<std::string> JobsGet(RemoteClient& client, const std::string& id,
+                              const OutputStyle& style) {
+  StatusOr<Operation> op = client.Get(OperationName(id));
+  if (!op.ok()) return op.status();
+  return FormatOperation(*op, style);
+}
+
+StatusOr<std::string> JobsCancel(RemoteClient& client, const std::string& id,
+                                 const OutputStyle& style) {
+  const std::string name = OperationName(id);
+  if (Status s = client.Cancel(name); !s.ok()) return s;
+  // A running job stops at its next progress callback (~50 ms): wait briefly for the final state.
+  StatusOr<Operation> op = client.Wait(name, 1.0);
+  if (!op.ok()) return op.status();
+  return FormatOperation(*op, style);
+}
+
+StatusOr<v1::JobMetadata> JobsWatch(RemoteClient& client, const std::string& id,
+                                    const OutputStyle& style,
+                                    const std::function<void(const std::string&)>& write,
+                                    const std::function<bool()>& interrupted) {
+  if (style.csv) write(kCsvHeader);
+  Status format_error;
+  StatusOr<v1::JobMetadata> last = client.Watch(
+      OperationName(id),
+      [&](const v1::JobMetadata& m) {
+        if (style.csv) {
+          write(Row(m, std::string()));
+          return true;
+        }
+        StatusOr<std::string> json = ToJson(m, /*pretty=*/false);
+        if (!json.ok()) {
+          format_error = json.status();
+          return false;
+        }
+        write(*json);
+        return true;
+      },
+      interrupted);
+  if (!format_error.ok()) return format_error;
+  return last;
+}
+
+StatusOr<FormattedResult> FormatResult(const v1::GetResultResponse& response,
+                                       const OutputStyle& style) {
+  using Text = StatusOr<std::string>;
+  switch (response.result_case()) {
+    case v1::GetResultResponse::kSimulate:
+      return Format(response.simulate(), style, [](const v1::SimulateResult& r) -> Text {
+        StatusOr<SimulateTable> table = TableOf(r);
+        if (!table.ok()) return table.status();
+        return SimulateResultToCsv(r, *table);
+      });
+    case v1::GetResultResponse::kSweep:
+      return Format(response.sweep(), style,
+                    [](const v1::SweepResult& r) -> Text { return SweepResultToCsv(r); });
+    case v1::GetResultResponse::kContinue:
+      return Format(response.continue_(), style,
+                    [](const v1::ContinueResult& r) -> Text { return ContinueResultToCsv(r); });
+    case v1::GetResultResponse::kTrace:
+      return Format(response.trace(), style,
+                    [](const v1::TraceResult& r) -> Text { return TraceResultToCsv(r); });
+    case v1::GetResultResponse::kOptimum:
+      return Format(response.optimum(), style,
+                    [](const v1::OptimumResult& r) -> Text { return OptimumResultToCsv(r); });
+    default:
+      return Internal("the server returned no result for " + response.name());
+  }
+}
+
+StatusOr<FormattedResult> JobsResult(RemoteClient& client, const std::string& id,
+                                     const OutputStyle& style) {
+  const std::string name = OperationName(id);
+  StatusOr<v1::GetResultResponse> response = client.GetResult(name);
+  if (response.ok()) return FormatResult(*response, style);
+  if (response.status().code() != StatusCode::kFailedPrecondition) return response.status();
+  // Not SUCCEEDED: say why, with the job's own error when it failed (as --local would).
+  StatusOr<Operation> op = client.Get(name);
+  if (!op.ok()) return response.status();
+  const v1::JobMetadata m = MetadataOf(*op);
+  if (!op->done()) {
+    return Status(StatusCode::kFailedPrecondition,
+                  name + " is " + v1::JobState_Name(m.state()) + " (progress " +
+                      Number(m.progress()) + "): wait with `drillctl jobs watch " + name + "`");
+  }
+  if (m.state() == v1::CANCELLED) {
+    return Status(StatusCode::kCancelled, name + " was cancelled; it has no result");
+  }
+  if (op->has_error() && op->error().code() != 0) {
+    return internal::ErrorOf(*op);
+  }
+  return response.status();
+}
+
+}  // namespace drillbif::client
