@@ -416,7 +416,12 @@ StatusOr<Operation> FollowJob(RemoteClient& client, const std::string& name,
       },
       interrupted);
   const bool cancel = stop || (interrupted && interrupted());
-  if (!last.ok() && !cancel) return last.status();
+  if (!last.ok() && !cancel) {
+    // The job itself is not affected (e.g. a server restarting requeues it): say how to resume.
+    return Status(last.status().code(), "while following " + name + ": " + last.status().message() +
+                                            " (then: drillctl jobs watch " + name +
+                                            ", drillctl jobs result " + name + ")");
+  }
   if (cancel) {
     Status s = client.Cancel(name);
     // FAILED_PRECONDITION: it finished before the cancel arrived; its result stands.
