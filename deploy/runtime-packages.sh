@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Prints the Debian packages that hold the shared libraries the given binaries load (ldd), one
+# per line: what a runtime image or host needs to run them, with no build tools. Used by the
+# Dockerfile's build stage; also handy before installing the binaries on a plain Debian 12 host:
+#   deploy/runtime-packages.sh build/server/drillbif-server build/client/drillctl
+set -euo pipefail
+
+if [ $# -eq 0 ]; then
+  echo "usage: $0 BINARY..." >&2
+  exit 2
+fi
+
+for binary in "$@"; do
+  ldd "$binary" | awk '/=> \// { print $3 }'
+done | sort -u | while read -r lib; do
+  real=$(readlink -f "$lib")
+  # Debian 12 merges /lib into /usr/lib, but dpkg records each file under the path its package
+  # ships it at: try the path, the resolved path, and both with and without the /usr prefix.
+  package=
+  for path in "$lib" "$real" "/usr$lib" "${real#/usr}"; do
+    if owner=$(dpkg -S "$path" 2>/dev/null); then
+      package=${owner%%:*}
+      break
+    fi
+  done
+  if [ -z "$package" ]; then
+    echo "runtime-packages.sh: no package owns $lib" >&2
+    exit 1
+  fi
+  echo "$package"
+done | sort -u
