@@ -12,6 +12,8 @@
 #   SQLite::SQLite3        store                                             (service, later)
 #   OpenSSL::Crypto        SHA-256 of the service's cache keys               (server/)
 #   drillbif::grpc_reflection  gRPC server reflection (grpc++_reflection)    (server/)
+#   drillbif::httplib      cpp-httplib: the REST gateway and /metrics, and the HTTP client of
+#                          the REST tests                                    (server/, tests/)
 # The engine links only Eigen and SUNDIALS (see /work/shared/ARCHITECTURE.md).
 
 # --- Eigen -------------------------------------------------------------------------------------
@@ -98,3 +100,12 @@ else()
   target_link_libraries(drillbif::grpc_reflection INTERFACE "${DRILLBIF_GRPCPP_REFLECTION_LIBRARY}"
                         drillbif::grpc)
 endif()
+
+# cpp-httplib (libcpp-httplib-dev, 0.11): Debian builds it as a shared library with OpenSSL,
+# zlib and Brotli support, and the header's class layouts depend on those switches, so its
+# compile definitions must come with it: pkg-config gives both (Debian ships no CMake config).
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(DRILLBIF_HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+add_library(drillbif::httplib INTERFACE IMPORTED GLOBAL)
+target_link_libraries(drillbif::httplib INTERFACE PkgConfig::DRILLBIF_HTTPLIB)
+message(STATUS "drillbif: cpp-httplib ${DRILLBIF_HTTPLIB_VERSION} via pkg-config")
