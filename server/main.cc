@@ -1,6 +1,7 @@
 // drillbif-server: the service binary (flags in docs/service.md).
 //
-//   drillbif-server --grpc-port 50051 --db drillbif.db [--workers N] [--token T] [--config FILE]
+//   drillbif-server --grpc-port 50051 --http-port 8080 --db drillbif.db [--workers N] [--token T]
+//                   [--config FILE]
 //
 // SIGTERM and SIGINT shut it down gracefully (Server::Shutdown). The signals are blocked in
 // every thread and taken by sigwait on the main thread, so no work happens in a signal handler.
@@ -19,26 +20,31 @@ int main(int argc, char** argv) {
   std::string port_file;
   std::string log_level = "info";
 
-  CLI::App app("drillbif-server: the drillbif computation service (gRPC)");
+  CLI::App app("drillbif-server: the drillbif computation service (gRPC, REST, /metrics)");
   app.set_config("--config", "", "Read flags from this TOML/INI file (flag names as keys)");
   app.add_option("--host", options.host, "Address to bind")->capture_default_str();
   app.add_option("--grpc-port", options.grpc_port, "gRPC port; 0 picks a free port")
       ->capture_default_str();
   app.add_option("--http-port", options.http_port,
-                 "REST port (accepted; the REST gateway is not built yet)")
+                 "HTTP port: REST (JSON, Server-Sent Events) and /metrics; 0 picks a free port")
+      ->capture_default_str();
+  app.add_option("--http-threads", options.http_threads,
+                 "HTTP threads (each open event stream holds one)")
       ->capture_default_str();
   app.add_option("--db", options.db_path, "SQLite file of the job store")->capture_default_str();
   app.add_option("--workers", options.workers, "Worker threads; 0: one per core")
       ->capture_default_str();
   app.add_option("--token", options.token,
                  "Bearer token required on every Jobs and Operations rpc (empty: none)");
-  app.add_option("--max-request-bytes", options.max_request_bytes, "Largest request accepted")
+  app.add_option("--max-request-bytes", options.max_request_bytes,
+                 "Largest request accepted (gRPC message, REST body)")
       ->capture_default_str();
   app.add_option("--max-queued-jobs", options.max_queued_jobs,
                  "Submits are refused while this many jobs wait")
       ->capture_default_str();
   app.add_option("--port-file", port_file,
-                 "Write the gRPC port chosen to this file once serving (for --grpc-port 0)");
+                 "Write the ports chosen to this file once serving: the gRPC port on the first "
+                 "line, the HTTP port on the second (for port 0)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -62,11 +68,12 @@ int main(int argc, char** argv) {
     spdlog::error("cannot start: {}", server.status().ToString());
     return 1;
   }
-  spdlog::info("serving gRPC on {}", (*server)->grpc_address());
+  spdlog::info("serving gRPC on {}, HTTP on {}:{}", (*server)->grpc_address(), options.host,
+               (*server)->http_port());
   if (!port_file.empty()) {
-    // Written to a temporary name and renamed, so a reader never sees a partial number.
+    // Written to a temporary name and renamed, so a reader never sees a partial file.
     const std::string tmp = port_file + ".tmp";
-    std::ofstream(tmp) << (*server)->grpc_port() << "\n";
+    std::ofstream(tmp) << (*server)->grpc_port() << "\n" << (*server)->http_port() << "\n";
     std::rename(tmp.c_str(), port_file.c_str());
   }
 

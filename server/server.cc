@@ -8,9 +8,12 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <string_view>
 #include <thread>
 #include <utility>
+#include <vector>
 
+#include "server/rest_gateway.h"
 #include "server/services.h"
 #include "server/store/sqlite_job_store.h"
 #include "server/watch_hub.h"
@@ -45,11 +48,19 @@ Status ServerOptions::Validate() const {
   if (watch_poll_ms < 1) {
     return InvalidArgument("watch_poll_ms: must be >= 1, got " + std::to_string(watch_poll_ms));
   }
+  if (http_threads < 1 || http_threads > 1024) {
+    return InvalidArgument("http_threads: must be in [1, 1024], got " +
+                           std::to_string(http_threads));
+  }
+  if (Status s = metrics.Validate(); !s.ok()) return InvalidArgument("metrics." + s.message());
   return Status::Ok();
 }
 
 struct Server::Impl {
+  explicit Impl(const MetricsOptions& metrics_options) : metrics(metrics_options) {}
+
   ServiceState state;
+  Metrics metrics;
   std::unique_ptr<JobStore> store;
   std::unique_ptr<WatchHub> hub;
   std::unique_ptr<WorkerPool> pool;
@@ -57,12 +68,23 @@ struct Server::Impl {
   std::unique_ptr<JobsService> jobs;
   std::unique_ptr<OperationsService> operations;
   std::unique_ptr<grpc::Server> grpc_server;
+  std::unique_ptr<RestGateway> rest;
   int port = 0;
 
   std::mutex mutex;
   std::condition_variable cv;
   bool shutdown_started = false;
   bool shutdown_done = false;
+
+  StatusOr<std::string> RenderMetrics() {
+    MetricsSnapshot snapshot;
+    StatusOr<StoreStats> stats = store->Stats();
+    if (!stats.ok()) return stats.status();
+    snapshot.stats = *stats;
+    snapshot.engine_runs = pool->engine_runs();
+    snapshot.watchers = hub->size();
+    return metrics.Render(snapshot);
+  }
 };
 
 Server::Server(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -71,7 +93,7 @@ Server::~Server() { Shutdown(); }
 
 StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   if (Status s = options.Validate(); !s.ok()) return s;
-  auto impl = std::make_unique<Impl>();
+  auto impl = std::make_unique<Impl>(options.metrics);
   impl->state.options = options;
   if (impl->state.options.workers == 0) {
     impl->state.options.workers = std::max(1u, std::thread::hardware_concurrency());
@@ -95,10 +117,14 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   pool_options.workers = o.workers;
   pool_options.progress_interval_ms = o.progress_interval_ms;
   Impl* raw = impl.get();
-  impl->pool = std::make_unique<WorkerPool>(impl->store.get(), impl->hub.get(), pool_options,
-                                            [raw](const std::string& id, const std::string& key) {
-                                              raw->state.optimum_index.Add(key, id);
-                                            });
+  impl->pool = std::make_unique<WorkerPool>(
+      impl->store.get(), impl->hub.get(), pool_options,
+      [raw](const std::string& id, const std::string& key) {
+        raw->state.optimum_index.Add(key, id);
+      },
+      [raw](const JobRecord& job, std::string_view outcome, double seconds) {
+        raw->metrics.ObserveJob(job.kind, outcome, seconds);
+      });
   impl->executor = std::make_unique<BoundedExecutor>(o.executor);
   impl->state.store = impl->store.get();
   impl->state.hub = impl->hub.get();
@@ -116,16 +142,43 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   builder.SetMaxReceiveMessageSize(o.max_request_bytes);
   builder.RegisterService(impl->jobs.get());
   builder.RegisterService(impl->operations.get());
+  std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> interceptors;
+  interceptors.push_back(MakeGrpcMetricsInterceptor(&impl->metrics));
+  builder.experimental().SetInterceptorCreators(std::move(interceptors));
   impl->grpc_server = builder.BuildAndStart();
   if (impl->grpc_server == nullptr || impl->port == 0) {
     impl->executor->Stop();
     impl->hub->Stop();
     return Status(StatusCode::kUnavailable, "cannot listen on " + address);
   }
+
+  // REST: the same services through an in-process channel (no socket, no second copy of the
+  // logic). Results can be larger than gRPC's default 4 MB receive limit; the HTTP client reads
+  // them whole anyway.
+  RestOptions rest;
+  rest.host = o.host;
+  rest.port = o.http_port;
+  rest.token = o.token;
+  rest.max_body_bytes = o.max_request_bytes;
+  rest.threads = o.http_threads;
+  grpc::ChannelArguments channel_args;
+  channel_args.SetMaxReceiveMessageSize(-1);
+  StatusOr<std::unique_ptr<RestGateway>> gateway =
+      RestGateway::Start(rest, impl->grpc_server->InProcessChannel(channel_args), &impl->metrics,
+                         [raw] { return raw->RenderMetrics(); });
+  if (!gateway.ok()) {
+    impl->grpc_server->Shutdown(std::chrono::system_clock::now());
+    impl->executor->Stop();
+    impl->hub->Stop();
+    impl->grpc_server->Wait();
+    return gateway.status();
+  }
+  impl->rest = std::move(gateway).value();
+
   impl->grpc_server->GetHealthCheckService()->SetServingStatus(true);
   impl->pool->Start();
-  spdlog::info("drillbif-server: gRPC on {}:{} ({} workers, db {})", o.host, impl->port, o.workers,
-               o.db_path);
+  spdlog::info("drillbif-server: gRPC on {}:{}, HTTP on {}:{} ({} workers, db {})", o.host,
+               impl->port, o.host, impl->rest->port(), o.workers, o.db_path);
   return std::unique_ptr<Server>(new Server(std::move(impl)));
 }
 
@@ -155,8 +208,11 @@ void Server::Shutdown() {
   // Running jobs stop at their next progress callback and go back to the queue.
   impl_->pool->Shutdown();
   spdlog::info("drillbif-server: workers stopped after {:.0f} ms", elapsed_ms());
-  // Open Watch and Wait calls end with UNAVAILABLE.
+  // Open Watch and Wait calls end with UNAVAILABLE (REST event streams with them).
   impl_->hub->Stop();
+  // REST requests in progress finish (their calls are answered: no watch waits any more).
+  impl_->rest->Stop();
+  spdlog::info("drillbif-server: HTTP stopped after {:.0f} ms", elapsed_ms());
   // In-flight unary calls finish on the executor (still running); then gRPC cancels the rest.
   impl_->grpc_server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   spdlog::info("drillbif-server: gRPC stopped after {:.0f} ms", elapsed_ms());
@@ -175,7 +231,11 @@ void Server::Wait() {
   impl_->cv.wait(lock, [this] { return impl_->shutdown_done; });
 }
 
+int Server::http_port() const { return impl_->rest->port(); }
+
 int64_t Server::engine_runs() const { return impl_->pool->engine_runs(); }
+
+StatusOr<std::string> Server::MetricsText() { return impl_->RenderMetrics(); }
 
 JobStore& Server::store() { return *impl_->store; }
 

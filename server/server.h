@@ -1,10 +1,12 @@
 // The drillbif server: the gRPC services (drillbif.v1.Jobs and google.longrunning.Operations,
 // proto/drillbif/v1/service.proto), health checking (grpc.health.v1) and server reflection on
-// one port, over the SQLite job store, a bounded executor for the RPCs' store work, a worker pool
-// for the engine and a watch hub for progress. docs/service.md describes the whole.
+// one port, the same API as JSON (REST, with progress as Server-Sent Events) and Prometheus
+// metrics on a second port, over the SQLite job store, a bounded executor for the RPCs' store
+// work, a worker pool for the engine and a watch hub for progress. docs/service.md describes the
+// whole.
 //
 //   auto server = Server::Start(options);      // recovers the store, starts serving
-//   ... (*server)->grpc_port() ...
+//   ... (*server)->grpc_port(), (*server)->http_port() ...
 //   (*server)->Shutdown();                     // graceful: NOT_SERVING, requeue, stop
 #ifndef DRILLBIF_SERVER_SERVER_H_
 #define DRILLBIF_SERVER_SERVER_H_
@@ -15,6 +17,7 @@
 
 #include "drillbif/common/status.h"
 #include "server/executor.h"
+#include "server/metrics.h"
 #include "server/store/job_store.h"
 
 namespace drillbif::server {
@@ -25,8 +28,12 @@ struct ServerOptions {
   std::string host = "127.0.0.1";
   // gRPC port; 0 picks a free port (Server::grpc_port() tells which).
   int grpc_port = 50051;
-  // REST port (the REST gateway is not built yet: the value is only validated).
+  // HTTP port of the REST gateway and /metrics; 0 picks a free port (Server::http_port() tells
+  // which).
   int http_port = 8080;
+  // HTTP threads (RestOptions::threads): each REST call holds one while it runs, each open event
+  // stream one until its job ends.
+  int http_threads = 8;
   // SQLite file of the job store (created if missing).
   std::string db_path = "drillbif.db";
   // Worker threads running jobs; 0: one per core (std::thread::hardware_concurrency).
@@ -35,7 +42,8 @@ struct ServerOptions {
   // empty: no authentication. Health and reflection are always open (probes carry no token).
   std::string token;
   // Largest request message accepted, in bytes; a larger one fails with RESOURCE_EXHAUSTED
-  // before it is parsed. 4 MiB (gRPC's default): requests are parameters, not data.
+  // before it is parsed (REST: a larger body, 413). 4 MiB (gRPC's default): requests are
+  // parameters, not data.
   int max_request_bytes = 4 << 20;
   // Submits are refused with RESOURCE_EXHAUSTED while this many jobs wait in the store's queue
   // (the bound of the job queue; jobs are persistent, so the bound protects the disk and the
@@ -52,6 +60,8 @@ struct ServerOptions {
   int watch_poll_ms = 50;
   // The store's PRAGMA synchronous = FULL (see SqliteJobStoreOptions::full_sync).
   bool full_sync = true;
+  // Buckets of the job duration histogram (/metrics).
+  MetricsOptions metrics;
 
   // INVALID_ARGUMENT naming the field when a value is out of range.
   Status Validate() const;
@@ -61,8 +71,9 @@ struct ServerOptions {
 class Server {
  public:
   // Opens the store, recovers the jobs of a previous run (RecoverAfterRestart: running jobs are
-  // queued again), starts the workers and serves on host:grpc_port. Errors: INVALID_ARGUMENT for
-  // bad options; the store's errors; UNAVAILABLE when the port cannot be bound.
+  // queued again), starts the workers and serves gRPC on host:grpc_port and REST and /metrics on
+  // host:http_port. Errors: INVALID_ARGUMENT for bad options; the store's errors; UNAVAILABLE
+  // when a port cannot be bound.
   static StatusOr<std::unique_ptr<Server>> Start(const ServerOptions& options);
 
   // Shutdown().
@@ -77,10 +88,14 @@ class Server {
   // "host:port" of the gRPC service.
   std::string grpc_address() const;
 
+  // The HTTP port bound (REST and /metrics; the free port picked when http_port was 0).
+  int http_port() const;
+
   // Graceful shutdown: health reports NOT_SERVING, submits fail with UNAVAILABLE, running jobs
   // are interrupted and requeued in the store (they resume at the next start; a job that
-  // finishes first is recorded), open Watch and Wait calls end with UNAVAILABLE, in-flight RPCs
-  // get up to 2 s, then the server stops. Idempotent.
+  // finishes first is recorded), open Watch and Wait calls end with UNAVAILABLE (REST event
+  // streams with an error event), the HTTP port closes after its requests in progress, in-flight
+  // RPCs get up to 2 s, then the server stops. Idempotent.
   void Shutdown();
 
   // Blocks until Shutdown() has been called and completed.
@@ -91,6 +106,9 @@ class Server {
 
   // The job store (for tests and metrics).
   JobStore& store();
+
+  // The /metrics text now (the store's counts read in one transaction).
+  StatusOr<std::string> MetricsText();
 
  private:
   struct Impl;

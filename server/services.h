@@ -13,6 +13,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 
 #include "drillbif/common/status.h"
@@ -63,6 +64,13 @@ struct ServiceState {
   // Set by Server::Shutdown: submits fail with UNAVAILABLE.
   std::atomic<bool> shutting_down{false};
 };
+
+// OK when `token` is empty or `authorization` is exactly "Bearer <token>" (compared in constant
+// time, so that the token cannot be guessed byte by byte from response times); UNAUTHENTICATED
+// otherwise, saying whether the token was missing or wrong. `present` is false when the request
+// carried no authorization at all. The gRPC services and the REST gateway both check with it.
+grpc::Status CheckBearerToken(const std::string& token, bool present,
+                              std::string_view authorization);
 
 // grpc::Status of a drillbif::Status (same numeric codes).
 grpc::Status ToGrpc(const Status& status);

@@ -27,8 +27,12 @@ Status WorkerPoolOptions::Validate() const {
 }
 
 WorkerPool::WorkerPool(JobStore* store, WatchHub* hub, const WorkerPoolOptions& options,
-                       OptimumDoneCallback optimum_done)
-    : store_(store), hub_(hub), options_(options), optimum_done_(std::move(optimum_done)) {}
+                       OptimumDoneCallback optimum_done, JobRunCallback run_done)
+    : store_(store),
+      hub_(hub),
+      options_(options),
+      optimum_done_(std::move(optimum_done)),
+      run_done_(std::move(run_done)) {}
 
 WorkerPool::~WorkerPool() { Shutdown(); }
 
@@ -127,20 +131,26 @@ void WorkerPool::RunOne(const JobRecord& job) {
 
   Status recorded;
   std::string outcome;
+  const char* outcome_label = "";  // For run_done_: one word per way a run ends.
   if (!output.ok()) {
     recorded = store_->Fail(job.id, output.status().code(), output.status().message());
     outcome = "failed: " + output.status().ToString();
+    outcome_label = "failed";
   } else if (output->cancelled && running->shutdown.load() && !running->cancel.load()) {
     recorded = store_->Requeue(job.id);
     outcome = "interrupted by shutdown, requeued";
+    outcome_label = "requeued";
   } else if (output->cancelled) {
     recorded = store_->MarkCancelled(job.id);
     outcome = "cancelled";
+    outcome_label = "cancelled";
   } else {
     recorded = store_->Complete(job.id, output->result, output->points);
     outcome = "succeeded";
+    outcome_label = "succeeded";
     if (recorded.ok() && kind == v1::OPTIMUM && optimum_done_) optimum_done_(job.id, job.cache_key);
   }
+  if (run_done_) run_done_(job, outcome_label, seconds);
   if (recorded.ok()) {
     spdlog::info("job {} ({}) {} in {:.3f} s", job.id, job.kind, outcome, seconds);
   } else {

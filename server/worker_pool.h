@@ -20,6 +20,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -51,12 +52,17 @@ struct WorkerPoolOptions {
 // the service's index of stored optima).
 using OptimumDoneCallback = std::function<void(const std::string& id, const std::string& key)>;
 
+// Called on the worker's thread after each run of a job, with the job, how the run ended
+// ("succeeded", "failed", "cancelled", "requeued") and its wall time in seconds (for metrics).
+using JobRunCallback =
+    std::function<void(const JobRecord& job, std::string_view outcome, double seconds)>;
+
 // The pool. Thread-safe.
 class WorkerPool {
  public:
   // `store` and `hub` must outlive the pool. Does not start the workers (Start does).
   WorkerPool(JobStore* store, WatchHub* hub, const WorkerPoolOptions& options,
-             OptimumDoneCallback optimum_done = {});
+             OptimumDoneCallback optimum_done = {}, JobRunCallback run_done = {});
   // Shutdown().
   ~WorkerPool();
 
@@ -96,6 +102,7 @@ class WorkerPool {
   WatchHub* const hub_;
   const WorkerPoolOptions options_;
   const OptimumDoneCallback optimum_done_;
+  const JobRunCallback run_done_;
   std::atomic<int64_t> engine_runs_{0};
 
   std::mutex mutex_;

@@ -56,6 +56,7 @@ class GrpcServiceTest : public ::testing::Test {
     dir_ = new TempDir("drillbif_grpc");
     ServerOptions options;
     options.grpc_port = 0;
+    options.http_port = 0;  // Tests run in parallel: no fixed port.
     options.db_path = dir_->path() + "/jobs.db";
     options.workers = 2;
     options.token = kToken;
