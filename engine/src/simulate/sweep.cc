@@ -122,11 +122,14 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
   std::vector<std::thread> pool;
   for (int t = 1; t < n_threads; ++t) pool.emplace_back(worker);
   if (progress) {
-    // The calling thread reports progress; the work runs on the pool plus one more thread.
+    // The calling thread reports progress; the work runs on the pool plus one more thread. It
+    // asks every 10 ms, so that a cancel reaches the workers within that (the service promises
+    // 100 ms from the cancel to the job's end; the callback itself is cheap, and whoever shows
+    // progress throttles its own output).
     pool.emplace_back(worker);
     const double total = static_cast<double>(n) * directions;
     while (done.load() < total) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
       if (!progress(done.load() / total)) {
         cancel = true;
         break;
