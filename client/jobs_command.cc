@@ -2,6 +2,7 @@
 
 #include <google/protobuf/util/time_util.h>
 
+#include <cctype>
 #include <charconv>
 #include <string_view>
 
@@ -37,21 +38,13 @@ std::string Time(bool has, const google::protobuf::Timestamp& t) {
   return has ? google::protobuf::util::TimeUtil::ToString(t) : std::string();
 }
 
+// The kind as the service names it in filters and the store ("simulate", ...): the enum's own
+// name in lower case; empty for JOB_KIND_UNSPECIFIED.
 std::string KindText(v1::JobKind kind) {
-  switch (kind) {
-    case v1::SIMULATE:
-      return "simulate";
-    case v1::SWEEP:
-      return "sweep";
-    case v1::CONTINUE:
-      return "continue";
-    case v1::TRACE:
-      return "trace";
-    case v1::OPTIMUM:
-      return "optimum";
-    default:
-      return std::string();
-  }
+  if (kind == v1::JOB_KIND_UNSPECIFIED || !v1::JobKind_IsValid(kind)) return std::string();
+  std::string name = v1::JobKind_Name(kind);
+  for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return name;
 }
 
 // One CSV row of kCsvHeader. (Fields are appended one by one: `"," + std::string` trips GCC 12's

@@ -29,6 +29,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/server.h"
+#include "support/same_result.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
@@ -137,28 +138,7 @@ TempDir* GrpcServiceTest::dir_ = nullptr;
 Server* GrpcServiceTest::server_ = nullptr;
 std::shared_ptr<grpc::Channel>* GrpcServiceTest::channel_ = nullptr;
 
-// Results carry their wall-clock durations, which differ between any two runs.
-void ClearTimes(v1::SimulateResult* r) { r->clear_wall_seconds(); }
-void ClearTimes(v1::SweepResult* r) { r->clear_wall_seconds(); }
-void ClearTimes(v1::ContinueResult* r) {
-  r->clear_wall_seconds();
-  if (r->has_period_doubled_branch()) ClearTimes(r->mutable_period_doubled_branch());
-}
-void ClearTimes(v1::TraceResult* r) { r->clear_wall_seconds(); }
-void ClearTimes(v1::OptimumResult* r) {
-  r->clear_trace_seconds();
-  r->clear_region_seconds();
-  r->clear_query_seconds();
-}
-
-template <typename Result>
-void ExpectSameResult(Result served, Result direct) {
-  ClearTimes(&served);
-  ClearTimes(&direct);
-  EXPECT_TRUE(MessageDifferencer::Equals(served, direct))
-      << "served: " << served.ShortDebugString().substr(0, 400)
-      << "\ndirect: " << direct.ShortDebugString().substr(0, 400);
-}
+using drillbif::testing::ExpectSameResult;
 
 // The small box of the issue-4 tests: omega in [0.05, 0.15], a in [0.25, 0.6].
 TEST_F(GrpcServiceTest, SimulateGivesTheRunnersResult) {

@@ -31,6 +31,7 @@
 #include "drillbif/v1/service.pb.h"
 #include "google/longrunning/operations.pb.h"
 #include "server/server.h"
+#include "support/same_result.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
@@ -248,29 +249,7 @@ class RestGatewayTest : public ::testing::Test {
 TempDir* RestGatewayTest::dir_ = nullptr;
 Server* RestGatewayTest::server_ = nullptr;
 
-// Results carry their wall-clock durations, which differ between any two runs.
-void ClearTimes(v1::SimulateResult* r) { r->clear_wall_seconds(); }
-void ClearTimes(v1::SweepResult* r) { r->clear_wall_seconds(); }
-void ClearTimes(v1::ContinueResult* r) {
-  r->clear_wall_seconds();
-  if (r->has_period_doubled_branch()) ClearTimes(r->mutable_period_doubled_branch());
-}
-void ClearTimes(v1::TraceResult* r) { r->clear_wall_seconds(); }
-void ClearTimes(v1::OptimumResult* r) {
-  r->clear_trace_seconds();
-  r->clear_region_seconds();
-  r->clear_query_seconds();
-}
-
-// Exact equality: the JSON mapping prints doubles with the digits to read them back exactly.
-template <typename Result>
-void ExpectSameResult(Result served, Result direct) {
-  ClearTimes(&served);
-  ClearTimes(&direct);
-  EXPECT_TRUE(MessageDifferencer::Equals(served, direct))
-      << "served: " << served.ShortDebugString().substr(0, 400)
-      << "\ndirect: " << direct.ShortDebugString().substr(0, 400);
-}
+using drillbif::testing::ExpectSameResult;
 
 TEST_F(RestGatewayTest, SimulateGivesTheRunnersResult) {
   v1::SubmitSimulateRequest request;
