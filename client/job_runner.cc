@@ -454,7 +454,8 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
 }
 
 StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
-                                         const ProgressCallback& progress) {
+                                         const ProgressCallback& progress,
+                                         const ValueCallback& on_value) {
   const auto start = std::chrono::steady_clock::now();
   const Osc& model = Model();
   const Params params = ToEngineParams(request.params());
@@ -497,9 +498,10 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
       return out;
     }
     ContinuationCallback callback;
-    if (progress) {
-      callback = [&progress](const ContinuationPoint&, double fraction) {
-        return progress(fraction);
+    if (progress || on_value) {
+      callback = [&progress, &on_value](const ContinuationPoint& p, double fraction) {
+        if (on_value) on_value(p.value);
+        return !progress || progress(fraction);
       };
     }
     const ContinuationResult r = Continue(model, propagator, *orbit, *options, callback);

@@ -12,6 +12,8 @@
 #ifndef DRILLBIF_CLIENT_JOB_RUNNER_H_
 #define DRILLBIF_CLIENT_JOB_RUNNER_H_
 
+#include <functional>
+
 #include "drillbif/common/status.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/continue.pb.h"
@@ -50,8 +52,13 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
 // `progress` (optional) is called from the calling thread at each accepted point with the fraction
 // of the step budget (max_steps per direction) used, and returns false to cancel (the result is
 // then CANCELLED, with the points found so far).
+// Receives the parameter value of each accepted continuation point (for progress displays: the
+// service records it as the job's current value).
+using ValueCallback = std::function<void(double value)>;
+
 StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
-                                         const ProgressCallback& progress = {});
+                                         const ProgressCallback& progress = {},
+                                         const ValueCallback& on_value = {});
 
 }  // namespace drillbif::client
 

@@ -250,7 +250,8 @@ Status ValidateAtSubmit(v1::JobKind kind, const google::protobuf::Message& reque
 }
 
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
-                           const ProgressCallback& progress) {
+                           const ProgressCallback& progress,
+                           const std::function<void(double)>& value) {
   switch (kind) {
     case v1::SIMULATE:
       return Run<v1::SimulateRequest, v1::SimulateResult>(request_bytes, progress,
@@ -258,8 +259,11 @@ StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
     case v1::SWEEP:
       return Run<v1::SweepRequest, v1::SweepResult>(request_bytes, progress, client::RunSweep);
     case v1::CONTINUE:
-      return Run<v1::ContinueRequest, v1::ContinueResult>(request_bytes, progress,
-                                                          client::RunContinue);
+      return Run<v1::ContinueRequest, v1::ContinueResult>(
+          request_bytes, progress,
+          [&value](const v1::ContinueRequest& r, const ProgressCallback& p) {
+            return client::RunContinue(r, p, value);
+          });
     case v1::TRACE:
       return Run<v1::TraceRequest, v1::TraceResult>(request_bytes, progress, client::RunTrace);
     case v1::OPTIMUM:

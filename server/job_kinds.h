@@ -8,6 +8,7 @@
 #include <google/protobuf/message.h>
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -59,9 +60,11 @@ struct JobOutput {
 // Parses `request_bytes` as the request message of `kind` and runs its job runner (RunSimulate,
 // RunSweep, RunContinue, RunTrace, RunOptimum). Errors: the runner's (INVALID_ARGUMENT,
 // FAILED_PRECONDITION, INTERNAL); INVALID_ARGUMENT for an unknown kind or unparsable bytes.
-// `progress` as in the runners (fraction in [0, 1]; return false to cancel).
+// `progress` as in the runners (fraction in [0, 1]; return false to cancel); `value` (optional)
+// receives the current parameter value where the kind has one (continue: each accepted point).
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
-                           const ProgressCallback& progress);
+                           const ProgressCallback& progress,
+                           const std::function<void(double)>& value = {});
 
 // The number of points a request of `kind` will produce, when known before the run (sweep:
 // steps times directions), else 0. Used to estimate JobMetadata.points from the progress.

@@ -106,6 +106,11 @@ void WorkerPool::RunOne(const JobRecord& job) {
   Clock::time_point last_write = Clock::now();
   const auto started = last_write;
 
+  // The current parameter value, where the kind has one (continue), for the job's metadata.
+  std::optional<double> current, recorded_current;
+  const std::function<void(double)> value = [&](double v) {
+    if (std::isfinite(v)) current = v;
+  };
   // Called by the engine on this thread.
   const ProgressCallback progress = [&](double fraction) {
     if (running->cancel.load() || running->shutdown.load()) return false;
@@ -114,7 +119,8 @@ void WorkerPool::RunOne(const JobRecord& job) {
     last_write = now;
     const double f = std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0;
     const auto points = static_cast<int64_t>(std::floor(f * static_cast<double>(expected_points)));
-    if (Status s = store_->UpdateProgress(job.id, f, std::nullopt, points); !s.ok()) {
+    recorded_current = current;
+    if (Status s = store_->UpdateProgress(job.id, f, current, points); !s.ok()) {
       spdlog::warn("job {}: progress not recorded: {}", job.id, s.ToString());
     }
     // A cancel recorded in the store by someone other than this process's CancelOperation.
@@ -126,7 +132,7 @@ void WorkerPool::RunOne(const JobRecord& job) {
 
   spdlog::info("job {} ({}) started, attempt {}", job.id, job.kind, job.attempts);
   engine_runs_.fetch_add(1);
-  StatusOr<JobOutput> output = RunJob(kind, job.request, progress);
+  StatusOr<JobOutput> output = RunJob(kind, job.request, progress, value);
   const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
 
   Status recorded;
@@ -145,6 +151,12 @@ void WorkerPool::RunOne(const JobRecord& job) {
     outcome = "cancelled";
     outcome_label = "cancelled";
   } else {
+    // The last value reached, when no progress record carried it (a short run): one more write.
+    if (current && current != recorded_current) {
+      if (Status s = store_->UpdateProgress(job.id, 1.0, current, output->points); !s.ok()) {
+        spdlog::warn("job {}: final value not recorded: {}", job.id, s.ToString());
+      }
+    }
     recorded = store_->Complete(job.id, output->result, output->points);
     outcome = "succeeded";
     outcome_label = "succeeded";

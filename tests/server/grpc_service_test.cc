@@ -225,6 +225,29 @@ TEST_F(GrpcServiceTest, ContinueGivesTheRunnersResult) {
   EXPECT_GT(direct->points_size(), 2);
 }
 
+// A continue job's metadata carries the continued parameter's value of an accepted point (the
+// last one recorded: with each progress record while it runs, and once more at its end), inside
+// the range asked.
+TEST_F(GrpcServiceTest, ContinueReportsItsCurrentValue) {
+  v1::SubmitContinueRequest request;
+  request.mutable_request()->set_param("b");
+  request.mutable_request()->set_min(0.0);
+  request.mutable_request()->set_max(0.2);
+  Operation op;
+  auto context = Context();
+  ASSERT_TRUE(jobs_->SubmitContinue(context.get(), request, &op).ok());
+  op = WaitDone(op.name());
+  const v1::JobMetadata metadata = MetadataOf(op);
+  ASSERT_EQ(metadata.state(), v1::SUCCEEDED);
+  ASSERT_TRUE(metadata.has_current_value());
+  EXPECT_GE(metadata.current_value(), 0.0);
+  EXPECT_LE(metadata.current_value(), 0.2);
+  const auto served = ResponseOf<v1::ContinueResult>(op);
+  bool on_branch = false;
+  for (const auto& p : served.points()) on_branch |= p.value() == metadata.current_value();
+  EXPECT_TRUE(on_branch) << metadata.current_value();
+}
+
 TEST_F(GrpcServiceTest, TraceGivesTheRunnersResult) {
   v1::SubmitTraceRequest request;
   *request.mutable_request() = SmallBoxTrace();
