@@ -417,7 +417,8 @@ StatusOr<v1::SimulateResult> RunSimulate(const v1::SimulateRequest& request,
 }
 
 StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
-                                   const ProgressCallback& progress) {
+                                   const ProgressCallback& progress,
+                                   const ValueCallback& on_value) {
   const auto start = std::chrono::steady_clock::now();
   const Osc& model = Model();
   StatusOr<SweepOptions> options = ToSweepOptions(request);
@@ -429,7 +430,7 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
   };
 
   try {
-    const SweepResult r = Sweep(model, make_propagator, params, x0, *options, progress);
+    const SweepResult r = Sweep(model, make_propagator, params, x0, *options, progress, on_value);
     // Sweep validates everything (parameter name, range ends, initial state) before it starts;
     // once started it always completes or is cancelled, single values failing on their own.
     if (r.termination == Termination::kFailed) {

@@ -38,10 +38,16 @@ v1::SimulateRequest::Outputs EffectiveOutputs(const v1::SimulateRequest& request
 StatusOr<v1::SimulateResult> RunSimulate(const v1::SimulateRequest& request,
                                          const ProgressCallback& progress = {});
 
+// Receives the current value of the swept or continued parameter (a sweep: the grid point finished
+// last, about every 10 ms; a continuation: each accepted point), for progress displays: the
+// service records it as the job's current value.
+using ValueCallback = std::function<void(double value)>;
+
 // Runs a parameter sweep. `progress` (optional) is called from the calling thread about every
-// 50 ms with the fraction of grid values done, and returns false to cancel.
+// 10 ms with the fraction of grid values done, and returns false to cancel.
 StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
-                                   const ProgressCallback& progress = {});
+                                   const ProgressCallback& progress = {},
+                                   const ValueCallback& on_value = {});
 
 // Runs a one-parameter continuation: finds the start orbit by simulation from the initial state at
 // the request's parameters, solves it by Newton, and follows its branch in `param` within
@@ -52,10 +58,6 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request,
 // `progress` (optional) is called from the calling thread at each accepted point with the fraction
 // of the step budget (max_steps per direction) used, and returns false to cancel (the result is
 // then CANCELLED, with the points found so far).
-// Receives the parameter value of each accepted continuation point (for progress displays: the
-// service records it as the job's current value).
-using ValueCallback = std::function<void(double value)>;
-
 StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
                                          const ProgressCallback& progress = {},
                                          const ValueCallback& on_value = {});

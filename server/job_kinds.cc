@@ -257,7 +257,10 @@ StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
       return Run<v1::SimulateRequest, v1::SimulateResult>(request_bytes, progress,
                                                           client::RunSimulate);
     case v1::SWEEP:
-      return Run<v1::SweepRequest, v1::SweepResult>(request_bytes, progress, client::RunSweep);
+      return Run<v1::SweepRequest, v1::SweepResult>(
+          request_bytes, progress, [&value](const v1::SweepRequest& r, const ProgressCallback& p) {
+            return client::RunSweep(r, p, value);
+          });
     case v1::CONTINUE:
       return Run<v1::ContinueRequest, v1::ContinueResult>(
           request_bytes, progress,

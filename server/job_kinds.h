@@ -61,7 +61,8 @@ struct JobOutput {
 // RunSweep, RunContinue, RunTrace, RunOptimum). Errors: the runner's (INVALID_ARGUMENT,
 // FAILED_PRECONDITION, INTERNAL); INVALID_ARGUMENT for an unknown kind or unparsable bytes.
 // `progress` as in the runners (fraction in [0, 1]; return false to cancel); `value` (optional)
-// receives the current parameter value where the kind has one (continue: each accepted point).
+// receives the current parameter value where the kind has one (sweep: the grid point finished
+// last; continue: each accepted point).
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
                            const ProgressCallback& progress,
                            const std::function<void(double)>& value = {});

@@ -167,6 +167,13 @@ TEST_F(GrpcServiceTest, SweepGivesTheRunnersResultWholeAndInPages) {
   StatusOr<v1::SweepResult> direct = client::RunSweep(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::SweepResult>(op), *direct);
+  // The current value: a grid value of the sweep (the last one finished as of the last record).
+  const v1::JobMetadata metadata = MetadataOf(op);
+  ASSERT_TRUE(metadata.has_current_value());
+  bool on_grid = false;
+  for (const auto& p : direct->up()) on_grid |= p.value() == metadata.current_value();
+  for (const auto& p : direct->down()) on_grid |= p.value() == metadata.current_value();
+  EXPECT_TRUE(on_grid) << metadata.current_value();
 
   // Pages of 7 points over up (20) ++ down (20): 6 pages, concatenated equal to the whole.
   v1::SweepResult joined;

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <thread>
 
 namespace drillbif {
@@ -40,7 +41,8 @@ struct Piece {
 
 SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propagator,
                   const Params& params, const StateVector& x0, const SweepOptions& options,
-                  const ProgressCallback& progress) {
+                  const ProgressCallback& progress,
+                  const std::function<void(double value)>& on_value) {
   SweepResult result;
   if (Status s = options.Validate(); !s.ok()) {
     result.status = s;
@@ -88,6 +90,7 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
 
   std::atomic<bool> cancel{false};
   std::atomic<long long> done{0}, events{0}, periods{0};
+  std::atomic<double> last_value{0.0};  // the value of the grid point finished last
   std::atomic<size_t> next_piece{0};
   auto worker = [&] {
     std::unique_ptr<Propagator> prop = make_propagator();
@@ -113,6 +116,7 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
         periods += so.transient_periods + so.sample_periods;
         // Continue from this value's final state; after a failure, from the last good state.
         if (sr.termination == Termination::kCompleted) x = sr.final_state;
+        last_value = pt.value;
         ++done;
       }
     }
@@ -130,11 +134,13 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
     const double total = static_cast<double>(n) * directions;
     while (done.load() < total) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      if (on_value && done.load() > 0) on_value(last_value.load());
       if (!progress(done.load() / total)) {
         cancel = true;
         break;
       }
     }
+    if (on_value && done.load() > 0) on_value(last_value.load());  // the last one, too
   } else {
     worker();
   }

@@ -54,10 +54,13 @@ struct SweepResult {
 using PropagatorFactory = std::function<std::unique_ptr<Propagator>()>;
 
 // Runs the sweep. `make_propagator` is called once per worker thread. `progress` is called from
-// the calling thread only (about every 50 ms) and may cancel.
+// the calling thread only (about every 10 ms) and may cancel; just before each such call,
+// `on_value` (optional) receives the parameter value of the grid point finished last (by any
+// worker; none before the first).
 SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propagator,
                   const Params& params, const StateVector& x0, const SweepOptions& options,
-                  const ProgressCallback& progress = {});
+                  const ProgressCallback& progress = {},
+                  const std::function<void(double value)>& on_value = {});
 
 }  // namespace drillbif
 
