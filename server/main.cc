@@ -13,6 +13,7 @@
 #include <fstream>
 #include <string>
 
+#include "server/json_log.h"
 #include "server/server.h"
 
 int main(int argc, char** argv) {
@@ -47,9 +48,15 @@ int main(int argc, char** argv) {
                  "line, the HTTP port on the second (for port 0)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
       ->capture_default_str();
+  std::string log_format = "text";
+  app.add_option("--log-format", log_format,
+                 "text, or json: one JSON object per line (time, level, thread, msg)")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_level(spdlog::level::from_str(log_level));
+  if (log_format == "json") spdlog::set_formatter(drillbif::server::JsonLogFormatter());
   if (drillbif::Status s = options.Validate(); !s.ok()) {
     spdlog::error("invalid options: {}", s.ToString());
     return 2;
