@@ -14,16 +14,20 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <sstream>
 #include <string>
+#include <variant>
 
 #include "client/job_runner.h"
 #include "client/jobs_command.h"
 #include "client/optimum_runner.h"
 #include "client/output.h"
+#include "client/plot.h"
 #include "client/progress_bar.h"
 #include "client/remote.h"
 #include "client/trace_runner.h"
@@ -462,6 +466,75 @@ void AddBoxFlags(CLI::App* cmd, TraceFlags* f) {
       ->group(g);
 }
 
+struct PlotFlags {
+  std::string result;   // the JSON file drillctl printed
+  std::string optimum;  // optional: an optimum result to mark on a trace's figure
+  std::string script;   // optional: write the gnuplot script here
+  PlotOptions options;
+};
+
+StatusOr<std::string> ReadFile(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) return InvalidArgument("cannot read " + path + ": " + std::strerror(errno));
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+// `drillctl plot RESULT.json -o FIGURE.png|svg [--script FILE]`. Invalid input of any kind (an
+// unreadable or unknown result, a bad extension or flag, no gnuplot) exits 2; gnuplot failing
+// exits 1.
+int RunPlotCommand(const GlobalFlags& global, PlotFlags f) {
+  if (global.output.empty() && f.script.empty()) {
+    return Error("plot: give the figure with -o FIGURE.png (or .svg), or --script FILE",
+                 kExitUsage);
+  }
+  StatusOr<std::string> json = ReadFile(f.result);
+  if (!json.ok()) return Error("plot: " + json.status().message(), kExitUsage);
+  StatusOr<AnyResult> result = ParseResultJson(*json);
+  if (!result.ok()) {
+    return Error("plot: " + f.result + ": " + result.status().message(), kExitUsage);
+  }
+  if (!f.optimum.empty()) {
+    StatusOr<std::string> opt_json = ReadFile(f.optimum);
+    if (!opt_json.ok()) return Error("plot: --optimum: " + opt_json.status().message(), kExitUsage);
+    StatusOr<AnyResult> opt = ParseResultJson(*opt_json);
+    if (!opt.ok() || !std::holds_alternative<v1::OptimumResult>(*opt)) {
+      return Error("plot: --optimum " + f.optimum + " is not an optimum result" +
+                       (opt.ok() ? " (it is a " + ResultKindName(*opt) + " result)"
+                                 : ": " + opt.status().message()),
+                   kExitUsage);
+    }
+    if (!std::holds_alternative<v1::TraceResult>(*result)) {
+      return Error("plot: --optimum marks an optimum on a trace's figure; " + f.result + " is a " +
+                       ResultKindName(*result) + " result",
+                   kExitUsage);
+    }
+    f.options.optimum = std::get<v1::OptimumResult>(*opt);
+  }
+  f.options.output = global.output.empty()
+                         ? std::filesystem::path(f.result).replace_extension(".png").string()
+                         : global.output;
+  StatusOr<std::string> script = BuildPlotScript(*result, f.options);
+  if (!script.ok()) return Error("plot: " + script.status().message(), kExitUsage);
+  if (!f.script.empty()) {
+    std::ofstream file(f.script, std::ios::binary | std::ios::trunc);
+    file << *script;
+    file.close();
+    if (!file) {
+      return Error("plot: cannot write --script " + f.script + ": " + std::strerror(errno),
+                   kExitUsage);
+    }
+  }
+  if (global.output.empty()) return 0;
+  const Status rendered = RenderWithGnuplot(*script, global.output);
+  if (rendered.code() == StatusCode::kFailedPrecondition) {
+    return Error("plot: " + rendered.message(), kExitUsage);
+  }
+  if (!rendered.ok()) return Error("plot: " + rendered.message(), kExitFailed);
+  return 0;
+}
+
 struct JobsFlags {
   JobsListOptions list;
   std::string id;  // get, watch, cancel, result
@@ -714,6 +787,30 @@ int Main(int argc, char** argv) {
   AddModelFlags(optimum, &model);
   AddStartOrbitFlags(optimum, &model);
 
+  PlotFlags pf;
+  CLI::App* plot = app.add_subcommand(
+      "plot",
+      "Draw a result drillctl printed as JSON with gnuplot: continue (measure against the "
+      "parameter), sweep (brute-force diagram), trace (two-parameter diagram, region, optimum) "
+      "or simulate (phase portrait); the figure is -o FILE.png or FILE.svg");
+  plot->add_option("RESULT", pf.result, "The result JSON (drillctl ... -o RESULT.json)")
+      ->required();
+  plot->add_option("--optimum", pf.optimum,
+                   "An optimum result (drillctl optimum) to mark on a trace's figure")
+      ->option_text("FILE");
+  plot->add_option("--measure", pf.options.measure, "continue: rop or power (pc)")
+      ->check(CLI::IsMember({"rop", "power", "pc"}))
+      ->capture_default_str();
+  plot->add_option("--coordinate", pf.options.coordinate, "sweep: Poincare coordinate p, y or q")
+      ->check(CLI::IsMember({"p", "y", "q"}))
+      ->capture_default_str();
+  plot->add_option("--param", pf.options.param,
+                   "Name of the swept parameter for the axis (a sweep result does not hold it)");
+  plot->add_option("--title", pf.options.title, "Title (default: derived from the result)");
+  plot->add_option("--script", pf.script,
+                   "Also write the gnuplot script (self-contained, data inline) to FILE")
+      ->option_text("FILE");
+
   CLI::App* health = app.add_subcommand(
       "health",
       "Ask the server's gRPC health service: prints SERVING and exits 0, else prints the status "
@@ -751,6 +848,7 @@ int Main(int argc, char** argv) {
     const int code = app.exit(e);  // prints help, version or the error
     return code == 0 ? 0 : kExitUsage;
   }
+  if (plot->parsed()) return RunPlotCommand(global, pf);  // no server, no job
   if (global.local && jobs->parsed()) {
     return Error("jobs manages a server's jobs: drop --local", kExitUsage);
   }

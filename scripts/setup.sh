@@ -9,6 +9,7 @@ packages=(
   libeigen3-dev libsundials-dev libsqlite3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
   libssl-dev libcpp-httplib-dev
+  gnuplot-nox
 )
 
 missing=()
