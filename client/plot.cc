@@ -345,7 +345,7 @@ StatusOr<std::string> ContinueScript(const v1::ContinueResult& r, const PlotOpti
   if (r.points_size() == 0) return InvalidArgument("the continuation result has no points");
   const std::string param = options.param.empty() ? ContinuedParam(r) : options.param;
   const std::string ylabel = power ? "P: mean dissipated power (dimensionless)"
-                                   : "ROP: mean rate of penetration (dimensionless)";
+                                   : "ROP: rate of progression (dimensionless)";
   StatusOr<Script> begun =
       Begin(options,
             std::string(power ? "Power" : "ROP") + " along the periodic orbit's branch in " + param,
