@@ -59,7 +59,7 @@ TEST(BuildPlotScript, ContinueDrawsStableSolidUnstableDashedAndEachSpecialPointK
   EXPECT_THAT(s, HasSubstr("set terminal pngcairo"));
   EXPECT_THAT(s, HasSubstr("set output 'figure.png'"));
   EXPECT_THAT(s, HasSubstr("set xlabel 'b: static force (weight on bit) (dimensionless)'"));
-  EXPECT_THAT(s, HasSubstr("set ylabel 'ROP: mean rate of penetration (dimensionless)'"));
+  EXPECT_THAT(s, HasSubstr("set ylabel 'ROP: rate of progression (dimensionless)'"));
   EXPECT_THAT(s, HasSubstr("set title 'ROP along the periodic orbit''s branch in b'"));
   EXPECT_THAT(s, HasSubstr("a = 0.3, omega = 0.1, xi = 0.05, g = 0.02, phi0 = 0"));
   EXPECT_THAT(s, HasSubstr("$branch0_stable using 1:2 with lines lw 2.5 dashtype 1"));
