@@ -18,33 +18,15 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/simulate/simulator.h"
 #include "problems/drifting_reference.h"
+#include "reference_window.h"
 
 namespace drillbif {
 namespace {
 
-constexpr int kPeriods = 100;
-
-StateVector OrbitStart() {
-  StateVector x(4);
-  x << testing::kRefFixedP, testing::kRefFixedY, testing::kRefFixedQ, 0.0;
-  return x;
-}
-
-SimulationOptions Window() {
-  SimulationOptions o;
-  o.transient_periods = 0;
-  o.sample_periods = kPeriods;
-  return o;
-}
-
-const SimulationResult& ExactReference() {
-  static const SimulationResult r = [] {
-    DriftingOscillator model;
-    ExactPropagator prop(model);
-    return Simulate(model, prop, testing::ReferenceParams(), OrbitStart(), Window());
-  }();
-  return r;
-}
+using bench::ExactReference;
+using bench::kPeriods;
+using bench::OrbitStart;
+using bench::Window;
 
 // Runs the simulation once per benchmark iteration; wall time per forcing period as a counter.
 void Measure(benchmark::State& state, Propagator& prop) {

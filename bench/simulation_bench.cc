@@ -20,33 +20,15 @@
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/simulate/sweep.h"
 #include "problems/drifting_reference.h"
+#include "reference_window.h"
 
 namespace drillbif {
 namespace {
 
-constexpr int kPeriods = 100;
-
-StateVector OrbitStart() {
-  StateVector x(4);
-  x << testing::kRefFixedP, testing::kRefFixedY, testing::kRefFixedQ, 0.0;
-  return x;
-}
-
-SimulationOptions Window() {
-  SimulationOptions o;
-  o.transient_periods = 0;
-  o.sample_periods = kPeriods;
-  return o;
-}
-
-const SimulationResult& ExactReference() {
-  static const SimulationResult r = [] {
-    DriftingOscillator model;
-    ExactPropagator prop(model);
-    return Simulate(model, prop, testing::ReferenceParams(), OrbitStart(), Window());
-  }();
-  return r;
-}
+using bench::ExactReference;
+using bench::kPeriods;
+using bench::OrbitStart;
+using bench::Window;
 
 // Runs the simulation once per benchmark iteration, timing each run on the wall clock.
 template <typename Run>
