@@ -58,8 +58,8 @@ class ServerProcess {
         dup2(log_fd, STDERR_FILENO);
       }
       execl(DRILLBIF_SERVER_BINARY, DRILLBIF_SERVER_BINARY, "--grpc-port", "0", "--http-port", "0",
-            "--db", db.c_str(),
-            "--workers", "1", "--port-file", port_file.c_str(), static_cast<char*>(nullptr));
+            "--db", db.c_str(), "--workers", "1", "--port-file", port_file.c_str(),
+            static_cast<char*>(nullptr));
       _exit(127);
     }
     if (log_fd >= 0) close(log_fd);

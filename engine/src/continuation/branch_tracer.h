@@ -93,8 +93,8 @@ class BranchTracer {
   int param_;
   Params base_;
   std::unique_ptr<OrbitBvp> bvp_;
-  Vec y_, t_;                                // current point (X, lambda) and unit tangent
-  Vec start_y_;                              // the start point, to notice a closed branch
+  Vec y_, t_;    // current point (X, lambda) and unit tangent
+  Vec start_y_;  // the start point, to notice a closed branch
   Signature start_signature_;
   bool closed_ = false;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;  // the last corrector iteration's bordered matrix

@@ -146,8 +146,8 @@ AdvanceResult ExactPropagator::Advance(const AdvanceRequest& request, const Para
   }
   if (request.measures) {
     if (closed_) {
-      out.measures = closed_->MeasureIncrements(mode, request.x0, out.duration, params,
-                                                 kAllMeasures);
+      out.measures =
+          closed_->MeasureIncrements(mode, request.x0, out.duration, params, kAllMeasures);
     } else {
       const double panel =
           options_.quadrature_panel_fraction *
