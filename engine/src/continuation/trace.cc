@@ -121,9 +121,6 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         ++(point.bracket > 1e-6 ? wide : no_form);
         continue;
       }
-      seed.point.orbit = *orbit;
-      seed.point.stability = OrbitStability(model, propagator, *orbit);
-      seed.point.measures = OrbitMeasures(model, propagator, *orbit);
       const double u = orbit->params[i1], v = orbit->params[i2];
       // Known: on a traced curve of the same kind, by its polyline or by one of its
       // codimension-2 points (which lie between its vertices, off the chords by up to the chord
@@ -146,6 +143,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
                 });
           });
       if (known) continue;
+      seed.point.orbit = *orbit;
+      seed.point.stability = OrbitStability(model, propagator, *orbit);
+      seed.point.measures = OrbitMeasures(model, propagator, *orbit);
       if (added == options.max_switched_curves) {
         sum.notes.push_back("switching stopped after " + std::to_string(added) +
                             " curves (max_switched_curves)");
