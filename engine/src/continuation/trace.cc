@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "continuation/tangent_grazing.h"
+#include "region/segment_index.h"
 
 namespace drillbif {
 
@@ -38,15 +39,13 @@ bool Traceable(SpecialPointKind kind) {
 
 // Distance from (u, v) to the polyline of the curve, in box-scaled coordinates.
 double DistanceToCurve(const CurveResult& c, double u, double v, double w1, double w2) {
+  const Eigen::Vector2d x(u / w1, v / w2);
   double best = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < c.points.size(); ++k) {
-    const double x0 = c.points[k].value1 / w1, y0 = c.points[k].value2 / w2;
-    const double x1 = (k + 1 < c.points.size() ? c.points[k + 1].value1 : c.points[k].value1) / w1;
-    const double y1 = (k + 1 < c.points.size() ? c.points[k + 1].value2 : c.points[k].value2) / w2;
-    const double dx = x1 - x0, dy = y1 - y0, px = u / w1 - x0, py = v / w2 - y0;
-    const double len2 = dx * dx + dy * dy;
-    const double s = len2 > 0.0 ? std::clamp((px * dx + py * dy) / len2, 0.0, 1.0) : 0.0;
-    best = std::min(best, std::hypot(px - s * dx, py - s * dy));
+    const CurvePoint& a = c.points[k];
+    const CurvePoint& b = c.points[k + 1 < c.points.size() ? k + 1 : k];
+    best = std::min(best, internal::DistanceL2(x, {a.value1 / w1, a.value2 / w2},
+                                               {b.value1 / w1, b.value2 / w2}));
   }
   return best;
 }

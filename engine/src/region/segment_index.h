@@ -1,6 +1,6 @@
-// Plane segments bucketed on a uniform grid, and the few geometric primitives the stability region
-// and the robust optimum need (intersection, point-segment distance in the Euclidean and max
-// norms). Internal to the engine.
+// Plane segments bucketed on a uniform grid, and the few geometric primitives the stability region,
+// the robust optimum and the trace's duplicate test need (intersection, point-segment distance in
+// the Euclidean and max norms). Internal to the engine.
 #ifndef DRILLBIF_REGION_SEGMENT_INDEX_H_
 #define DRILLBIF_REGION_SEGMENT_INDEX_H_
 
