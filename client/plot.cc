@@ -11,7 +11,6 @@
 #include <algorithm>
 #include <array>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -22,6 +21,8 @@
 #include <utility>
 #include <vector>
 
+#include "client/job_common.h"
+
 extern char** environ;
 
 namespace drillbif::client {
@@ -30,12 +31,8 @@ namespace {
 constexpr std::array<const char*, 6> kParamNames = {"a", "b", "omega", "xi", "g", "phi0"};
 
 // Shortest text that reads back to the same double.
-std::string Num(double v) {
-  if (!std::isfinite(v)) return "NaN";
-  char buffer[32];
-  const auto [end, ec] = std::to_chars(buffer, buffer + sizeof(buffer), v);
-  return ec == std::errc() ? std::string(buffer, end) : std::string("NaN");
-}
+// Non-finite values become gnuplot's missing-data "NaN".
+std::string Num(double v) { return std::isfinite(v) ? internal::Num(v) : std::string("NaN"); }
 
 // Four significant digits, for titles and labels.
 std::string Short(double v) {

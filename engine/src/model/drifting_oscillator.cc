@@ -3,19 +3,14 @@
 #include "drillbif/model/drifting_oscillator.h"
 
 #include <cmath>
-#include <sstream>
 
+#include "common/format.h"
 #include "model/drifting_oscillator_internal.h"
 
 namespace drillbif {
 namespace {
 
-std::string Num(double v) {
-  std::ostringstream os;
-  os.precision(17);
-  os << v;
-  return os.str();
-}
+std::string Num(double v) { return internal::FormatNumber(v); }
 
 }  // namespace
 

@@ -3,21 +3,17 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <string>
 
+#include "common/format.h"
 #include "region/segment_index.h"
 
 namespace drillbif {
 namespace {
 
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
+std::string Num(double v) { return internal::FormatNumber(v, 6); }
 
 // A polygon edge lies along the box when both its ends lie on the same side of it.
 bool AlongBox(const RegionVertex& a, const RegionVertex& b, const StabilityRegion& r) {

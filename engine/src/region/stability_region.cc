@@ -2,12 +2,12 @@
 
 #include <Eigen/Core>
 #include <cmath>
-#include <cstdio>
 #include <deque>
 #include <limits>
 #include <string>
 #include <utility>
 
+#include "common/format.h"
 #include "region/region_boundary.h"
 #include "region/segment_index.h"
 
@@ -16,11 +16,7 @@ namespace {
 
 constexpr unsigned kRopOnly = 1u << 0;  // ROP is measure 0 (HybridModel::measure_names())
 
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
-}
+std::string Num(double v) { return internal::FormatNumber(v, 10); }
 
 RegionGrid MakeGrid(const RegionOptions& o) {
   RegionGrid g;
