@@ -29,6 +29,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/server.h"
+#include "support/operations.h"
 #include "support/same_result.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
@@ -36,6 +37,8 @@
 namespace drillbif::server {
 namespace {
 
+using drillbif::testing::MetadataOf;
+using drillbif::testing::ResponseOf;
 using google::longrunning::Operation;
 using google::protobuf::util::MessageDifferencer;
 using ::testing::HasSubstr;
@@ -108,20 +111,6 @@ class GrpcServiceTest : public ::testing::Test {
     }
     ADD_FAILURE() << name << " not done after " << seconds << " s";
     return op;
-  }
-
-  static v1::JobMetadata MetadataOf(const Operation& op) {
-    v1::JobMetadata metadata;
-    EXPECT_TRUE(op.metadata().UnpackTo(&metadata));
-    return metadata;
-  }
-
-  template <typename Result>
-  static Result ResponseOf(const Operation& op) {
-    Result result;
-    EXPECT_TRUE(op.has_response()) << op.ShortDebugString().substr(0, 500);
-    EXPECT_TRUE(op.response().UnpackTo(&result));
-    return result;
   }
 
   // Job runs of the engine so far (the server's counter).

@@ -24,6 +24,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/store/sqlite_job_store.h"
+#include "support/operations.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
@@ -34,6 +35,7 @@
 namespace drillbif::server {
 namespace {
 
+using drillbif::testing::MetadataOf;
 using google::longrunning::Operation;
 using google::protobuf::util::MessageDifferencer;
 
@@ -110,12 +112,6 @@ Operation Get(google::longrunning::Operations::Stub& stub, const std::string& na
   grpc::Status s = stub.GetOperation(context.get(), request, &op);
   EXPECT_TRUE(s.ok()) << s.error_message();
   return op;
-}
-
-v1::JobMetadata MetadataOf(const Operation& op) {
-  v1::JobMetadata metadata;
-  EXPECT_TRUE(op.metadata().UnpackTo(&metadata));
-  return metadata;
 }
 
 // Polls until the operation is done (or 60 s).
