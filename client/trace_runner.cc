@@ -109,7 +109,7 @@ v1::TraceResult ToProto(const TraceResult& r) {
 }
 
 // The region's grid from the request: two values >= 3 (the engine checks the total), or 201 each.
-StatusOr<std::pair<int, int>> RegionGrid(const v1::RegionRequest& request) {
+StatusOr<std::pair<int, int>> GridSizeOf(const v1::RegionRequest& request) {
   if (request.grid_size() == 0) return std::pair<int, int>(201, 201);
   if (request.grid_size() != 2 || request.grid(0) < 3 || request.grid(1) < 3) {
     return InvalidArgument("region.grid: give two node counts >= 3 (one per trace parameter)");
@@ -120,7 +120,7 @@ StatusOr<std::pair<int, int>> RegionGrid(const v1::RegionRequest& request) {
 StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressCallback& progress) {
   std::pair<int, int> grid;
   if (request.has_region()) {
-    StatusOr<std::pair<int, int>> g = RegionGrid(request.region());
+    StatusOr<std::pair<int, int>> g = GridSizeOf(request.region());
     if (!g.ok()) return g.status();
     grid = *g;
   }
