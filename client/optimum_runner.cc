@@ -130,13 +130,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   out.set_near_box_edge(best.near_box_edge);
   out.set_signature(SignatureString(model, region.signatures[region.grid.label[best.node]]));
 
-  bool failed = false;
-  for (const TracedCurve& c : trace->result.curves) {
-    failed |= c.curve.summary.termination == Termination::kFailed;
-  }
-  for (const std::string& note : trace->result.summary.notes) {
-    failed |= note.find(" failed: ") != std::string::npos;
-  }
+  const bool failed = internal::TraceFailed(trace->result);
   out.set_status(failed ? "FAILED" : "COMPLETED");
   std::string message = "ROP " + internal::Num(best.rop) + " at " + region.param1 + " = " +
                         internal::Num(best.value1) + ", " + region.param2 + " = " +

@@ -74,11 +74,7 @@ void ToProto(const CurvePoint& p, v1::CurveVertex* out) {
 // The curves as the proto result.
 v1::TraceResult ToProto(const TraceResult& r) {
   v1::TraceResult out;
-  bool failed = false;
-  for (const std::string& note : r.summary.notes) {
-    out.add_notes(note);
-    failed |= note.find(" failed: ") != std::string::npos;
-  }
+  for (const std::string& note : r.summary.notes) out.add_notes(note);
   for (size_t i = 0; i < r.curves.size(); ++i) {
     const TracedCurve& c = r.curves[i];
     v1::Curve* curve = out.add_curves();
@@ -90,7 +86,6 @@ v1::TraceResult ToProto(const TraceResult& r) {
     curve->set_start_param(c.start_param);
     curve->set_from_curve(c.from_curve);
     curve->set_message(c.curve.summary.message);
-    failed |= c.curve.summary.termination == Termination::kFailed;
     for (const CurvePoint& p : c.curve.points) ToProto(p, curve->add_points());
     for (const Codim2Point& q : c.curve.codim2) {
       v1::Codim2Point* cp = out.add_codim2_points();
@@ -101,7 +96,9 @@ v1::TraceResult ToProto(const TraceResult& r) {
       cp->set_bracket(q.bracket);
     }
   }
-  out.set_status(r.summary.cancelled ? "CANCELLED" : failed ? "FAILED" : "COMPLETED");
+  out.set_status(r.summary.cancelled        ? "CANCELLED"
+                 : internal::TraceFailed(r) ? "FAILED"
+                                            : "COMPLETED");
   out.set_message(std::to_string(r.curves.size()) + " curves, " +
                   std::to_string(out.codim2_points_size()) + " codimension-2 points, " +
                   std::to_string(r.summary.notes.size()) + " located points not traced (notes)");
@@ -172,6 +169,16 @@ StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
   out.result = TraceCurves(model, propagator, out.start, out.options, progress);
   if (!out.result.summary.status.ok()) return out.result.summary.status;
   return out;
+}
+
+bool TraceFailed(const TraceResult& trace) {
+  for (const TracedCurve& c : trace.curves) {
+    if (c.curve.summary.termination == Termination::kFailed) return true;
+  }
+  for (const std::string& note : trace.summary.notes) {
+    if (note.find(" failed: ") != std::string::npos) return true;
+  }
+  return false;
 }
 
 RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2) {

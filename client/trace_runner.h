@@ -39,6 +39,10 @@ struct EngineTrace {
 StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
                                          const ProgressCallback& progress);
 
+// Whether a curve or a branch of the trace failed (a curve's termination, or a note of a branch
+// or a start that failed): its curves may then miss some.
+bool TraceFailed(const TraceResult& trace);
+
 // The region options for the trace's box with an n1 x n2 grid.
 RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2);
 
