@@ -2,7 +2,9 @@
 // (b = 0.11001173, MODEL.md) is found, solved, and agrees with direct simulation.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/exact_propagator.h"
@@ -86,6 +88,123 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchHasABranchPointAtTheDoubling) {
   ASSERT_NE(bp, nullptr) << r2.summary.message;
   // Both located to 1e-10 in b.
   EXPECT_NEAR(bp->point.value, pd.point.value, 1e-9);
+}
+
+// The PD of a branch in `param` with its value in [lo, hi] (continued from the reference orbit).
+SpecialPoint DoublingOnBranch(const DO& model, Propagator& prop, const std::string& param,
+                              double min, double max, double lo, double hi) {
+  const StatusOr<PeriodicOrbit> found =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  EXPECT_TRUE(found.ok());
+  ContinuationOptions opt;
+  opt.param = param;
+  opt.min = min;
+  opt.max = max;
+  const ContinuationResult r = Continue(model, prop, *found, opt);
+  for (const SpecialPoint& s : r.special_points) {
+    if (s.kind == SpecialPointKind::kPeriodDoubling && s.point.value >= lo && s.point.value <= hi) {
+      return s;
+    }
+  }
+  ADD_FAILURE() << "no PD in [" << lo << ", " << hi << "]";
+  return {};
+}
+
+// Direct simulation from a period-2 orbit's section state: back after two periods (to `tol`),
+// not after one.
+void ExpectPeriodTwoBySimulation(const HybridModel& model, Propagator& prop,
+                                 const PeriodicOrbit& orbit, double tol, double split) {
+  SimulationOptions two;
+  two.transient_periods = 0;
+  two.sample_periods = 2;
+  two.outputs = SimulationOutputs{false, true, false, false, 0.0};
+  const SimulationResult s = Simulate(model, prop, orbit.params, orbit.starts[0], two);
+  ASSERT_EQ(s.poincare.size(), 2u);
+  const StateVector& x0 = orbit.starts[0];
+  EXPECT_LT((s.poincare[1].x - x0).head(3).norm(), tol);
+  EXPECT_GT((s.poincare[0].x - x0).head(3).norm(), split);
+}
+
+// Algebraic switching (no simulation) lands on the same period-2 branch as the simulation-based
+// switch: continued to the simulated orbit's b, ROP and multipliers agree.
+TEST(PeriodDoublingSwitch, AlgebraicSwitchFindsTheBranchTheSimulationFinds) {
+  DO model;
+  ExactPropagator prop(model);
+  const SpecialPoint pd = DoublingOnBranch(model, prop, "b", 0.05, 0.2, 0.10, 0.12);
+  const StatusOr<PeriodicOrbit> alg =
+      SwitchAtPeriodDoublingAlgebraic(model, prop, pd.point.orbit, "b");
+  ASSERT_TRUE(alg.ok()) << alg.status().ToString();
+  EXPECT_EQ(alg->signature.periods, 2);
+  EXPECT_TRUE(CheckAdmissible(model, prop, *alg).admissible);
+  const int ib = model.ParamIndex("b").value();
+  // A pitchfork of the doubled system: the parameter moves by O(step^2) (step 1e-3 relative).
+  EXPECT_NEAR(alg->params[ib], pd.point.value, 1e-5);
+  // Next to the doubling the period-2 orbit's largest multiplier is near +1 (the square of -1):
+  // within 1e-3, as it moves by O(parameter distance) ~ 1e-7 here.
+  const Stability st = OrbitStability(model, prop, *alg);
+  EXPECT_NEAR(std::abs(st.multipliers.front()), 1.0, 1e-3);
+
+  const StatusOr<PeriodicOrbit> sim = SwitchAtPeriodDoubling(model, prop, pd, "b");
+  ASSERT_TRUE(sim.ok()) << sim.status().ToString();
+  const double b_sim = sim->params[ib];
+  ContinuationOptions to;
+  to.param = "b";
+  to.min = std::min(b_sim, alg->params[ib]);
+  to.max = std::max(b_sim, alg->params[ib]);
+  to.direction = b_sim < alg->params[ib] ? ContinuationDirection::kDecreasing
+                                         : ContinuationDirection::kIncreasing;
+  const ContinuationResult r = Continue(model, prop, *alg, to);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  const ContinuationPoint& end =
+      std::abs(r.points.front().value - b_sim) < std::abs(r.points.back().value - b_sim)
+          ? r.points.front()
+          : r.points.back();
+  ASSERT_NEAR(end.value, b_sim, 1e-12);
+  // Both are Newton solutions of one boundary-value system to a scaled step of 1e-11 (states
+  // ~60, so ~1e-9 absolute); ROP and the multipliers are smooth in the states: agreement to 1e-8.
+  EXPECT_NEAR(end.measures[0], OrbitMeasures(model, prop, *sim)[0], 1e-8);
+  const Stability st_sim = OrbitStability(model, prop, *sim);
+  ASSERT_EQ(end.stability.multipliers.size(), st_sim.multipliers.size());
+  for (size_t i = 0; i < st_sim.multipliers.size(); ++i) {
+    EXPECT_LT(std::abs(end.stability.multipliers[i] - st_sim.multipliers[i]), 1e-8);
+  }
+}
+
+// Where the simulation-based switch finds no attracting period-2 orbit (the omega-branch's PD at
+// 0.0943706, 2.3e-6 from a Pi grazing: orbits 1e-3 away already cross it), the algebraic switch
+// still gives a period-2 orbit, confirmed by direct simulation.
+TEST(PeriodDoublingSwitch, AlgebraicSwitchWorksWhereSimulationFindsNothing) {
+  DO model;
+  ExactPropagator prop(model);
+  const SpecialPoint pd = DoublingOnBranch(model, prop, "omega", 0.05, 2.0, 0.0943, 0.0945);
+  EXPECT_FALSE(SwitchAtPeriodDoubling(model, prop, pd, "omega").ok());
+  const StatusOr<PeriodicOrbit> alg =
+      SwitchAtPeriodDoublingAlgebraic(model, prop, pd.point.orbit, "omega");
+  ASSERT_TRUE(alg.ok()) << alg.status().ToString();
+  EXPECT_EQ(alg->signature.periods, 2);
+  EXPECT_TRUE(CheckAdmissible(model, prop, *alg).admissible);
+  EXPECT_NEAR(alg->params[model.ParamIndex("omega").value()], pd.point.value, 1e-5);
+  // Over two periods the return error is the Newton tolerance times the states' scale (~1e-9)
+  // amplified by the multipliers (< 10): 1e-7 is safe; the passes differ by ~ the step (1e-3
+  // relative to states ~60, halved at most a few times), far above 1e-5.
+  ExpectPeriodTwoBySimulation(model, prop, *alg, 1e-7, 1e-5);
+}
+
+TEST(PeriodDoublingSwitch, AlgebraicSwitchRejectsBadInput) {
+  DO model;
+  ExactPropagator prop(model);
+  const SpecialPoint pd = DoublingOnBranch(model, prop, "b", 0.05, 0.2, 0.10, 0.12);
+  EXPECT_EQ(SwitchAtPeriodDoublingAlgebraic(model, prop, pd.point.orbit, "nope").status().code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(SwitchAtPeriodDoublingAlgebraic(model, prop, pd.point.orbit, "b", 0.0).status().code(),
+            StatusCode::kInvalidArgument);
+  // Not at a doubling: the doubled system has no second null direction and Newton returns to
+  // the doubled orbit.
+  const StatusOr<PeriodicOrbit> start =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(start.ok());
+  EXPECT_EQ(SwitchAtPeriodDoublingAlgebraic(model, prop, *start, "b").status().code(),
+            StatusCode::kFailedPrecondition);
 }
 
 TEST(PeriodDoublingSwitch, RejectsAPointThatIsNotAPeriodDoubling) {

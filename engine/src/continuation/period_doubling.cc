@@ -1,10 +1,50 @@
 // Branch switching at period doubling (see continuation/continuation.h).
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 
 #include "drillbif/continuation/continuation.h"
+#include "orbit/orbit_bvp.h"
 
 namespace drillbif {
+
+namespace {
+
+// The orbit traversed twice, as an orbit of twice the period: the last segment of the first pass
+// and the first of the second are one segment (the section is not an event). Linear in the
+// starts and durations.
+StatusOr<PeriodicOrbit> Doubled(const PeriodicOrbit& o) {
+  const std::vector<SegmentSpec>& seg = o.signature.segments;
+  const int k = static_cast<int>(seg.size());
+  if (k < 2 || seg.front().mode != seg.back().mode) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "the orbit has no event, or starts at one (its first and last segments are of "
+                  "different modes): no doubled signature");
+  }
+  PeriodicOrbit d;
+  d.params = o.params;
+  d.signature.periods = 2 * o.signature.periods;
+  auto push = [&](const SegmentSpec& spec, const StateVector& start, double duration) {
+    d.signature.segments.push_back(spec);
+    d.starts.push_back(start);
+    d.durations.push_back(duration);
+  };
+  for (int i = 0; i + 1 < k; ++i) push(seg[i], o.starts[i], o.durations[i]);
+  push(seg.front(), o.starts[k - 1], o.durations[k - 1] + o.durations[0]);
+  for (int i = 1; i < k; ++i) push(seg[i], o.starts[i], o.durations[i]);
+  return d;
+}
+
+// The unit null vector of the m x (m + 1) matrix [gx gp] (the branch's tangent), from the SVD.
+Eigen::MatrixXd NullBasis(const Eigen::MatrixXd& gx, const Eigen::VectorXd& gp, int dim) {
+  Eigen::MatrixXd j(gx.rows(), gx.cols() + 1);
+  j << gx, gp;
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeFullV);
+  return svd.matrixV().rightCols(dim);
+}
+
+}  // namespace
 
 StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propagator& propagator,
                                                const SpecialPoint& period_doubling,
@@ -65,6 +105,99 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
                 "no attracting period-" + std::to_string(2 * n) + " orbit next to the period " +
                     "doubling at " + param + " = " + std::to_string(period_doubling.point.value) +
                     " (a subcritical doubling?):" + tried);
+}
+
+StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model,
+                                                        Propagator& propagator,
+                                                        const PeriodicOrbit& orbit,
+                                                        const std::string& param, double step) {
+  using Vec = Eigen::VectorXd;
+  StatusOr<int> index = model.ParamIndex(param);
+  if (!index.ok()) return Status(StatusCode::kInvalidArgument, index.status().message());
+  if (!(step > 0.0 && std::isfinite(step))) {
+    return InvalidArgument("step: need a finite value > 0");
+  }
+  StatusOr<PeriodicOrbit> doubled = Doubled(orbit);
+  if (!doubled.ok()) return doubled.status();
+  internal::OrbitBvp bvp1(model, propagator, orbit.signature, *index);
+  internal::OrbitBvp bvp2(model, propagator, doubled->signature, *index);
+  const int m1 = bvp1.size(), m = bvp2.size();
+  Vec g, gp;
+  Eigen::MatrixXd gx;
+  // The period-n branch's tangent, mapped into the doubled unknowns (the doubling is linear).
+  const Vec x1 = bvp1.Pack(orbit);
+  if (Status s = bvp1.Evaluate(x1, orbit.params, &g, &gx, &gp); !s.ok()) return s;
+  const Vec t1 = NullBasis(gx, gp, 1).col(0);
+  PeriodicOrbit moved;
+  bvp1.Unpack(x1 + t1.head(m1), orbit.params, &moved);
+  StatusOr<PeriodicOrbit> moved2 = Doubled(moved);
+  if (!moved2.ok()) return moved2.status();
+  const Vec x2 = bvp2.Pack(*doubled);
+  Vec t_sym(m + 1);
+  t_sym << bvp2.Pack(*moved2) - x2, t1[m1];
+  // The doubled system's two-dimensional null space; the new branch leaves orthogonally to the
+  // doubled one within it.
+  if (Status s = bvp2.Evaluate(x2, orbit.params, &g, &gx, &gp); !s.ok()) return s;
+  const Eigen::MatrixXd basis = NullBasis(gx, gp, 2);
+  const Eigen::Vector2d c = basis.transpose() * t_sym;
+  const Vec t = basis * Eigen::Vector2d(-c[1], c[0]).normalized();
+
+  Vec y0(m + 1);
+  y0 << x2, orbit.params[*index];
+  const double scale = 1.0 + y0.lpNorm<Eigen::Infinity>();
+  const int k = static_cast<int>(orbit.signature.segments.size()), n = model.state_dim();
+  std::string tried;
+  for (double h = step * scale; h >= step * scale * 1e-4; h /= 4.0) {
+    for (double side : {1.0, -1.0}) {
+      const Vec y_pred = y0 + side * h * t;
+      Vec y = y_pred;
+      Params p = orbit.params;
+      bool converged = false;
+      for (int it = 0; it < 20 && !converged; ++it) {
+        p[*index] = y[m];
+        if (!model.ValidateParams(p).ok()) break;
+        if (!bvp2.Evaluate(y.head(m), p, &g, &gx, &gp).ok()) break;
+        Eigen::MatrixXd jac(m + 1, m + 1);
+        jac << gx, gp, t.transpose();
+        Vec f(m + 1);
+        f << g, t.dot(y - y_pred);
+        const Vec dy = jac.partialPivLu().solve(-f);
+        if (!dy.allFinite()) break;
+        y += dy;
+        converged = dy.lpNorm<Eigen::Infinity>() <= 1e-11 * scale;
+      }
+      if (!converged) {
+        tried = "Newton did not converge";
+        continue;
+      }
+      p[*index] = y[m];
+      PeriodicOrbit result;
+      bvp2.Unpack(y.head(m), p, &result);
+      // A genuine period-2n orbit: its two passes differ at the matching segment starts
+      // (segment i of the first pass is segment k - 1 + i of the second, i = 1 .. k - 1).
+      double split = 0.0;
+      for (int i = 1; i < k; ++i) {
+        for (int j = 0; j < n; ++j) {
+          if (j == model.phase_index()) continue;
+          split = std::max(split, std::abs(result.starts[i][j] - result.starts[k - 1 + i][j]));
+        }
+      }
+      if (split <= 1e-3 * h) {
+        tried = "the corrector returned to the doubled orbit";
+        continue;
+      }
+      const Admissibility adm = CheckAdmissible(model, propagator, result);
+      if (!adm.admissible) {
+        tried = "not admissible: " + adm.message;
+        continue;
+      }
+      return result;
+    }
+  }
+  return Status(StatusCode::kFailedPrecondition,
+                "no period-" + std::to_string(2 * orbit.signature.periods) +
+                    " orbit found next to the doubling at " + param + " = " +
+                    std::to_string(orbit.params[*index]) + ": " + tried);
 }
 
 }  // namespace drillbif

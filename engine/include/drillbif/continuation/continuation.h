@@ -128,6 +128,21 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
                                                const std::string& param,
                                                const PeriodDoublingSwitchOptions& options = {});
 
+// Branch switching at a period doubling without simulation, for sub- and supercritical doublings
+// alike: the orbit at the doubling traversed twice solves the period-2n boundary-value system,
+// where the doubled branch and the period-2n branch cross (a branch point: [G_X G_lambda] has a
+// two-dimensional null space). The period-2n orbit is predicted from the doubled orbit along the
+// null direction orthogonal to the doubled branch's tangent, at arclength `step` (relative to
+// 1 + |X|), and corrected by Newton with the pseudo-arclength condition; the step is halved while
+// the result is inadmissible (a doubling next to a grazing) or not yet a genuine period-2n orbit.
+// `orbit` must be solved with a multiplier -1 (a located PERIOD_DOUBLING or a PD curve's point);
+// FAILED_PRECONDITION when no step gives an admissible period-2n orbit.
+StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model,
+                                                        Propagator& propagator,
+                                                        const PeriodicOrbit& orbit,
+                                                        const std::string& param,
+                                                        double step = 1e-3);
+
 }  // namespace drillbif
 
 #endif  // DRILLBIF_CONTINUATION_CONTINUATION_H_
