@@ -206,10 +206,10 @@ TEST(Trace, InvalidRequestsNameTheProblem) {
             StatusCode::kInvalidArgument);
 }
 
-// Period-2 curves, on request: in omega in [0.05, 0.45], a in [0.27, 0.32] the period-2 branch
-// born at the omega-branch's period doubling at 0.2698 (a = 0.3) has a PD and two l1 grazings,
-// whose curves are traced. Each crosses a = 0.3 where the period-2 omega-branch, switched onto
-// and continued independently here, locates the point (to 1e-7).
+// Period-2 curves, on request: in omega in [0.05, 0.45], a in [0.27, 0.32] the period-2 branches
+// born at the omega-branch's period doublings (a = 0.3) have PDs and grazings, whose curves are
+// traced. Each crosses a = 0.3 where a period-2 omega-branch, switched onto and continued
+// independently here, locates the point (to 1e-7).
 TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
   DO model;
   ExactPropagator prop(model);
@@ -233,17 +233,25 @@ TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
   branch.param = "omega";
   branch.min = opt.min1, branch.max = opt.max1;
   const ContinuationResult omega1 = Continue(model, prop, *start, branch);
-  const SpecialPoint* pd = nullptr;
+  // Every period-2 omega-branch: switched onto by simulation where the doubling is
+  // supercritical (0.2698), else algebraically (0.0944, next to a Pi grazing: simulation finds
+  // nothing there), each continued over the box.
+  ContinuationResult omega2;
+  int doublings = 0;
   for (const SpecialPoint& s : omega1.special_points) {
-    if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 0.2698) < 1e-3) {
-      pd = &s;
+    if (s.kind != SpecialPointKind::kPeriodDoubling) continue;
+    ++doublings;
+    StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model, prop, s, "omega");
+    if (!doubled.ok()) {
+      doubled = SwitchAtPeriodDoublingAlgebraic(model, prop, s.point.orbit, "omega");
     }
+    ASSERT_TRUE(doubled.ok()) << doubled.status().ToString();
+    ASSERT_EQ(doubled->signature.periods, 2);
+    const ContinuationResult r2 = Continue(model, prop, *doubled, branch);
+    omega2.special_points.insert(omega2.special_points.end(), r2.special_points.begin(),
+                                 r2.special_points.end());
   }
-  ASSERT_NE(pd, nullptr);
-  const StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model, prop, *pd, "omega");
-  ASSERT_TRUE(doubled.ok()) << doubled.status().ToString();
-  ASSERT_EQ(doubled->signature.periods, 2);
-  const ContinuationResult omega2 = Continue(model, prop, *doubled, branch);
+  EXPECT_GE(doublings, 2);
 
   int period2 = 0;
   for (const TracedCurve& c : r.curves) {
@@ -260,7 +268,9 @@ TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
       for (const SpecialPoint& s : omega2.special_points) {
         const bool same = c.curve.kind == CurveKind::kPeriodDoubling
                               ? s.kind == SpecialPointKind::kPeriodDoubling
-                              : s.kind == SpecialPointKind::kGrazingL1;
+                              : (s.kind == SpecialPointKind::kGrazingL1 ||
+                                 s.kind == SpecialPointKind::kGrazingL2 ||
+                                 s.kind == SpecialPointKind::kGrazingPi);
         if (same) best = std::min(best, std::abs(s.point.value - x.value1));
       }
       // Both located to 1e-10 (corrector, location); the issue's bound.
@@ -276,6 +286,57 @@ TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
     }
   }
   EXPECT_GE(period2, 3);
+}
+
+// Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings
+// (deliverable 2 of issue 4). In omega in [1.3, 1.75], a in [0.2, 7.5], traced from the
+// omega-branch's orbit at omega = 1.5, the PD curve of period 1 ends at the flip-grazing
+// (1.3946, 6.7289); a period-2 grazing curve ends there where its second pass grazes too
+// (DOUBLE_GRAZING), within that end's bisection bracket of the point.
+TEST(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> reference =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(reference.ok());
+  ContinuationOptions to;
+  to.param = "omega";
+  to.min = 0.05, to.max = 1.5;
+  to.direction = ContinuationDirection::kIncreasing;
+  const ContinuationResult r0 = Continue(model, prop, *reference, to);
+  ASSERT_EQ(r0.summary.termination, Termination::kCompleted) << r0.summary.message;
+  const ContinuationPoint& at = r0.points.back();
+  ASSERT_EQ(at.value, 1.5);
+  TraceOptions opt = testing::Issue4Box();
+  opt.min1 = 1.3, opt.max1 = 1.75;
+  opt.min2 = 0.2, opt.max2 = 7.5;
+  opt.period2 = true;
+  const TraceResult r = TraceCurves(model, prop, at.orbit, opt);
+  ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+  int flips = 0;
+  for (const TracedCurve& c : r.curves) {
+    if (c.curve.points.front().orbit.signature.periods != 1) continue;
+    for (const Codim2Point& q : c.curve.codim2) {
+      if (q.kind != Codim2Kind::kFlipGrazing) continue;
+      ++flips;
+      bool reached = false;
+      for (const TracedCurve& t : r.curves) {
+        if (t.curve.kind != CurveKind::kGrazing ||
+            t.curve.points.front().orbit.signature.periods != 2) {
+          continue;
+        }
+        for (const Codim2Point& z : t.curve.codim2) {
+          // Both ends are located by bisection in arclength (parameters included).
+          reached |= z.kind == Codim2Kind::kDoubleGrazing &&
+                     std::hypot(z.point.value1 - q.point.value1, z.point.value2 - q.point.value2) <=
+                         z.bracket + q.bracket + 1e-9;
+        }
+      }
+      EXPECT_TRUE(reached) << "flip-grazing at omega = " << q.point.value1
+                           << ", a = " << q.point.value2;
+    }
+  }
+  EXPECT_GE(flips, 1);
 }
 
 }  // namespace

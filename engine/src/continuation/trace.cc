@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "continuation/tangent_grazing.h"
+#include "continuation/trace_internal.h"
 #include "region/segment_index.h"
 
 namespace drillbif {
@@ -28,34 +29,42 @@ Status TraceOptions::Validate() const {
   return Status::Ok();
 }
 
-namespace {
+namespace internal {
 
-// Whether ContinueCurve starts from a point of this kind.
-bool Traceable(SpecialPointKind kind) {
-  return kind == SpecialPointKind::kFold || kind == SpecialPointKind::kPeriodDoubling ||
-         kind == SpecialPointKind::kNeimarkSacker || kind == SpecialPointKind::kGrazingL1 ||
-         kind == SpecialPointKind::kGrazingL2 || kind == SpecialPointKind::kGrazingPi;
-}
-
-// Distance from (u, v) to the polyline of the curve, in box-scaled coordinates.
 double DistanceToCurve(const CurveResult& c, double u, double v, double w1, double w2) {
   const Eigen::Vector2d x(u / w1, v / w2);
   double best = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < c.points.size(); ++k) {
     const CurvePoint& a = c.points[k];
     const CurvePoint& b = c.points[k + 1 < c.points.size() ? k + 1 : k];
-    best = std::min(best, internal::DistanceL2(x, {a.value1 / w1, a.value2 / w2},
-                                               {b.value1 / w1, b.value2 / w2}));
+    best = std::min(best,
+                    DistanceL2(x, {a.value1 / w1, a.value2 / w2}, {b.value1 / w1, b.value2 / w2}));
   }
   return best;
 }
 
-// The curve with (value1, value2) swapped, for a curve traced with the parameters in the other
-// order.
 void SwapValues(CurveResult* c) {
   for (CurvePoint& p : c->points) std::swap(p.value1, p.value2);
   for (CurvePoint& p : c->crossings) std::swap(p.value1, p.value2);
   for (Codim2Point& q : c->codim2) std::swap(q.point.value1, q.point.value2);
+}
+
+bool IsGrazing(SpecialPointKind kind) {
+  return kind == SpecialPointKind::kGrazingL1 || kind == SpecialPointKind::kGrazingL2 ||
+         kind == SpecialPointKind::kGrazingPi;
+}
+
+}  // namespace internal
+
+namespace {
+
+using internal::DistanceToCurve;
+using internal::SwapValues;
+
+// Whether ContinueCurve starts from a point of this kind.
+bool Traceable(SpecialPointKind kind) {
+  return kind == SpecialPointKind::kFold || kind == SpecialPointKind::kPeriodDoubling ||
+         kind == SpecialPointKind::kNeimarkSacker || internal::IsGrazing(kind);
 }
 
 // A grazing start kind named after the surface of the tangent segment's guard.
@@ -214,12 +223,18 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
   std::vector<std::pair<int, SpecialPoint>> starts;  // (axis, located point)
   // The branch through `orbit` in the axis' parameter over the box; its traceable points are
   // appended to `starts`. False when cancelled.
-  auto branch_starts = [&](const PeriodicOrbit& orbit, int axis, double from, double to) {
+  auto branch_starts = [&](const PeriodicOrbit& orbit, int axis, double from, double to,
+                           ContinuationDirection direction) {
     const Axis& a = axes[axis];
     ContinuationOptions branch = options.branch;
+    branch.direction = direction;
     branch.param = *a.name;
     branch.min = a.min;
     branch.max = a.max;
+    // A period-2 branch that reaches a branch point has met the doubled period-1 branch at
+    // another doubling; beyond it run the same orbits shifted by one period: stop there.
+    const bool doubled = orbit.signature.periods > 1;
+    if (doubled) branch.stop_at.push_back(SpecialPointKind::kBranchPoint);
     const ContinuationResult r = Continue(
         model, propagator, orbit, branch,
         [&](const ContinuationPoint&, double f) { return report(from + (to - from) * f); });
@@ -230,12 +245,23 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                           *a.name + "-branch failed: " + r.summary.message);
     }
     for (const SpecialPoint& s : r.special_points) {
-      if (Traceable(s.kind)) starts.emplace_back(axis, s);
+      // At that branch point the period-2 branch's parameter turns (its two halves meet): the
+      // fold located there is that turn, not a fold of the orbits.
+      const bool turn =
+          doubled && s.kind == SpecialPointKind::kFold &&
+          std::any_of(r.special_points.begin(), r.special_points.end(), [&](const SpecialPoint& b) {
+            return b.kind == SpecialPointKind::kBranchPoint &&
+                   std::abs(b.point.value - s.point.value) <=
+                       1e-6 * (1.0 + std::abs(b.point.value));
+          });
+      if (Traceable(s.kind) && !turn) starts.emplace_back(axis, s);
     }
     return true;
   };
   for (int axis = 0; axis < 2; ++axis) {
-    if (!branch_starts(start, axis, 0.05 * axis, 0.05 * (axis + 1))) return result;
+    if (!branch_starts(start, axis, 0.05 * axis, 0.05 * (axis + 1), options.branch.direction)) {
+      return result;
+    }
   }
   if (options.period2) {
     // The period-2 branches born at the period-1 branches' period doublings.
@@ -245,8 +271,21 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
       if (s.kind != SpecialPointKind::kPeriodDoubling || s.point.orbit.signature.periods != 1) {
         continue;
       }
-      const StatusOr<PeriodicOrbit> doubled =
-          SwitchAtPeriodDoubling(model, propagator, s, *axes[axis].name);
+      // Algebraic switching finds sub- and supercritical branches; simulation is the fallback.
+      // From the algebraic switch's orbit (next to the branch point) the branch is continued
+      // away from the doubling only: towards it, it runs through the branch point (where its
+      // parameter turns, a spurious fold) onto the same orbits shifted by one period.
+      const int p = axes[axis].index;
+      ContinuationDirection direction = options.branch.direction;
+      StatusOr<PeriodicOrbit> doubled =
+          SwitchAtPeriodDoublingAlgebraic(model, propagator, s.point.orbit, *axes[axis].name);
+      if (doubled.ok()) {
+        direction = doubled->params[p] > s.point.orbit.params[p]
+                        ? ContinuationDirection::kIncreasing
+                        : ContinuationDirection::kDecreasing;
+      } else {
+        doubled = SwitchAtPeriodDoubling(model, propagator, s, *axes[axis].name);
+      }
       if (!doubled.ok()) {
         sum.notes.push_back(std::string("PERIOD_DOUBLING at ") + options.param1 + " = " +
                             std::to_string(s.point.orbit.params[*i1]) + ", " + options.param2 +
@@ -255,7 +294,7 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
         continue;
       }
       const double from = 0.1 + 0.1 * k / period1.size(), to = 0.1 + 0.1 * (k + 1) / period1.size();
-      if (!branch_starts(*doubled, axis, from, to)) return result;
+      if (!branch_starts(*doubled, axis, from, to, direction)) return result;
     }
   }
   const double curves_from = options.period2 ? 0.2 : 0.1;
@@ -298,6 +337,10 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     result.curves.push_back({s, *a.name, std::move(curve)});
   }
   if (options.switch_at_codim2 && !SwitchAtCodim2(model, propagator, options, report, &result)) {
+    return result;
+  }
+  if (options.switch_at_codim2 && options.period2 &&
+      !internal::Period2AtFlipGrazings(model, propagator, options, report, &result)) {
     return result;
   }
   report(1.0);

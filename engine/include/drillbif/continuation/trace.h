@@ -8,11 +8,11 @@
 // With `period2`, the same for the period-2 branches born at the period-1 branches' period
 // doublings.
 //
-// Then, with switch_at_codim2, the curves that leave the codimension-2 points found on them.
+// Then, with switch_at_codim2, the curves that leave the codimension-2 points found on them; with
+// `period2` also the period-2 grazing curves leaving the period-1 flip-grazings.
 //
 // Not yet: switching at DOUBLE_GRAZING points (the second grazing curve through them), at
-// codimension-2 ends certified only to a wide bracket, and onto period-2 curves at flip-grazings;
-// NS curves, period 4 and beyond.
+// codimension-2 ends certified only to a wide bracket; period 4 and beyond.
 #ifndef DRILLBIF_CONTINUATION_TRACE_H_
 #define DRILLBIF_CONTINUATION_TRACE_H_
 
@@ -35,9 +35,11 @@ struct TraceOptions {
   // issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at most).
   double duplicate_distance = 1e-5;
   // Also the period-2 curves: at every period doubling of the period-1 branches the period-2
-  // branch born there (SwitchAtPeriodDoubling) is continued over the box in the same parameter,
-  // and the curves of its folds, period doublings and grazings are traced. Off by default: it is
-  // asked for, not implied (it roughly doubles the work).
+  // branch born there (SwitchAtPeriodDoublingAlgebraic, else SwitchAtPeriodDoubling) is continued
+  // over the box in the same parameter, and the curves of its folds, period doublings and
+  // grazings are traced; with switch_at_codim2, also the period-2 grazing curve leaving each
+  // period-1 FLIP_GRAZING (found from the PD curve next to it). Off by default: it is asked for,
+  // not implied (it multiplies the work).
   bool period2 = false;
   // Also the curves that leave the codimension-2 points found (switching), repeatedly until no new
   // curve appears: from a FOLD_GRAZING / FLIP_GRAZING located as a root along a grazing curve,

@@ -1,0 +1,193 @@
+// The period-2 grazing curves that leave flip-grazing points (continuation/trace_internal.h).
+//
+// At a flip-grazing point a period-1 PD curve ends on a period-1 grazing curve. The period-2
+// orbit born along the PD curve has two passes x0 +- eps v, eps ~ sqrt(distance from the PD
+// curve); the pass moved towards the boundary grazes where eps is of the order of the period-1
+// orbit's distance from grazing, which vanishes at the flip-grazing point: a period-2 grazing
+// curve leaves that point, tangent to the PD curve. It is found from a PD-curve vertex a little
+// away from the point: algebraic switching onto the period-2 branch there, continuation in one
+// parameter to the branch's first grazing, and the grazing curve through it, kept when it comes
+// closer to the point than the vertex it was found from.
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "continuation/trace_internal.h"
+
+namespace drillbif::internal {
+
+namespace {
+
+// Scaled distance of the PD-curve vertex the period-2 branch is started from: far enough that
+// the period-2 orbit's passes can differ by more than the corrector's tolerance without either
+// grazing at once, near enough that the first grazing is the one leaving the point.
+constexpr double kSeedDistance = 2e-3;
+// A PD curve passes through the point when one of its vertices or codimension-2 points is this
+// close (scaled). PD curve ends located only to a wider bracket give no seed (named in a note).
+constexpr double kOnCurve = 1e-4;
+// Two flip-grazings this close (scaled) are one (the same point found as a grazing curve's root
+// and as a PD curve's end agree to ~1e-11 when both converged).
+constexpr double kSamePoint = 1e-5;
+
+struct Seed {
+  const CurvePoint* point;
+  double distance;  // scaled, from the flip-grazing point
+};
+
+// The vertices of period-1 PD curves through (u, v), about kSeedDistance from it along each
+// curve on either side.
+std::vector<Seed> SeedsNear(const TraceResult& result, double u, double v, double w1, double w2) {
+  std::vector<Seed> seeds;
+  auto distance = [&](const CurvePoint& p) {
+    return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
+  };
+  for (const TracedCurve& t : result.curves) {
+    const std::vector<CurvePoint>& pts = t.curve.points;
+    if (t.curve.kind != CurveKind::kPeriodDoubling || pts.empty() ||
+        pts.front().orbit.signature.periods != 1) {
+      continue;
+    }
+    size_t nearest = 0;
+    for (size_t i = 1; i < pts.size(); ++i) {
+      if (distance(pts[i]) < distance(pts[nearest])) nearest = i;
+    }
+    // A curve ending at the point has it as a codimension-2 point, off its last vertex by up to
+    // a step.
+    const bool ends_there =
+        std::any_of(t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
+          return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <= kOnCurve;
+        });
+    if (distance(pts[nearest]) > kOnCurve && !ends_there) continue;
+    for (int step : {-1, 1}) {
+      for (long i = static_cast<long>(nearest); i >= 0 && i < static_cast<long>(pts.size());
+           i += step) {
+        if (distance(pts[i]) >= kSeedDistance) {
+          seeds.push_back({&pts[i], distance(pts[i])});
+          break;
+        }
+      }
+    }
+  }
+  return seeds;
+}
+
+}  // namespace
+
+bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
+                           const TraceOptions& options, const std::function<bool(double)>& report,
+                           TraceResult* result) {
+  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const std::string* names[2] = {&options.param1, &options.param2};
+  const double lo[2] = {options.min1, options.min2}, hi[2] = {options.max1, options.max2};
+  const double width[2] = {w1, w2};
+  const int index[2] = {model.ParamIndex(options.param1).value(),
+                        model.ParamIndex(options.param2).value()};
+  std::vector<std::pair<double, double>> handled;  // flip-grazings tried, scaled
+  int found = 0;
+  const size_t traced = result->curves.size();  // the curves appended here are not walked
+  for (size_t c = 0; c < traced; ++c) {
+    for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
+      const Codim2Point& point = result->curves[c].curve.codim2[q];
+      if (point.kind != Codim2Kind::kFlipGrazing || point.point.orbit.signature.periods != 1) {
+        continue;
+      }
+      const double u = point.point.value1, v = point.point.value2;
+      if (std::any_of(handled.begin(), handled.end(), [&](const auto& h) {
+            return std::hypot(h.first - u / w1, h.second - v / w2) <= kSamePoint;
+          })) {
+        continue;
+      }
+      handled.emplace_back(u / w1, v / w2);
+      if (!report(0.995)) return false;
+      const std::string where = "FLIP_GRAZING at " + options.param1 + " = " + std::to_string(u) +
+                                ", " + options.param2 + " = " + std::to_string(v);
+      const std::vector<Seed> seeds = SeedsNear(*result, u, v, w1, w2);
+      std::string why = seeds.empty() ? "no PD curve vertex within 1e-4 of it" : "";
+      bool done = false;
+      for (const Seed& seed : seeds) {
+        const PeriodicOrbit& pd = seed.point->orbit;
+        // First the parameter along which the seed lies farther from the point: continued in
+        // it, the period-2 branch heads along the PD curve towards the point.
+        const double along[2] = {std::abs(pd.params[index[0]] - u) / w1,
+                                 std::abs(pd.params[index[1]] - v) / w2};
+        const int first = along[0] >= along[1] ? 0 : 1;
+        for (int a : {first, 1 - first}) {
+          const StatusOr<PeriodicOrbit> doubled =
+              SwitchAtPeriodDoublingAlgebraic(model, propagator, pd, *names[a]);
+          if (!doubled.ok()) {
+            why = doubled.status().message();
+            continue;
+          }
+          ContinuationOptions branch = options.branch;
+          branch.param = *names[a];
+          branch.min = lo[a];
+          branch.max = hi[a];
+          branch.direction = doubled->params[index[a]] > pd.params[index[a]]
+                                 ? ContinuationDirection::kIncreasing
+                                 : ContinuationDirection::kDecreasing;
+          branch.stop_at = {SpecialPointKind::kGrazingL1, SpecialPointKind::kGrazingL2,
+                            SpecialPointKind::kGrazingPi};
+          // The grazing sought lies within ~ the seed's distance; give up well beyond it.
+          const double start_value = pd.params[index[a]];
+          const ContinuationResult r = Continue(
+              model, propagator, *doubled, branch, [&](const ContinuationPoint& p, double) {
+                return std::abs(p.value - start_value) / width[a] <= 4.0 * seed.distance;
+              });
+          const auto graze = std::find_if(r.special_points.begin(), r.special_points.end(),
+                                          [](const SpecialPoint& s) { return IsGrazing(s.kind); });
+          if (graze == r.special_points.end()) {
+            why = "the period-2 branch in " + *names[a] + " does not graze near it";
+            continue;
+          }
+          const double gu = graze->point.orbit.params[index[0]];
+          const double gv = graze->point.orbit.params[index[1]];
+          const bool known =
+              std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+                return t.curve.kind == CurveKind::kGrazing && !t.curve.points.empty() &&
+                       t.curve.points.front().orbit.signature.periods == 2 &&
+                       DistanceToCurve(t.curve, gu, gv, w1, w2) <= options.duplicate_distance;
+              });
+          if (known) {
+            done = true;
+            break;
+          }
+          CurveOptions co = options.curve;
+          co.param1 = *names[a], co.min1 = lo[a], co.max1 = hi[a];
+          co.param2 = *names[1 - a], co.min2 = lo[1 - a], co.max2 = hi[1 - a];
+          if (a == 1) std::swap(co.crossings1, co.crossings2);
+          CurveResult curve = ContinueCurve(model, propagator, *graze, co);
+          if (curve.summary.termination == Termination::kFailed) {
+            why = "the period-2 grazing curve failed: " + curve.summary.message;
+            continue;
+          }
+          if (a == 1) SwapValues(&curve);
+          double closest = DistanceToCurve(curve, u, v, w1, w2);
+          for (const Codim2Point& z : curve.codim2) {
+            closest =
+                std::min(closest, std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2));
+          }
+          if (closest >= seed.distance) {
+            why = "the period-2 grazing curve found does not approach it";
+            continue;
+          }
+          result->curves.push_back({*graze, "", std::move(curve), static_cast<int>(c)});
+          done = true;
+          break;
+        }
+        if (done) break;
+      }
+      if (done) {
+        ++found;
+      } else {
+        result->summary.notes.push_back(where + ": no period-2 grazing curve leaving it: " + why);
+      }
+    }
+  }
+  result->summary.notes.push_back("period-2 grazing curves leave " + std::to_string(found) +
+                                  " of " + std::to_string(handled.size()) +
+                                  " period-1 flip-grazing points");
+  return true;
+}
+
+}  // namespace drillbif::internal
