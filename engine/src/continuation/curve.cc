@@ -12,6 +12,7 @@
 
 #include "continuation/arclength.h"
 #include "continuation/tangent_grazing.h"
+#include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif {
@@ -154,7 +155,9 @@ class CurveTracer {
 
   // M - I (fold), M + I (period doubling) or M (.) M - I (Neimark-Sacker) of the orbit.
   Mat Shifted(const PeriodicOrbit& o) const {
-    const Mat mono = OrbitStability(model_, propagator_, o).monodromy;
+    return ShiftedMonodromy(OrbitStability(model_, propagator_, o).monodromy);
+  }
+  Mat ShiftedMonodromy(const Mat& mono) const {
     if (kind_ == CurveKind::kNeimarkSacker) {
       const Mat b = BialternateSquare(mono);
       return b - Mat::Identity(b.rows(), b.cols());
@@ -168,7 +171,12 @@ class CurveTracer {
   double Condition(const Vec& y) const {
     if (kind_ == CurveKind::kGrazing)
       return internal::TangentEndRate(model_, propagator_, Unpack(y));
-    const Mat a = Shifted(Unpack(y));
+    return Sigma(internal::MonodromyFactors(model_, propagator_, Unpack(y)));
+  }
+
+  // sigma of the shifted monodromy with these factors.
+  double Sigma(const std::vector<StateMatrix>& factors) const {
+    const Mat a = ShiftedMonodromy(internal::ReducedMonodromy(model_, factors));
     const int d = static_cast<int>(a.rows());
     Mat bordered = Mat::Zero(d + 1, d + 1);
     bordered.topLeftCorner(d, d) = a;
@@ -202,13 +210,54 @@ class CurveTracer {
     // h = 1.5e-8 (1 + |y_j|) for these O(1) quantities. The Jacobian only steers Newton and the
     // tangent; the residual, and so every point on the curve, is exact.
     const double sigma0 = (*f)[m()];
-    for (int j = 0; j < n(); ++j) {
+    if (kind_ == CurveKind::kGrazing) {
+      for (int j = 0; j < n(); ++j) {
+        const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
+        Vec yp = y;
+        yp[j] += h;
+        (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
+      }
+    } else {
+      SigmaRow(y, sigma0, jac);
+    }
+    return f->allFinite() && jac->allFinite();
+  }
+
+  // The same forward differences of sigma, recomputing only the monodromy factors an unknown
+  // moves (orbit/monodromy.h): a segment's start state moves its own factor, its duration its
+  // own and (through the phases) every later one, a parameter all. The perturbed orbits are those
+  // Unpack(y + h e_j) gives, up to rounding in the later phases.
+  void SigmaRow(const Vec& y, double sigma0, Mat* jac) const {
+    const PeriodicOrbit o = Unpack(y);
+    const std::vector<StateMatrix> base = internal::MonodromyFactors(model_, propagator_, o);
+    const int k = static_cast<int>(base.size()), d = model_.state_dim() - 1;
+    const int ps = model_.phase_index();
+    const double omega = model_.ForcingFrequency(o.params);
+    for (int i = 0; i < k; ++i) {
+      for (int r = 0; r <= d; ++r) {
+        const int j = i * (d + 1) + r;
+        const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
+        PeriodicOrbit op = o;
+        std::vector<StateMatrix> factors = base;
+        if (r < d) {
+          op.starts[i][r < ps ? r : r + 1] += h;
+          factors[i] = internal::SegmentFactor(model_, propagator_, op, i);
+        } else {
+          op.durations[i] += h;
+          for (int l = i + 1; l < k; ++l) op.starts[l][ps] += omega * h;
+          for (int l = i; l < k; ++l) {
+            factors[l] = internal::SegmentFactor(model_, propagator_, op, l);
+          }
+        }
+        (*jac)(m(), j) = (Sigma(factors) - sigma0) / h;
+      }
+    }
+    for (int j = m(); j < n(); ++j) {
       const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
       Vec yp = y;
       yp[j] += h;
       (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
     }
-    return f->allFinite() && jac->allFinite();
   }
 
   bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations) const {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif {
@@ -81,38 +82,9 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
 
 Stability OrbitStability(const HybridModel& model, Propagator& propagator,
                          const PeriodicOrbit& orbit) {
-  const int n = model.state_dim(), ps = model.phase_index(), k = orbit.durations.size();
-  Eigen::MatrixXd m = Eigen::MatrixXd::Identity(n, n);
-  FlowRequest req;
-  req.state_jacobian = true;
-  for (int i = 0; i < k; ++i) {
-    const SegmentSpec& seg = orbit.signature.segments[i];
-    const FlowResult fr =
-        propagator.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], orbit.params, req);
-    m = fr.state_jacobian * m;
-    // No saltation at the section, nor at a tangent end (same mode on both sides: it would be the
-    // identity, and its formula divides by h' = 0 there).
-    if (seg.guard < 0 || seg.tangent) continue;
-    // Saltation: S = DR + (f+ - DR f-) grad h / (grad h . f-).
-    StateVector f_minus, f_plus;
-    model.VectorField(seg.mode, fr.x, orbit.params, &f_minus);
-    const Transition tr = model.Jump(seg.mode, seg.guard, fr.x, orbit.params);
-    model.VectorField(orbit.signature.segments[i + 1].mode, tr.x, orbit.params, &f_plus);
-    const StateRow grad = model.GuardGradient(seg.mode, seg.guard, fr.x, orbit.params);
-    const Eigen::VectorXd jump_f = tr.jacobian * f_minus;
-    const Eigen::MatrixXd salt = Eigen::MatrixXd(tr.jacobian) +
-                                 (Eigen::VectorXd(f_plus) - jump_f) * grad / grad.dot(f_minus);
-    m = salt * m;
-  }
   Stability st;
-  st.monodromy.resize(n - 1, n - 1);
-  for (int i = 0, r = 0; i < n; ++i) {
-    if (i == ps) continue;
-    for (int j = 0, c = 0; j < n; ++j) {
-      if (j != ps) st.monodromy(r, c++) = m(i, j);
-    }
-    ++r;
-  }
+  st.monodromy =
+      internal::ReducedMonodromy(model, internal::MonodromyFactors(model, propagator, orbit));
   const Eigen::VectorXcd mu = st.monodromy.eigenvalues();
   st.stable = true;
   for (int i = 0; i < mu.size(); ++i) {

@@ -1,0 +1,52 @@
+#include "orbit/monodromy.h"
+
+namespace drillbif::internal {
+
+StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, int i) {
+  const SegmentSpec& seg = orbit.signature.segments[i];
+  FlowRequest req;
+  req.state_jacobian = true;
+  const FlowResult fr =
+      propagator.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], orbit.params, req);
+  // No saltation at the section, nor at a tangent end (same mode on both sides: it would be the
+  // identity, and its formula divides by h' = 0 there).
+  if (seg.guard < 0 || seg.tangent) return fr.state_jacobian;
+  // Saltation: S = DR + (f+ - DR f-) grad h / (grad h . f-) (Leine & Nijmeijer 2004).
+  StateVector f_minus, f_plus;
+  model.VectorField(seg.mode, fr.x, orbit.params, &f_minus);
+  const Transition tr = model.Jump(seg.mode, seg.guard, fr.x, orbit.params);
+  model.VectorField(orbit.signature.segments[i + 1].mode, tr.x, orbit.params, &f_plus);
+  const StateRow grad = model.GuardGradient(seg.mode, seg.guard, fr.x, orbit.params);
+  const Eigen::VectorXd jump_f = tr.jacobian * f_minus;
+  const Eigen::MatrixXd salt =
+      Eigen::MatrixXd(tr.jacobian) + (Eigen::VectorXd(f_plus) - jump_f) * grad / grad.dot(f_minus);
+  return salt * fr.state_jacobian;
+}
+
+std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
+                                          const PeriodicOrbit& orbit) {
+  std::vector<StateMatrix> factors(orbit.durations.size());
+  for (size_t i = 0; i < factors.size(); ++i) {
+    factors[i] = SegmentFactor(model, propagator, orbit, static_cast<int>(i));
+  }
+  return factors;
+}
+
+Eigen::MatrixXd ReducedMonodromy(const HybridModel& model,
+                                 const std::vector<StateMatrix>& factors) {
+  const int n = model.state_dim(), ps = model.phase_index();
+  StateMatrix m = StateMatrix::Identity(n, n);
+  for (const StateMatrix& f : factors) m = f * m;
+  Eigen::MatrixXd reduced(n - 1, n - 1);
+  for (int i = 0, r = 0; i < n; ++i) {
+    if (i == ps) continue;
+    for (int j = 0, c = 0; j < n; ++j) {
+      if (j != ps) reduced(r, c++) = m(i, j);
+    }
+    ++r;
+  }
+  return reduced;
+}
+
+}  // namespace drillbif::internal

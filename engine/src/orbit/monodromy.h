@@ -1,0 +1,30 @@
+// The monodromy matrix as a product of per-segment factors, M = F_{k-1} ... F_0 (full state,
+// phase included), F_i = S_i Phi_i: segment i's flow Jacobian, then the saltation matrix at its
+// end (none at the section, nor at a tangent end where the same mode goes on). F_i depends only
+// on segment i's start (with its phase), duration and the parameters, so finite differences of a
+// function of M recompute only the factors an unknown moves (continuation/curve.cc).
+#ifndef DRILLBIF_ORBIT_MONODROMY_H_
+#define DRILLBIF_ORBIT_MONODROMY_H_
+
+#include <Eigen/Dense>
+#include <vector>
+
+#include "drillbif/orbit/periodic_orbit.h"
+
+namespace drillbif::internal {
+
+// F_i of the orbit (state_dim x state_dim).
+StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, int i);
+
+// Every factor of the orbit, in segment order.
+std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
+                                          const PeriodicOrbit& orbit);
+
+// The product of the factors without the phase row and column (the monodromy of
+// Stability::monodromy).
+Eigen::MatrixXd ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
+
+}  // namespace drillbif::internal
+
+#endif  // DRILLBIF_ORBIT_MONODROMY_H_
