@@ -1,6 +1,6 @@
-// The exact propagator: closed-form flows against the matrix exponential of the augmented linear
-// system (two independent computations of the same flow), flow derivatives against finite
-// differences, measures against quadrature of their rates, and event location.
+// The exact propagator: closed-form flows and their derivatives against the matrix exponential of
+// the augmented linear system (two independent computations of the same flow), flow derivatives
+// against finite differences, measures against quadrature of their rates, and event location.
 #include "drillbif/flow/exact_propagator.h"
 
 #include <gtest/gtest.h>
@@ -50,9 +50,19 @@ TEST_P(ExactFlowTest, ClosedFormMatchesMatrixExponential) {
     const double norm_a = a.cwiseAbs().rowwise().sum().maxCoeff();
     for (const StateVector& x0 : starts) {
       for (double t : Durations(prm)) {
-        const FlowResult c = closed.FlowMap(mode, x0, t, prm, {true, false});
-        const FlowResult e = expm.FlowMap(mode, x0, t, prm, {true, false});
+        const FlowResult c = closed.FlowMap(mode, x0, t, prm, {true, true});
+        const FlowResult e = expm.FlowMap(mode, x0, t, prm, {true, true});
         const double tol = 1e-12 * (1.0 + norm_a * t);
+        // d x / d params: closed forms (a, b, g, phi0, omega; xi outside contact) against Van
+        // Loan's block exponential, whose norm is ~ ||A|| t too: the same relative bound, taken
+        // relative to 1 + |value| + |x| (derivatives in omega grow like t |x'|).
+        for (int k = 0; k < model.num_params(); ++k) {
+          for (int i = 0; i < 4; ++i) {
+            EXPECT_NEAR(c.param_jacobian(i, k), e.param_jacobian(i, k),
+                        tol * (1.0 + std::abs(e.param_jacobian(i, k)) + std::abs(e.x[i])))
+                << "mode " << mode << " t " << t << " d x" << i << "/d " << model.param_names()[k];
+          }
+        }
         for (int i = 0; i < 4; ++i) {
           EXPECT_NEAR(c.x[i], e.x[i], tol * (1.0 + std::abs(e.x[i])))
               << "mode " << mode << " t " << t << " component " << i;

@@ -133,6 +133,51 @@ void EvaluateCore(const PreparedSegment& seg, double t, const Params& prm, Core*
   }
 }
 
+// d x(t) / d omega at fixed x0 (theta0 fixed, theta = theta0 + omega t moves): s moves by t.
+// NC and CwP through the forcing integrals (header comment), with x = omega t:
+//   dI1/domega = -int_0^t tau sin(theta0 + w tau) = t^2 [-cos th0 x (C2 - S3) - sin th0 (sinc -
+//   C2)] dI2/domega = int_0^t dI1/domega              = t^3 [-cos th0 Q(x) - sin th0 (C2 - 2 S3)]
+// with Q = -C2' (common/small_arg.h); every bracket is free of cancellation as x -> 0.
+// CwoP through the steady state: u = u_p(theta) + E (u0 - u_p(theta0)) with E independent of
+// omega, so du/domega = u_p,w(theta) + t du_p/dtheta - E u_p,w(theta0), where u_p,w is the
+// derivative at fixed theta: dK/domega = K^2 (2 w - 2 i xi) for K = 1/(1 - w^2 + 2 i xi w), and
+// y_p = a w Re(i K e^{i theta}) also has the factor w.
+void OmegaDerivative(const PreparedSegment& seg, const Core& core, double t, const Params& prm,
+                     StateVector* dx) {
+  using DO = DriftingOscillator;
+  const double a = prm[DO::kA], b = prm[DO::kB], w = prm[DO::kOmega], xi = prm[DO::kXi];
+  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
+  (*dx)[DO::kS] = t;
+  if (seg.mode == DO::kContact) {
+    const internal::ContactGain g = GainOf(seg);
+    const double k2r = g.kr * g.kr - g.ki * g.ki, k2i = 2.0 * g.kr * g.ki;
+    const double dkr = 2.0 * w * k2r + 2.0 * xi * k2i, dki = 2.0 * w * k2i - 2.0 * xi * k2r;
+    // u_p,w at phase (ct, st).
+    auto steady_w = [&](double ct, double st, double* dq, double* dy) {
+      *dq = a * (dkr * ct - dki * st);
+      *dy = a * (-g.kr * st - g.ki * ct) + a * w * (-dkr * st - dki * ct);
+    };
+    double dq0, dy0, dq1, dy1, qp1, yp1;
+    steady_w(c0, s0, &dq0, &dy0);
+    steady_w(core.ct, core.st, &dq1, &dy1);
+    internal::ContactSteadyState(g, core.ct, core.st, prm, &qp1, &yp1);
+    // d q_p / d theta = y_p / w, d y_p / d theta = -w (q_p - b).
+    dq1 += t * yp1 / w;
+    dy1 -= t * w * (qp1 - b);
+    (*dx)[DO::kQ] = dq1 - (core.e00 * dq0 + core.e01 * dy0);
+    (*dx)[DO::kY] = dy1 - (core.e10 * dq0 + core.e11 * dy0);
+    (*dx)[DO::kP] = (*dx)[DO::kQ];
+    return;
+  }
+  const double x = core.xw, s3 = core.s3, c2 = core.c2, sinc = core.sinc;
+  const double di1 = t * t * (-c0 * x * (c2 - s3) - s0 * (sinc - c2));
+  (*dx)[DO::kY] = a * di1;
+  if (seg.mode == DO::kNoContact) {
+    const double di2 = t * t * t * (-c0 * internal::MinusC2Derivative(x) - s0 * (c2 - 2.0 * s3));
+    (*dx)[DO::kP] = a * di2;
+  }
+}
+
 }  // namespace
 
 void DriftingOscillator::PrepareSegment(int mode, const StateVector& x0, const Params& params,
@@ -222,13 +267,13 @@ void DriftingOscillator::Flow(int mode, const StateVector& x0, double t, const P
 // Closed-form d x(t) / d k: g never enters a flow; a and b enter linearly (NC, CwP: through the
 // forcing integrals; CwoP: through the steady state, u_p = (b, 0) + a w(theta), so
 // d u / d a = w(theta) - E w(theta0) and d u / d b = (1, 0) - E (1, 0)); phi0 shifts theta0 like
-// s0 does, without moving s; xi in the decaying q of NC and CwP. omega, and xi in CwoP, are left
-// to the matrix exponential.
+// s0 does, without moving s; xi in the decaying q of NC and CwP; omega by OmegaDerivative above.
+// xi in CwoP is left to the matrix exponential.
 bool DriftingOscillator::FlowParamDerivative(int mode, const StateVector& x0, double t,
                                              const Params& params, int k, StateVector* dx) const {
   dx->setZero(4);
   if (k == kG) return true;
-  if (k == kOmega || (k == kXi && mode == kContact)) return false;
+  if (k == kXi && mode == kContact) return false;
   if (k == kPhi0) {
     StateVector x;
     StateMatrix jac;
@@ -245,6 +290,10 @@ bool DriftingOscillator::FlowParamDerivative(int mode, const StateVector& x0, do
   const double i1 = t * (c0 * core.sinc - s0 * core.xw * core.c2);
   const double i2 = t * t * (c0 * core.c2 - s0 * core.xw * core.s3);
   const double xi = params[kXi];
+  if (k == kOmega) {
+    OmegaDerivative(seg, core, t, params, dx);
+    return true;
+  }
   switch (mode) {
     case kNoContact:
       if (k == kA) (*dx)[kP] = i2, (*dx)[kY] = i1;
