@@ -616,9 +616,16 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
   result.points = std::move(backward);
   result.points.push_back(tracer.MakePoint(tracer.start()));
   result.points.insert(result.points.end(), forward.begin(), forward.end());
-  sum.termination = Termination::kCompleted;
   sum.message = "increasing " + options.param2 + ": " + end_forward + "; decreasing " +
                 options.param2 + ": " + end_backward;
+  // Not a single step either way (and no codimension-2 end next to the start): no curve.
+  sum.termination = forward.empty() && backward.empty() && result.codim2.empty()
+                        ? Termination::kFailed
+                        : Termination::kCompleted;
+  if (sum.termination == Termination::kFailed) {
+    sum.status = Internal("no step from the start point: " + sum.message);
+    sum.message = sum.status.message();
+  }
   return result;
 }
 
