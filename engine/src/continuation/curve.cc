@@ -171,12 +171,13 @@ class CurveTracer {
   double Condition(const Vec& y) const {
     if (kind_ == CurveKind::kGrazing)
       return internal::TangentEndRate(model_, propagator_, Unpack(y));
-    return Sigma(internal::MonodromyFactors(model_, propagator_, Unpack(y)));
+    return Sigma(internal::ReducedMonodromy(
+        model_, internal::MonodromyFactors(model_, propagator_, Unpack(y))));
   }
 
-  // sigma of the shifted monodromy with these factors.
-  double Sigma(const std::vector<StateMatrix>& factors) const {
-    const Mat a = ShiftedMonodromy(internal::ReducedMonodromy(model_, factors));
+  // sigma of the shifted monodromy (without its phase).
+  double Sigma(const Mat& monodromy) const {
+    const Mat a = ShiftedMonodromy(monodromy);
     const int d = static_cast<int>(a.rows());
     Mat bordered = Mat::Zero(d + 1, d + 1);
     bordered.topLeftCorner(d, d) = a;
@@ -233,23 +234,29 @@ class CurveTracer {
     const int k = static_cast<int>(base.size()), d = model_.state_dim() - 1;
     const int ps = model_.phase_index();
     const double omega = model_.ForcingFrequency(o.params);
+    // prefix[i] = F_{i-1} ... F_0, suffix[i] = F_{k-1} ... F_i.
+    std::vector<StateMatrix> prefix(k + 1), suffix(k + 1);
+    prefix[0] = suffix[k] = StateMatrix::Identity(d + 1, d + 1);
+    for (int i = 0; i < k; ++i) prefix[i + 1] = base[i] * prefix[i];
+    for (int i = k - 1; i >= 0; --i) suffix[i] = suffix[i + 1] * base[i];
     for (int i = 0; i < k; ++i) {
       for (int r = 0; r <= d; ++r) {
         const int j = i * (d + 1) + r;
         const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
         PeriodicOrbit op = o;
-        std::vector<StateMatrix> factors = base;
+        StateMatrix full;
         if (r < d) {
           op.starts[i][r < ps ? r : r + 1] += h;
-          factors[i] = internal::SegmentFactor(model_, propagator_, op, i);
+          full = suffix[i + 1] * internal::SegmentFactor(model_, propagator_, op, i) * prefix[i];
         } else {
           op.durations[i] += h;
           for (int l = i + 1; l < k; ++l) op.starts[l][ps] += omega * h;
+          full = prefix[i];
           for (int l = i; l < k; ++l) {
-            factors[l] = internal::SegmentFactor(model_, propagator_, op, l);
+            full = internal::SegmentFactor(model_, propagator_, op, l) * full;
           }
         }
-        (*jac)(m(), j) = (Sigma(factors) - sigma0) / h;
+        (*jac)(m(), j) = (Sigma(internal::WithoutPhase(model_, full)) - sigma0) / h;
       }
     }
     for (int j = m(); j < n(); ++j) {

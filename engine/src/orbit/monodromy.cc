@@ -33,20 +33,25 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
   return factors;
 }
 
-Eigen::MatrixXd ReducedMonodromy(const HybridModel& model,
-                                 const std::vector<StateMatrix>& factors) {
+Eigen::MatrixXd WithoutPhase(const HybridModel& model, const StateMatrix& full) {
   const int n = model.state_dim(), ps = model.phase_index();
-  StateMatrix m = StateMatrix::Identity(n, n);
-  for (const StateMatrix& f : factors) m = f * m;
   Eigen::MatrixXd reduced(n - 1, n - 1);
   for (int i = 0, r = 0; i < n; ++i) {
     if (i == ps) continue;
     for (int j = 0, c = 0; j < n; ++j) {
-      if (j != ps) reduced(r, c++) = m(i, j);
+      if (j != ps) reduced(r, c++) = full(i, j);
     }
     ++r;
   }
   return reduced;
+}
+
+Eigen::MatrixXd ReducedMonodromy(const HybridModel& model,
+                                 const std::vector<StateMatrix>& factors) {
+  const int n = model.state_dim();
+  StateMatrix m = StateMatrix::Identity(n, n);
+  for (const StateMatrix& f : factors) m = f * m;
+  return WithoutPhase(model, m);
 }
 
 }  // namespace drillbif::internal

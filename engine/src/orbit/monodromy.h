@@ -21,8 +21,10 @@ StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit);
 
-// The product of the factors without the phase row and column (the monodromy of
-// Stability::monodromy).
+// A full-state monodromy without its phase row and column (Stability::monodromy).
+Eigen::MatrixXd WithoutPhase(const HybridModel& model, const StateMatrix& full);
+
+// The product of the factors, without the phase row and column.
 Eigen::MatrixXd ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
 
 }  // namespace drillbif::internal
