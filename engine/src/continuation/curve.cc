@@ -307,7 +307,8 @@ class CurveTracer {
     p.value1 = y[m()];
     p.value2 = y[m() + 1];
     p.orbit = Unpack(y);
-    p.measures = OrbitMeasures(model_, propagator_, p.orbit);
+    // ROP only (bit 0): Pc, 20 times its cost in quadrature, is asked for by no consumer of curves.
+    p.measures = OrbitMeasures(model_, propagator_, p.orbit, 1u);
     p.stability = OrbitStability(model_, propagator_, p.orbit);
     return p;
   }

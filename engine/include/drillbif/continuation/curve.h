@@ -67,7 +67,7 @@ struct CurveOptions {
 struct CurvePoint {
   double value1 = 0.0, value2 = 0.0;  // (lambda1, lambda2)
   PeriodicOrbit orbit;
-  std::vector<double> measures;  // ROP, Pc
+  std::vector<double> measures;  // ROP, and Pc left 0 (not computed: no consumer asks for it)
   Stability stability;
 };
 
