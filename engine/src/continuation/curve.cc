@@ -51,6 +51,8 @@ const char* Codim2KindName(Codim2Kind kind) {
       return "RESONANCE_1_3";
     case Codim2Kind::kResonance14:
       return "RESONANCE_1_4";
+    case Codim2Kind::kCusp:
+      return "CUSP";
   }
   return "?";
 }
@@ -116,6 +118,8 @@ class CurveTracer {
     start_.head(m()) = bvp1_.Pack(start);
     start_[m()] = start.params[index1];
     start_[m() + 1] = start.params[index2];
+    if (std::isfinite(options.max1 - options.min1)) w1_ = options.max1 - options.min1;
+    if (std::isfinite(options.max2 - options.min2)) w2_ = options.max2 - options.min2;
     if (kind_ == CurveKind::kGrazing) return;
     // Bordering vectors: the singular vectors of M -+ I's smallest singular value.
     const Mat a = Shifted(Unpack(start_));
@@ -390,6 +394,37 @@ class CurveTracer {
     return false;
   }
 
+  // The parameter part of the unit tangent, in the box's scaled coordinates.
+  Eigen::Vector2d ParamDirection(const Vec& t) const { return {t[m()] / w1_, t[m() + 1] / w2_}; }
+
+  // A cusp on the step from y (tangent t) of length h, where the tangent's parameter part turns
+  // against its direction u at y: Illinois on psi(sigma) = u . (parameter part of the tangent at
+  // the corrected point), until |psi| <= 1e-10 |u| or the bracket is below 1e-14 of the step.
+  bool LocateCusp(const Vec& y, const Vec& t, double h, double psi1, Vec* root) const {
+    const Eigen::Vector2d u = ParamDirection(t);
+    double a = 0.0, fa = u.squaredNorm(), b = h, fb = psi1;
+    int side = 0;
+    for (int it = 0; it < 100; ++it) {
+      double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
+      if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
+      int iterations = 0;
+      Vec tr;
+      if (!Correct(y + sigma * t, t, root, &iterations) || !Tangent(*root, t, &tr)) return false;
+      const double f = u.dot(ParamDirection(tr));
+      if (std::abs(f) <= 1e-10 * u.norm() || b - a <= 1e-14 * std::max(1.0, h)) return true;
+      if ((f > 0.0) == (fa > 0.0)) {
+        a = sigma, fa = f;
+        if (side == -1) fb *= 0.5;
+        side = -1;
+      } else {
+        b = sigma, fb = f;
+        if (side == +1) fa *= 0.5;
+        side = +1;
+      }
+    }
+    return false;
+  }
+
   // The admissibility boundary between curve points ya (admissible) and yb (not): bisection in
   // the arclength along t, each midpoint of the chord corrected onto the curve in the hyperplane
   // normal to t, until the bracket is below 1e-12 (1 + |y|). Beyond the boundary the extended
@@ -545,6 +580,14 @@ class CurveTracer {
       points->push_back(std::move(p));
       Vec t1;
       if (!Tangent(y1, t, &t1)) return "no tangent";
+      // A fold curve whose direction in the parameter plane reverses on this step: a cusp.
+      if (kind_ == CurveKind::kFold) {
+        const double psi1 = ParamDirection(t).dot(ParamDirection(t1));
+        Vec root;
+        if (psi1 < 0.0 && LocateCusp(y, t, t.dot(y1 - y), psi1, &root)) {
+          codim2->push_back({Codim2Kind::kCusp, MakePoint(root), "", 0.0});
+        }
+      }
       y = y1;
       t = t1;
     }
@@ -558,6 +601,7 @@ class CurveTracer {
   CurveKind kind_;
   int index1_, index2_;
   Params base_;
+  double w1_ = 1.0, w2_ = 1.0;  // the box's widths where finite: parameter scales
   internal::OrbitBvp bvp1_, bvp2_;
   Vec start_;
   Vec border_b_, border_c_;

@@ -79,6 +79,10 @@ struct CurvePoint {
 // second boundary touched).
 // On a Neimark-Sacker curve, RESONANCE_1_q (q = 1..4): the critical pair's kappa = Re(mu) passes
 // 1, -1, -1/2, 0 (the strong resonances; for 1:1 and 1:2 generically where the pair turns real).
+// On a fold curve, CUSP: the curve's direction in the parameter plane reverses (its tangent's
+// parameter part passes through zero while the curve goes on smoothly in the orbit's unknowns:
+// two folds meet there, and beyond it the fold curve returns alongside itself), located where
+// that parameter part, projected on its direction at the step's start, vanishes.
 enum class Codim2Kind {
   kFoldGrazing,
   kFlipGrazing,
@@ -89,6 +93,7 @@ enum class Codim2Kind {
   kResonance12,
   kResonance13,
   kResonance14,
+  kCusp,
 };
 const char* Codim2KindName(Codim2Kind kind);
 
