@@ -128,6 +128,8 @@ TEST_F(CuspTest, FoldCurveCuspIsWhereTwoFoldsOfTheOneParameterBranchesMeet) {
   // Cusp scaling: gap ~ d^(3/2), so quartering d divides it by 8 (measured ratio, to 25%:
   // the next term of the normal form is O(d^2), a fifth of the leading one at d = 4e-4 at most).
   const double ratio = gaps[0] / gaps[1];
+  RecordProperty("gap_ratio", std::to_string(ratio));
+  RecordProperty("gaps", std::to_string(gaps[0]) + " " + std::to_string(gaps[1]));
   EXPECT_GT(ratio, 6.0);
   EXPECT_LT(ratio, 10.0);
 
