@@ -752,7 +752,8 @@ int Main(int argc, char** argv) {
       ->group("Region");
   trace
       ->add_flag("--period2", tr.period2,
-                 "Also trace the curves of the period-2 branches born at the period doublings")
+                 "Also trace the curves of the period-2 branches born at the period doublings, "
+                 "and the period-2 grazing curves leaving the flip-grazings")
       ->group("Trace");
   AddGridFlag(trace, &tr.grid,
               "Region grid nodes per parameter, e.g. 201,201 (implies --region; default 201,201)",
