@@ -154,6 +154,7 @@ struct TraceFlags {
   bool region = false;
   std::vector<int> grid;  // empty: the job's default
   bool period2 = false;
+  int max_period = 0;  // 0: not given
 };
 
 struct OptimumFlags {
@@ -413,6 +414,7 @@ int RunTraceCommand(const GlobalFlags& global, RemoteClient* remote, const Model
                     const TraceFlags& f) {
   v1::TraceRequest request = ToTraceRequest(m, f);
   request.set_period2(f.period2);
+  if (f.max_period != 0) request.set_max_period(f.max_period);
   if (f.region || !f.grid.empty()) {
     v1::RegionRequest* region = request.mutable_region();
     for (int n : f.grid) region->add_grid(n);
@@ -753,7 +755,11 @@ int Main(int argc, char** argv) {
   trace
       ->add_flag("--period2", tr.period2,
                  "Also trace the curves of the period-2 branches born at the period doublings, "
-                 "and the period-2 grazing curves leaving the flip-grazings")
+                 "and the period-2 grazing curves leaving the flip-grazings (= --max-period 2)")
+      ->group("Trace");
+  trace
+      ->add_option("--max-period", tr.max_period,
+                   "Longest period traced along the doubling cascade: 1, 2, 4, 8 or 16")
       ->group("Trace");
   AddGridFlag(trace, &tr.grid,
               "Region grid nodes per parameter, e.g. 201,201 (implies --region; default 201,201)",

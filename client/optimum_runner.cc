@@ -41,6 +41,11 @@ StatusOr<OptimumOptions> ToOptimumOptions(const v1::OptimumRequest& request) {
         "trace.period2: the optimum is over period-1 motion; its boundaries "
         "are the period-1 curves");
   }
+  if (request.trace().max_period() > 1) {
+    return InvalidArgument(
+        "trace.max_period: the optimum is over period-1 motion; its boundaries "
+        "are the period-1 curves");
+  }
   return o;
 }
 

@@ -61,7 +61,15 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     (k == 0 ? opt.min1 : opt.min2) = lo;
     (k == 0 ? opt.max1 : opt.max2) = hi;
   }
-  opt.period2 = request.period2();
+  opt.max_period = request.period2() ? 2 : 1;
+  if (request.has_max_period() && request.max_period() != 0) {
+    if (request.period2() && request.max_period() < 2) {
+      return InvalidArgument("max_period: " + std::to_string(request.max_period()) +
+                             " contradicts period2 (which is max_period 2)");
+    }
+    opt.max_period = request.max_period();
+  }
+  if (Status s = opt.Validate(); !s.ok()) return s;
   return opt;
 }
 

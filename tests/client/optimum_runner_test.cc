@@ -56,6 +56,9 @@ TEST(RunOptimum, InvalidRequestsNameTheField) {
   v1::OptimumRequest period2 = Request();
   period2.mutable_trace()->set_period2(true);
   ExpectInvalid(period2, "trace.period2");
+  v1::OptimumRequest period4 = Request();
+  period4.mutable_trace()->set_max_period(4);
+  ExpectInvalid(period4, "trace.max_period");
   v1::OptimumRequest unknown = Request();
   unknown.mutable_trace()->set_trace_params(1, "zeta");
   ExpectInvalid(unknown, "trace.trace_params");

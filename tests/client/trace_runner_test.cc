@@ -58,6 +58,13 @@ TEST(RunTrace, InvalidRequestsNameTheField) {
   v1::TraceRequest transient = SmallBox();
   transient.set_transient_periods(-1);
   ExpectInvalid(transient, "transient_periods");
+  v1::TraceRequest period = SmallBox();
+  period.set_max_period(3);
+  ExpectInvalid(period, "max_period");
+  v1::TraceRequest contradiction = SmallBox();
+  contradiction.set_period2(true);
+  contradiction.set_max_period(1);
+  ExpectInvalid(contradiction, "max_period: 1 contradicts period2");
 }
 
 TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtTwoFlipGrazings) {

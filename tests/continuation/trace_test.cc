@@ -204,6 +204,13 @@ TEST(Trace, InvalidRequestsNameTheProblem) {
   empty.max1 = empty.min1;
   EXPECT_EQ(TraceCurves(model, prop, *start, empty).summary.status.code(),
             StatusCode::kInvalidArgument);
+  for (int bad : {0, 3, 32, -2}) {
+    TraceOptions period = testing::Issue4Box();
+    period.max_period = bad;
+    const TraceResult r = TraceCurves(model, prop, *start, period);
+    EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(r.summary.status.message().find("max_period"), std::string::npos) << bad;
+  }
 }
 
 // Period-2 curves, on request: in omega in [0.05, 0.45], a in [0.27, 0.32] the period-2 branches
@@ -223,7 +230,7 @@ TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
   for (const TracedCurve& c : plain.curves) {
     EXPECT_EQ(c.start.point.orbit.signature.periods, 1);  // compute only what is asked
   }
-  opt.period2 = true;
+  opt.max_period = 2;
   opt.curve.crossings2 = {0.3};
   const TraceResult r = TraceCurves(model, prop, *start, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
@@ -310,7 +317,7 @@ TEST(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   TraceOptions opt = testing::Issue4Box();
   opt.min1 = 1.3, opt.max1 = 1.75;
   opt.min2 = 0.2, opt.max2 = 7.5;
-  opt.period2 = true;
+  opt.max_period = 2;
   const TraceResult r = TraceCurves(model, prop, at.orbit, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
   int flips = 0;
@@ -337,6 +344,81 @@ TEST(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
     }
   }
   EXPECT_GE(flips, 1);
+}
+
+// Period 4 (max_period = 4): in omega in [0.05, 0.45], a in [0.295, 0.305] the period-4 branches
+// born at the period-2 branches' doublings have folds, PDs and grazings, whose curves are traced.
+// Each crosses a = 0.3 where a period-4 omega-branch, reached independently here (period 1 ->
+// doublings -> period 2 -> doublings -> period 4, each branch continued over the box), locates a
+// point of its kind (to 1e-7).
+TEST(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> start =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(start.ok());
+  TraceOptions opt = testing::Issue4Box();
+  opt.max1 = 0.45;
+  opt.min2 = 0.295, opt.max2 = 0.305;
+  opt.max_period = 4;
+  opt.curve.crossings2 = {0.3};
+  const TraceResult r = TraceCurves(model, prop, *start, opt);
+  ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+
+  // The reference branches, level by level.
+  ContinuationOptions branch;
+  branch.param = "omega";
+  branch.min = opt.min1, branch.max = opt.max1;
+  std::vector<ContinuationResult> level = {Continue(model, prop, *start, branch)};
+  for (int period = 1; period <= 2; period *= 2) {
+    std::vector<ContinuationResult> next;
+    for (const ContinuationResult& b : level) {
+      for (const SpecialPoint& s : b.special_points) {
+        if (s.kind != SpecialPointKind::kPeriodDoubling ||
+            s.point.orbit.signature.periods != period) {
+          continue;
+        }
+        StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model, prop, s, "omega");
+        if (!doubled.ok()) {
+          doubled = SwitchAtPeriodDoublingAlgebraic(model, prop, s.point.orbit, "omega");
+        }
+        if (doubled.ok()) next.push_back(Continue(model, prop, *doubled, branch));
+      }
+    }
+    level = std::move(next);
+  }
+  ASSERT_FALSE(level.empty());
+
+  int period4 = 0, checked = 0;
+  for (const TracedCurve& c : r.curves) {
+    if (c.curve.points.front().orbit.signature.periods != 4) continue;
+    ++period4;
+    for (const CurvePoint& p : c.curve.points) ASSERT_EQ(p.orbit.signature.periods, 4);
+    for (const CurvePoint& x : c.curve.crossings) {
+      double best = 1e300;
+      for (const ContinuationResult& b : level) {
+        for (const SpecialPoint& s : b.special_points) {
+          const bool same = c.curve.kind == CurveKind::kFold ? s.kind == SpecialPointKind::kFold
+                            : c.curve.kind == CurveKind::kPeriodDoubling
+                                ? s.kind == SpecialPointKind::kPeriodDoubling
+                                : (s.kind == SpecialPointKind::kGrazingL1 ||
+                                   s.kind == SpecialPointKind::kGrazingL2 ||
+                                   s.kind == SpecialPointKind::kGrazingPi);
+          if (same && s.point.orbit.signature.periods == 4) {
+            best = std::min(best, std::abs(s.point.value - x.value1));
+          }
+        }
+      }
+      // Both located to 1e-10 (curve corrector, branch location); the issue's bound.
+      EXPECT_LE(best, 1e-7) << CurveKindName(c.curve.kind)
+                            << " crosses a = 0.3 at omega = " << x.value1;
+      ++checked;
+    }
+  }
+  EXPECT_GE(period4, 3);
+  EXPECT_GE(checked, 3);
+  RecordProperty("period4_curves", period4);
+  RecordProperty("crossings_checked", checked);
 }
 
 }  // namespace

@@ -26,6 +26,11 @@ Status TraceOptions::Validate() const {
   if (!(duplicate_distance > 0.0 && std::isfinite(duplicate_distance))) {
     return InvalidArgument("duplicate_distance: need a finite value > 0");
   }
+  if (max_period < 1 || max_period > 16 || (max_period & (max_period - 1)) != 0) {
+    return InvalidArgument(
+        "max_period: need 1, 2, 4, 8 or 16 (periods of a doubling cascade), got " +
+        std::to_string(max_period));
+  }
   return Status::Ok();
 }
 
@@ -49,6 +54,10 @@ void SwapValues(CurveResult* c) {
   for (Codim2Point& q : c->codim2) std::swap(q.point.value1, q.point.value2);
 }
 
+std::string PeriodPrefix(int periods) {
+  return periods == 1 ? "" : "period-" + std::to_string(periods) + " ";
+}
+
 bool IsGrazing(SpecialPointKind kind) {
   return kind == SpecialPointKind::kGrazingL1 || kind == SpecialPointKind::kGrazingL2 ||
          kind == SpecialPointKind::kGrazingPi;
@@ -59,6 +68,7 @@ bool IsGrazing(SpecialPointKind kind) {
 namespace {
 
 using internal::DistanceToCurve;
+using internal::PeriodPrefix;
 using internal::SwapValues;
 
 // Whether ContinueCurve starts from a point of this kind.
@@ -241,8 +251,8 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     if (sum.cancelled) return false;
     sum.branch_points += static_cast<int>(r.points.size());
     if (r.summary.termination == Termination::kFailed) {
-      sum.notes.push_back("the " + std::string(orbit.signature.periods == 1 ? "" : "period-2 ") +
-                          *a.name + "-branch failed: " + r.summary.message);
+      sum.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
+                          "-branch failed: " + r.summary.message);
     }
     for (const SpecialPoint& s : r.special_points) {
       // At that branch point the period-2 branch's parameter turns (its two halves meet): the
@@ -263,12 +273,20 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
       return result;
     }
   }
-  if (options.period2) {
-    // The period-2 branches born at the period-1 branches' period doublings.
-    const std::vector<std::pair<int, SpecialPoint>> period1 = starts;
-    for (size_t k = 0; k < period1.size(); ++k) {
-      const auto& [axis, s] = period1[k];
-      if (s.kind != SpecialPointKind::kPeriodDoubling || s.point.orbit.signature.periods != 1) {
+  // The period-2p branches born at the period-p branches' doublings, p = 1, 2, ... while
+  // 2p <= max_period; each level's doublings are those of the branches the level before added.
+  size_t level_begin = 0;
+  int levels = 0;
+  for (int p = 1; 2 * p <= options.max_period; p *= 2) ++levels;
+  int level = 0;
+  for (int period = 1; 2 * period <= options.max_period; period *= 2, ++level) {
+    const std::vector<std::pair<int, SpecialPoint>> parents(starts.begin() + level_begin,
+                                                            starts.end());
+    level_begin = starts.size();
+    for (size_t k = 0; k < parents.size(); ++k) {
+      const auto& [axis, s] = parents[k];
+      if (s.kind != SpecialPointKind::kPeriodDoubling ||
+          s.point.orbit.signature.periods != period) {
         continue;
       }
       // Algebraic switching finds sub- and supercritical branches; simulation is the fallback.
@@ -287,17 +305,19 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
         doubled = SwitchAtPeriodDoubling(model, propagator, s, *axes[axis].name);
       }
       if (!doubled.ok()) {
-        sum.notes.push_back(std::string("PERIOD_DOUBLING at ") + options.param1 + " = " +
+        sum.notes.push_back(PeriodPrefix(period) + "PERIOD_DOUBLING at " + options.param1 + " = " +
                             std::to_string(s.point.orbit.params[*i1]) + ", " + options.param2 +
-                            " = " + std::to_string(s.point.orbit.params[*i2]) +
-                            ": no period-2 branch: " + doubled.status().message());
+                            " = " + std::to_string(s.point.orbit.params[*i2]) + ": no period-" +
+                            std::to_string(2 * period) + " branch: " + doubled.status().message());
         continue;
       }
-      const double from = 0.1 + 0.1 * k / period1.size(), to = 0.1 + 0.1 * (k + 1) / period1.size();
+      const double share = 0.1 / levels;
+      const double from = 0.1 + share * (level + static_cast<double>(k) / parents.size());
+      const double to = 0.1 + share * (level + static_cast<double>(k + 1) / parents.size());
       if (!branch_starts(*doubled, axis, from, to, direction)) return result;
     }
   }
-  const double curves_from = options.period2 ? 0.2 : 0.1;
+  const double curves_from = options.max_period > 1 ? 0.2 : 0.1;
   for (size_t k = 0; k < starts.size(); ++k) {
     if (!report(curves_from + (1.0 - curves_from) * static_cast<double>(k) /
                                   static_cast<double>(starts.size()))) {
@@ -312,8 +332,7 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                  c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
                  DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
         });
-    const int periods = s.point.orbit.signature.periods;
-    const std::string where = (periods == 1 ? "" : "period-" + std::to_string(periods) + " ") +
+    const std::string where = PeriodPrefix(s.point.orbit.signature.periods) +
                               std::string(SpecialPointKindName(s.kind)) + " at " + options.param1 +
                               " = " + std::to_string(u) + ", " + options.param2 + " = " +
                               std::to_string(v);
@@ -339,8 +358,8 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
   if (options.switch_at_codim2 && !SwitchAtCodim2(model, propagator, options, report, &result)) {
     return result;
   }
-  if (options.switch_at_codim2 && options.period2 &&
-      !internal::Period2AtFlipGrazings(model, propagator, options, report, &result)) {
+  if (options.switch_at_codim2 && options.max_period > 1 &&
+      !internal::GrazingCurvesAtFlipGrazings(model, propagator, options, report, &result)) {
     return result;
   }
   report(1.0);

@@ -4,6 +4,7 @@
 #define DRILLBIF_CONTINUATION_TRACE_INTERNAL_H_
 
 #include <functional>
+#include <string>
 
 #include "drillbif/continuation/trace.h"
 
@@ -19,12 +20,16 @@ void SwapValues(CurveResult* c);
 // Whether a located special point of this kind starts a grazing curve.
 bool IsGrazing(SpecialPointKind kind);
 
-// The period-2 grazing curves that leave the period-1 curves' FLIP_GRAZING points
-// (TraceOptions::period2 with switch_at_codim2), appended to result->curves. False when
-// cancelled (`report` returned false).
-bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
-                           const TraceOptions& options, const std::function<bool(double)>& report,
-                           TraceResult* result);
+// "" for period 1, else "period-n " (for notes).
+std::string PeriodPrefix(int periods);
+
+// The period-2n grazing curves that leave the period-n curves' FLIP_GRAZING points, for
+// 2n <= TraceOptions::max_period (with switch_at_codim2), appended to result->curves; the
+// flip-grazings of the curves it adds are visited too. False when cancelled (`report` returned
+// false).
+bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagator,
+                                 const TraceOptions& options,
+                                 const std::function<bool(double)>& report, TraceResult* result);
 
 }  // namespace drillbif::internal
 

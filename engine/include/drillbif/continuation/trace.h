@@ -5,11 +5,11 @@
 // traced from another start of the same kind (within `duplicate_distance` of its polyline in the
 // box's scaled coordinates) is not traced again; the skipped starts are named in the notes.
 //
-// With `period2`, the same for the period-2 branches born at the period-1 branches' period
-// doublings.
+// With max_period 2 (4, ...), the same for the period-2 branches born at the period-1 branches'
+// period doublings (and the period-4 branches born at theirs, ...).
 //
 // Then, with switch_at_codim2, the curves that leave the codimension-2 points found on them; with
-// `period2` also the period-2 grazing curves leaving the period-1 flip-grazings.
+// max_period > 1 also the period-2n grazing curves leaving the period-n flip-grazings.
 //
 // Not yet: switching at DOUBLE_GRAZING points (the second grazing curve through them), at
 // codimension-2 ends certified only to a wide bracket; period 4 and beyond.
@@ -34,13 +34,15 @@ struct TraceOptions {
   // times the curvature) can exceed it; the curve would then be traced twice (not seen in
   // issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at most).
   double duplicate_distance = 1e-5;
-  // Also the period-2 curves: at every period doubling of the period-1 branches the period-2
-  // branch born there (SwitchAtPeriodDoublingAlgebraic, else SwitchAtPeriodDoubling) is continued
-  // over the box in the same parameter, and the curves of its folds, period doublings and
+  // The longest period traced: 1 (default), 2, 4, 8 or 16. With 2, also the period-2 curves: at
+  // every period doubling of the period-1 branches the period-2 branch born there
+  // (SwitchAtPeriodDoublingAlgebraic, else SwitchAtPeriodDoubling) is continued over the box in
+  // the same parameter, away from the doubling, and the curves of its folds, period doublings and
   // grazings are traced; with switch_at_codim2, also the period-2 grazing curve leaving each
-  // period-1 FLIP_GRAZING (found from the PD curve next to it). Off by default: it is asked for,
-  // not implied (it multiplies the work).
-  bool period2 = false;
+  // period-1 FLIP_GRAZING (found from the PD curve next to it). With 4, the same once more from
+  // the period-2 branches' doublings and flip-grazings, and so on. Asked for, not implied: each
+  // level multiplies the work.
+  int max_period = 1;
   // Also the curves that leave the codimension-2 points found (switching), repeatedly until no new
   // curve appears: from a FOLD_GRAZING / FLIP_GRAZING located as a root along a grazing curve,
   // the fold / PD curve of the orbit without the vanishing segment (the grazing orbit with its

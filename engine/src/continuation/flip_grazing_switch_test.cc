@@ -20,7 +20,7 @@
 namespace drillbif::internal {
 namespace {
 
-TEST(FlipGrazingPeriod2, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
+TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   const StatusOr<PeriodicOrbit> start =
@@ -49,8 +49,10 @@ TEST(FlipGrazingPeriod2, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   }
   ASSERT_EQ(flips, 2);
 
-  ASSERT_TRUE(Period2AtFlipGrazings(
-      model, prop, box, [](double) { return true; }, &result));
+  TraceOptions opt = box;
+  opt.max_period = 2;
+  ASSERT_TRUE(GrazingCurvesAtFlipGrazings(
+      model, prop, opt, [](double) { return true; }, &result));
   EXPECT_EQ(result.summary.notes.back(),
             "period-2 grazing curves leave 2 of 2 period-1 "
             "flip-grazing points");

@@ -1,11 +1,12 @@
-// The period-2 grazing curves that leave flip-grazing points (continuation/trace_internal.h).
+// The period-2n grazing curves that leave period-n flip-grazing points
+// (continuation/trace_internal.h).
 //
-// At a flip-grazing point a period-1 PD curve ends on a period-1 grazing curve. The period-2
+// At a flip-grazing point a period-n PD curve ends on a period-n grazing curve. The period-2n
 // orbit born along the PD curve has two passes x0 +- eps v, eps ~ sqrt(distance from the PD
 // curve); the pass moved towards the boundary grazes where eps is of the order of the period-1
-// orbit's distance from grazing, which vanishes at the flip-grazing point: a period-2 grazing
+// orbit's distance from grazing, which vanishes at the flip-grazing point: a period-2n grazing
 // curve leaves that point, tangent to the PD curve. It is found from a PD-curve vertex a little
-// away from the point: algebraic switching onto the period-2 branch there, continuation in one
+// away from the point: algebraic switching onto the period-2n branch there, continuation in one
 // parameter to the branch's first grazing, and the grazing curve through it, kept when it comes
 // closer to the point than the vertex it was found from.
 #include <algorithm>
@@ -35,9 +36,10 @@ struct Seed {
   double distance;  // scaled, from the flip-grazing point
 };
 
-// The vertices of period-1 PD curves through (u, v), about kSeedDistance from it along each
+// The vertices of period-n PD curves through (u, v), about kSeedDistance from it along each
 // curve on either side.
-std::vector<Seed> SeedsNear(const TraceResult& result, double u, double v, double w1, double w2) {
+std::vector<Seed> SeedsNear(const TraceResult& result, int n, double u, double v, double w1,
+                            double w2) {
   std::vector<Seed> seeds;
   auto distance = [&](const CurvePoint& p) {
     return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
@@ -45,7 +47,7 @@ std::vector<Seed> SeedsNear(const TraceResult& result, double u, double v, doubl
   for (const TracedCurve& t : result.curves) {
     const std::vector<CurvePoint>& pts = t.curve.points;
     if (t.curve.kind != CurveKind::kPeriodDoubling || pts.empty() ||
-        pts.front().orbit.signature.periods != 1) {
+        pts.front().orbit.signature.periods != n) {
       continue;
     }
     size_t nearest = 0;
@@ -74,35 +76,41 @@ std::vector<Seed> SeedsNear(const TraceResult& result, double u, double v, doubl
 
 }  // namespace
 
-bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
-                           const TraceOptions& options, const std::function<bool(double)>& report,
-                           TraceResult* result) {
+bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagator,
+                                 const TraceOptions& options,
+                                 const std::function<bool(double)>& report, TraceResult* result) {
   const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
   const std::string* names[2] = {&options.param1, &options.param2};
   const double lo[2] = {options.min1, options.min2}, hi[2] = {options.max1, options.max2};
   const double width[2] = {w1, w2};
   const int index[2] = {model.ParamIndex(options.param1).value(),
                         model.ParamIndex(options.param2).value()};
-  std::vector<std::pair<double, double>> handled;  // flip-grazings tried, scaled
-  int found = 0;
-  const size_t traced = result->curves.size();  // the curves appended here are not walked
-  for (size_t c = 0; c < traced; ++c) {
+  struct Handled {
+    int periods;
+    double u, v;  // scaled
+  };
+  std::vector<Handled> handled;  // flip-grazings tried
+  std::vector<int> found(options.max_period + 1, 0), tried(options.max_period + 1, 0);
+  // result->curves grows while it is walked (the curves added here have flip-grazings too):
+  // index, not iterator.
+  for (size_t c = 0; c < result->curves.size(); ++c) {
     for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
       const Codim2Point& point = result->curves[c].curve.codim2[q];
-      if (point.kind != Codim2Kind::kFlipGrazing || point.point.orbit.signature.periods != 1) {
-        continue;
-      }
+      const int n = point.point.orbit.signature.periods;
+      if (point.kind != Codim2Kind::kFlipGrazing || 2 * n > options.max_period) continue;
       const double u = point.point.value1, v = point.point.value2;
-      if (std::any_of(handled.begin(), handled.end(), [&](const auto& h) {
-            return std::hypot(h.first - u / w1, h.second - v / w2) <= kSamePoint;
+      if (std::any_of(handled.begin(), handled.end(), [&](const Handled& h) {
+            return h.periods == n && std::hypot(h.u - u / w1, h.v - v / w2) <= kSamePoint;
           })) {
         continue;
       }
-      handled.emplace_back(u / w1, v / w2);
+      handled.push_back({n, u / w1, v / w2});
+      ++tried[n];
       if (!report(0.995)) return false;
-      const std::string where = "FLIP_GRAZING at " + options.param1 + " = " + std::to_string(u) +
-                                ", " + options.param2 + " = " + std::to_string(v);
-      const std::vector<Seed> seeds = SeedsNear(*result, u, v, w1, w2);
+      const std::string where = PeriodPrefix(n) + "FLIP_GRAZING at " + options.param1 + " = " +
+                                std::to_string(u) + ", " + options.param2 + " = " +
+                                std::to_string(v);
+      const std::vector<Seed> seeds = SeedsNear(*result, n, u, v, w1, w2);
       std::string why = seeds.empty() ? "no PD curve vertex within 1e-4 of it" : "";
       bool done = false;
       for (const Seed& seed : seeds) {
@@ -137,7 +145,8 @@ bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
           const auto graze = std::find_if(r.special_points.begin(), r.special_points.end(),
                                           [](const SpecialPoint& s) { return IsGrazing(s.kind); });
           if (graze == r.special_points.end()) {
-            why = "the period-2 branch in " + *names[a] + " does not graze near it";
+            why = "the period-" + std::to_string(2 * n) + " branch in " + *names[a] +
+                  " does not graze near it";
             continue;
           }
           const double gu = graze->point.orbit.params[index[0]];
@@ -145,7 +154,7 @@ bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
           const bool known =
               std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
                 return t.curve.kind == CurveKind::kGrazing && !t.curve.points.empty() &&
-                       t.curve.points.front().orbit.signature.periods == 2 &&
+                       t.curve.points.front().orbit.signature.periods == 2 * n &&
                        DistanceToCurve(t.curve, gu, gv, w1, w2) <= options.duplicate_distance;
               });
           if (known) {
@@ -158,7 +167,7 @@ bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
           if (a == 1) std::swap(co.crossings1, co.crossings2);
           CurveResult curve = ContinueCurve(model, propagator, *graze, co);
           if (curve.summary.termination == Termination::kFailed) {
-            why = "the period-2 grazing curve failed: " + curve.summary.message;
+            why = "the grazing curve failed: " + curve.summary.message;
             continue;
           }
           if (a == 1) SwapValues(&curve);
@@ -168,7 +177,7 @@ bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
                 std::min(closest, std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2));
           }
           if (closest >= seed.distance) {
-            why = "the period-2 grazing curve found does not approach it";
+            why = "the grazing curve found does not approach it";
             continue;
           }
           result->curves.push_back({*graze, "", std::move(curve), static_cast<int>(c)});
@@ -178,15 +187,19 @@ bool Period2AtFlipGrazings(const HybridModel& model, Propagator& propagator,
         if (done) break;
       }
       if (done) {
-        ++found;
+        ++found[n];
       } else {
-        result->summary.notes.push_back(where + ": no period-2 grazing curve leaving it: " + why);
+        result->summary.notes.push_back(where + ": no period-" + std::to_string(2 * n) +
+                                        " grazing curve leaving it: " + why);
       }
     }
   }
-  result->summary.notes.push_back("period-2 grazing curves leave " + std::to_string(found) +
-                                  " of " + std::to_string(handled.size()) +
-                                  " period-1 flip-grazing points");
+  for (int n = 1; 2 * n <= options.max_period; n *= 2) {
+    if (tried[n] == 0) continue;
+    result->summary.notes.push_back("period-" + std::to_string(2 * n) + " grazing curves leave " +
+                                    std::to_string(found[n]) + " of " + std::to_string(tried[n]) +
+                                    " period-" + std::to_string(n) + " flip-grazing points");
+  }
   return true;
 }
 
