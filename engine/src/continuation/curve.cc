@@ -367,20 +367,21 @@ class CurveTracer {
     return {};
   }
 
-  // The root of a test function on the step from y along t of length h (values d0, d1 at its
-  // ends): Illinois on the arclength, each trial point corrected onto the curve, until
-  // |value| <= 1e-10 or the bracket is below 1e-14 of the step.
-  bool LocateCodim2(const Vec& y, const Vec& t, double h, const Codim2Test& test, double d0,
-                    double d1, Vec* root) const {
-    double a = 0.0, fa = d0, b = h, fb = d1;
+  // The root on the step from y along t of length h of a function of the curve point (values f0,
+  // f1 at the step's ends): Illinois on the arclength, each trial point corrected onto the curve,
+  // until |value| <= tol or the bracket is below 1e-14 of the step. `value` returns false where
+  // it cannot be evaluated (the root is then not located).
+  bool LocateOnStep(const Vec& y, const Vec& t, double h, double f0, double f1, double tol,
+                    const std::function<bool(const Vec&, double*)>& value, Vec* root) const {
+    double a = 0.0, fa = f0, b = h, fb = f1;
     int side = 0;
     for (int it = 0; it < 100; ++it) {
       double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
       if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
       int iterations = 0;
-      if (!Correct(y + sigma * t, t, root, &iterations)) return false;
-      const double f = TestValue(test, *root);
-      if (std::abs(f) <= 1e-10 || b - a <= 1e-14 * std::max(1.0, h)) return true;
+      double f = 0.0;
+      if (!Correct(y + sigma * t, t, root, &iterations) || !value(*root, &f)) return false;
+      if (std::abs(f) <= tol || b - a <= 1e-14 * std::max(1.0, h)) return true;
       if ((f > 0.0) == (fa > 0.0)) {
         a = sigma, fa = f;
         if (side == -1) fb *= 0.5;
@@ -394,35 +395,36 @@ class CurveTracer {
     return false;
   }
 
+  // The root of a codimension-2 test function on the step (values d0, d1 at its ends), to
+  // |value| <= 1e-10.
+  bool LocateCodim2(const Vec& y, const Vec& t, double h, const Codim2Test& test, double d0,
+                    double d1, Vec* root) const {
+    return LocateOnStep(
+        y, t, h, d0, d1, 1e-10,
+        [&](const Vec& p, double* f) {
+          *f = TestValue(test, p);
+          return true;
+        },
+        root);
+  }
+
   // The parameter part of the unit tangent, in the box's scaled coordinates.
   Eigen::Vector2d ParamDirection(const Vec& t) const { return {t[m()] / w1_, t[m() + 1] / w2_}; }
 
   // A cusp on the step from y (tangent t) of length h, where the tangent's parameter part turns
-  // against its direction u at y: Illinois on psi(sigma) = u . (parameter part of the tangent at
-  // the corrected point), until |psi| <= 1e-10 |u| or the bracket is below 1e-14 of the step.
+  // against its direction u at y: the root of psi = u . (parameter part of the tangent at the
+  // corrected point), psi1 at the step's end, to |psi| <= 1e-10 |u|.
   bool LocateCusp(const Vec& y, const Vec& t, double h, double psi1, Vec* root) const {
     const Eigen::Vector2d u = ParamDirection(t);
-    double a = 0.0, fa = u.squaredNorm(), b = h, fb = psi1;
-    int side = 0;
-    for (int it = 0; it < 100; ++it) {
-      double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
-      if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
-      int iterations = 0;
-      Vec tr;
-      if (!Correct(y + sigma * t, t, root, &iterations) || !Tangent(*root, t, &tr)) return false;
-      const double f = u.dot(ParamDirection(tr));
-      if (std::abs(f) <= 1e-10 * u.norm() || b - a <= 1e-14 * std::max(1.0, h)) return true;
-      if ((f > 0.0) == (fa > 0.0)) {
-        a = sigma, fa = f;
-        if (side == -1) fb *= 0.5;
-        side = -1;
-      } else {
-        b = sigma, fb = f;
-        if (side == +1) fa *= 0.5;
-        side = +1;
-      }
-    }
-    return false;
+    return LocateOnStep(
+        y, t, h, u.squaredNorm(), psi1, 1e-10 * u.norm(),
+        [&](const Vec& p, double* f) {
+          Vec tp;
+          if (!Tangent(p, t, &tp)) return false;
+          *f = u.dot(ParamDirection(tp));
+          return true;
+        },
+        root);
   }
 
   // The admissibility boundary between curve points ya (admissible) and yb (not): bisection in
