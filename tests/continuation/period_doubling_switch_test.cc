@@ -10,6 +10,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
+#include "support/period_two.h"
 
 namespace drillbif {
 namespace {
@@ -44,15 +45,8 @@ TEST(PeriodDoublingSwitch, FindsTheAttractingPeriodTwoOrbitBornAtTheDoubling) {
 
   // Direct simulation from the orbit's section state: it returns after two periods, not after
   // one (the halves differ by ~sqrt(offset) = 3e-2 relative, far above the 1e-9 return).
-  SimulationOptions two;
-  two.transient_periods = 0;
-  two.sample_periods = 2;
-  two.outputs = SimulationOutputs{false, true, false, false, 0.0};
-  const SimulationResult s = Simulate(model, prop, doubled->params, doubled->starts[0], two);
-  ASSERT_EQ(s.poincare.size(), 2u);
-  const StateVector& x0 = doubled->starts[0];
-  EXPECT_LT((s.poincare[1].x - x0).head(3).norm(), 1e-9 * (1 + x0.norm()));
-  EXPECT_GT((s.poincare[0].x - x0).head(3).norm(), 1e-3);
+  testing::ExpectPeriodTwoBySimulation(model, prop, *doubled,
+                                       1e-9 * (1 + doubled->starts[0].norm()), 1e-3);
 }
 
 // Continued towards the doubling, the period-2 branch meets the (doubled) period-1 branch there:
@@ -108,21 +102,6 @@ SpecialPoint DoublingOnBranch(const DO& model, Propagator& prop, const std::stri
   }
   ADD_FAILURE() << "no PD in [" << lo << ", " << hi << "]";
   return {};
-}
-
-// Direct simulation from a period-2 orbit's section state: back after two periods (to `tol`),
-// not after one.
-void ExpectPeriodTwoBySimulation(const HybridModel& model, Propagator& prop,
-                                 const PeriodicOrbit& orbit, double tol, double split) {
-  SimulationOptions two;
-  two.transient_periods = 0;
-  two.sample_periods = 2;
-  two.outputs = SimulationOutputs{false, true, false, false, 0.0};
-  const SimulationResult s = Simulate(model, prop, orbit.params, orbit.starts[0], two);
-  ASSERT_EQ(s.poincare.size(), 2u);
-  const StateVector& x0 = orbit.starts[0];
-  EXPECT_LT((s.poincare[1].x - x0).head(3).norm(), tol);
-  EXPECT_GT((s.poincare[0].x - x0).head(3).norm(), split);
 }
 
 // Algebraic switching (no simulation) lands on the same period-2 branch as the simulation-based
@@ -187,7 +166,7 @@ TEST(PeriodDoublingSwitch, AlgebraicSwitchWorksWhereSimulationFindsNothing) {
   // Over two periods the return error is the Newton tolerance times the states' scale (~1e-9)
   // amplified by the multipliers (< 10): 1e-7 is safe; the passes differ by ~ the step (1e-3
   // relative to states ~60, halved at most a few times), far above 1e-5.
-  ExpectPeriodTwoBySimulation(model, prop, *alg, 1e-7, 1e-5);
+  testing::ExpectPeriodTwoBySimulation(model, prop, *alg, 1e-7, 1e-5);
 }
 
 TEST(PeriodDoublingSwitch, AlgebraicSwitchRejectsBadInput) {

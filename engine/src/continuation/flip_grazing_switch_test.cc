@@ -11,10 +11,10 @@
 #include <string>
 
 #include "drillbif/flow/exact_propagator.h"
-#include "drillbif/simulate/simulator.h"
 #include "problems/drifting_reference.h"
 #include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
+#include "support/period_two.h"
 #include "trace_internal.h"
 
 namespace drillbif::internal {
@@ -95,14 +95,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
     // (to the corrector's 1e-10 amplified by the multipliers over two periods, < 1e-7), not
     // after one (its passes differ there by far more than 1e-5).
     const PeriodicOrbit& mid = leaving->curve.points[leaving->curve.points.size() / 2].orbit;
-    SimulationOptions two;
-    two.transient_periods = 0;
-    two.sample_periods = 2;
-    two.outputs = SimulationOutputs{false, true, false, false, 0.0};
-    const SimulationResult s = Simulate(model, prop, mid.params, mid.starts[0], two);
-    ASSERT_EQ(s.poincare.size(), 2u);
-    EXPECT_LT((s.poincare[1].x - mid.starts[0]).head(3).norm(), 1e-7);
-    EXPECT_GT((s.poincare[0].x - mid.starts[0]).head(3).norm(), 1e-5);
+    testing::ExpectPeriodTwoBySimulation(model, prop, mid, 1e-7, 1e-5);
   }
 }
 
