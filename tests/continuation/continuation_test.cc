@@ -133,6 +133,40 @@ TEST(BContinuation, ReproducesThePublishedTable) {
   EXPECT_NEAR(rop_max->point.measures[DO::kDrift], 0.53873914, 5e-9);
 }
 
+// Only what is asked: without measure maxima and with ROP alone on the points, the same
+// bifurcations are located (to rounding: the same corrector path) and no ROP_MAX / POWER_MAX is
+// reported; Pc is left 0.
+TEST(BContinuation, ComputesOnlyTheAskedMeasures) {
+  DO model;
+  ExactPropagator prop(model);
+  ContinuationOptions opt;
+  opt.param = "b";
+  opt.min = 0.0, opt.max = 0.2;
+  opt.locate_measure_maxima = false;
+  opt.point_measures = 1u << DO::kDrift;
+  const ContinuationResult r =
+      Continue(model, prop, StartOrbit(model, prop, testing::ReferenceParams()), opt);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  const ContinuationResult& full = ReferenceBranch();
+  std::vector<const SpecialPoint*> expected;
+  for (const SpecialPoint& s : full.special_points) {
+    if (s.kind != SpecialPointKind::kRopMax && s.kind != SpecialPointKind::kPowerMax) {
+      expected.push_back(&s);
+    }
+  }
+  ASSERT_EQ(r.special_points.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(r.special_points[i].kind, expected[i]->kind);
+    EXPECT_NEAR(r.special_points[i].point.value, expected[i]->point.value, 1e-12);
+  }
+  for (const ContinuationPoint& p : r.points) {
+    ASSERT_EQ(p.measures.size(), 2u);
+    EXPECT_EQ(p.measures[DO::kPower], 0.0);
+  }
+  // ROP is still there where the orbit progresses (the reference point's 0.4989).
+  EXPECT_GT(r.points.front().measures[DO::kDrift] + r.points.back().measures[DO::kDrift], 0.0);
+}
+
 // Down through the l1 grazing to b = 0, where the period-1 orbit runs off (the period-adding
 // cascade accumulates there): below the grazing the orbit never progresses (ROP = 0) and Pc is
 // the measure.

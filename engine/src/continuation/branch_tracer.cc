@@ -109,7 +109,7 @@ ContinuationPoint BranchTracer::MakePoint(const Vec& y) const {
   ContinuationPoint p;
   p.value = y[m()];
   bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &p.orbit);
-  p.measures = OrbitMeasures(model_, propagator_, p.orbit);
+  p.measures = OrbitMeasures(model_, propagator_, p.orbit, options_.point_measures);
   p.stability = OrbitStability(model_, propagator_, p.orbit);
   p.period = kTwoPi * p.orbit.signature.periods / model_.ForcingFrequency(p.orbit.params);
   return p;
@@ -136,9 +136,12 @@ TestValues BranchTracer::Tests(const Vec& y, const Vec& t, double det,
   }
   v.period_doubling = pd.real();
   v.neimark_sacker = ns.real();
+  if (!options_.locate_measure_maxima) return v;
   // d measure / ds: Richardson-extrapolated central differences along t (truncation ~eps^4, so
-  // eps = 1e-3 in the units of Y leaves ~1e-12 of error, rounding ~1e-13).
-  v.power = p.measures[0] == 0.0;
+  // eps = 1e-3 in the units of Y leaves ~1e-12 of error, rounding ~1e-13). The measure is ROP,
+  // or Pc where the orbit never progresses (ROP = 0).
+  v.power = (p.measures.empty() || !(options_.point_measures & 1u) ? Measure(y, 0)
+                                                                   : p.measures[0]) == 0.0;
   const int index = v.power ? 1 : 0;
   auto central = [&](double eps) {
     return (Measure(y + eps * t, index) - Measure(y - eps * t, index)) / (2.0 * eps);
@@ -245,7 +248,7 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
       AddSpecial(SpecialPointKind::kBranchPoint, y, "", result);
     }
   }
-  if (t0.power == t1.power && t0.slope > 0.0 && t1.slope < 0.0) {
+  if (options_.locate_measure_maxima && t0.power == t1.power && t0.slope > 0.0 && t1.slope < 0.0) {
     if (Locate(
             h, t0.slope, t1.slope, [&](const Vec& yy) { return tests_at(yy).slope; }, false, &y)) {
       AddSpecial(t0.power ? SpecialPointKind::kPowerMax : SpecialPointKind::kRopMax, y, "", result);
@@ -313,7 +316,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
       old.durations.insert(old.durations.begin() + i, 0.0);
       reported.value = old.params[param_];
       reported.orbit = old;
-      reported.measures = OrbitMeasures(model_, propagator_, old);
+      reported.measures = OrbitMeasures(model_, propagator_, old, options_.point_measures);
       reported.stability = OrbitStability(model_, propagator_, old);
       reported.period = kTwoPi * old.signature.periods / model_.ForcingFrequency(old.params);
     }

@@ -128,6 +128,8 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
             continue;
           }
           ContinuationOptions branch = options.branch;
+          branch.locate_measure_maxima = false;
+          branch.point_measures = 0u;
           branch.param = *names[a];
           branch.min = lo[a];
           branch.max = hi[a];

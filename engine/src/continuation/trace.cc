@@ -163,7 +163,6 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       if (known) continue;
       seed.point.orbit = *orbit;
       seed.point.stability = OrbitStability(model, propagator, *orbit);
-      seed.point.measures = OrbitMeasures(model, propagator, *orbit);
       if (added == options.max_switched_curves) {
         sum.notes.push_back("switching stopped after " + std::to_string(added) +
                             " curves (max_switched_curves)");
@@ -238,6 +237,9 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     const Axis& a = axes[axis];
     ContinuationOptions branch = options.branch;
     branch.direction = direction;
+    // Only the branches' bifurcations start curves: no ROP / Pc maxima, no measures kept.
+    branch.locate_measure_maxima = false;
+    branch.point_measures = 0u;
     branch.param = *a.name;
     branch.min = a.min;
     branch.max = a.max;

@@ -77,7 +77,13 @@ struct ContinuationOptions {
   double tolerance = 1e-11;         // corrector: scaled Newton step
   double locate_tolerance = 1e-10;  // special points: parameter bracket width
   bool locate = true;               // detect and locate special points
-  bool switch_signatures = true;    // at grazing, switch and go on (else stop there)
+  // Also ROP_MAX / POWER_MAX (the slope test: four measure evaluations per point); off where only
+  // bifurcations are wanted (TraceCurves).
+  bool locate_measure_maxima = true;
+  // The measures each point carries (bit k: measure k of HybridModel::measure_names(), ROP and
+  // Pc; the others are 0). Pc costs ~20 times ROP (quadrature of the contact power).
+  unsigned point_measures = kAllMeasures;
+  bool switch_signatures = true;  // at grazing, switch and go on (else stop there)
   // Stop a direction at the first special point of one of these kinds (e.g. {kFold}: up to the
   // fold, for the stable part of a branch).
   std::vector<SpecialPointKind> stop_at;
