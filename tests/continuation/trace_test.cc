@@ -178,6 +178,41 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   }
   EXPECT_GE(switched_fold_pd, 5);
   EXPECT_GE(switched_grazing, 1);
+
+  // Every codimension-2 root in the box (FOLD_GRAZING / FLIP_GRAZING along grazing curves, CUSP
+  // along fold curves) satisfies both its conditions: the curve's own (h = h' = 0 at the tangent
+  // end to 1e-9; the fold's multiplier +1) and the second (multiplier +1 / -1 to 1e-8, as above;
+  // for a cusp the reversal it was located by). Including roots next to a curve's end, found on
+  // the last stretch before the end's boundary.
+  int roots = 0, cusps = 0;
+  for (const TracedCurve& c : r.curves) {
+    for (const Codim2Point& q : c.curve.codim2) {
+      if (q.kind == Codim2Kind::kCusp) {
+        ++cusps;
+        EXPECT_LE(multiplier_gap(q.point.stability, 1.0), 1e-8);
+        continue;
+      }
+      if (c.curve.kind != CurveKind::kGrazing || q.bracket != 0.0) continue;
+      ++roots;
+      const double target = q.kind == Codim2Kind::kFoldGrazing ? 1.0 : -1.0;
+      EXPECT_LE(multiplier_gap(q.point.stability, target), 1e-8)
+          << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
+      const PeriodicOrbit& o = q.point.orbit;
+      const auto& segs = o.signature.segments;
+      int k = 0;
+      while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
+      ASSERT_LT(k, static_cast<int>(segs.size()));
+      const GuardValue g = model.Guard(
+          segs[k].mode, segs[k].guard,
+          prop.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x, o.params);
+      EXPECT_LE(std::abs(g.h), 1e-9);
+      EXPECT_LE(std::abs(g.dh), 1e-9);
+    }
+  }
+  RecordProperty("codim2_roots", roots);
+  RecordProperty("cusps", cusps);
+  EXPECT_GE(roots, 20);
+  EXPECT_GE(cusps, 1);
 }
 
 TEST(Trace, InvalidRequestsNameTheProblem) {

@@ -408,6 +408,23 @@ class CurveTracer {
         root);
   }
 
+  // Codimension-2 points on the step from y (tangent t) to y1 (monodromy mono1): sign changes
+  // of the test functions from their values at y (*dets, updated to those at y1), located and
+  // appended.
+  void RootsOnStep(const Vec& y, const Vec& t, const Vec& y1, const Mat& mono1,
+                   const std::vector<Codim2Test>& tests, std::vector<double>* dets,
+                   std::vector<Codim2Point>* codim2) const {
+    for (size_t k = 0; k < tests.size(); ++k) {
+      const double d1 = tests[k].f(mono1);
+      Vec root;
+      if (((*dets)[k] > 0.0) != (d1 > 0.0) &&
+          LocateCodim2(y, t, t.dot(y1 - y), tests[k], (*dets)[k], d1, &root)) {
+        codim2->push_back({tests[k].kind, MakePoint(root), "", 0.0});
+      }
+      (*dets)[k] = d1;
+    }
+  }
+
   // The parameter part of the unit tangent, in the box's scaled coordinates.
   Eigen::Vector2d ParamDirection(const Vec& t) const { return {t[m()] / w1_, t[m() + 1] / w2_}; }
 
@@ -548,11 +565,15 @@ class CurveTracer {
         // grazing (a second boundary touched at once).
         Vec boundary;
         const double width = LocateBoundary(y, y1, t, &boundary, &why);
+        // Roots of the test functions between the last point and the boundary (a fold- or
+        // flip-grazing root can lie next to a double grazing end).
+        const CurvePoint end = MakePoint(boundary);
+        RootsOnStep(y, t, boundary, end.stability.monodromy, tests, &dets, codim2);
         const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
                              : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
                              : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
                                                                   : Codim2Kind::kFlipGrazing;
-        codim2->push_back({k, MakePoint(boundary), why, width});
+        codim2->push_back({k, end, why, width});
         return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
       }
       // Requested lambda1 / lambda2 values crossed by this step: solve the crossing with that
@@ -568,17 +589,7 @@ class CurveTracer {
           if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
         }
       }
-      // Codimension-2 points on this step: sign changes of the test functions.
-      for (size_t k = 0; k < tests.size(); ++k) {
-        const double d1 = tests[k].f(p.stability.monodromy);
-        Vec root;
-        const double step_length = t.dot(y1 - y);
-        if ((dets[k] > 0.0) != (d1 > 0.0) &&
-            LocateCodim2(y, t, step_length, tests[k], dets[k], d1, &root)) {
-          codim2->push_back({tests[k].kind, MakePoint(root), "", 0.0});
-        }
-        dets[k] = d1;
-      }
+      RootsOnStep(y, t, y1, p.stability.monodromy, tests, &dets, codim2);
       points->push_back(std::move(p));
       Vec t1;
       if (!Tangent(y1, t, &t1)) return "no tangent";
