@@ -1,5 +1,5 @@
 // The trace job: request validation naming the field, and a small box whose one period-doubling
-// curve ends at two flip-grazings inside it.
+// curve ends at a flip-grazing inside it and leaves it after a Poincare-section crossing.
 #include "client/trace_runner.h"
 
 #include <gmock/gmock.h>
@@ -67,7 +67,10 @@ TEST(RunTrace, InvalidRequestsNameTheField) {
   ExpectInvalid(contradiction, "max_period: 1 contradicts period2");
 }
 
-TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtTwoFlipGrazings) {
+// In omega in [0.05, 0.2], a in [0.27, 0.32] the one PD curve ends at a flip-grazing at one end;
+// at the other its orbit's first event reaches the Poincare section (an impact at s = 0, not a
+// grazing: the curve goes on in the rotated signature) and it leaves the box.
+TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtAFlipGrazing) {
   const StatusOr<v1::TraceResult> r = RunTrace(SmallBox());
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->status(), "COMPLETED") << r->message();
@@ -89,7 +92,8 @@ TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtTwoFlipGrazings) {
     for (const v1::Codim2Point& q : r->codim2_points()) {
       flip_grazings += q.curve() == i && q.kind() == "FLIP_GRAZING";
     }
-    EXPECT_EQ(flip_grazings, 2) << c.message();
+    EXPECT_EQ(flip_grazings, 1) << c.message();
+    EXPECT_THAT(c.message(), HasSubstr("through 1 section crossings, left the box"));
   }
   EXPECT_EQ(pd_curves, 1);
   // The JSON names the issue asks for.

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <limits>
 #include <string>
 #include <utility>
@@ -216,6 +217,55 @@ TEST_F(Codim2Test, FoldCurveEndsAtAFoldGrazing) {
   EXPECT_LE(end.bracket, 1e-9) << end.detail;
   EXPECT_LE(DistanceToMultiplier(end.point, 1.0), 1e-8);
   EXPECT_TRUE(CheckAdmissible(model_, prop_, end.point.orbit).admissible);
+}
+
+// A curve goes on where an event of its orbit reaches the Poincare section (an impact at s = 0:
+// the first segment vanishes, a change of representation, not a grazing). The PD curve from the
+// omega-branch's doubling at 0.0944 (a = 0.3), in omega [0.05, 0.2] x a [0.27, 0.32], crosses the
+// section near omega = 0.1844 and goes on in the rotated signature to the box. Beyond the
+// crossing, at omega = 0.19: the curve's crossing has the multiplier -1 (eigenvalues, independent
+// of the extended system's sigma) and is a doubling of the one-parameter family in a (the
+// multiplier passes -1 between a -+ 1e-7, orbits solved by Newton at fixed a).
+TEST_F(Codim2Test, CurveGoesOnThroughAPoincareSectionCrossing) {
+  const SpecialPoint* pd = Find(SpecialPointKind::kPeriodDoubling, 0.09, 0.1);
+  ASSERT_NE(pd, nullptr);
+  CurveOptions opt;
+  opt.param1 = std::string("omega");
+  opt.param2 = "a";
+  opt.min1 = 0.05, opt.max1 = 0.2;
+  opt.min2 = 0.27, opt.max2 = 0.32;
+  opt.crossings1 = {0.19};
+  const CurveResult curve = ContinueCurve(model_, prop_, *pd, opt);
+  ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+  EXPECT_NE(curve.summary.message.find("through 1 section crossings, left the box"),
+            std::string::npos)
+      << curve.summary.message;
+  for (const Codim2Point& q : curve.codim2) {
+    EXPECT_GT(std::abs(q.point.value1 - 0.1844), 1e-2) << "a codimension-2 end at the crossing";
+  }
+  ASSERT_EQ(curve.crossings.size(), 1u);
+  const CurvePoint& x = curve.crossings.front();
+  EXPECT_EQ(x.value1, 0.19);
+  // The corrector's 1e-10 amplified by d mu / d Y = O(10).
+  EXPECT_LE(DistanceToMultiplier(x, -1.0), 1e-8);
+  // Either side in a: the critical multiplier (the largest; the others are ~1e-8 here) is real
+  // and on opposite sides of -1. It moves fast (measured mu + 1 = -0.034 and +0.035 at a -+ 1e-7:
+  // d mu / d a ~ 3.5e5, the orbit is close to grazing), so the sides are taken 1e-7 away, where
+  // that is far above the orbits' 1e-11 accuracy.
+  const int ia = model_.ParamIndex("a").value();
+  std::vector<double> side;
+  for (double da : {-1e-7, 1e-7}) {
+    PeriodicOrbit o = x.orbit;
+    o.params[ia] += da;
+    const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &o);
+    ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
+    const std::complex<double> critical = OrbitStability(model_, prop_, o).multipliers.front();
+    EXPECT_EQ(critical.imag(), 0.0);
+    side.push_back(critical.real() + 1.0);
+  }
+  EXPECT_LT(side[0] * side[1], 0.0) << side[0] << " " << side[1];
+  RecordProperty("mu_plus_one_either_side",
+                 std::to_string(side[0]) + " " + std::to_string(side[1]));
 }
 
 }  // namespace

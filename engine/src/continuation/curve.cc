@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "continuation/arclength.h"
+#include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 #include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
@@ -100,6 +101,14 @@ Mat BialternateSquare(const Mat& m) {
   }
   return out;
 }
+
+// Where a traced direction met the Poincare section (CurveTracer::Trace).
+struct SectionCrossing {
+  bool happened = false;
+  PeriodicOrbit orbit;        // the last point's orbit, its first or last segment ~0 long
+  Admissibility violation;    // that segment's vanishing, just beyond
+  Eigen::Vector2d direction;  // the curve's parameter direction there (box-scaled, unit)
+};
 
 class CurveTracer {
  public:
@@ -300,9 +309,11 @@ class CurveTracer {
     return Evaluate(y, &f, &jac) && internal::UnitTangent(jac, prev, t);
   }
 
-  bool Admissible(const PeriodicOrbit& o, std::string* why) const {
+  bool Admissible(const PeriodicOrbit& o, std::string* why,
+                  Admissibility* violation = nullptr) const {
     const Admissibility a = CheckAdmissible(model_, propagator_, o);
     *why = a.message;
+    if (violation && !a.admissible) *violation = a;
     return a.admissible;
   }
 
@@ -444,6 +455,13 @@ class CurveTracer {
         root);
   }
 
+  // Whether a violation is an event reaching the Poincare section (the first or the last segment
+  // vanishes) rather than a grazing.
+  bool IsSectionCrossing(const Admissibility& v) const {
+    const int k = bvp1_.segments();
+    return !v.admissible && v.guard < 0 && k >= 3 && (v.segment == 0 || v.segment == k - 1);
+  }
+
   // The admissibility boundary between curve points ya (admissible) and yb (not): bisection in
   // the arclength along t, each midpoint of the chord corrected onto the curve in the hyperplane
   // normal to t, until the bracket is below 1e-12 (1 + |y|). Beyond the boundary the extended
@@ -452,7 +470,8 @@ class CurveTracer {
   // only known to lie between the result and the nearest corrected inadmissible point. Returns
   // that bracket width in arclength; the result is always a corrected admissible point and *why
   // names the violation at the nearest corrected inadmissible point.
-  double LocateBoundary(Vec ya, Vec yb, const Vec& t, Vec* boundary, std::string* why) const {
+  double LocateBoundary(Vec ya, Vec yb, const Vec& t, Vec* boundary, std::string* why,
+                        Admissibility* violation) const {
     const double tol = 1e-12 * (1.0 + ya.lpNorm<Eigen::Infinity>());
     Vec known_beyond = yb;
     for (int it = 0; it < 80 && t.dot(yb - ya) > tol; ++it) {
@@ -462,7 +481,7 @@ class CurveTracer {
       std::string reason;
       if (!Correct(mid, t, &yc, &iterations)) {
         yb = mid;
-      } else if (Admissible(Unpack(yc), &reason)) {
+      } else if (Admissible(Unpack(yc), &reason, violation)) {
         ya = yc;
       } else {
         yb = known_beyond = yc, *why = reason;
@@ -503,13 +522,17 @@ class CurveTracer {
     }
   }
 
-  // Traces one direction from the start; returns why it ended.
-  std::string Trace(double sign, std::vector<CurvePoint>* points,
+  // Traces one direction from the start, leaving it along the parameter direction `dir`
+  // (box-scaled; (0, +-1): across the one-parameter branch the start was located on); returns
+  // why it ended. At a Poincare-section crossing (an event reaching s = 0: the first or last
+  // segment vanishes) the orbit goes on and only its representation changes: the last point is
+  // appended, *crossing filled, and ContinueCurve goes on in the rotated signature.
+  std::string Trace(const Eigen::Vector2d& dir, std::vector<CurvePoint>* points,
                     std::vector<CurvePoint>* crossings, std::vector<Codim2Point>* codim2,
-                    ContinuationSummary* sum) const {
+                    ContinuationSummary* sum, SectionCrossing* crossing) const {
     Vec y = start_, t, prev = Vec::Zero(n());
-    // Start along the second parameter (the curve leaves the one-parameter branch across it).
-    prev[m() + 1] = sign;
+    prev[m()] = dir[0] * w1_;
+    prev[m() + 1] = dir[1] * w2_;
     if (!Tangent(y, prev, &t)) return "no tangent at the start point";
     double h = options_.initial_step;
     const auto tests = Codim2Tests();
@@ -559,16 +582,25 @@ class CurveTracer {
       }
       CurvePoint p = MakePoint(y1);
       std::string why;
-      if (!Admissible(p.orbit, &why)) {
+      Admissibility violation;
+      if (!Admissible(p.orbit, &why, &violation)) {
         // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
         // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
         // grazing (a second boundary touched at once).
         Vec boundary;
-        const double width = LocateBoundary(y, y1, t, &boundary, &why);
+        const double width = LocateBoundary(y, y1, t, &boundary, &why, &violation);
         // Roots of the test functions between the last point and the boundary (a fold- or
         // flip-grazing root can lie next to a double grazing end).
         const CurvePoint end = MakePoint(boundary);
         RootsOnStep(y, t, boundary, end.stability.monodromy, tests, &dets, codim2);
+        if (IsSectionCrossing(violation)) {
+          crossing->happened = true;
+          crossing->orbit = end.orbit;
+          crossing->violation = violation;
+          crossing->direction = ParamDirection(t).normalized();
+          points->push_back(end);
+          return "crossed the Poincare section";
+        }
         const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
                              : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
                              : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
@@ -672,11 +704,38 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
   if (!tracer.CorrectStart()) {
     return fail(Internal("could not put the start point on the curve"));
   }
+  // One direction, through Poincare-section crossings: each goes on with a tracer in the rotated
+  // signature (internal::SwitchSignature), leaving along the direction the curve arrived with.
+  constexpr int kMaxSectionCrossings = 32;
+  auto run = [&](double sign, std::vector<CurvePoint>* points) {
+    std::vector<std::unique_ptr<CurveTracer>> rotated;
+    const CurveTracer* current = &tracer;
+    Eigen::Vector2d dir(0.0, sign);
+    for (int crossed = 0;; ++crossed) {
+      SectionCrossing cross;
+      const std::string end =
+          current->Trace(dir, points, &result.crossings, &result.codim2, &sum, &cross);
+      const std::string through =
+          crossed == 0 ? "" : "through " + std::to_string(crossed) + " section crossings, ";
+      if (!cross.happened) return through + end;
+      if (crossed == kMaxSectionCrossings) return through + "stopped at the next one";
+      const internal::SwitchedOrbit sw =
+          internal::SwitchSignature(model, propagator, cross.orbit, cross.violation);
+      rotated.push_back(std::make_unique<CurveTracer>(model, propagator, options, result.kind, *i1,
+                                                      *i2, sw.orbit));
+      if (!rotated.back()->CorrectStart()) {
+        return through +
+               "the curve could not be put on its rotated signature at a section "
+               "crossing (" +
+               sw.detail + ")";
+      }
+      current = rotated.back().get();
+      dir = cross.direction;
+    }
+  };
   std::vector<CurvePoint> backward, forward;
-  const std::string end_forward =
-      tracer.Trace(+1.0, &forward, &result.crossings, &result.codim2, &sum);
-  const std::string end_backward =
-      tracer.Trace(-1.0, &backward, &result.crossings, &result.codim2, &sum);
+  const std::string end_forward = run(+1.0, &forward);
+  const std::string end_backward = run(-1.0, &backward);
   std::reverse(backward.begin(), backward.end());
   result.points = std::move(backward);
   result.points.push_back(tracer.MakePoint(tracer.start()));

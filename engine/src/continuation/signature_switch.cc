@@ -105,6 +105,7 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
     out.representation_only = true;
     out.kind = SpecialPointKind::kSignatureChange;
     segs.back().guard = segs[0].guard;
+    segs.back().tangent = segs[0].tangent;  // a tangent end (grazing curves) moves with its event
     segs.push_back({segs[1].mode, -1});
     o.starts.push_back(o.starts[1]);
     o.durations.push_back(0.0);
@@ -121,6 +122,7 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
     o.starts.insert(o.starts.begin(), o.starts[k - 1]);
     o.durations.insert(o.durations.begin(), 0.0);
     segs[k - 1].guard = -1;  // the old segment k - 2, shifted by one
+    segs[k - 1].tangent = false;
     segs.pop_back();
     o.starts.pop_back();
     o.durations.pop_back();
