@@ -430,7 +430,7 @@ class CurveTracer {
       Vec root;
       if (((*dets)[k] > 0.0) != (d1 > 0.0) &&
           LocateCodim2(y, t, t.dot(y1 - y), tests[k], (*dets)[k], d1, &root)) {
-        codim2->push_back({tests[k].kind, MakePoint(root), "", 0.0});
+        codim2->push_back({tests[k].kind, MakePoint(root), "", 0.0, {}});
       }
       (*dets)[k] = d1;
     }
@@ -605,7 +605,7 @@ class CurveTracer {
                              : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
                              : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
                                                                   : Codim2Kind::kFlipGrazing;
-        codim2->push_back({k, end, why, width});
+        codim2->push_back({k, end, why, width, violation});
         return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
       }
       // Requested lambda1 / lambda2 values crossed by this step: solve the crossing with that
@@ -630,7 +630,7 @@ class CurveTracer {
         const double psi1 = ParamDirection(t).dot(ParamDirection(t1));
         Vec root;
         if (psi1 < 0.0 && LocateCusp(y, t, t.dot(y1 - y), psi1, &root)) {
-          codim2->push_back({Codim2Kind::kCusp, MakePoint(root), "", 0.0});
+          codim2->push_back({Codim2Kind::kCusp, MakePoint(root), "", 0.0, {}});
         }
       }
       y = y1;
@@ -689,7 +689,12 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
       // a vanishing segment (the grazing seen from the side where the guard is not reached, e.g.
       // a free flight touching Pi), the segment where a guard touches zero is split there.
       result.kind = CurveKind::kGrazing;
-      StatusOr<PeriodicOrbit> tangent = internal::GrazingTangentForm(model, propagator, orbit);
+      const bool tangent_given =
+          std::any_of(orbit.signature.segments.begin(), orbit.signature.segments.end(),
+                      [](const SegmentSpec& seg) { return seg.tangent; });
+      StatusOr<PeriodicOrbit> tangent =
+          tangent_given ? StatusOr<PeriodicOrbit>(orbit)
+                        : internal::GrazingTangentForm(model, propagator, orbit);
       if (!tangent.ok()) return fail(tangent.status());
       tangent_orbit = *std::move(tangent);
       break;

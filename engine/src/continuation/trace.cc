@@ -122,15 +122,23 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
         if (orbit.ok()) curve_signature = orbit->signature;
       } else if (from.curve.kind != CurveKind::kGrazing) {
-        // A fold / PD curve's end where its orbit grazes: the grazing curve through it.
-        orbit = point.point.orbit;
-        const StatusOr<PeriodicOrbit> tangent =
-            internal::GrazingTangentForm(model, propagator, point.point.orbit);
+        // A fold / PD curve's end where its orbit grazes: the grazing curve through it, in the
+        // tangent form at the segment the violation beyond the end says vanishes (between two
+        // of one mode), else the form found from the orbit alone.
+        const Admissibility& beyond = point.violation;
+        const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
+        const int i = beyond.segment;
+        StatusOr<PeriodicOrbit> tangent = Status(StatusCode::kUnimplemented, "");
+        if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
+            i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
+          tangent = internal::TangentForm(point.point.orbit, i);
+        }
+        if (!tangent.ok())
+          tangent = internal::GrazingTangentForm(model, propagator, point.point.orbit);
+        orbit = tangent;
         if (tangent.ok()) {
           curve_signature = tangent->signature;
           seed.kind = GrazingKind(model, *tangent);
-        } else {
-          orbit = tangent.status();
         }
       } else {
         continue;  // a grazing curve's end: a double grazing or a bracketed root
@@ -148,9 +156,13 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       // form picks one, and the grazing curve it came from may be another.
       const bool known =
           std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+            // A curve's signature rotates where it crosses the Poincare section: any of its
+            // points' signatures counts.
             if (t.curve.kind != kind || t.curve.points.empty() ||
                 (kind != CurveKind::kGrazing &&
-                 !(t.curve.points.front().orbit.signature == curve_signature))) {
+                 std::none_of(
+                     t.curve.points.begin(), t.curve.points.end(),
+                     [&](const CurvePoint& p) { return p.orbit.signature == curve_signature; }))) {
               return false;
             }
             if (DistanceToCurve(t.curve, u, v, w1, w2) <= options.duplicate_distance) return true;

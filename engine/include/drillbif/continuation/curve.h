@@ -106,6 +106,9 @@ struct Codim2Point {
   CurvePoint point;
   std::string detail;
   double bracket = 0.0;
+  // At a curve's end: the violation just beyond it (`detail` is its message), e.g. which segment
+  // vanishes; at roots of test functions not set.
+  Admissibility violation;
 };
 
 struct CurveResult {
@@ -117,9 +120,11 @@ struct CurveResult {
 };
 
 // Traces the curve through `start` (a FOLD, PERIOD_DOUBLING, NEIMARK_SACKER or GRAZING_* point) in
-// both directions. INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a
-// grazing with neither a vanishing segment between two segments of one mode nor a guard touching
-// zero inside a segment.
+// both directions. A GRAZING_* start whose orbit already has a tangent end is taken as that
+// tangent form; else the form is found from the orbit (a vanishing segment, or an interior touch).
+// INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a grazing with
+// neither a vanishing segment between two segments of one mode nor a guard touching zero inside a
+// segment.
 CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                           const SpecialPoint& start, const CurveOptions& options);
 
