@@ -16,6 +16,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
+#include "support/tangent_end.h"
 
 namespace drillbif {
 namespace {
@@ -164,15 +165,10 @@ TEST_F(Codim2Test, GrazingCurveCarriesFlipAndFoldGrazingsSatisfyingBothCondition
     EXPECT_LE(DistanceToMultiplier(q.point, flip ? -1.0 : 1.0), 1e-8)
         << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
     // The grazing: the tangent segment end has h = 0 and h' = 0 to the corrector's accuracy.
-    const PeriodicOrbit& o = q.point.orbit;
-    const auto& segs = o.signature.segments;
-    int k = 0;
-    while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
-    ASSERT_LT(k, static_cast<int>(segs.size()));
-    const StateVector xe = prop_.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x;
-    const GuardValue g = model_.Guard(segs[k].mode, segs[k].guard, xe, o.params);
-    EXPECT_LE(std::abs(g.h), 1e-9);
-    EXPECT_LE(std::abs(g.dh), 1e-9);
+    const std::optional<GuardValue> g = testing::TangentEndGuard(model_, prop_, q.point.orbit);
+    ASSERT_TRUE(g.has_value());
+    EXPECT_LE(std::abs(g->h), 1e-9);
+    EXPECT_LE(std::abs(g->dh), 1e-9);
   }
   EXPECT_EQ(flips, 2) << curve.summary.message;
   EXPECT_EQ(folds, 1) << curve.summary.message;

@@ -13,6 +13,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
+#include "support/tangent_end.h"
 
 namespace drillbif {
 namespace {
@@ -114,15 +115,10 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
           << "a = " << c.value2;
       // The touching point: the tangent segment end has h = 0 (an equation of the orbit) and
       // h' = 0 (the curve's condition), to the corrector's accuracy.
-      const auto& segs = c.orbit.signature.segments;
-      int k = 0;
-      while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
-      ASSERT_LT(k, static_cast<int>(segs.size()));
-      const StateVector xe =
-          prop.FlowMap(segs[k].mode, c.orbit.starts[k], c.orbit.durations[k], c.orbit.params, {}).x;
-      const GuardValue g = model.Guard(segs[k].mode, segs[k].guard, xe, c.orbit.params);
-      EXPECT_LE(std::abs(g.h), 1e-9) << "a = " << c.value2;
-      EXPECT_LE(std::abs(g.dh), 1e-9) << "a = " << c.value2;
+      const std::optional<GuardValue> g = testing::TangentEndGuard(model, prop, c.orbit);
+      ASSERT_TRUE(g.has_value());
+      EXPECT_LE(std::abs(g->h), 1e-9) << "a = " << c.value2;
+      EXPECT_LE(std::abs(g->dh), 1e-9) << "a = " << c.value2;
       continue;
     }
     // The crossing's defining condition: a multiplier at +1 (fold) or -1 (period doubling), to the
@@ -235,15 +231,10 @@ TEST(Curve, GrazingCurvesCrossXiOneHalfWhereTheBranchesThereLocate) {
     }
     // Both located to 1e-10 (corrector, location); the bound for curves vs branches.
     EXPECT_LE(best, 1e-7) << param << " crossing at " << c.value1;
-    const auto& segs = c.orbit.signature.segments;
-    int k = 0;
-    while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
-    ASSERT_LT(k, static_cast<int>(segs.size()));
-    const StateVector xe =
-        prop.FlowMap(segs[k].mode, c.orbit.starts[k], c.orbit.durations[k], c.orbit.params, {}).x;
-    const GuardValue g = model.Guard(segs[k].mode, segs[k].guard, xe, c.orbit.params);
-    EXPECT_LE(std::abs(g.h), 1e-9) << param;
-    EXPECT_LE(std::abs(g.dh), 1e-9) << param;
+    const std::optional<GuardValue> g = testing::TangentEndGuard(model, prop, c.orbit);
+    ASSERT_TRUE(g.has_value());
+    EXPECT_LE(std::abs(g->h), 1e-9) << param;
+    EXPECT_LE(std::abs(g->dh), 1e-9) << param;
     ++crossings;
   }
   EXPECT_EQ(crossings, 2);
@@ -282,17 +273,14 @@ TEST(Curve, PiGrazingCurveFromTheNonImpactingSide) {
   ASSERT_NE(curve.summary.termination, Termination::kFailed) << curve.summary.message;
   ASSERT_GT(curve.points.size(), 10u);
   for (size_t n = 0; n < curve.points.size(); n += curve.points.size() / 10) {
-    const PeriodicOrbit& o = curve.points[n].orbit;
-    const auto& segs = o.signature.segments;
-    int k = 0;
-    while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
-    ASSERT_LT(k, static_cast<int>(segs.size()));
-    EXPECT_EQ(model.guards(segs[k].mode)[segs[k].guard].surface, "Pi");
-    const StateVector xe = prop.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x;
-    const GuardValue g = model.Guard(segs[k].mode, segs[k].guard, xe, o.params);
-    EXPECT_LE(std::abs(g.h), 1e-9) << "point " << n;
-    EXPECT_LE(std::abs(g.dh), 1e-9) << "point " << n;
-    EXPECT_GT(g.ddh, 0.0) << "point " << n;
+    std::string surface;
+    const std::optional<GuardValue> g =
+        testing::TangentEndGuard(model, prop, curve.points[n].orbit, &surface);
+    ASSERT_TRUE(g.has_value());
+    EXPECT_EQ(surface, "Pi");
+    EXPECT_LE(std::abs(g->h), 1e-9) << "point " << n;
+    EXPECT_LE(std::abs(g->dh), 1e-9) << "point " << n;
+    EXPECT_GT(g->ddh, 0.0) << "point " << n;
   }
   ContinuationOptions omega_branch;
   omega_branch.param = "omega";

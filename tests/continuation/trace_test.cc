@@ -12,6 +12,7 @@
 #include "problems/drifting_reference.h"
 #include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
+#include "support/tangent_end.h"
 
 namespace drillbif {
 namespace {
@@ -149,16 +150,10 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
       }
       ASSERT_NE(seed, nullptr);
       EXPECT_LE(multiplier_gap(seed->point.stability, target), 1e-8);
-      const auto& segs = seed->point.orbit.signature.segments;
-      int k = 0;
-      while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
-      ASSERT_LT(k, static_cast<int>(segs.size()));
-      const PeriodicOrbit& o = seed->point.orbit;
-      const GuardValue g = model.Guard(
-          segs[k].mode, segs[k].guard,
-          prop.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x, o.params);
-      EXPECT_LE(std::abs(g.h), 1e-9);
-      EXPECT_LE(std::abs(g.dh), 1e-9);
+      const std::optional<GuardValue> g = testing::TangentEndGuard(model, prop, seed->point.orbit);
+      ASSERT_TRUE(g.has_value());
+      EXPECT_LE(std::abs(g->h), 1e-9);
+      EXPECT_LE(std::abs(g->dh), 1e-9);
       double end = 1e300;
       const Codim2Point* back = nullptr;
       for (const Codim2Point& q : c.curve.codim2) {
@@ -197,16 +192,10 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
       const double target = q.kind == Codim2Kind::kFoldGrazing ? 1.0 : -1.0;
       EXPECT_LE(multiplier_gap(q.point.stability, target), 1e-8)
           << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
-      const PeriodicOrbit& o = q.point.orbit;
-      const auto& segs = o.signature.segments;
-      int k = 0;
-      while (k < static_cast<int>(segs.size()) && !segs[k].tangent) ++k;
-      ASSERT_LT(k, static_cast<int>(segs.size()));
-      const GuardValue g = model.Guard(
-          segs[k].mode, segs[k].guard,
-          prop.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x, o.params);
-      EXPECT_LE(std::abs(g.h), 1e-9);
-      EXPECT_LE(std::abs(g.dh), 1e-9);
+      const std::optional<GuardValue> g = testing::TangentEndGuard(model, prop, q.point.orbit);
+      ASSERT_TRUE(g.has_value());
+      EXPECT_LE(std::abs(g->h), 1e-9);
+      EXPECT_LE(std::abs(g->dh), 1e-9);
     }
   }
   RecordProperty("codim2_roots", roots);

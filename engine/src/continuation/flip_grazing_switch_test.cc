@@ -15,6 +15,7 @@
 #include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
 #include "support/period_two.h"
+#include "support/tangent_end.h"
 #include "trace_internal.h"
 
 namespace drillbif::internal {
@@ -80,16 +81,11 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
     for (const CurvePoint& p : leaving->curve.points) {
       ASSERT_EQ(p.orbit.signature.periods, 2);
       EXPECT_TRUE(CheckAdmissible(model, prop, p.orbit).admissible);
-      const auto& segs = p.orbit.signature.segments;
-      size_t k = 0;
-      while (k < segs.size() && !segs[k].tangent) ++k;
-      ASSERT_LT(k, segs.size());
-      const StateVector xe =
-          prop.FlowMap(segs[k].mode, p.orbit.starts[k], p.orbit.durations[k], p.orbit.params, {}).x;
-      const GuardValue g = model.Guard(segs[k].mode, segs[k].guard, xe, p.orbit.params);
+      const std::optional<GuardValue> g = testing::TangentEndGuard(model, prop, p.orbit);
+      ASSERT_TRUE(g.has_value());
       // The corrector's tolerance 1e-10 on scaled unknowns, h and h' O(1)-Lipschitz in them.
-      EXPECT_LE(std::abs(g.h), 1e-9);
-      EXPECT_LE(std::abs(g.dh), 1e-9);
+      EXPECT_LE(std::abs(g->h), 1e-9);
+      EXPECT_LE(std::abs(g->dh), 1e-9);
     }
     // Direct simulation from the middle vertex's section state: back after two forcing periods
     // (to the corrector's 1e-10 amplified by the multipliers over two periods, < 1e-7), not

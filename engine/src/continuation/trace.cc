@@ -133,8 +133,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
             i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
           tangent = internal::TangentForm(point.point.orbit, i);
         }
-        if (!tangent.ok())
+        if (!tangent.ok()) {
           tangent = internal::GrazingTangentForm(model, propagator, point.point.orbit);
+        }
         orbit = tangent;
         if (tangent.ok()) {
           curve_signature = tangent->signature;
