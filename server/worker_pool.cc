@@ -135,21 +135,28 @@ void WorkerPool::RunOne(const JobRecord& job) {
   StatusOr<JobOutput> output = RunJob(kind, job.request, progress, value);
   const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
 
+  // How the run ended, decided before anything is recorded: run_done_ (the duration histogram)
+  // sees the run before the store makes its outcome visible, so a client that sees the job done
+  // also sees it in the metrics.
+  const bool shutdown_requeue =
+      output.ok() && output->cancelled && running->shutdown.load() && !running->cancel.load();
+  const char* outcome_label = !output.ok()        ? "failed"  // one word per way a run ends
+                              : shutdown_requeue  ? "requeued"
+                              : output->cancelled ? "cancelled"
+                                                  : "succeeded";
+  if (run_done_) run_done_(job, outcome_label, seconds);
+
   Status recorded;
   std::string outcome;
-  const char* outcome_label = "";  // For run_done_: one word per way a run ends.
   if (!output.ok()) {
     recorded = store_->Fail(job.id, output.status().code(), output.status().message());
     outcome = "failed: " + output.status().ToString();
-    outcome_label = "failed";
-  } else if (output->cancelled && running->shutdown.load() && !running->cancel.load()) {
+  } else if (shutdown_requeue) {
     recorded = store_->Requeue(job.id);
     outcome = "interrupted by shutdown, requeued";
-    outcome_label = "requeued";
   } else if (output->cancelled) {
     recorded = store_->MarkCancelled(job.id);
     outcome = "cancelled";
-    outcome_label = "cancelled";
   } else {
     // The last value reached, when no progress record carried it (a short run): one more write.
     if (current && current != recorded_current) {
@@ -159,10 +166,8 @@ void WorkerPool::RunOne(const JobRecord& job) {
     }
     recorded = store_->Complete(job.id, output->result, output->points);
     outcome = "succeeded";
-    outcome_label = "succeeded";
     if (recorded.ok() && kind == v1::OPTIMUM && optimum_done_) optimum_done_(job.id, job.cache_key);
   }
-  if (run_done_) run_done_(job, outcome_label, seconds);
   if (recorded.ok()) {
     spdlog::info("job {} ({}) {} in {:.3f} s", job.id, job.kind, outcome, seconds);
   } else {
