@@ -108,6 +108,8 @@ struct SectionCrossing {
   PeriodicOrbit orbit;        // the last point's orbit, its first or last segment ~0 long
   Admissibility violation;    // that segment's vanishing, just beyond
   Eigen::Vector2d direction;  // the curve's parameter direction there (box-scaled, unit)
+  // The curve's end as it is reported when the rotated signature cannot be taken up there.
+  Codim2Point end;
 };
 
 class CurveTracer {
@@ -455,11 +457,15 @@ class CurveTracer {
         root);
   }
 
-  // Whether a violation is an event reaching the Poincare section (the first or the last segment
-  // vanishes) rather than a grazing.
+  // Whether a violation is an event reaching the Poincare section rather than a grazing: the
+  // first or the last segment vanishes, or the first segment's own ending guard fires at its
+  // start (the same, seen by the event locator before the duration turns negative).
   bool IsSectionCrossing(const Admissibility& v) const {
-    const int k = bvp1_.segments();
-    return !v.admissible && v.guard < 0 && k >= 3 && (v.segment == 0 || v.segment == k - 1);
+    const std::vector<SegmentSpec>& segs = bvp1_.signature().segments;
+    const int k = static_cast<int>(segs.size());
+    if (v.admissible || k < 3) return false;
+    if (v.guard < 0) return v.segment == 0 || v.segment == k - 1;
+    return v.segment == 0 && v.guard == segs[0].guard && !segs[0].tangent;
   }
 
   // The admissibility boundary between curve points ya (admissible) and yb (not): bisection in
@@ -593,18 +599,20 @@ class CurveTracer {
         // flip-grazing root can lie next to a double grazing end).
         const CurvePoint end = MakePoint(boundary);
         RootsOnStep(y, t, boundary, end.stability.monodromy, tests, &dets, codim2);
-        if (IsSectionCrossing(violation)) {
-          crossing->happened = true;
-          crossing->orbit = end.orbit;
-          crossing->violation = violation;
-          crossing->direction = ParamDirection(t).normalized();
-          points->push_back(end);
-          return "crossed the Poincare section";
-        }
         const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
                              : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
                              : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
                                                                   : Codim2Kind::kFlipGrazing;
+        if (IsSectionCrossing(violation)) {
+          crossing->happened = true;
+          crossing->orbit = end.orbit;
+          crossing->violation = violation;
+          crossing->violation.guard = -1;  // as the vanishing of that segment (SwitchSignature)
+          crossing->direction = ParamDirection(t).normalized();
+          crossing->end = {k, end, why, width, violation};
+          points->push_back(end);
+          return "crossed the Poincare section";
+        }
         codim2->push_back({k, end, why, width, violation});
         return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
       }
@@ -729,10 +737,13 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
       rotated.push_back(std::make_unique<CurveTracer>(model, propagator, options, result.kind, *i1,
                                                       *i2, sw.orbit));
       if (!rotated.back()->CorrectStart()) {
-        return through +
-               "the curve could not be put on its rotated signature at a section "
-               "crossing (" +
-               sw.detail + ")";
+        // Not taken up there (seen where the first segment's guard fires at its start, after
+        // contact phases): the curve ends there, reported as before, with the reason.
+        result.codim2.push_back(cross.end);
+        return through + "ended at a " + Codim2KindName(cross.end.kind) +
+               " point: " + cross.end.detail +
+               " (a Poincare-section crossing whose rotated signature " + sw.detail +
+               " could not be corrected)";
       }
       current = rotated.back().get();
       dir = cross.direction;
