@@ -460,12 +460,15 @@ class CurveTracer {
   // Whether a violation is an event reaching the Poincare section rather than a grazing: the
   // first or the last segment vanishes, or the first segment's own ending guard fires at its
   // start (the same, seen by the event locator before the duration turns negative).
-  bool IsSectionCrossing(const Admissibility& v) const {
+  // `end` is the last admissible orbit: its first segment must be of zero length to rounding
+  // (the guard firing anywhere else inside it is a grazing, not a crossing).
+  bool IsSectionCrossing(const Admissibility& v, const PeriodicOrbit& end) const {
     const std::vector<SegmentSpec>& segs = bvp1_.signature().segments;
     const int k = static_cast<int>(segs.size());
     if (v.admissible || k < 3) return false;
     if (v.guard < 0) return v.segment == 0 || v.segment == k - 1;
-    return v.segment == 0 && v.guard == segs[0].guard && !segs[0].tangent;
+    return v.segment == 0 && v.guard == segs[0].guard && !segs[0].tangent &&
+           std::abs(end.durations[0]) <= 1e-9;
   }
 
   // The admissibility boundary between curve points ya (admissible) and yb (not): bisection in
@@ -603,7 +606,7 @@ class CurveTracer {
                              : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
                              : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
                                                                   : Codim2Kind::kFlipGrazing;
-        if (IsSectionCrossing(violation)) {
+        if (IsSectionCrossing(violation, end.orbit)) {
           crossing->happened = true;
           crossing->orbit = end.orbit;
           crossing->violation = violation;
