@@ -183,11 +183,15 @@ class CurveTracer {
 
   // The defining condition: sigma(M -+ I) for folds and period doublings; for grazing, h' at the
   // tangent end (the guard's rate where it touches zero).
-  double Condition(const Vec& y) const {
-    if (kind_ == CurveKind::kGrazing)
-      return internal::TangentEndRate(model_, propagator_, Unpack(y));
-    return Sigma(internal::ReducedMonodromy(
-        model_, internal::MonodromyFactors(model_, propagator_, Unpack(y))));
+  double Condition(const Vec& y) const { return ConditionAt(Unpack(y)); }
+  // The same for an unpacked orbit; for fold / PD / NS curves its monodromy factors are kept in
+  // *factors when asked (the condition's row of the Jacobian reuses them).
+  double ConditionAt(const PeriodicOrbit& o, std::vector<StateMatrix>* factors = nullptr) const {
+    if (kind_ == CurveKind::kGrazing) return internal::TangentEndRate(model_, propagator_, o);
+    std::vector<StateMatrix> f = internal::MonodromyFactors(model_, propagator_, o);
+    const double sigma = Sigma(internal::ReducedMonodromy(model_, f));
+    if (factors) *factors = std::move(f);
+    return sigma;
   }
 
   // sigma of the shifted monodromy (without its phase).
@@ -214,7 +218,9 @@ class CurveTracer {
     }
     f->resize(m() + 1);
     f->head(m()) = g;
-    (*f)[m()] = Condition(y);
+    const PeriodicOrbit o = Unpack(y);
+    std::vector<StateMatrix> factors;
+    (*f)[m()] = ConditionAt(o, &factors);
     if (!jac) return f->allFinite();
     if (!bvp2_.Evaluate(y.head(m()), prm, &g2, nullptr, &gp2).ok()) return false;
     jac->setZero(m() + 1, n());
@@ -234,7 +240,7 @@ class CurveTracer {
         (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
       }
     } else {
-      SigmaRow(y, sigma0, jac);
+      SigmaRow(y, o, factors, sigma0, jac);
     }
     return f->allFinite() && jac->allFinite();
   }
@@ -243,9 +249,9 @@ class CurveTracer {
   // moves (orbit/monodromy.h): a segment's start state moves its own factor, its duration its
   // own and (through the phases) every later one, a parameter all. The perturbed orbits are those
   // Unpack(y + h e_j) gives, up to rounding in the later phases.
-  void SigmaRow(const Vec& y, double sigma0, Mat* jac) const {
-    const PeriodicOrbit o = Unpack(y);
-    const std::vector<StateMatrix> base = internal::MonodromyFactors(model_, propagator_, o);
+  // `o` is Unpack(y), `base` its factors.
+  void SigmaRow(const Vec& y, const PeriodicOrbit& o, const std::vector<StateMatrix>& base,
+                double sigma0, Mat* jac) const {
     const int k = static_cast<int>(base.size()), d = model_.state_dim() - 1;
     const int ps = model_.phase_index();
     const double omega = model_.ForcingFrequency(o.params);
@@ -550,10 +556,6 @@ class CurveTracer {
     // Stall watch: parameters (scaled by the box where it is finite) 50 accepted steps back.
     constexpr int kStallWindow = 50;
     std::vector<Eigen::Vector2d> recent;
-    const double w1 =
-        std::isfinite(options_.max1 - options_.min1) ? options_.max1 - options_.min1 : 1.0;
-    const double w2 =
-        std::isfinite(options_.max2 - options_.min2) ? options_.max2 - options_.min2 : 1.0;
     for (int step = 0; step < options_.max_steps; ++step) {
       Vec y1;
       int iterations = 0;
@@ -576,7 +578,7 @@ class CurveTracer {
       // A curve that creeps (the step collapsed while Newton still converges, as next to a
       // fold-grazing where a segment's duration goes to zero like a square root) is ended rather
       // than left to spend max_steps.
-      recent.emplace_back(v1 / w1, v2 / w2);
+      recent.emplace_back(v1 / w1_, v2 / w2_);
       if (static_cast<int>(recent.size()) > kStallWindow) {
         const double moved = (recent.back() - recent.front()).norm();
         recent.erase(recent.begin());
