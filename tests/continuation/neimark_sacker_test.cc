@@ -17,17 +17,21 @@ namespace {
 
 using testing::ForcedRotation;
 
+// The forced orbit at mu = -0.05, solved from a rough guess (one segment ending at the section).
+void SolveForcedOrbit(const ForcedRotation& model, Propagator& prop, PeriodicOrbit* start) {
+  start->params = ForcedRotation::MakeParams(-0.05);
+  start->signature.periods = 1;
+  start->signature.segments = {{0, -1}};
+  start->starts = {(StateVector(3) << 0.0, 0.0, 0.0).finished()};
+  start->durations = {kTwoPi / start->params[ForcedRotation::kOmega]};
+  ASSERT_EQ(SolveOrbit(model, prop, {}, start).status, SolveStatus::kConverged);
+}
+
 TEST(NeimarkSacker, LocatedWhereTheComplexPairCrossesTheUnitCircle) {
   ForcedRotation model;
   ExactPropagator prop(model);
-  // Start: the forced orbit at mu = -0.05 from a rough guess (one segment ending at the section).
   PeriodicOrbit start;
-  start.params = ForcedRotation::MakeParams(-0.05);
-  start.signature.periods = 1;
-  start.signature.segments = {{0, -1}};
-  start.starts = {(StateVector(3) << 0.0, 0.0, 0.0).finished()};
-  start.durations = {kTwoPi / start.params[ForcedRotation::kOmega]};
-  ASSERT_EQ(SolveOrbit(model, prop, {}, &start).status, SolveStatus::kConverged);
+  ASSERT_NO_FATAL_FAILURE(SolveForcedOrbit(model, prop, &start));
   const Stability st0 = OrbitStability(model, prop, start);
   ASSERT_EQ(st0.multipliers.size(), 2u);
   const double period = start.durations[0];
@@ -71,12 +75,7 @@ TEST(NeimarkSacker, CurveInTwoParametersIsTheLineMuZero) {
   ForcedRotation model;
   ExactPropagator prop(model);
   PeriodicOrbit start;
-  start.params = ForcedRotation::MakeParams(-0.05);
-  start.signature.periods = 1;
-  start.signature.segments = {{0, -1}};
-  start.starts = {(StateVector(3) << 0.0, 0.0, 0.0).finished()};
-  start.durations = {kTwoPi / start.params[ForcedRotation::kOmega]};
-  ASSERT_EQ(SolveOrbit(model, prop, {}, &start).status, SolveStatus::kConverged);
+  ASSERT_NO_FATAL_FAILURE(SolveForcedOrbit(model, prop, &start));
   ContinuationOptions opt;
   opt.param = "mu";
   opt.min = -0.05, opt.max = 0.05;
