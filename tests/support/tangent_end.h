@@ -5,6 +5,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "drillbif/orbit/periodic_orbit.h"
 
@@ -23,6 +24,19 @@ inline std::optional<GuardValue> TangentEndGuard(const HybridModel& model, Propa
     return model.Guard(segs[k].mode, segs[k].guard, xe, o.params);
   }
   return std::nullopt;
+}
+
+// The guard at every tangent end, in order (a double grazing has two).
+inline std::vector<GuardValue> TangentEndGuards(const HybridModel& model, Propagator& prop,
+                                                const PeriodicOrbit& o) {
+  std::vector<GuardValue> out;
+  const auto& segs = o.signature.segments;
+  for (size_t k = 0; k < segs.size(); ++k) {
+    if (!segs[k].tangent) continue;
+    const StateVector xe = prop.FlowMap(segs[k].mode, o.starts[k], o.durations[k], o.params, {}).x;
+    out.push_back(model.Guard(segs[k].mode, segs[k].guard, xe, o.params));
+  }
+  return out;
 }
 
 }  // namespace drillbif::testing

@@ -11,6 +11,8 @@
 #include <memory>
 
 #include "continuation/arclength.h"
+#include "continuation/bordered_sigma.h"
+#include "continuation/grazing_end.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 #include "orbit/monodromy.h"
@@ -81,27 +83,6 @@ namespace {
 using Vec = Eigen::VectorXd;
 using Mat = Eigen::MatrixXd;
 
-// The bialternate square M (.) M: rows and columns indexed by pairs (p, q), p > q, entry
-// det [[m_pr, m_ps], [m_qr, m_qs]] for column (r, s); its eigenvalues are mu_i mu_j, i < j
-// (Govaerts 2000, sec. 4.4.4).
-Mat BialternateSquare(const Mat& m) {
-  const int n = static_cast<int>(m.rows());
-  const int size = n * (n - 1) / 2;
-  Mat out(size, size);
-  int row = 0;
-  for (int p = 1; p < n; ++p) {
-    for (int q = 0; q < p; ++q, ++row) {
-      int col = 0;
-      for (int r = 1; r < n; ++r) {
-        for (int s = 0; s < r; ++s, ++col) {
-          out(row, col) = m(p, r) * m(q, s) - m(p, s) * m(q, r);
-        }
-      }
-    }
-  }
-  return out;
-}
-
 // Where a traced direction met the Poincare section (CurveTracer::Trace).
 struct SectionCrossing {
   bool happened = false;
@@ -132,11 +113,17 @@ class CurveTracer {
     if (std::isfinite(options.max1 - options.min1)) w1_ = options.max1 - options.min1;
     if (std::isfinite(options.max2 - options.min2)) w2_ = options.max2 - options.min2;
     if (kind_ == CurveKind::kGrazing) return;
-    // Bordering vectors: the singular vectors of M -+ I's smallest singular value.
-    const Mat a = Shifted(Unpack(start_));
-    Eigen::JacobiSVD<Mat> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    border_b_ = svd.matrixU().col(a.rows() - 1);
-    border_c_ = svd.matrixV().col(a.cols() - 1);
+    SetBorders(OrbitStability(model_, propagator_, Unpack(start_)).monodromy);
+  }
+
+  // Bordering vectors (bordered_sigma.h) from the shifted monodromy. Fixed ones serve only near
+  // where they were taken: far along a curve the bordered matrix can turn singular (sigma then
+  // blows up and the corrector fails in ever shorter steps: the a-branch fold curve from
+  // a = 0.2718 stalled so in issue 4's box), so they are renewed at every accepted point. sigma's
+  // zero set, the curve, does not depend on them.
+  void SetBorders(const Mat& monodromy) const {
+    if (kind_ == CurveKind::kGrazing) return;
+    sigma_ = internal::BorderedSigma(internal::ShiftedMonodromy(kind_, monodromy));
   }
 
   // Puts the start exactly on the curve: Newton on the extended system with lambda2 fixed (the
@@ -168,19 +155,6 @@ class CurveTracer {
     return o;
   }
 
-  // M - I (fold), M + I (period doubling) or M (.) M - I (Neimark-Sacker) of the orbit.
-  Mat Shifted(const PeriodicOrbit& o) const {
-    return ShiftedMonodromy(OrbitStability(model_, propagator_, o).monodromy);
-  }
-  Mat ShiftedMonodromy(const Mat& mono) const {
-    if (kind_ == CurveKind::kNeimarkSacker) {
-      const Mat b = BialternateSquare(mono);
-      return b - Mat::Identity(b.rows(), b.cols());
-    }
-    const double shift = kind_ == CurveKind::kFold ? -1.0 : 1.0;
-    return mono + shift * Mat::Identity(mono.rows(), mono.cols());
-  }
-
   // The defining condition: sigma(M -+ I) for folds and period doublings; for grazing, h' at the
   // tangent end (the guard's rate where it touches zero).
   double Condition(const Vec& y) const { return ConditionAt(Unpack(y)); }
@@ -196,15 +170,7 @@ class CurveTracer {
 
   // sigma of the shifted monodromy (without its phase).
   double Sigma(const Mat& monodromy) const {
-    const Mat a = ShiftedMonodromy(monodromy);
-    const int d = static_cast<int>(a.rows());
-    Mat bordered = Mat::Zero(d + 1, d + 1);
-    bordered.topLeftCorner(d, d) = a;
-    bordered.topRightCorner(d, 1) = border_b_;
-    bordered.bottomLeftCorner(1, d) = border_c_.transpose();
-    Vec rhs = Vec::Zero(d + 1);
-    rhs[d] = 1.0;
-    return bordered.partialPivLu().solve(rhs)[d];
+    return sigma_(internal::ShiftedMonodromy(kind_, monodromy));
   }
 
   // F(y) = (G, condition) and its Jacobian (n - 1 rows, n columns).
@@ -326,10 +292,17 @@ class CurveTracer {
   }
 
   CurvePoint MakePoint(const Vec& y) const {
-    CurvePoint p;
+    CurvePoint p = PointFromOrbit(Unpack(y));
     p.value1 = y[m()];
     p.value2 = y[m() + 1];
-    p.orbit = Unpack(y);
+    return p;
+  }
+
+  CurvePoint PointFromOrbit(PeriodicOrbit orbit) const {
+    CurvePoint p;
+    p.value1 = orbit.params[index1_];
+    p.value2 = orbit.params[index2_];
+    p.orbit = std::move(orbit);
     // ROP only (bit 0): Pc, 20 times its cost in quadrature, is asked for by no consumer of curves.
     p.measures = OrbitMeasures(model_, propagator_, p.orbit, 1u);
     p.stability = OrbitStability(model_, propagator_, p.orbit);
@@ -506,6 +479,38 @@ class CurveTracer {
     return t.dot(known_beyond - ya);
   }
 
+  // The end solved in tangent form (grazing_end.h): where the violation beyond it is a segment
+  // vanishing between two segments of one mode (TangentForm), or a guard touching zero inside a
+  // segment (TouchForm at that segment and guard; at the admissible end the touch is within the
+  // bracket of zero). Kept when the solution lies within the bisection's bracket of the end (else
+  // it is another root: where the vanishing segment's events leave the monodromy discontinuous,
+  // the tangent form's fold or PD condition is not the curve's) and is admissible; the end is then
+  // that point, in tangent form, with bracket 0.
+  void SolveEnd(Codim2Point* end) const {
+    const Admissibility& v = end->violation;
+    const std::vector<SegmentSpec>& segs = end->point.orbit.signature.segments;
+    const int i = v.segment;
+    if (v.admissible || i < 0 || i >= static_cast<int>(segs.size())) return;
+    StatusOr<PeriodicOrbit> form = Status(StatusCode::kUnimplemented, "");
+    if (v.guard >= 0) {
+      form = internal::TouchForm(model_, propagator_, end->point.orbit, 1e-6, i, v.guard);
+    } else if (i > 0 && i + 1 < static_cast<int>(segs.size()) &&
+               segs[i - 1].mode == segs[i + 1].mode) {
+      form = internal::TangentForm(end->point.orbit, i);
+    }
+    if (!form.ok()) return;
+    const StatusOr<PeriodicOrbit> solved =
+        internal::SolveGrazingEnd(model_, propagator_, *form, kind_, index1_, index2_);
+    if (!solved.ok()) return;
+    const double moved = std::hypot(solved->params[index1_] - end->point.value1,
+                                    solved->params[index2_] - end->point.value2);
+    if (moved > 2.0 * end->bracket + 1e-9) return;
+    if (!CheckAdmissible(model_, propagator_, *solved).admissible) return;
+    end->point = PointFromOrbit(*solved);
+    end->bracket = 0.0;
+    end->detail += " (solved in tangent form)";
+  }
+
   // The step y -> y1 left the box: the point where it crosses the edge it meets first is solved
   // with that parameter fixed at the bound and appended, so that a curve ends on the box (the
   // stability region's polygons need its crossing there). Skipped when the corrector fails or
@@ -546,6 +551,7 @@ class CurveTracer {
                     std::vector<CurvePoint>* crossings, std::vector<Codim2Point>* codim2,
                     ContinuationSummary* sum, SectionCrossing* crossing) const {
     Vec y = start_, t, prev = Vec::Zero(n());
+    SetBorders(OrbitStability(model_, propagator_, Unpack(y)).monodromy);
     prev[m()] = dir[0] * w1_;
     prev[m() + 1] = dir[1] * w2_;
     if (!Tangent(y, prev, &t)) return "no tangent at the start point";
@@ -618,8 +624,10 @@ class CurveTracer {
           points->push_back(end);
           return "crossed the Poincare section";
         }
-        codim2->push_back({k, end, why, width, violation});
-        return std::string("ended at a ") + Codim2KindName(k) + " point: " + why;
+        Codim2Point point{k, end, why, width, violation};
+        SolveEnd(&point);
+        codim2->push_back(point);
+        return std::string("ended at a ") + Codim2KindName(k) + " point: " + point.detail;
       }
       // Requested lambda1 / lambda2 values crossed by this step: solve the crossing with that
       // parameter fixed.
@@ -635,6 +643,7 @@ class CurveTracer {
         }
       }
       RootsOnStep(y, t, y1, p.stability.monodromy, tests, &dets, codim2);
+      SetBorders(p.stability.monodromy);
       points->push_back(std::move(p));
       Vec t1;
       if (!Tangent(y1, t, &t1)) return "no tangent";
@@ -662,7 +671,7 @@ class CurveTracer {
   double w1_ = 1.0, w2_ = 1.0;  // the box's widths where finite: parameter scales
   internal::OrbitBvp bvp1_, bvp2_;
   Vec start_;
-  Vec border_b_, border_c_;
+  mutable internal::BorderedSigma sigma_;  // SetBorders
 };
 
 }  // namespace

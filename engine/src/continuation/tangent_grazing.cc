@@ -28,7 +28,8 @@ StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i) {
 }
 
 StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagator,
-                                  const PeriodicOrbit& orbit, double tolerance) {
+                                  const PeriodicOrbit& orbit, double tolerance, int segment,
+                                  int guard) {
   // Interior local minima of each guard along each segment: bracketed on a grid of samples, then
   // polished by Newton on h'(t) = 0 with h'' (both along the flow, from the model).
   constexpr int kSamples = 200;
@@ -42,9 +43,10 @@ StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagat
   double best_t = 0.0;
   for (int k = 0; k < static_cast<int>(segs.size()); ++k) {
     const double tau = orbit.durations[k];
-    if (!(tau > 0.0)) continue;
+    if (!(tau > 0.0) || (segment >= 0 && k != segment)) continue;
     const int guards = static_cast<int>(model.guards(segs[k].mode).size());
     for (int e = 0; e < guards; ++e) {
+      if (guard >= 0 && e != guard) continue;
       auto at = [&](double t) {
         const StateVector x =
             propagator.FlowMap(segs[k].mode, orbit.starts[k], t, orbit.params, {}).x;
@@ -128,14 +130,21 @@ StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit) {
 
 double TangentEndRate(const HybridModel& model, Propagator& propagator,
                       const PeriodicOrbit& orbit) {
+  const std::vector<double> rates = TangentEndRates(model, propagator, orbit);
+  return rates.empty() ? std::numeric_limits<double>::quiet_NaN() : rates.front();
+}
+
+std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propagator,
+                                    const PeriodicOrbit& orbit) {
+  std::vector<double> rates;
   const auto& segs = orbit.signature.segments;
   for (size_t k = 0; k < segs.size(); ++k) {
     if (!segs[k].tangent) continue;
     const StateVector end =
         propagator.FlowMap(segs[k].mode, orbit.starts[k], orbit.durations[k], orbit.params, {}).x;
-    return model.Guard(segs[k].mode, segs[k].guard, end, orbit.params).dh;
+    rates.push_back(model.Guard(segs[k].mode, segs[k].guard, end, orbit.params).dh);
   }
-  return std::numeric_limits<double>::quiet_NaN();
+  return rates;
 }
 
 StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator& propagator,

@@ -7,6 +7,8 @@
 #ifndef DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
 #define DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
 
+#include <vector>
+
 #include "drillbif/orbit/periodic_orbit.h"
 
 namespace drillbif::internal {
@@ -19,9 +21,11 @@ StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i);
 // zero inside the segment and turns back (a local minimum of h, h' = 0; the grazing of a free
 // flight with the impact surface seen from the side without impact), that segment is split there
 // into a part ending tangentially on that guard and the rest, in the same mode. The touch with the
-// smallest h is taken; FAILED_PRECONDITION when none comes within `tolerance` of zero.
+// smallest h is taken (only in segment `segment` and of guard `guard` when these are >= 0);
+// FAILED_PRECONDITION when none comes within `tolerance` of zero.
 StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagator,
-                                  const PeriodicOrbit& orbit, double tolerance = 1e-6);
+                                  const PeriodicOrbit& orbit, double tolerance = 1e-6,
+                                  int segment = -1, int guard = -1);
 
 // The tangent form of a grazing orbit (a located grazing, or the last admissible orbit of a curve
 // that ends where its orbit grazes): TangentForm at its shortest segment when that one vanishes
@@ -39,6 +43,9 @@ StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit);
 // h' at the end of the orbit's tangent segment (the guard's rate where it touches zero); the
 // first tangent segment when there are several. NaN when the orbit has none.
 double TangentEndRate(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit);
+// h' at the end of every tangent segment, in order.
+std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propagator,
+                                    const PeriodicOrbit& orbit);
 
 // Newton on (G = 0, h' = 0 at the tangent end) for the tangent-form orbit and params[param],
 // from `guess` (in tangent form). Returns the solved orbit (in tangent form).

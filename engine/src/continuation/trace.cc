@@ -122,15 +122,18 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
         if (orbit.ok()) curve_signature = orbit->signature;
       } else if (from.curve.kind != CurveKind::kGrazing) {
-        // A fold / PD curve's end where its orbit grazes: the grazing curve through it, in the
-        // tangent form at the segment the violation beyond the end says vanishes (between two
-        // of one mode), else the form found from the orbit alone.
+        // A fold / PD curve's end where its orbit grazes: the grazing curve through it. An end
+        // solved in tangent form is its start as it is; else the tangent form at the segment the
+        // violation beyond the end says vanishes (between two of one mode), else the form found
+        // from the orbit alone.
         const Admissibility& beyond = point.violation;
         const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
         const int i = beyond.segment;
         StatusOr<PeriodicOrbit> tangent = Status(StatusCode::kUnimplemented, "");
-        if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
-            i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
+        if (std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; })) {
+          tangent = point.point.orbit;
+        } else if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
+                   i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
           tangent = internal::TangentForm(point.point.orbit, i);
         }
         if (!tangent.ok()) {

@@ -12,11 +12,11 @@
 //                      "Elements of Applied Bifurcation Theory", 2004, sec. 10.3)
 // where M is the monodromy (state without phase) and sigma(A) the last component of the solution
 // of the bordered system [[A, b], [c^T, 0]] (v, sigma) = (0, 1), with b and c the singular vectors
-// of A's smallest singular value at the start point (Govaerts, "Numerical Methods for
+// of A's smallest singular value at the last accepted point (Govaerts, "Numerical Methods for
 // Bifurcations of Dynamical Equilibria", SIAM 2000): sigma is smooth and vanishes exactly where A
-// is singular. Its derivatives are taken by central differences (each needs a monodromy); the
-// rest of the Jacobian is exact. Pseudo-arclength with the same step control as the
-// one-parameter continuation.
+// is singular; the borders are renewed at every point so that the bordered matrix stays regular.
+// Its derivatives are taken by central differences (each needs a monodromy); the rest of the
+// Jacobian is exact. Pseudo-arclength with the same step control as the one-parameter continuation.
 //
 //   grazing:           h'(x_touch) = 0 at the touching point, which becomes a tangent segment end
 //                      (SegmentSpec::tangent: h = 0 there, then the same mode goes on)
@@ -100,7 +100,13 @@ const char* Codim2KindName(Codim2Kind kind);
 // A root of a determinant is located as above; a curve's end where its orbit stops being
 // admissible is located by bisection: the last admissible point, `detail` naming the violation just
 // beyond it and `bracket` the arclength to the nearest inadmissible point the corrector reached
-// (~1e-12 when the bisection converged; wider where Newton stalled next to the boundary).
+// (~1e-12 when the bisection converged; wider where Newton stalled next to the boundary). The end
+// is then solved as a codimension-2 point in tangent form (continuation/grazing_end.h: the
+// grazing's tangency plus the curve's condition, or both tangencies of a double grazing) where
+// the violation is a segment vanishing between two of one mode or a guard touching zero inside a
+// segment; a solution within the bracket replaces the end (its orbit in tangent form, `detail`
+// ending "(solved in tangent form)", bracket 0). Ends without a tangent form (two events at one
+// point, a touch at a segment's very start) keep their bisection bracket.
 struct Codim2Point {
   Codim2Kind kind = Codim2Kind::kFoldGrazing;
   CurvePoint point;

@@ -1,0 +1,38 @@
+// The defining condition of fold, period-doubling and Neimark-Sacker curves: sigma(A), the last
+// component of the solution of the bordered system [[A, b], [c^T, 0]] (v, sigma) = (0, 1), with A
+// the shifted monodromy (M - I, M + I, or M (.) M - I with the bialternate square) and b, c the
+// singular vectors of A's smallest singular value at a reference point (Govaerts, "Numerical
+// Methods for Bifurcations of Dynamical Equilibria", SIAM 2000). sigma is smooth near the
+// reference point and vanishes exactly where A is singular; its zero set does not depend on the
+// borders, which only have to keep the bordered matrix regular.
+#ifndef DRILLBIF_CONTINUATION_BORDERED_SIGMA_H_
+#define DRILLBIF_CONTINUATION_BORDERED_SIGMA_H_
+
+#include <Eigen/Dense>
+
+#include "drillbif/continuation/curve.h"
+
+namespace drillbif::internal {
+
+// The bialternate square M (.) M: rows and columns indexed by pairs (p, q), p > q, entry
+// det [[m_pr, m_ps], [m_qr, m_qs]] for column (r, s); its eigenvalues are mu_i mu_j, i < j
+// (Govaerts 2000, sec. 4.4.4).
+Eigen::MatrixXd BialternateSquare(const Eigen::MatrixXd& m);
+
+// M - I (fold), M + I (period doubling) or M (.) M - I (Neimark-Sacker); `kind` not kGrazing.
+Eigen::MatrixXd ShiftedMonodromy(CurveKind kind, const Eigen::MatrixXd& monodromy);
+
+class BorderedSigma {
+ public:
+  BorderedSigma() = default;
+  // Borders from the shifted monodromy `a` at the reference point.
+  explicit BorderedSigma(const Eigen::MatrixXd& a);
+  double operator()(const Eigen::MatrixXd& a) const;
+
+ private:
+  Eigen::VectorXd b_, c_;
+};
+
+}  // namespace drillbif::internal
+
+#endif  // DRILLBIF_CONTINUATION_BORDERED_SIGMA_H_

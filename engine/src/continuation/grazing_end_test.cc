@@ -1,0 +1,118 @@
+// SolveGrazingEnd (grazing_end.h) and the curve ends ContinueCurve solves with it.
+#include "grazing_end.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "drillbif/flow/exact_propagator.h"
+#include "problems/drifting_reference.h"
+#include "problems/reference_orbit.h"
+#include "support/tangent_end.h"
+#include "tangent_grazing.h"
+
+namespace drillbif {
+namespace {
+
+using DO = DriftingOscillator;
+
+double DistanceToMultiplier(const Stability& st, double target) {
+  double closest = std::numeric_limits<double>::infinity();
+  for (const auto& mu : st.multipliers) closest = std::min(closest, std::abs(mu - target));
+  return closest;
+}
+
+// The fold curve of the a-branch's fold at a = 0.2718 (omega = 0.1) runs to the fold-grazing near
+// (omega, a) = (0.4292, 0.0278) as the CwP phase between two contact phases shrinks. It used to
+// stall there (bordering vectors fixed at the start made the bordered matrix singular), and the
+// bisection of its end stays wide (Newton fails next to the zero-length phase: bracket ~3e-3), so
+// the end is solved in tangent form. Checked: both defining conditions on the reported orbit
+// (h = h' = 0 at the tangent end, multiplier +1), and the same point located independently, as
+// the root of det(M - I) along the l1 grazing curve traced from a grazing 1e-3 away in omega
+// (SolveTangentGrazing at fixed omega); measured agreement 1.3e-15, asserted to the 1e-8.
+TEST(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> start =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(start.ok()) << start.status().ToString();
+  ContinuationOptions branch;
+  branch.param = "a";
+  branch.min = 0.01;
+  branch.max = 8.0;
+  const ContinuationResult a_branch = Continue(model, prop, *start, branch);
+  const SpecialPoint* fold = nullptr;
+  for (const SpecialPoint& s : a_branch.special_points) {
+    if (s.kind == SpecialPointKind::kFold && std::abs(s.point.value - 0.2718) < 1e-3) fold = &s;
+  }
+  ASSERT_NE(fold, nullptr);
+  CurveOptions opt;
+  opt.param1 = std::string("a");  // not = "a": GCC 12 -Wrestrict false positive
+  opt.param2 = std::string("omega");
+  opt.min1 = 0.01, opt.max1 = 8.0;
+  opt.min2 = 0.05, opt.max2 = 2.0;
+  const CurveResult curve = ContinueCurve(model, prop, *fold, opt);
+  ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+  EXPECT_EQ(curve.summary.message.find("stalled"), std::string::npos) << curve.summary.message;
+  const Codim2Point* end = nullptr;
+  for (const Codim2Point& q : curve.codim2) {
+    if (q.kind == Codim2Kind::kFoldGrazing && q.point.value1 < 0.1) end = &q;
+  }
+  ASSERT_NE(end, nullptr) << curve.summary.message;
+  EXPECT_EQ(end->bracket, 0.0) << end->detail;
+  const std::vector<GuardValue> touch = testing::TangentEndGuards(model, prop, end->point.orbit);
+  ASSERT_EQ(touch.size(), 1u);
+  EXPECT_LE(std::abs(touch[0].h), 1e-9);
+  EXPECT_LE(std::abs(touch[0].dh), 1e-9);
+  EXPECT_LE(DistanceToMultiplier(end->point.stability, 1.0), 1e-8);
+
+  const int ia = model.ParamIndex("a").value(), iw = model.ParamIndex("omega").value();
+  PeriodicOrbit away = end->point.orbit;
+  away.params[iw] += 1e-3;
+  const StatusOr<PeriodicOrbit> graze = internal::SolveTangentGrazing(model, prop, away, ia);
+  ASSERT_TRUE(graze.ok()) << graze.status().ToString();
+  SpecialPoint from;
+  from.kind = SpecialPointKind::kGrazingL1;
+  from.point.orbit = *graze;
+  from.point.value = graze->params[ia];
+  CurveOptions near = opt;
+  near.min1 = 0.0275, near.max1 = 0.0281;
+  near.min2 = 0.42, near.max2 = 0.44;
+  const CurveResult grazing = ContinueCurve(model, prop, from, near);
+  ASSERT_EQ(grazing.summary.termination, Termination::kCompleted) << grazing.summary.message;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const Codim2Point& q : grazing.codim2) {
+    if (q.kind != Codim2Kind::kFoldGrazing || q.bracket != 0.0) continue;
+    nearest = std::min(nearest, std::hypot(q.point.value1 - end->point.value1,
+                                           q.point.value2 - end->point.value2));
+  }
+  EXPECT_LE(nearest, 1e-8);
+  RecordProperty("distance_to_grazing_curve_root", std::to_string(nearest));
+}
+
+// A guess with the wrong number of tangent ends for the curve's kind is refused, naming both.
+TEST(GrazingEnd, WrongNumberOfTangentEndsIsAClearError) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> start =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(start.ok());
+  const int ia = model.ParamIndex("a").value(), iw = model.ParamIndex("omega").value();
+  const StatusOr<PeriodicOrbit> none =
+      internal::SolveGrazingEnd(model, prop, *start, CurveKind::kFold, iw, ia);
+  ASSERT_FALSE(none.ok());
+  EXPECT_EQ(none.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(none.status().message().find("needs 1 tangent ends, the guess has 0"),
+            std::string::npos)
+      << none.status().message();
+  const StatusOr<PeriodicOrbit> grazing =
+      internal::SolveGrazingEnd(model, prop, *start, CurveKind::kGrazing, iw, ia);
+  ASSERT_FALSE(grazing.ok());
+  EXPECT_NE(grazing.status().message().find("needs 2"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace drillbif
