@@ -2,10 +2,10 @@
 
 namespace drillbif::internal {
 
-Eigen::MatrixXd BialternateSquare(const Eigen::MatrixXd& m) {
+ShiftedMatrix BialternateSquare(const Eigen::Ref<const Eigen::MatrixXd>& m) {
   const int n = static_cast<int>(m.rows());
   const int size = n * (n - 1) / 2;
-  Eigen::MatrixXd out(size, size);
+  ShiftedMatrix out(size, size);
   int row = 0;
   for (int p = 1; p < n; ++p) {
     for (int q = 0; q < p; ++q, ++row) {
@@ -20,30 +20,31 @@ Eigen::MatrixXd BialternateSquare(const Eigen::MatrixXd& m) {
   return out;
 }
 
-Eigen::MatrixXd ShiftedMonodromy(CurveKind kind, const Eigen::MatrixXd& monodromy) {
-  if (kind == CurveKind::kNeimarkSacker) {
-    const Eigen::MatrixXd b = BialternateSquare(monodromy);
-    return b - Eigen::MatrixXd::Identity(b.rows(), b.cols());
-  }
-  const double shift = kind == CurveKind::kFold ? -1.0 : 1.0;
-  return monodromy + shift * Eigen::MatrixXd::Identity(monodromy.rows(), monodromy.cols());
+ShiftedMatrix ShiftedMonodromy(CurveKind kind, const Eigen::Ref<const Eigen::MatrixXd>& monodromy) {
+  ShiftedMatrix a =
+      kind == CurveKind::kNeimarkSacker ? BialternateSquare(monodromy) : ShiftedMatrix(monodromy);
+  a.diagonal().array() += kind == CurveKind::kPeriodDoubling ? 1.0 : -1.0;
+  return a;
 }
 
-BorderedSigma::BorderedSigma(const Eigen::MatrixXd& a) {
+BorderedSigma::BorderedSigma(const ShiftedMatrix& a) {
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
   b_ = svd.matrixU().col(a.rows() - 1);
   c_ = svd.matrixV().col(a.cols() - 1);
 }
 
-double BorderedSigma::operator()(const Eigen::MatrixXd& a) const {
+double BorderedSigma::operator()(const ShiftedMatrix& a) const {
+  using Bordered = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
+                                 kMaxShifted + 1, kMaxShifted + 1>;
+  using Rhs = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxShifted + 1, 1>;
   const int d = static_cast<int>(a.rows());
-  Eigen::MatrixXd bordered = Eigen::MatrixXd::Zero(d + 1, d + 1);
+  Bordered bordered = Bordered::Zero(d + 1, d + 1);
   bordered.topLeftCorner(d, d) = a;
   bordered.topRightCorner(d, 1) = b_;
   bordered.bottomLeftCorner(1, d) = c_.transpose();
-  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(d + 1);
+  Rhs rhs = Rhs::Zero(d + 1);
   rhs[d] = 1.0;
-  return bordered.partialPivLu().solve(rhs)[d];
+  return Eigen::PartialPivLU<Bordered>(bordered).solve(rhs)[d];
 }
 
 }  // namespace drillbif::internal

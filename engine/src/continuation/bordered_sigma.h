@@ -10,27 +10,36 @@
 
 #include <Eigen/Dense>
 
+#include "drillbif/common/types.h"
 #include "drillbif/continuation/curve.h"
 
 namespace drillbif::internal {
 
+// The shifted monodromy's largest size: the bialternate square of the reduced state's
+// (kMaxStateDim - 1)-square monodromy. Fixed-capacity matrices keep sigma, evaluated once per
+// unknown in every Jacobian of a curve's extended system, off the heap.
+inline constexpr int kMaxShifted = (kMaxStateDim - 1) * (kMaxStateDim - 2) / 2;
+using ShiftedMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
+                                    kMaxShifted, kMaxShifted>;
+
 // The bialternate square M (.) M: rows and columns indexed by pairs (p, q), p > q, entry
 // det [[m_pr, m_ps], [m_qr, m_qs]] for column (r, s); its eigenvalues are mu_i mu_j, i < j
 // (Govaerts 2000, sec. 4.4.4).
-Eigen::MatrixXd BialternateSquare(const Eigen::MatrixXd& m);
+ShiftedMatrix BialternateSquare(const Eigen::Ref<const Eigen::MatrixXd>& m);
 
 // M - I (fold), M + I (period doubling) or M (.) M - I (Neimark-Sacker); `kind` not kGrazing.
-Eigen::MatrixXd ShiftedMonodromy(CurveKind kind, const Eigen::MatrixXd& monodromy);
+ShiftedMatrix ShiftedMonodromy(CurveKind kind, const Eigen::Ref<const Eigen::MatrixXd>& monodromy);
 
 class BorderedSigma {
  public:
   BorderedSigma() = default;
   // Borders from the shifted monodromy `a` at the reference point.
-  explicit BorderedSigma(const Eigen::MatrixXd& a);
-  double operator()(const Eigen::MatrixXd& a) const;
+  explicit BorderedSigma(const ShiftedMatrix& a);
+  double operator()(const ShiftedMatrix& a) const;
 
  private:
-  Eigen::VectorXd b_, c_;
+  using Border = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxShifted, 1>;
+  Border b_, c_;
 };
 
 }  // namespace drillbif::internal

@@ -169,7 +169,7 @@ class CurveTracer {
   }
 
   // sigma of the shifted monodromy (without its phase).
-  double Sigma(const Mat& monodromy) const {
+  double Sigma(const Eigen::Ref<const Mat>& monodromy) const {
     return sigma_(internal::ShiftedMonodromy(kind_, monodromy));
   }
 
@@ -213,8 +213,10 @@ class CurveTracer {
 
   // The same forward differences of sigma, recomputing only the monodromy factors an unknown
   // moves (orbit/monodromy.h): a segment's start state moves its own factor, its duration its
-  // own and (through the phases) every later one, a parameter all. The perturbed orbits are those
-  // Unpack(y + h e_j) gives, up to rounding in the later phases.
+  // own and (through the phases) every later one, a parameter all. A duration's column takes the
+  // later factors' phase derivatives to first order, dF_l / ds_l computed once per segment (the
+  // exact product of every perturbed factor would cost k^2 / 2 factors per row instead of 2k;
+  // they differ by O(h^2), below the differences' own truncation).
   // `o` is Unpack(y), `base` its factors.
   void SigmaRow(const Vec& y, const PeriodicOrbit& o, const std::vector<StateMatrix>& base,
                 double sigma0, Mat* jac) const {
@@ -226,22 +228,35 @@ class CurveTracer {
     prefix[0] = suffix[k] = StateMatrix::Identity(d + 1, d + 1);
     for (int i = 0; i < k; ++i) prefix[i + 1] = base[i] * prefix[i];
     for (int i = k - 1; i >= 0; --i) suffix[i] = suffix[i + 1] * base[i];
+    PeriodicOrbit op = o;  // perturbed in place, restored after each use
+    auto factor = [&](int l) { return internal::SegmentFactor(model_, propagator_, op, l); };
+    // later[i] = sum over l > i of suffix[l + 1] (dF_l / ds_l) prefix[l]: d M per unit phase
+    // shift of every segment after i.
+    std::vector<StateMatrix> later(k);
+    later[k - 1] = StateMatrix::Zero(d + 1, d + 1);
+    for (int l = k - 1; l >= 1; --l) {
+      const double h = 1.5e-8 * (1.0 + std::abs(o.starts[l][ps]));
+      op.starts[l][ps] += h;
+      const StateMatrix dfl = (factor(l) - base[l]) / h;
+      op.starts[l][ps] = o.starts[l][ps];
+      later[l - 1] = later[l] + suffix[l + 1] * dfl * prefix[l];
+    }
     for (int i = 0; i < k; ++i) {
       for (int r = 0; r <= d; ++r) {
         const int j = i * (d + 1) + r;
         const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
-        PeriodicOrbit op = o;
         StateMatrix full;
         if (r < d) {
-          op.starts[i][r < ps ? r : r + 1] += h;
-          full = suffix[i + 1] * internal::SegmentFactor(model_, propagator_, op, i) * prefix[i];
+          double& x = op.starts[i][r < ps ? r : r + 1];
+          const double x0 = x;
+          x += h;
+          full = suffix[i + 1] * factor(i) * prefix[i];
+          x = x0;
         } else {
           op.durations[i] += h;
-          for (int l = i + 1; l < k; ++l) op.starts[l][ps] += omega * h;
-          full = prefix[i];
-          for (int l = i; l < k; ++l) {
-            full = internal::SegmentFactor(model_, propagator_, op, l) * full;
-          }
+          full = prefix[k] + suffix[i + 1] * (factor(i) - base[i]) * prefix[i] +
+                 (omega * h) * later[i];
+          op.durations[i] = o.durations[i];
         }
         (*jac)(m(), j) = (Sigma(internal::WithoutPhase(model_, full)) - sigma0) / h;
       }
@@ -254,7 +269,11 @@ class CurveTracer {
     }
   }
 
-  bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations) const {
+  // Newton on (F = 0, dir . (y - y_pred) = 0) from y_pred. `last_jac`, when given, receives F's
+  // Jacobian at the last iterate before the converged step (within the tolerance of *y): good
+  // enough for the tangent there, which then costs no further evaluation.
+  bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations,
+               Mat* last_jac = nullptr) const {
     *y = y_pred;
     Vec f;
     Mat jac, a(n(), n());
@@ -271,6 +290,7 @@ class CurveTracer {
       if (step.lpNorm<Eigen::Infinity>() <=
           options_.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>())) {
         *iterations = it;
+        if (last_jac) *last_jac = std::move(jac);
         return true;
       }
     }
@@ -564,8 +584,9 @@ class CurveTracer {
     std::vector<Eigen::Vector2d> recent;
     for (int step = 0; step < options_.max_steps; ++step) {
       Vec y1;
+      Mat jac1;
       int iterations = 0;
-      if (!Correct(y + h * t, t, &y1, &iterations)) {
+      if (!Correct(y + h * t, t, &y1, &iterations, &jac1)) {
         ++sum->rejected_steps;
         h *= 0.5;
         if (h < options_.min_step) return "the corrector failed down to min_step";
@@ -646,7 +667,7 @@ class CurveTracer {
       SetBorders(p.stability.monodromy);
       points->push_back(std::move(p));
       Vec t1;
-      if (!Tangent(y1, t, &t1)) return "no tangent";
+      if (!internal::UnitTangent(jac1, t, &t1)) return "no tangent";
       // A fold curve whose direction in the parameter plane reverses on this step: a cusp.
       if (kind_ == CurveKind::kFold) {
         const double psi1 = ParamDirection(t).dot(ParamDirection(t1));

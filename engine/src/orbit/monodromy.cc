@@ -18,10 +18,13 @@ StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
   const Transition tr = model.Jump(seg.mode, seg.guard, fr.x, orbit.params);
   model.VectorField(orbit.signature.segments[i + 1].mode, tr.x, orbit.params, &f_plus);
   const StateRow grad = model.GuardGradient(seg.mode, seg.guard, fr.x, orbit.params);
-  const Eigen::VectorXd jump_f = tr.jacobian * f_minus;
-  const Eigen::MatrixXd salt =
-      Eigen::MatrixXd(tr.jacobian) + (Eigen::VectorXd(f_plus) - jump_f) * grad / grad.dot(f_minus);
-  return salt * fr.state_jacobian;
+  // Fixed-capacity types throughout: this runs once per unknown in every curve Jacobian.
+  const StateVector jump_f = tr.jacobian * f_minus;
+  StateMatrix salt = tr.jacobian;
+  salt.noalias() += ((f_plus - jump_f) / grad.dot(f_minus)) * grad;
+  StateMatrix out;
+  out.noalias() = salt * fr.state_jacobian;
+  return out;
 }
 
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
@@ -33,9 +36,9 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
   return factors;
 }
 
-Eigen::MatrixXd WithoutPhase(const HybridModel& model, const StateMatrix& full) {
+StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full) {
   const int n = model.state_dim(), ps = model.phase_index();
-  Eigen::MatrixXd reduced(n - 1, n - 1);
+  StateMatrix reduced(n - 1, n - 1);
   for (int i = 0, r = 0; i < n; ++i) {
     if (i == ps) continue;
     for (int j = 0, c = 0; j < n; ++j) {

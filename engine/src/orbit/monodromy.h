@@ -22,7 +22,7 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
                                           const PeriodicOrbit& orbit);
 
 // A full-state monodromy without its phase row and column (Stability::monodromy).
-Eigen::MatrixXd WithoutPhase(const HybridModel& model, const StateMatrix& full);
+StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full);
 
 // The product of the factors, without the phase row and column.
 Eigen::MatrixXd ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
