@@ -462,41 +462,55 @@ class CurveTracer {
   // `end` is the last admissible orbit: its first segment must be of zero length to rounding
   // (the guard firing anywhere else inside it is a grazing, not a crossing).
   bool IsSectionCrossing(const Admissibility& v, const PeriodicOrbit& end) const {
+    return MayBeSectionCrossing(v) && (v.guard < 0 || std::abs(end.durations[0]) <= 1e-9);
+  }
+
+  // IsSectionCrossing without the end's first-segment duration (which needs the boundary
+  // bisected to rounding).
+  bool MayBeSectionCrossing(const Admissibility& v) const {
     const std::vector<SegmentSpec>& segs = bvp1_.signature().segments;
     const int k = static_cast<int>(segs.size());
     if (v.admissible || k < 3) return false;
     if (v.guard < 0) return v.segment == 0 || v.segment == k - 1;
-    return v.segment == 0 && v.guard == segs[0].guard && !segs[0].tangent &&
-           std::abs(end.durations[0]) <= 1e-9;
+    return v.segment == 0 && v.guard == segs[0].guard && !segs[0].tangent;
+  }
+
+  // Whether every codimension-2 test function has the same sign at two monodromies.
+  static bool SameSigns(const std::vector<Codim2Test>& tests, const Mat& a, const Mat& b) {
+    return std::all_of(tests.begin(), tests.end(), [&](const Codim2Test& test) {
+      return (test.f(a) > 0.0) == (test.f(b) > 0.0);
+    });
   }
 
   // The admissibility boundary between curve points ya (admissible) and yb (not): bisection in
   // the arclength along t, each midpoint of the chord corrected onto the curve in the hyperplane
-  // normal to t, until the bracket is below 1e-12 (1 + |y|). Beyond the boundary the extended
+  // normal to t, until the bracket is below tol (1 + |y|). Beyond the boundary the extended
   // system need not be smooth (a segment of negative duration may cross a guard) and Newton can
   // stall there: a midpoint that does not correct counts as beyond, but then the boundary is
-  // only known to lie between the result and the nearest corrected inadmissible point. Returns
-  // that bracket width in arclength; the result is always a corrected admissible point and *why
-  // names the violation at the nearest corrected inadmissible point.
-  double LocateBoundary(Vec ya, Vec yb, const Vec& t, Vec* boundary, std::string* why,
-                        Admissibility* violation) const {
-    const double tol = 1e-12 * (1.0 + ya.lpNorm<Eigen::Infinity>());
-    Vec known_beyond = yb;
-    for (int it = 0; it < 80 && t.dot(yb - ya) > tol; ++it) {
-      const Vec mid = 0.5 * (ya + yb);
+  // only known to lie between ya and the nearest corrected inadmissible point `beyond`. ya is
+  // always a corrected admissible point; `why` / `violation` name the violation at `beyond`.
+  struct Boundary {
+    Vec ya, yb, beyond;
+    std::string why;
+    Admissibility violation;
+    double Width(const Vec& t) const { return t.dot(beyond - ya); }
+  };
+  void Bisect(const Vec& t, double tol, Boundary* b) const {
+    tol *= 1.0 + b->ya.lpNorm<Eigen::Infinity>();
+    for (int it = 0; it < 80 && t.dot(b->yb - b->ya) > tol; ++it) {
+      const Vec mid = 0.5 * (b->ya + b->yb);
       Vec yc;
       int iterations = 0;
       std::string reason;
+      Admissibility violation;
       if (!Correct(mid, t, &yc, &iterations)) {
-        yb = mid;
-      } else if (Admissible(Unpack(yc), &reason, violation)) {
-        ya = yc;
+        b->yb = mid;
+      } else if (Admissible(Unpack(yc), &reason, &violation)) {
+        b->ya = yc;
       } else {
-        yb = known_beyond = yc, *why = reason;
+        b->yb = b->beyond = yc, b->why = reason, b->violation = violation;
       }
     }
-    *boundary = ya;
-    return t.dot(known_beyond - ya);
   }
 
   // The end solved in tangent form (grazing_end.h): where the violation beyond it is a segment
@@ -506,11 +520,11 @@ class CurveTracer {
   // it is another root: where the vanishing segment's events leave the monodromy discontinuous,
   // the tangent form's fold or PD condition is not the curve's) and is admissible; the end is then
   // that point, in tangent form, with bracket 0.
-  void SolveEnd(Codim2Point* end) const {
+  bool SolveEnd(Codim2Point* end) const {
     const Admissibility& v = end->violation;
     const std::vector<SegmentSpec>& segs = end->point.orbit.signature.segments;
     const int i = v.segment;
-    if (v.admissible || i < 0 || i >= static_cast<int>(segs.size())) return;
+    if (v.admissible || i < 0 || i >= static_cast<int>(segs.size())) return false;
     StatusOr<PeriodicOrbit> form = Status(StatusCode::kUnimplemented, "");
     if (v.guard >= 0) {
       form = internal::TouchForm(model_, propagator_, end->point.orbit, 1e-6, i, v.guard);
@@ -518,17 +532,18 @@ class CurveTracer {
                segs[i - 1].mode == segs[i + 1].mode) {
       form = internal::TangentForm(end->point.orbit, i);
     }
-    if (!form.ok()) return;
+    if (!form.ok()) return false;
     const StatusOr<PeriodicOrbit> solved =
         internal::SolveGrazingEnd(model_, propagator_, *form, kind_, index1_, index2_);
-    if (!solved.ok()) return;
+    if (!solved.ok()) return false;
     const double moved = std::hypot(solved->params[index1_] - end->point.value1,
                                     solved->params[index2_] - end->point.value2);
-    if (moved > 2.0 * end->bracket + 1e-9) return;
-    if (!CheckAdmissible(model_, propagator_, *solved).admissible) return;
+    if (moved > 2.0 * end->bracket + 1e-9) return false;
+    if (!CheckAdmissible(model_, propagator_, *solved).admissible) return false;
     end->point = PointFromOrbit(*solved);
     end->bracket = 0.0;
     end->detail += " (solved in tangent form)";
+    return true;
   }
 
   // The step y -> y1 left the box: the point where it crosses the edge it meets first is solved
@@ -625,28 +640,40 @@ class CurveTracer {
         // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
         // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
         // grazing (a second boundary touched at once).
-        Vec boundary;
-        const double width = LocateBoundary(y, y1, t, &boundary, &why, &violation);
-        // Roots of the test functions between the last point and the boundary (a fold- or
-        // flip-grazing root can lie next to a double grazing end).
-        const CurvePoint end = MakePoint(boundary);
-        RootsOnStep(y, t, boundary, end.stability.monodromy, tests, &dets, codim2);
+        // Bisected first to 1e-8 (relative): where the end is then solved in tangent form (and no
+        // test function changes sign between the bisected and the solved end) that is all it
+        // needs; else (and where the violation may be a section crossing, told apart by a
+        // first segment of zero length to rounding) on to 1e-12.
+        Boundary b{y, y1, y1, why, violation};
+        Bisect(t, 1e-8, &b);
+        if (MayBeSectionCrossing(b.violation)) Bisect(t, 1e-12, &b);
         const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
                              : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
                              : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
                                                                   : Codim2Kind::kFlipGrazing;
-        if (IsSectionCrossing(violation, end.orbit)) {
+        CurvePoint end = MakePoint(b.ya);
+        Codim2Point point{k, end, b.why, b.Width(t), b.violation};
+        if (!IsSectionCrossing(b.violation, end.orbit) &&
+            !(SolveEnd(&point) &&
+              SameSigns(tests, end.stability.monodromy, point.point.stability.monodromy))) {
+          Bisect(t, 1e-12, &b);
+          end = MakePoint(b.ya);
+          point = {k, end, b.why, b.Width(t), b.violation};
+          SolveEnd(&point);
+        }
+        // Roots of the test functions between the last point and the boundary (a fold- or
+        // flip-grazing root can lie next to a double grazing end).
+        RootsOnStep(y, t, b.ya, end.stability.monodromy, tests, &dets, codim2);
+        if (IsSectionCrossing(b.violation, end.orbit)) {
           crossing->happened = true;
           crossing->orbit = end.orbit;
-          crossing->violation = violation;
+          crossing->violation = b.violation;
           crossing->violation.guard = -1;  // as the vanishing of that segment (SwitchSignature)
           crossing->direction = ParamDirection(t).normalized();
-          crossing->end = {k, end, why, width, violation};
+          crossing->end = point;
           points->push_back(end);
           return "crossed the Poincare section";
         }
-        Codim2Point point{k, end, why, width, violation};
-        SolveEnd(&point);
         codim2->push_back(point);
         return std::string("ended at a ") + Codim2KindName(k) + " point: " + point.detail;
       }
