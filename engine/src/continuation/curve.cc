@@ -104,8 +104,7 @@ class CurveTracer {
         index1_(index1),
         index2_(index2),
         base_(start.params),
-        bvp1_(model, propagator, start.signature, index1),
-        bvp2_(model, propagator, start.signature, index2) {
+        bvp1_(model, propagator, start.signature, index1, index2) {
     start_.resize(n());
     start_.head(m()) = bvp1_.Pack(start);
     start_[m()] = start.params[index1];
@@ -177,9 +176,12 @@ class CurveTracer {
   bool Evaluate(const Vec& y, Vec* f, Mat* jac) const {
     const Params prm = ParamsAt(y);
     if (!model_.ValidateParams(prm).ok()) return false;
-    Vec g, gp1, g2, gp2;
+    Vec g, gp1, gp2;
     Mat gx;
-    if (!bvp1_.Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr).ok()) {
+    if (!bvp1_
+             .Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr,
+                       jac ? &gp2 : nullptr)
+             .ok()) {
       return false;
     }
     f->resize(m() + 1);
@@ -188,7 +190,6 @@ class CurveTracer {
     std::vector<StateMatrix> factors;
     (*f)[m()] = ConditionAt(o, &factors);
     if (!jac) return f->allFinite();
-    if (!bvp2_.Evaluate(y.head(m()), prm, &g2, nullptr, &gp2).ok()) return false;
     jac->setZero(m() + 1, n());
     jac->topLeftCorner(m(), m()) = gx;
     jac->col(m()).head(m()) = gp1;
@@ -717,7 +718,7 @@ class CurveTracer {
   int index1_, index2_;
   Params base_;
   double w1_ = 1.0, w2_ = 1.0;  // the box's widths where finite: parameter scales
-  internal::OrbitBvp bvp1_, bvp2_;
+  internal::OrbitBvp bvp1_;     // derivatives in both parameters
   Vec start_;
   mutable internal::BorderedSigma sigma_;  // SetBorders
 };

@@ -21,12 +21,11 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
                            std::to_string(wanted) + " tangent ends, the guess has " +
                            std::to_string(tangents));
   }
-  const OrbitBvp bvp1(model, propagator, guess.signature, index1);
-  const OrbitBvp bvp2(model, propagator, guess.signature, index2);
-  const int m = bvp1.size(), n = m + 2;
+  const OrbitBvp bvp(model, propagator, guess.signature, index1, index2);
+  const int m = bvp.size(), n = m + 2;
   Params params = guess.params;
   Eigen::VectorXd y(n);
-  y.head(m) = bvp1.Pack(guess);
+  y.head(m) = bvp.Pack(guess);
   y[m] = params[index1];
   y[m + 1] = params[index2];
   auto unpack = [&](const Eigen::VectorXd& yy) {
@@ -34,7 +33,7 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
     p[index1] = yy[m];
     p[index2] = yy[m + 1];
     PeriodicOrbit o;
-    bvp1.Unpack(yy.head(m), p, &o);
+    bvp.Unpack(yy.head(m), p, &o);
     return o;
   };
   BorderedSigma sigma;
@@ -50,14 +49,13 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
     const double s = sigma(ShiftedMonodromy(kind, OrbitStability(model, propagator, o).monodromy));
     return Eigen::Vector2d(rates[0], s);
   };
-  Eigen::VectorXd g, gp1, g2, gp2, f(n);
+  Eigen::VectorXd g, gp1, gp2, f(n);
   Eigen::MatrixXd gx, jac(n, n);
   for (int it = 0; it < 30; ++it) {
     params[index1] = y[m];
     params[index2] = y[m + 1];
     if (!model.ValidateParams(params).ok()) return Internal("left the parameter domain");
-    if (Status s = bvp1.Evaluate(y.head(m), params, &g, &gx, &gp1); !s.ok()) return s;
-    if (Status s = bvp2.Evaluate(y.head(m), params, &g2, nullptr, &gp2); !s.ok()) return s;
+    if (Status s = bvp.Evaluate(y.head(m), params, &g, &gx, &gp1, &gp2); !s.ok()) return s;
     const Eigen::Vector2d c0 = conditions(y);
     f.head(m) = g;
     f.tail(2) = c0;

@@ -74,7 +74,7 @@ FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, c
     Eigen::MatrixXd a, da, e, block(2 * m, 2 * m);
     ParamMatrix fp;
     for (int k = 0; k < np; ++k) {
-      if (request.param >= 0 && k != request.param) continue;
+      if (request.param >= 0 && k != request.param && k != request.also_param) continue;
       StateVector dx;
       if (closed_ && closed_->FlowParamDerivative(mode, x0, t, params, k, &dx)) {
         out.param_jacobian.col(k) = dx;

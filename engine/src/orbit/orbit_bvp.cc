@@ -1,12 +1,16 @@
 #include "orbit/orbit_bvp.h"
 
+#include <vector>
+
 namespace drillbif::internal {
 
-OrbitBvp::OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param)
+OrbitBvp::OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param,
+                   int param2)
     : model_(model),
       propagator_(propagator),
       signature_(std::move(signature)),
       param_(param),
+      param2_(param2),
       d_(model.state_dim() - 1),
       ps_(model.phase_index()) {}
 
@@ -40,26 +44,34 @@ void OrbitBvp::Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOr
 }
 
 Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
-                          Eigen::MatrixXd* gx, Eigen::VectorXd* gp) const {
+                          Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2) const {
   const int k = segments(), n = d_ + 1, m = size();
   const double omega = model_.ForcingFrequency(params);
-  const bool want_p = gp != nullptr && param_ >= 0;
-  // d omega / d param: the phase row of the vector field's parameter Jacobian (s' = omega).
-  double domega = 0.0;
+  // The parameter derivatives asked for: (index, output), at most two.
+  struct Wanted {
+    int index;
+    Eigen::VectorXd* out;
+    double domega;  // d omega / d param: the phase row of the vector field's parameter Jacobian
+  };
+  std::vector<Wanted> wanted;
+  if (gp != nullptr && param_ >= 0) wanted.push_back({param_, gp, 0.0});
+  if (gp2 != nullptr && param2_ >= 0) wanted.push_back({param2_, gp2, 0.0});
+  const bool want_p = !wanted.empty();
   if (want_p) {
     ParamMatrix fp;
     model_.ParamJacobian(signature_.segments[0].mode, StateVector::Zero(n), params, &fp);
-    domega = fp(ps_, param_);
+    for (Wanted& w : wanted) w.domega = fp(ps_, w.index);
   }
   PeriodicOrbit orbit;
   Unpack(x, params, &orbit);
   g->setZero(m);
   if (gx) gx->setZero(m, m);
   if (gp) gp->setZero(m);
+  if (gp2) gp2->setZero(m);
 
-  // Derivatives of a segment's end state with respect to X (n x m) and the parameter (n).
+  // Derivatives of a segment's end state with respect to X (n x m) and the parameters (n each).
   Eigen::MatrixXd dend(n, m);
-  Eigen::VectorXd dend_p(n);
+  StateVector dend_p[2];
   double elapsed = 0.0;
   for (int i = 0; i < k; ++i) {
     const SegmentSpec& seg = signature_.segments[i];
@@ -68,7 +80,10 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
     // The parameter derivative needs the phase column too (s_i moves with omega).
     req.state_jacobian = gx != nullptr || want_p;
     req.param_jacobian = want_p;
-    req.param = param_;
+    if (want_p) {
+      req.param = wanted[0].index;
+      if (wanted.size() > 1) req.also_param = wanted[1].index;
+    }
     const FlowResult fr =
         propagator_.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], params, req);
     if (!fr.status.ok()) return fr.status;
@@ -87,8 +102,9 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
         dend.col(jseg * (d_ + 1) + d_) += omega * fr.state_jacobian.col(ps_);
       }
     }
-    if (want_p) {
-      dend_p = fr.param_jacobian.col(param_) + fr.state_jacobian.col(ps_) * (domega * elapsed);
+    for (size_t w = 0; w < wanted.size(); ++w) {
+      dend_p[w] = fr.param_jacobian.col(wanted[w].index) +
+                  fr.state_jacobian.col(ps_) * (wanted[w].domega * elapsed);
     }
     const int row = i * (d_ + 1);
     if (seg.guard >= 0) {
@@ -97,8 +113,10 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
       const StateRow grad = model_.GuardGradient(seg.mode, seg.guard, xe, params);
       if (gx) gx->row(row) = grad * dend;
       if (want_p) {
-        (*gp)[row] = grad.dot(dend_p.transpose()) +
-                     model_.GuardParamGradient(seg.mode, seg.guard, xe, params)[param_];
+        const ParamVector pgrad = model_.GuardParamGradient(seg.mode, seg.guard, xe, params);
+        for (size_t w = 0; w < wanted.size(); ++w) {
+          (*wanted[w].out)[row] = grad.dot(dend_p[w].transpose()) + pgrad[wanted[w].index];
+        }
       }
       // A tangent end touches the surface and goes on in the same mode: no jump.
       Transition tr;
@@ -111,9 +129,10 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
         tr = model_.Jump(seg.mode, seg.guard, xe, params);
       }
       const Eigen::MatrixXd jdend = gx ? Eigen::MatrixXd(tr.jacobian * dend) : Eigen::MatrixXd();
-      const Eigen::VectorXd jdend_p =
-          want_p ? Eigen::VectorXd(tr.jacobian * dend_p + tr.param_jacobian.col(param_))
-                 : Eigen::VectorXd();
+      StateVector jdend_p[2];
+      for (size_t w = 0; w < wanted.size(); ++w) {
+        jdend_p[w] = tr.jacobian * dend_p[w] + tr.param_jacobian.col(wanted[w].index);
+      }
       const int next = (i + 1) * (d_ + 1);
       for (int j = 0, r = 0; j < n; ++j) {
         if (j == ps_) continue;
@@ -122,7 +141,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
           gx->row(row + 1 + r) = -jdend.row(j);
           (*gx)(row + 1 + r, next + r) += 1.0;
         }
-        if (want_p) (*gp)[row + 1 + r] = -jdend_p[j];
+        for (size_t w = 0; w < wanted.size(); ++w) (*wanted[w].out)[row + 1 + r] = -jdend_p[w][j];
         ++r;
       }
     } else {
@@ -134,7 +153,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
           gx->row(row + r) = -dend.row(j);
           (*gx)(row + r, r) += 1.0;
         }
-        if (want_p) (*gp)[row + r] = -dend_p[j];
+        for (size_t w = 0; w < wanted.size(); ++w) (*wanted[w].out)[row + r] = -dend_p[w][j];
         ++r;
       }
       // A first segment in a mode confined to a surface: the periodicity of the component along
@@ -160,7 +179,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
               if (j != ps_) (*gx)(row + j_row, r++) = cgrad[j];
             }
           }
-          if (want_p) (*gp)[row + j_row] = cpgrad[param_];
+          for (const Wanted& w : wanted) (*w.out)[row + j_row] = cpgrad[w.index];
         }
       }
       double total = 0.0;
@@ -169,7 +188,9 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
       if (gx) {
         for (int jseg = 0; jseg < k; ++jseg) (*gx)(row + d_, jseg * (d_ + 1) + d_) = 1.0;
       }
-      if (want_p) (*gp)[row + d_] = kTwoPi * signature_.periods / (omega * omega) * domega;
+      for (const Wanted& w : wanted) {
+        (*w.out)[row + d_] = kTwoPi * signature_.periods / (omega * omega) * w.domega;
+      }
     }
     elapsed += orbit.durations[i];
   }

@@ -13,8 +13,10 @@ namespace drillbif::internal {
 
 class OrbitBvp {
  public:
-  // `param`: index of the parameter whose derivative Evaluate() can give (-1: none).
-  OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param);
+  // `param`: index of the parameter whose derivative Evaluate() can give (-1: none); `param2`
+  // a second one (a two-parameter curve's), given in the same pass of flows.
+  OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param,
+           int param2 = -1);
 
   const Signature& signature() const { return signature_; }
   // Number of unknowns (= number of conditions): k (d + 1) with k segments, d = state_dim - 1.
@@ -25,15 +27,16 @@ class OrbitBvp {
   Eigen::VectorXd Pack(const PeriodicOrbit& orbit) const;
   void Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOrbit* orbit) const;
 
-  // G(X; params), and when non-null dG/dX and dG/dparams[param]. INTERNAL if a flow fails.
+  // G(X; params), and when non-null dG/dX, dG/dparams[param] and dG/dparams[param2]. INTERNAL
+  // if a flow fails.
   Status Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
-                  Eigen::MatrixXd* gx, Eigen::VectorXd* gp) const;
+                  Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2 = nullptr) const;
 
  private:
   const HybridModel& model_;
   Propagator& propagator_;
   Signature signature_;
-  int param_;
+  int param_, param2_;
   int d_;   // reduced state dimension
   int ps_;  // phase index
 };

@@ -20,6 +20,7 @@ struct FlowRequest {
   bool state_jacobian = false;  // d x(t) / d x0
   bool param_jacobian = false;  // d x(t) / d params
   int param = -1;               // with param_jacobian: only this column (the others zero); -1 all
+  int also_param = -1;          // with param >= 0: this column too (a two-parameter curve's)
 };
 
 // x(t) = phi_m(t, x0; params) and its derivatives. d x / d t is the vector field at x(t).
