@@ -125,6 +125,29 @@ std::vector<double> OrbitMeasures(const HybridModel& model, Propagator& propagat
   return means;
 }
 
+namespace {
+
+// Whether an event of a tangent segment's own guard at time t is its touch at the end: there
+// h = h' = 0 and h'' > 0, so h ~ h'' (t - tau)^2 / 2 stays within rounding of zero for
+// |t - tau| <= sqrt(2 eps / h''), and the event locator can see a crossing anywhere in that
+// window (with h'' = 2e-4 and eps = 1e-16, 1e-6 before tau; the fixed 1e-6 relative window above
+// did not cover it, and grazing curves ended at spurious double grazings, at random places along
+// them). eps = 1e-13 (1 + |h|'s scale) leaves a margin for rounding in the flow; a real crossing
+// that close to the touch is itself a degenerate (cubic) tangency.
+bool TouchAtTangentEnd(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+                       size_t i, double t) {
+  const SegmentSpec& seg = orbit.signature.segments[i];
+  if (!seg.tangent) return false;
+  const double tau = orbit.durations[i];
+  const StateVector end = propagator.FlowMap(seg.mode, orbit.starts[i], tau, orbit.params, {}).x;
+  const GuardValue g = model.Guard(seg.mode, seg.guard, end, orbit.params);
+  if (!(g.ddh > 0.0)) return false;
+  const double eps = 1e-13 * (1.0 + end.lpNorm<Eigen::Infinity>());
+  return tau - t <= std::sqrt(2.0 * eps / g.ddh);
+}
+
+}  // namespace
+
 std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Propagator& propagator,
                                                    const PeriodicOrbit& orbit) {
   std::vector<Admissibility> found;
@@ -149,7 +172,9 @@ std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Pro
     AdvanceRequest req;
     req.mode = seg.mode, req.x0 = orbit.starts[i], req.t_max = tau;
     const AdvanceResult r = propagator.Advance(req, orbit.params);
-    const bool own_end = r.guard == seg.guard && r.duration >= tau * (1.0 - 1e-6);
+    const bool own_end =
+        r.guard == seg.guard && (r.duration >= tau * (1.0 - 1e-6) ||
+                                 TouchAtTangentEnd(model, propagator, orbit, i, r.duration));
     if (r.end == AdvanceEnd::kEvent && !own_end) {
       found.push_back({false, static_cast<int>(i), r.guard, r.duration == 0.0,
                        "segment " + std::to_string(i) + " (" +
