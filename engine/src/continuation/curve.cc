@@ -524,7 +524,8 @@ class CurveTracer {
   }
 
   // The end solved in tangent form (grazing_end.h): where the violation beyond it is a segment
-  // vanishing between two segments of one mode (TangentForm), or a guard touching zero inside a
+  // vanishing between two segments of one mode (TangentForm; also its own guard firing inside a
+  // segment at most 1e-5 long), or a guard touching zero inside a
   // segment (TouchForm at that segment and guard; at the admissible end the touch is within the
   // bracket of zero). Kept when the solution lies within the bisection's bracket of the end (else
   // it is another root: where the vanishing segment's events leave the monodromy discontinuous,
@@ -535,12 +536,27 @@ class CurveTracer {
     const std::vector<SegmentSpec>& segs = end->point.orbit.signature.segments;
     const int i = v.segment;
     if (v.admissible || i < 0 || i >= static_cast<int>(segs.size())) return false;
+    const PeriodicOrbit& o = end->point.orbit;
+    const int k = static_cast<int>(segs.size());
+    // Segment j vanishing between two segments of one mode, seen (v) as its duration turning
+    // negative, or as a guard firing before the duration does (the duration goes like the
+    // square root of the distance to the grazing, and its end guard's rate h' with it): j's own
+    // guard inside j while j is at most 1e-5 long, or, at the very start of the next segment,
+    // the guard that led into j from the segment before it (j would start again at once). The
+    // solution is kept only within the bracket (below), so a wrong guess costs a Newton run.
+    auto vanishing = [&](int j) {
+      if (j <= 0 || j + 1 >= k || segs[j - 1].mode != segs[j + 1].mode) return false;
+      if (v.guard < 0) return j == i;
+      if (j == i) return v.guard == segs[i].guard && std::abs(o.durations[j]) <= 1e-5;
+      return j == i - 1 && v.at_start && v.guard == segs[j - 1].guard;
+    };
     StatusOr<PeriodicOrbit> form = Status(StatusCode::kUnimplemented, "");
-    if (v.guard >= 0) {
-      form = internal::TouchForm(model_, propagator_, end->point.orbit, 1e-6, i, v.guard);
-    } else if (i > 0 && i + 1 < static_cast<int>(segs.size()) &&
-               segs[i - 1].mode == segs[i + 1].mode) {
-      form = internal::TangentForm(end->point.orbit, i);
+    if (vanishing(i)) {
+      form = internal::TangentForm(o, i);
+    } else if (vanishing(i - 1)) {
+      form = internal::TangentForm(o, i - 1);
+    } else if (v.guard >= 0) {
+      form = internal::TouchForm(model_, propagator_, o, 1e-6, i, v.guard);
     }
     if (!form.ok()) return false;
     const StatusOr<PeriodicOrbit> solved =

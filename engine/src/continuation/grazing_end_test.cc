@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "drillbif/flow/exact_propagator.h"
@@ -91,6 +92,59 @@ TEST(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
   }
   EXPECT_LE(nearest, 1e-8);
   RecordProperty("distance_to_grazing_curve_root", std::to_string(nearest));
+}
+
+// Where a curve ends is a property of the curve, not of the steps taken along it. The PD curve of
+// the a-branch's doubling at a = 0.2464 (omega = 0.1) ends where the CwP phase between two
+// contact phases vanishes; with the default steps the bisection sees that phase's duration turn
+// negative, with other steps (initial 0.013, at most 0.3) the next contact phase's l1 guard
+// firing at its start first, while the CwP phase is still 5e-4 long, and Newton fails on the
+// way (bracket 6.5e-6). Both ends are solved in tangent form to the same flip-grazing (measured:
+// identical to the last digit printed, 1e-9), with both conditions on the reported orbits.
+TEST(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> start =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(start.ok()) << start.status().ToString();
+  ContinuationOptions branch;
+  branch.param = "a";
+  branch.min = 0.01;
+  branch.max = 8.0;
+  const ContinuationResult a_branch = Continue(model, prop, *start, branch);
+  const SpecialPoint* pd = nullptr;
+  for (const SpecialPoint& s : a_branch.special_points) {
+    if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 0.24641) < 1e-4) {
+      pd = &s;
+    }
+  }
+  ASSERT_NE(pd, nullptr);
+  std::vector<Codim2Point> ends;
+  for (const auto& [initial, longest] : {std::pair{0.02, 1.0}, std::pair{0.013, 0.3}}) {
+    CurveOptions opt;
+    opt.param1 = std::string("a");
+    opt.param2 = std::string("omega");
+    opt.min1 = 0.01, opt.max1 = 8.0;
+    opt.min2 = 0.05, opt.max2 = 2.0;
+    opt.initial_step = initial, opt.max_step = longest;
+    const CurveResult curve = ContinueCurve(model, prop, *pd, opt);
+    ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+    const Codim2Point* end = nullptr;
+    for (const Codim2Point& q : curve.codim2) {
+      if (q.kind == Codim2Kind::kFlipGrazing && std::abs(q.point.value2 - 0.2747) < 1e-3) end = &q;
+    }
+    ASSERT_NE(end, nullptr) << curve.summary.message;
+    EXPECT_EQ(end->bracket, 0.0) << end->detail;
+    const std::vector<GuardValue> touch = testing::TangentEndGuards(model, prop, end->point.orbit);
+    ASSERT_EQ(touch.size(), 1u);
+    EXPECT_LE(std::abs(touch[0].h), 1e-9);
+    EXPECT_LE(std::abs(touch[0].dh), 1e-9);
+    EXPECT_LE(DistanceToMultiplier(end->point.stability, -1.0), 1e-8);
+    ends.push_back(*end);
+  }
+  EXPECT_LE(std::hypot(ends[0].point.value1 - ends[1].point.value1,
+                       ends[0].point.value2 - ends[1].point.value2),
+            1e-9);
 }
 
 // A guess with the wrong number of tangent ends for the curve's kind is refused, naming both.

@@ -127,23 +127,25 @@ std::vector<double> OrbitMeasures(const HybridModel& model, Propagator& propagat
 
 namespace {
 
-// Whether an event of a tangent segment's own guard at time t is its touch at the end: there
-// h = h' = 0 and h'' > 0, so h ~ h'' (t - tau)^2 / 2 stays within rounding of zero for
-// |t - tau| <= sqrt(2 eps / h''), and the event locator can see a crossing anywhere in that
-// window (with h'' = 2e-4 and eps = 1e-16, 1e-6 before tau; the fixed 1e-6 relative window above
-// did not cover it, and grazing curves ended at spurious double grazings, at random places along
-// them). eps = 1e-13 (1 + |h|'s scale) leaves a margin for rounding in the flow; a real crossing
-// that close to the touch is itself a degenerate (cubic) tangency.
-bool TouchAtTangentEnd(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
-                       size_t i, double t) {
+// Whether an event of segment i's own guard at time t is the segment's end at tau: within
+// 1e-6 tau (a crossing cannot fall back through the surface in so short a time without touching it
+// tangentially there), or within what rounding in h (eps = 1e-13 (1 + |x|)) makes of the event
+// time there: eps / |h'| where the guard crosses (a short segment ending at a shallow crossing:
+// 1e-6 tau can be below it), sqrt(2 eps / h'') at a tangent end's touch (h = h' = 0, h'' > 0: h
+// stays within rounding of zero for that long around it, and the locator can see a crossing
+// anywhere there; with h'' = 2e-4, 1e-6 before tau, and grazing curves ended at spurious double
+// grazings at random places along them). A real crossing that close to the end is itself a
+// degenerate (cubic) tangency.
+bool IsOwnEnd(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+              size_t i, double t) {
   const SegmentSpec& seg = orbit.signature.segments[i];
-  if (!seg.tangent) return false;
   const double tau = orbit.durations[i];
+  if (tau - t <= 1e-6 * tau) return true;
   const StateVector end = propagator.FlowMap(seg.mode, orbit.starts[i], tau, orbit.params, {}).x;
   const GuardValue g = model.Guard(seg.mode, seg.guard, end, orbit.params);
-  if (!(g.ddh > 0.0)) return false;
   const double eps = 1e-13 * (1.0 + end.lpNorm<Eigen::Infinity>());
-  return tau - t <= std::sqrt(2.0 * eps / g.ddh);
+  if (seg.tangent) return g.ddh > 0.0 && tau - t <= std::sqrt(2.0 * eps / g.ddh);
+  return tau - t <= eps / std::abs(g.dh);
 }
 
 }  // namespace
@@ -167,14 +169,11 @@ std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Pro
     const SegmentSpec& seg = orbit.signature.segments[i];
     const double tau = orbit.durations[i];
     // No guard may fire before the segment's end. The terminating one fires at tau itself: an
-    // event of it within a relative 1e-6 of tau is the segment's own end (a crossing cannot fall
-    // back through the surface in so short a time without touching it tangentially there).
+    // event of it next to tau is the segment's own end (IsOwnEnd).
     AdvanceRequest req;
     req.mode = seg.mode, req.x0 = orbit.starts[i], req.t_max = tau;
     const AdvanceResult r = propagator.Advance(req, orbit.params);
-    const bool own_end =
-        r.guard == seg.guard && (r.duration >= tau * (1.0 - 1e-6) ||
-                                 TouchAtTangentEnd(model, propagator, orbit, i, r.duration));
+    const bool own_end = r.guard == seg.guard && IsOwnEnd(model, propagator, orbit, i, r.duration);
     if (r.end == AdvanceEnd::kEvent && !own_end) {
       found.push_back({false, static_cast<int>(i), r.guard, r.duration == 0.0,
                        "segment " + std::to_string(i) + " (" +
