@@ -270,15 +270,17 @@ class CurveTracer {
     }
   }
 
-  // Newton on (F = 0, dir . (y - y_pred) = 0) from y_pred. `last_jac`, when given, receives F's
-  // Jacobian at the last iterate before the converged step (within the tolerance of *y): good
-  // enough for the tangent there, which then costs no further evaluation.
+  // Newton on (F = 0, dir . (y - y_pred) = 0) from y_pred. `tangent`, when given, receives the
+  // unit tangent at the result oriented along dir, solved with the factorization of the last
+  // iteration ([F's Jacobian; dir] at the iterate before the converged step, within the
+  // tolerance of *y: internal::UnitTangent's system), so that it costs no further evaluation.
   bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations,
-               Mat* last_jac = nullptr) const {
+               Vec* tangent = nullptr) const {
     *y = y_pred;
     Vec f;
     Mat jac, a(n(), n());
     Vec r(n());
+    Eigen::PartialPivLU<Mat> lu(n());
     double last_norm = std::numeric_limits<double>::infinity();
     for (int it = 1; it <= options_.max_iterations; ++it) {
       if (!Evaluate(*y, &f, &jac)) return false;
@@ -286,7 +288,8 @@ class CurveTracer {
       a.bottomRows(1) = dir.transpose();
       r.head(n() - 1) = f;
       r[n() - 1] = dir.dot(*y - y_pred);
-      const Vec step = a.partialPivLu().solve(-r);
+      lu.compute(a);
+      const Vec step = lu.solve(-r);
       if (!step.allFinite()) return false;
       *y += step;
       const double norm = step.lpNorm<Eigen::Infinity>();
@@ -299,7 +302,12 @@ class CurveTracer {
       const double theta = norm / last_norm;
       if (norm <= tol || (it >= 2 && theta < 0.5 && theta / (1.0 - theta) * norm <= tol)) {
         *iterations = norm <= tol ? it : it + 1;
-        if (last_jac) *last_jac = std::move(jac);
+        if (tangent) {
+          *tangent = lu.solve(Vec::Unit(n(), n() - 1));
+          if (!tangent->allFinite() || tangent->norm() == 0.0) return false;
+          tangent->normalize();
+          if (tangent->dot(dir) < 0.0) *tangent = -*tangent;
+        }
         return true;
       }
       last_norm = norm;
@@ -625,9 +633,9 @@ class CurveTracer {
     std::vector<Eigen::Vector2d> recent;
     for (int step = 0; step < options_.max_steps; ++step) {
       Vec y1;
-      Mat jac1;
       int iterations = 0;
-      if (!Correct(y + h * t, t, &y1, &iterations, &jac1)) {
+      Vec t1;
+      if (!Correct(y + h * t, t, &y1, &iterations, &t1)) {
         ++sum->rejected_steps;
         h *= 0.5;
         if (h < options_.min_step) return "the corrector failed down to min_step";
@@ -719,8 +727,6 @@ class CurveTracer {
       RootsOnStep(y, t, y1, p.stability.monodromy, tests, &dets, codim2);
       SetBorders(p.stability.monodromy);
       points->push_back(std::move(p));
-      Vec t1;
-      if (!internal::UnitTangent(jac1, t, &t1)) return "no tangent";
       // A fold curve whose direction in the parameter plane reverses on this step: a cusp.
       if (kind_ == CurveKind::kFold) {
         const double psi1 = ParamDirection(t).dot(ParamDirection(t1));
