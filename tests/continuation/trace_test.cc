@@ -35,6 +35,16 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   int flip_grazings = 0;
   for (const TracedCurve& c : r.curves) {
     EXPECT_NE(c.curve.summary.termination, Termination::kFailed) << c.curve.summary.message;
+    // End to end (issue 4): each direction leaves the box or ends at a codimension-2 point; none
+    // stalls, hits max_steps or ends where the corrector fails without a boundary ahead.
+    const std::string& message = c.curve.summary.message;
+    const size_t split = message.find("; decreasing ");
+    ASSERT_NE(split, std::string::npos) << message;
+    for (const std::string& direction : {message.substr(0, split), message.substr(split)}) {
+      EXPECT_TRUE(direction.find("left the box") != std::string::npos ||
+                  direction.find("ended at a ") != std::string::npos)
+          << direction;
+    }
     ASSERT_FALSE(c.curve.points.empty());
     // Every point in (omega, a) order and inside the box, whichever branch found the start.
     for (const CurvePoint& p : c.curve.points) {

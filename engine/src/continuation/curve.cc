@@ -611,6 +611,55 @@ class CurveTracer {
     }
   }
 
+  // The curve's end on the step from y (tangent t) towards yb, where the orbit is not admissible
+  // (`why`, `violation`): a codimension-2 point appended to *codim2, or a Poincare-section
+  // crossing (*crossing filled, the end appended to *points). Roots of the test functions on the
+  // way are appended too. Returns how the direction ended.
+  std::string EndAtBoundary(const Vec& y, const Vec& t, const Vec& yb, const std::string& why,
+                            const Admissibility& violation, const std::vector<Codim2Test>& tests,
+                            std::vector<double>* dets, std::vector<CurvePoint>* points,
+                            std::vector<Codim2Point>* codim2, SectionCrossing* crossing) const {
+    // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
+    // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
+    // grazing (a second boundary touched at once).
+    // Bisected first to 1e-8 (relative): where the end is then solved in tangent form (and no
+    // test function changes sign between the bisected and the solved end) that is all it
+    // needs; else (and where the violation may be a section crossing, told apart by a
+    // first segment of zero length to rounding) on to 1e-12.
+    Boundary b{y, yb, yb, why, violation};
+    Bisect(t, 1e-8, &b);
+    if (MayBeSectionCrossing(b.violation)) Bisect(t, 1e-12, &b);
+    const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
+                         : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
+                         : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
+                                                              : Codim2Kind::kFlipGrazing;
+    CurvePoint end = MakePoint(b.ya);
+    Codim2Point point{k, end, b.why, b.Width(t), b.violation};
+    if (!IsSectionCrossing(b.violation, end.orbit) &&
+        !(SolveEnd(&point) &&
+          SameSigns(tests, end.stability.monodromy, point.point.stability.monodromy))) {
+      Bisect(t, 1e-12, &b);
+      end = MakePoint(b.ya);
+      point = {k, end, b.why, b.Width(t), b.violation};
+      SolveEnd(&point);
+    }
+    // Roots of the test functions between the last point and the boundary (a fold- or
+    // flip-grazing root can lie next to a double grazing end).
+    RootsOnStep(y, t, b.ya, end.stability.monodromy, tests, dets, codim2);
+    if (IsSectionCrossing(b.violation, end.orbit)) {
+      crossing->happened = true;
+      crossing->orbit = end.orbit;
+      crossing->violation = b.violation;
+      crossing->violation.guard = -1;  // as the vanishing of that segment (SwitchSignature)
+      crossing->direction = ParamDirection(t).normalized();
+      crossing->end = point;
+      points->push_back(end);
+      return "crossed the Poincare section";
+    }
+    codim2->push_back(point);
+    return std::string("ended at a ") + Codim2KindName(k) + " point: " + point.detail;
+  }
+
   // Traces one direction from the start, leaving it along the parameter direction `dir`
   // (box-scaled; (0, +-1): across the one-parameter branch the start was located on); returns
   // why it ended. At a Poincare-section crossing (an event reaching s = 0: the first or last
@@ -631,6 +680,7 @@ class CurveTracer {
     // Stall watch: parameters (scaled by the box where it is finite) 50 accepted steps back.
     constexpr int kStallWindow = 50;
     std::vector<Eigen::Vector2d> recent;
+    double h_first = h;  // the first step tried from y
     for (int step = 0; step < options_.max_steps; ++step) {
       Vec y1;
       int iterations = 0;
@@ -638,7 +688,30 @@ class CurveTracer {
       if (!Correct(y + h * t, t, &y1, &iterations, &t1)) {
         ++sum->rejected_steps;
         h *= 0.5;
-        if (h < options_.min_step) return "the corrector failed down to min_step";
+        if (h < options_.min_step) {
+          // Newton failed on every step from y down to min_step: next to a boundary where the
+          // curve's own system degenerates (a segment vanishing like a square root) no
+          // prediction beyond it corrects. A prediction beyond it (the first step tried, or 1.5
+          // times the step at which the tangent says the first shrinking segment vanishes),
+          // when not admissible, brackets that boundary with y.
+          double vanish = std::numeric_limits<double>::infinity();
+          for (int i = 0, d = model_.state_dim() - 1; i < m() / (d + 1); ++i) {
+            const double tau = y[i * (d + 1) + d], rate = t[i * (d + 1) + d];
+            if (rate < 0.0) vanish = std::min(vanish, -tau / rate);
+          }
+          for (const double ahead_by : {h_first, 1.5 * vanish}) {
+            if (!std::isfinite(ahead_by)) continue;
+            const Vec ahead = y + ahead_by * t;
+            std::string why;
+            Admissibility violation;
+            if (!Admissible(Unpack(ahead), &why, &violation)) {
+              return "the corrector failed short of a boundary, " +
+                     EndAtBoundary(y, t, ahead, why, violation, tests, &dets, points, codim2,
+                                   crossing);
+            }
+          }
+          return "the corrector failed down to min_step";
+        }
         --step;
         continue;
       }
@@ -674,42 +747,7 @@ class CurveTracer {
         // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
         // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
         // grazing (a second boundary touched at once).
-        // Bisected first to 1e-8 (relative): where the end is then solved in tangent form (and no
-        // test function changes sign between the bisected and the solved end) that is all it
-        // needs; else (and where the violation may be a section crossing, told apart by a
-        // first segment of zero length to rounding) on to 1e-12.
-        Boundary b{y, y1, y1, why, violation};
-        Bisect(t, 1e-8, &b);
-        if (MayBeSectionCrossing(b.violation)) Bisect(t, 1e-12, &b);
-        const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
-                             : kind_ == CurveKind::kGrazing       ? Codim2Kind::kDoubleGrazing
-                             : kind_ == CurveKind::kNeimarkSacker ? Codim2Kind::kNsGrazing
-                                                                  : Codim2Kind::kFlipGrazing;
-        CurvePoint end = MakePoint(b.ya);
-        Codim2Point point{k, end, b.why, b.Width(t), b.violation};
-        if (!IsSectionCrossing(b.violation, end.orbit) &&
-            !(SolveEnd(&point) &&
-              SameSigns(tests, end.stability.monodromy, point.point.stability.monodromy))) {
-          Bisect(t, 1e-12, &b);
-          end = MakePoint(b.ya);
-          point = {k, end, b.why, b.Width(t), b.violation};
-          SolveEnd(&point);
-        }
-        // Roots of the test functions between the last point and the boundary (a fold- or
-        // flip-grazing root can lie next to a double grazing end).
-        RootsOnStep(y, t, b.ya, end.stability.monodromy, tests, &dets, codim2);
-        if (IsSectionCrossing(b.violation, end.orbit)) {
-          crossing->happened = true;
-          crossing->orbit = end.orbit;
-          crossing->violation = b.violation;
-          crossing->violation.guard = -1;  // as the vanishing of that segment (SwitchSignature)
-          crossing->direction = ParamDirection(t).normalized();
-          crossing->end = point;
-          points->push_back(end);
-          return "crossed the Poincare section";
-        }
-        codim2->push_back(point);
-        return std::string("ended at a ") + Codim2KindName(k) + " point: " + point.detail;
+        return EndAtBoundary(y, t, y1, why, violation, tests, &dets, points, codim2, crossing);
       }
       // Requested lambda1 / lambda2 values crossed by this step: solve the crossing with that
       // parameter fixed.
@@ -737,6 +775,7 @@ class CurveTracer {
       }
       y = y1;
       t = t1;
+      h_first = h;
     }
     return "reached max_steps";
   }
