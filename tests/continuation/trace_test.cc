@@ -142,7 +142,7 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
     return gap;
   };
   const double w1 = opt.max1 - opt.min1, w2 = opt.max2 - opt.min2;
-  int switched_fold_pd = 0, switched_grazing = 0;
+  int switched_fold_pd = 0, switched_grazing = 0, switched_at_double_grazing = 0;
   for (const TracedCurve& c : r.curves) {
     if (c.from_curve < 0) continue;
     ASSERT_LT(c.from_curve, static_cast<int>(r.curves.size()));
@@ -179,10 +179,25 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
       for (const Codim2Point& q : c.curve.codim2) nearest = std::min(nearest, dist(q.point));
       // Its start is corrected onto the curve from the end orbit (bisected to its bracket).
       EXPECT_LE(nearest, 1e-6);
+      // Leaving a double grazing (the curve it came from ends there with both touches as
+      // tangent ends): the other touch's grazing curve, of another signature than every point
+      // of the curve it came from, starting at a touch (h = h' = 0) at the point.
+      if (from.kind != CurveKind::kGrazing) continue;
+      ++switched_at_double_grazing;
+      EXPECT_TRUE(std::none_of(from.points.begin(), from.points.end(), [&](const CurvePoint& p) {
+        return p.orbit.signature == c.start.point.orbit.signature;
+      }));
+      const std::optional<GuardValue> g =
+          testing::TangentEndGuard(model, prop, c.start.point.orbit);
+      ASSERT_TRUE(g.has_value());
+      EXPECT_LE(std::abs(g->h), 1e-9);
+      EXPECT_LE(std::abs(g->dh), 1e-9);
     }
   }
   EXPECT_GE(switched_fold_pd, 5);
   EXPECT_GE(switched_grazing, 1);
+  EXPECT_GE(switched_at_double_grazing, 1);
+  RecordProperty("switched_at_double_grazing", switched_at_double_grazing);
 
   // Every codimension-2 point in the box located exactly (bracket 0: FOLD_GRAZING / FLIP_GRAZING
   // roots along grazing curves, and curve ends solved in tangent form: FOLD_GRAZING /

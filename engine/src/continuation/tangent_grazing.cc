@@ -111,11 +111,11 @@ StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator&
   return tangent;
 }
 
-StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit) {
+StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit, int segment) {
   PeriodicOrbit o = tangent_orbit;
   auto& segs = o.signature.segments;
   for (size_t k = 0; k + 1 < segs.size(); ++k) {
-    if (!segs[k].tangent) continue;
+    if (!segs[k].tangent || (segment >= 0 && static_cast<int>(k) != segment)) continue;
     if (segs[k + 1].mode != segs[k].mode) break;
     segs[k].guard = segs[k + 1].guard;
     segs[k].tangent = segs[k + 1].tangent;

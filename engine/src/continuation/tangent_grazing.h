@@ -34,11 +34,11 @@ StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagat
 StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator& propagator,
                                            const PeriodicOrbit& orbit);
 
-// The orbit without its tangent end: the (first) tangent segment and the one after it, in the same
-// mode, merged into one segment. At a grazing this is the orbit of the signature without the
-// vanishing segment, touching the guard inside a segment. INVALID_ARGUMENT without a tangent
-// segment.
-StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit);
+// The orbit without its tangent end: the (first, or the one at segment `segment`) tangent segment
+// and the one after it, in the same mode, merged into one segment. At a grazing this is the orbit
+// of the signature without the vanishing segment, touching the guard inside a segment.
+// INVALID_ARGUMENT without such a tangent segment.
+StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit, int segment = -1);
 
 // h' at the end of the orbit's tangent segment (the guard's rate where it touches zero); the
 // first tangent segment when there are several. NaN when the orbit has none.

@@ -105,23 +105,39 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
   for (size_t c = 0; c < result->curves.size(); ++c) {
     for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
       if (!report(0.99)) return false;
-      const TracedCurve& from = result->curves[c];
-      const Codim2Point& point = from.curve.codim2[q];
+      // Copies: result->curves grows below (references into it would dangle).
+      const CurveKind from_kind = result->curves[c].curve.kind;
+      const Codim2Point point = result->curves[c].curve.codim2[q];
       const bool fold = point.kind == Codim2Kind::kFoldGrazing;
-      if (!fold && point.kind != Codim2Kind::kFlipGrazing) continue;
-      // The candidate's start, and the signature of the orbits on its curve.
-      SpecialPoint seed;
-      seed.point.value = point.point.value1;
-      StatusOr<PeriodicOrbit> orbit = Status(StatusCode::kUnimplemented, "");
-      Signature curve_signature;
-      CurveKind kind = CurveKind::kGrazing;
-      if (from.curve.kind == CurveKind::kGrazing && point.bracket == 0.0) {
+      // The curves to try from this point: each start orbit, the kind of its point and curve.
+      struct Candidate {
+        StatusOr<PeriodicOrbit> orbit;
+        SpecialPointKind seed_kind;
+        CurveKind kind;
+        bool same_signature;  // known only as a curve with a point of the same signature
+      };
+      std::vector<Candidate> candidates;
+      if (from_kind == CurveKind::kGrazing && point.kind == Codim2Kind::kDoubleGrazing) {
+        // A grazing curve's end solved with both touches as tangent ends: the grazing curve of
+        // each touch alone (the other tangent end merged away) passes; one of them is the
+        // curve it came from (known, below), the other is the second boundary's.
+        if (point.bracket != 0.0) continue;
+        const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
+        for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
+          if (!segs[j].tangent) continue;
+          StatusOr<PeriodicOrbit> single = internal::MergedForm(point.point.orbit, j);
+          if (!single.ok()) continue;
+          const SpecialPointKind k = GrazingKind(model, *single);
+          candidates.push_back({std::move(single), k, CurveKind::kGrazing, true});
+        }
+      } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
+        continue;
+      } else if (from_kind == CurveKind::kGrazing && point.bracket == 0.0) {
         // A root along a grazing curve: the orbit without the vanishing segment folds / doubles.
-        orbit = internal::MergedForm(point.point.orbit);
-        seed.kind = fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
-        kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
-        if (orbit.ok()) curve_signature = orbit->signature;
-      } else if (from.curve.kind != CurveKind::kGrazing) {
+        candidates.push_back({internal::MergedForm(point.point.orbit),
+                              fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling,
+                              fold ? CurveKind::kFold : CurveKind::kPeriodDoubling, true});
+      } else if (from_kind != CurveKind::kGrazing) {
         // A fold / PD curve's end where its orbit grazes: the grazing curve through it. An end
         // solved in tangent form is its start as it is; else the tangent form at the segment the
         // violation beyond the end says vanishes (between two of one mode), else the form found
@@ -139,62 +155,71 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         if (!tangent.ok()) {
           tangent = internal::GrazingTangentForm(model, propagator, point.point.orbit);
         }
-        orbit = tangent;
-        if (tangent.ok()) {
-          curve_signature = tangent->signature;
-          seed.kind = GrazingKind(model, *tangent);
-        }
+        const SpecialPointKind k =
+            tangent.ok() ? GrazingKind(model, *tangent) : SpecialPointKind::kGrazingPi;
+        candidates.push_back({std::move(tangent), k, CurveKind::kGrazing, true});
       } else {
-        continue;  // a grazing curve's end: a double grazing or a bracketed root
+        continue;  // a bracketed root on a grazing curve
       }
-      if (!orbit.ok()) {
-        ++(point.bracket > 1e-6 ? wide : no_form);
-        continue;
+      for (Candidate& candidate : candidates) {
+        const StatusOr<PeriodicOrbit>& orbit = candidate.orbit;
+        const CurveKind kind = candidate.kind;
+        if (!orbit.ok()) {
+          ++(point.bracket > 1e-6 ? wide : no_form);
+          continue;
+        }
+        const Signature& curve_signature = orbit->signature;
+        SpecialPoint seed;
+        seed.kind = candidate.seed_kind;
+        seed.point.value = point.point.value1;
+        const double u = orbit->params[i1], v = orbit->params[i2];
+        // Known: on a traced curve of the same kind, by its polyline or by one of its
+        // codimension-2 points (which lie between its vertices, off the chords by up to the chord
+        // error); for a fold or PD candidate also of the same signature (at a fold-grazing the fold
+        // curves of the orbits with and without the vanishing segment both pass), and so for a
+        // grazing candidate from a double grazing (the curve it came from ends there too). A
+        // grazing candidate from a fold / PD curve's end is compared by kind only: where its orbit
+        // has several near touches the tangent form picks one, and the grazing curve traced
+        // through that end may be another.
+        const bool known =
+            std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+              // A curve's signature rotates where it crosses the Poincare section: any of its
+              // points' signatures counts.
+              if (t.curve.kind != kind || t.curve.points.empty() ||
+                  (candidate.same_signature &&
+                   std::none_of(t.curve.points.begin(), t.curve.points.end(),
+                                [&](const CurvePoint& p) {
+                                  return p.orbit.signature == curve_signature;
+                                }))) {
+                return false;
+              }
+              if (DistanceToCurve(t.curve, u, v, w1, w2) <= options.duplicate_distance) return true;
+              return std::any_of(
+                  t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
+                    return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
+                           options.duplicate_distance;
+                  });
+            });
+        if (known) continue;
+        seed.point.orbit = *orbit;
+        seed.point.stability = OrbitStability(model, propagator, *orbit);
+        if (added == options.max_switched_curves) {
+          sum.notes.push_back("switching stopped after " + std::to_string(added) +
+                              " curves (max_switched_curves)");
+          return true;
+        }
+        CurveResult curve = ContinueCurve(model, propagator, seed, co);
+        const std::string where = std::string(Codim2KindName(point.kind)) + " at " +
+                                  options.param1 + " = " + std::to_string(u) + ", " +
+                                  options.param2 + " = " + std::to_string(v);
+        if (curve.summary.termination == Termination::kFailed) {
+          sum.notes.push_back(where + ": the " + CurveKindName(kind) +
+                              " curve leaving it not traced: " + curve.summary.message);
+          continue;
+        }
+        result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c)});
+        ++added;
       }
-      const double u = orbit->params[i1], v = orbit->params[i2];
-      // Known: on a traced curve of the same kind, by its polyline or by one of its
-      // codimension-2 points (which lie between its vertices, off the chords by up to the chord
-      // error); for a fold or PD candidate also of the same signature (at a fold-grazing the fold
-      // curves of the orbits with and without the vanishing segment both pass). A grazing
-      // candidate is compared by kind only: where its orbit has several near touches the tangent
-      // form picks one, and the grazing curve it came from may be another.
-      const bool known =
-          std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
-            // A curve's signature rotates where it crosses the Poincare section: any of its
-            // points' signatures counts.
-            if (t.curve.kind != kind || t.curve.points.empty() ||
-                (kind != CurveKind::kGrazing &&
-                 std::none_of(
-                     t.curve.points.begin(), t.curve.points.end(),
-                     [&](const CurvePoint& p) { return p.orbit.signature == curve_signature; }))) {
-              return false;
-            }
-            if (DistanceToCurve(t.curve, u, v, w1, w2) <= options.duplicate_distance) return true;
-            return std::any_of(
-                t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
-                  return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
-                         options.duplicate_distance;
-                });
-          });
-      if (known) continue;
-      seed.point.orbit = *orbit;
-      seed.point.stability = OrbitStability(model, propagator, *orbit);
-      if (added == options.max_switched_curves) {
-        sum.notes.push_back("switching stopped after " + std::to_string(added) +
-                            " curves (max_switched_curves)");
-        return true;
-      }
-      CurveResult curve = ContinueCurve(model, propagator, seed, co);
-      const std::string where = std::string(Codim2KindName(point.kind)) + " at " + options.param1 +
-                                " = " + std::to_string(u) + ", " + options.param2 + " = " +
-                                std::to_string(v);
-      if (curve.summary.termination == Termination::kFailed) {
-        sum.notes.push_back(where + ": the " + CurveKindName(kind) +
-                            " curve leaving it not traced: " + curve.summary.message);
-        continue;
-      }
-      result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c)});
-      ++added;
     }
   }
   if (wide + no_form > 0) {

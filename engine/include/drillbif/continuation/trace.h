@@ -47,8 +47,10 @@ struct TraceOptions {
   // curve appears: from a FOLD_GRAZING / FLIP_GRAZING located as a root along a grazing curve,
   // the fold / PD curve of the orbit without the vanishing segment (the grazing orbit with its
   // tangent end merged away has the multiplier +1 / -1 there); from a fold or PD curve ending at
-  // a FOLD_GRAZING / FLIP_GRAZING, the grazing curve through that end. A candidate on a curve
-  // already traced with the same kind and signature is skipped.
+  // a FOLD_GRAZING / FLIP_GRAZING, the grazing curve through that end; from a grazing curve
+  // ending at a DOUBLE_GRAZING solved with both touches as tangent ends, the grazing curve of
+  // each touch alone (one is the curve it came from). A candidate on a curve already traced with
+  // the same kind and signature is skipped.
   bool switch_at_codim2 = true;
   int max_switched_curves = 200;  // cap on the curves added by switching (a note says when hit)
   ContinuationOptions branch;     // for the one-parameter runs (param, min, max are set here)
