@@ -26,6 +26,45 @@ double DistanceToMultiplier(const Stability& st, double target) {
   return closest;
 }
 
+// The reference orbit's a-branch at omega = 0.1 over a in [0.01, 8], and curves from its points
+// in (a, omega) over issue 4's box.
+class GrazingEnd : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const StatusOr<PeriodicOrbit> start =
+        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
+    ASSERT_TRUE(start.ok()) << start.status().ToString();
+    start_ = *start;
+    ContinuationOptions branch;
+    branch.param = "a";
+    branch.min = 0.01;
+    branch.max = 8.0;
+    a_branch_ = Continue(model_, prop_, start_, branch);
+  }
+
+  // The a-branch's point of this kind within `tol` of a, or null.
+  const SpecialPoint* Find(SpecialPointKind kind, double a, double tol) const {
+    for (const SpecialPoint& s : a_branch_.special_points) {
+      if (s.kind == kind && std::abs(s.point.value - a) < tol) return &s;
+    }
+    return nullptr;
+  }
+
+  static CurveOptions Box() {
+    CurveOptions opt;
+    opt.param1 = std::string("a");  // not = "a": GCC 12 -Wrestrict false positive
+    opt.param2 = std::string("omega");
+    opt.min1 = 0.01, opt.max1 = 8.0;
+    opt.min2 = 0.05, opt.max2 = 2.0;
+    return opt;
+  }
+
+  DO model_;
+  ExactPropagator prop_{model_};
+  PeriodicOrbit start_;
+  ContinuationResult a_branch_;
+};
+
 // The fold curve of the a-branch's fold at a = 0.2718 (omega = 0.1) runs to the fold-grazing near
 // (omega, a) = (0.4292, 0.0278) as the CwP phase between two contact phases shrinks. It used to
 // stall there (bordering vectors fixed at the start made the bordered matrix singular), and the
@@ -34,28 +73,11 @@ double DistanceToMultiplier(const Stability& st, double target) {
 // (h = h' = 0 at the tangent end, multiplier +1), and the same point located independently, as
 // the root of det(M - I) along the l1 grazing curve traced from a grazing 1e-3 away in omega
 // (SolveTangentGrazing at fixed omega); measured agreement 1.3e-15, asserted to the issue's 1e-8.
-TEST(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok()) << start.status().ToString();
-  ContinuationOptions branch;
-  branch.param = "a";
-  branch.min = 0.01;
-  branch.max = 8.0;
-  const ContinuationResult a_branch = Continue(model, prop, *start, branch);
-  const SpecialPoint* fold = nullptr;
-  for (const SpecialPoint& s : a_branch.special_points) {
-    if (s.kind == SpecialPointKind::kFold && std::abs(s.point.value - 0.2718) < 1e-3) fold = &s;
-  }
+TEST_F(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
+  const SpecialPoint* fold = Find(SpecialPointKind::kFold, 0.2718, 1e-3);
   ASSERT_NE(fold, nullptr);
-  CurveOptions opt;
-  opt.param1 = std::string("a");  // not = "a": GCC 12 -Wrestrict false positive
-  opt.param2 = std::string("omega");
-  opt.min1 = 0.01, opt.max1 = 8.0;
-  opt.min2 = 0.05, opt.max2 = 2.0;
-  const CurveResult curve = ContinueCurve(model, prop, *fold, opt);
+  const CurveOptions opt = Box();
+  const CurveResult curve = ContinueCurve(model_, prop_, *fold, opt);
   ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
   EXPECT_EQ(curve.summary.message.find("stalled"), std::string::npos) << curve.summary.message;
   const Codim2Point* end = nullptr;
@@ -64,16 +86,16 @@ TEST(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
   }
   ASSERT_NE(end, nullptr) << curve.summary.message;
   EXPECT_EQ(end->bracket, 0.0) << end->detail;
-  const std::vector<GuardValue> touch = testing::TangentEndGuards(model, prop, end->point.orbit);
+  const std::vector<GuardValue> touch = testing::TangentEndGuards(model_, prop_, end->point.orbit);
   ASSERT_EQ(touch.size(), 1u);
   EXPECT_LE(std::abs(touch[0].h), 1e-9);
   EXPECT_LE(std::abs(touch[0].dh), 1e-9);
   EXPECT_LE(DistanceToMultiplier(end->point.stability, 1.0), 1e-8);
 
-  const int ia = model.ParamIndex("a").value(), iw = model.ParamIndex("omega").value();
+  const int ia = model_.ParamIndex("a").value(), iw = model_.ParamIndex("omega").value();
   PeriodicOrbit away = end->point.orbit;
   away.params[iw] += 1e-3;
-  const StatusOr<PeriodicOrbit> graze = internal::SolveTangentGrazing(model, prop, away, ia);
+  const StatusOr<PeriodicOrbit> graze = internal::SolveTangentGrazing(model_, prop_, away, ia);
   ASSERT_TRUE(graze.ok()) << graze.status().ToString();
   SpecialPoint from;
   from.kind = SpecialPointKind::kGrazingL1;
@@ -82,7 +104,7 @@ TEST(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
   CurveOptions near = opt;
   near.min1 = 0.0275, near.max1 = 0.0281;
   near.min2 = 0.42, near.max2 = 0.44;
-  const CurveResult grazing = ContinueCurve(model, prop, from, near);
+  const CurveResult grazing = ContinueCurve(model_, prop_, from, near);
   ASSERT_EQ(grazing.summary.termination, Termination::kCompleted) << grazing.summary.message;
   double nearest = std::numeric_limits<double>::infinity();
   for (const Codim2Point& q : grazing.codim2) {
@@ -101,33 +123,14 @@ TEST(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
 // firing at its start first, while the CwP phase is still 5e-4 long, and Newton fails on the
 // way (bracket 6.5e-6). Both ends are solved in tangent form to the same flip-grazing (measured:
 // identical to the last digit printed, 1e-9), with both conditions on the reported orbits.
-TEST(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok()) << start.status().ToString();
-  ContinuationOptions branch;
-  branch.param = "a";
-  branch.min = 0.01;
-  branch.max = 8.0;
-  const ContinuationResult a_branch = Continue(model, prop, *start, branch);
-  const SpecialPoint* pd = nullptr;
-  for (const SpecialPoint& s : a_branch.special_points) {
-    if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 0.24641) < 1e-4) {
-      pd = &s;
-    }
-  }
+TEST_F(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
+  const SpecialPoint* pd = Find(SpecialPointKind::kPeriodDoubling, 0.24641, 1e-4);
   ASSERT_NE(pd, nullptr);
   std::vector<Codim2Point> ends;
   for (const auto& [initial, longest] : {std::pair{0.02, 1.0}, std::pair{0.013, 0.3}}) {
-    CurveOptions opt;
-    opt.param1 = std::string("a");
-    opt.param2 = std::string("omega");
-    opt.min1 = 0.01, opt.max1 = 8.0;
-    opt.min2 = 0.05, opt.max2 = 2.0;
+    CurveOptions opt = Box();
     opt.initial_step = initial, opt.max_step = longest;
-    const CurveResult curve = ContinueCurve(model, prop, *pd, opt);
+    const CurveResult curve = ContinueCurve(model_, prop_, *pd, opt);
     ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
     const Codim2Point* end = nullptr;
     for (const Codim2Point& q : curve.codim2) {
@@ -135,7 +138,8 @@ TEST(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
     }
     ASSERT_NE(end, nullptr) << curve.summary.message;
     EXPECT_EQ(end->bracket, 0.0) << end->detail;
-    const std::vector<GuardValue> touch = testing::TangentEndGuards(model, prop, end->point.orbit);
+    const std::vector<GuardValue> touch =
+        testing::TangentEndGuards(model_, prop_, end->point.orbit);
     ASSERT_EQ(touch.size(), 1u);
     EXPECT_LE(std::abs(touch[0].h), 1e-9);
     EXPECT_LE(std::abs(touch[0].dh), 1e-9);
@@ -148,22 +152,17 @@ TEST(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
 }
 
 // A guess with the wrong number of tangent ends for the curve's kind is refused, naming both.
-TEST(GrazingEnd, WrongNumberOfTangentEndsIsAClearError) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok());
-  const int ia = model.ParamIndex("a").value(), iw = model.ParamIndex("omega").value();
+TEST_F(GrazingEnd, WrongNumberOfTangentEndsIsAClearError) {
+  const int ia = model_.ParamIndex("a").value(), iw = model_.ParamIndex("omega").value();
   const StatusOr<PeriodicOrbit> none =
-      internal::SolveGrazingEnd(model, prop, *start, CurveKind::kFold, iw, ia);
+      internal::SolveGrazingEnd(model_, prop_, start_, CurveKind::kFold, iw, ia);
   ASSERT_FALSE(none.ok());
   EXPECT_EQ(none.status().code(), StatusCode::kInvalidArgument);
   EXPECT_NE(none.status().message().find("needs 1 tangent ends, the guess has 0"),
             std::string::npos)
       << none.status().message();
   const StatusOr<PeriodicOrbit> grazing =
-      internal::SolveGrazingEnd(model, prop, *start, CurveKind::kGrazing, iw, ia);
+      internal::SolveGrazingEnd(model_, prop_, start_, CurveKind::kGrazing, iw, ia);
   ASSERT_FALSE(grazing.ok());
   EXPECT_NE(grazing.status().message().find("needs 2"), std::string::npos);
 }
