@@ -11,6 +11,7 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
 #include "support/tangent_end.h"
 #include "tangent_grazing.h"
@@ -50,12 +51,12 @@ class GrazingEnd : public ::testing::Test {
     return nullptr;
   }
 
+  // Issue 4's box, in (a, omega): the parameters of curves started on the a-branch.
   static CurveOptions Box() {
+    const TraceOptions box = testing::Issue4Box();
     CurveOptions opt;
-    opt.param1 = std::string("a");  // not = "a": GCC 12 -Wrestrict false positive
-    opt.param2 = std::string("omega");
-    opt.min1 = 0.01, opt.max1 = 8.0;
-    opt.min2 = 0.05, opt.max2 = 2.0;
+    opt.param1 = box.param2, opt.min1 = box.min2, opt.max1 = box.max2;
+    opt.param2 = box.param1, opt.min2 = box.min1, opt.max2 = box.max1;
     return opt;
   }
 
