@@ -532,10 +532,10 @@ class CurveTracer {
   }
 
   // The end solved in tangent form (grazing_end.h): where the violation beyond it is a segment
-  // vanishing between two segments of one mode (TangentForm; also its own guard firing inside a
-  // segment at most 1e-5 long), or a guard touching zero inside a
-  // segment (TouchForm at that segment and guard; at the admissible end the touch is within the
-  // bracket of zero). Kept when the solution lies within the bisection's bracket of the end (else
+  // vanishing between two segments of one mode (TangentForm; seen in the ways `vanishing` lists),
+  // or a guard touching zero inside a segment (TouchForm at that segment and guard; at the
+  // admissible end the touch is within the bracket of zero). Kept when the solution lies within
+  // the bisection's bracket of the end (else
   // it is another root: where the vanishing segment's events leave the monodromy discontinuous,
   // the tangent form's fold or PD condition is not the curve's) and is admissible; the end is then
   // that point, in tangent form, with bracket 0.

@@ -114,13 +114,13 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         StatusOr<PeriodicOrbit> orbit;
         SpecialPointKind seed_kind;
         CurveKind kind;
-        bool same_signature;  // known only as a curve with a point of the same signature
       };
       std::vector<Candidate> candidates;
       if (from_kind == CurveKind::kGrazing && point.kind == Codim2Kind::kDoubleGrazing) {
         // A grazing curve's end solved with both touches as tangent ends: the grazing curve of
-        // each touch alone (the other tangent end merged away) passes; one of them is the
-        // curve it came from (known, below), the other is the second boundary's.
+        // each touch alone (the other tangent end merged away) passes; one of them is usually the
+        // curve it came from (known, below), the other the second boundary's (or the first
+        // touch's in the signature beyond the second boundary).
         if (point.bracket != 0.0) continue;
         const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
         for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
@@ -128,7 +128,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
           StatusOr<PeriodicOrbit> single = internal::MergedForm(point.point.orbit, j);
           if (!single.ok()) continue;
           const SpecialPointKind k = GrazingKind(model, *single);
-          candidates.push_back({std::move(single), k, CurveKind::kGrazing, true});
+          candidates.push_back({std::move(single), k, CurveKind::kGrazing});
         }
       } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
         continue;
@@ -136,7 +136,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         // A root along a grazing curve: the orbit without the vanishing segment folds / doubles.
         candidates.push_back({internal::MergedForm(point.point.orbit),
                               fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling,
-                              fold ? CurveKind::kFold : CurveKind::kPeriodDoubling, true});
+                              fold ? CurveKind::kFold : CurveKind::kPeriodDoubling});
       } else if (from_kind != CurveKind::kGrazing) {
         // A fold / PD curve's end where its orbit grazes: the grazing curve through it. An end
         // solved in tangent form is its start as it is; else the tangent form at the segment the
@@ -157,7 +157,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         }
         const SpecialPointKind k =
             tangent.ok() ? GrazingKind(model, *tangent) : SpecialPointKind::kGrazingPi;
-        candidates.push_back({std::move(tangent), k, CurveKind::kGrazing, true});
+        candidates.push_back({std::move(tangent), k, CurveKind::kGrazing});
       } else {
         continue;  // a bracketed root on a grazing curve
       }
@@ -173,24 +173,20 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         seed.kind = candidate.seed_kind;
         seed.point.value = point.point.value1;
         const double u = orbit->params[i1], v = orbit->params[i2];
-        // Known: on a traced curve of the same kind, by its polyline or by one of its
-        // codimension-2 points (which lie between its vertices, off the chords by up to the chord
-        // error); for a fold or PD candidate also of the same signature (at a fold-grazing the fold
-        // curves of the orbits with and without the vanishing segment both pass), and so for a
-        // grazing candidate from a double grazing (the curve it came from ends there too). A
-        // grazing candidate from a fold / PD curve's end is compared by kind only: where its orbit
-        // has several near touches the tangent form picks one, and the grazing curve traced
-        // through that end may be another.
+        // Known: on a traced curve of the same kind and signature, by its polyline or by one of
+        // its codimension-2 points (which lie between its vertices, off the chords by up to the
+        // chord error). The signature tells curves through one point apart: at a fold-grazing the
+        // fold curves of the orbits with and without the vanishing segment both pass, at a double
+        // grazing the grazing curves of either touch. (Grazing candidates compared by kind only
+        // were hidden by a grazing curve ending at a double grazing 4.5e-7 away.)
         const bool known =
             std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
               // A curve's signature rotates where it crosses the Poincare section: any of its
               // points' signatures counts.
               if (t.curve.kind != kind || t.curve.points.empty() ||
-                  (candidate.same_signature &&
-                   std::none_of(t.curve.points.begin(), t.curve.points.end(),
-                                [&](const CurvePoint& p) {
-                                  return p.orbit.signature == curve_signature;
-                                }))) {
+                  std::none_of(
+                      t.curve.points.begin(), t.curve.points.end(),
+                      [&](const CurvePoint& p) { return p.orbit.signature == curve_signature; })) {
                 return false;
               }
               if (DistanceToCurve(t.curve, u, v, w1, w2) <= options.duplicate_distance) return true;

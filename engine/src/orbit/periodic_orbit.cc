@@ -130,8 +130,9 @@ namespace {
 // Whether an event of segment i's own guard at time t is the segment's end at tau: within
 // 1e-6 tau (a crossing cannot fall back through the surface in so short a time without touching it
 // tangentially there), or within what rounding in h (eps = 1e-13 (1 + |x|)) makes of the event
-// time there: eps / |h'| where the guard crosses (a short segment ending at a shallow crossing:
-// 1e-6 tau can be below it), sqrt(2 eps / h'') at a tangent end's touch (h = h' = 0, h'' > 0: h
+// time there: eps / |h'| where the guard crosses, at most sqrt(2 eps / |h''|) (a short segment
+// ending at a shallow crossing: 1e-6 tau can be below it), sqrt(2 eps / h'') at a tangent end's
+// touch (h = h' = 0, h'' > 0: h
 // stays within rounding of zero for that long around it, and the locator can see a crossing
 // anywhere there; with h'' = 2e-4, 1e-6 before tau, and grazing curves ended at spurious double
 // grazings at random places along them). A real crossing that close to the end is itself a
@@ -145,7 +146,10 @@ bool IsOwnEnd(const HybridModel& model, Propagator& propagator, const PeriodicOr
   const GuardValue g = model.Guard(seg.mode, seg.guard, end, orbit.params);
   const double eps = 1e-13 * (1.0 + end.lpNorm<Eigen::Infinity>());
   if (seg.tangent) return g.ddh > 0.0 && tau - t <= std::sqrt(2.0 * eps / g.ddh);
-  return tau - t <= eps / std::abs(g.dh);
+  // A crossing's time is uncertain by eps / |h'|, and never by more than sqrt(2 eps / |h''|) (a
+  // near-zero rate must not open the window wide).
+  const double window = std::min(eps / std::abs(g.dh), std::sqrt(2.0 * eps / std::abs(g.ddh)));
+  return std::isfinite(window) && tau - t <= window;
 }
 
 }  // namespace
