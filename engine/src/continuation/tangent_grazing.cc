@@ -153,49 +153,67 @@ StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator
   if (std::isnan(TangentEndRate(model, propagator, guess))) {
     return InvalidArgument("the guess has no tangent end");
   }
-  OrbitBvp bvp(model, propagator, guess.signature, param);
-  const int m = bvp.size();
+  return SolveWithConditions(
+      model, propagator, guess, {param},
+      [&](const PeriodicOrbit& o) {
+        return Eigen::VectorXd::Constant(1, TangentEndRate(model, propagator, o));
+      },
+      tolerance, "tangency system");
+}
+
+StatusOr<PeriodicOrbit> SolveWithConditions(
+    const HybridModel& model, Propagator& propagator, const PeriodicOrbit& guess,
+    const std::vector<int>& free,
+    const std::function<Eigen::VectorXd(const PeriodicOrbit&)>& conditions, double tolerance,
+    const std::string& what) {
+  const int q = static_cast<int>(free.size());
+  if (q < 1 || q > 2) return InvalidArgument("one or two free parameters");
+  OrbitBvp bvp(model, propagator, guess.signature, free[0], q > 1 ? free[1] : -1);
+  const int m = bvp.size(), n = m + q;
   Params params = guess.params;
-  Eigen::VectorXd y(m + 1);
+  Eigen::VectorXd y(n);
   y.head(m) = bvp.Pack(guess);
-  y[m] = params[param];
-  // h' at the tangent end, as a function of (X, lambda).
-  auto rate = [&](const Eigen::VectorXd& yy) {
+  for (int l = 0; l < q; ++l) y[m + l] = params[free[l]];
+  auto unpack = [&](const Eigen::VectorXd& yy) {
     Params p = params;
-    p[param] = yy[m];
+    for (int l = 0; l < q; ++l) p[free[l]] = yy[m + l];
     PeriodicOrbit o;
     bvp.Unpack(yy.head(m), p, &o);
-    return TangentEndRate(model, propagator, o);
+    return o;
   };
-  Eigen::VectorXd g, gp, f(m + 1);
-  Eigen::MatrixXd gx, jac(m + 1, m + 1);
+  auto c = [&](const Eigen::VectorXd& yy) { return conditions(unpack(yy)); };
+  Eigen::VectorXd g, gp[2], f(n);
+  Eigen::MatrixXd gx, jac(n, n);
   for (int it = 0; it < 30; ++it) {
-    params[param] = y[m];
+    for (int l = 0; l < q; ++l) params[free[l]] = y[m + l];
     if (!model.ValidateParams(params).ok()) return Internal("left the parameter domain");
-    if (Status s = bvp.Evaluate(y.head(m), params, &g, &gx, &gp); !s.ok()) return s;
+    if (Status s = bvp.Evaluate(y.head(m), params, &g, &gx, &gp[0], q > 1 ? &gp[1] : nullptr);
+        !s.ok()) {
+      return s;
+    }
+    const Eigen::VectorXd c0 = c(y);
+    if (c0.size() != q)
+      return InvalidArgument("the conditions must have one row per free parameter");
     f.head(m) = g;
-    f[m] = rate(y);
+    f.tail(q) = c0;
+    jac.setZero();
     jac.topLeftCorner(m, m) = gx;
-    jac.topRightCorner(m, 1) = gp;
-    // d h' / d (X, lambda) by central differences: truncation h^2 |h''''| and rounding
-    // eps |h'| / h, both ~1e-12 with h = 1e-6 (1 + |y_j|).
-    for (int j = 0; j <= m; ++j) {
+    for (int l = 0; l < q; ++l) jac.col(m + l).head(m) = gp[l];
+    for (int j = 0; j < n; ++j) {
       const double h = 1e-6 * (1.0 + std::abs(y[j]));
       Eigen::VectorXd yp = y, ym = y;
       yp[j] += h, ym[j] -= h;
-      jac(m, j) = (rate(yp) - rate(ym)) / (2.0 * h);
+      jac.block(m, j, q, 1) = (c(yp) - c(ym)) / (2.0 * h);
     }
+    if (!f.allFinite() || !jac.allFinite()) return Internal("non-finite " + what);
     const Eigen::VectorXd step = jac.partialPivLu().solve(-f);
-    if (!step.allFinite()) return Internal("singular tangency system");
+    if (!step.allFinite()) return Internal("singular " + what);
     y += step;
     if (step.lpNorm<Eigen::Infinity>() <= tolerance * (1.0 + y.lpNorm<Eigen::Infinity>())) {
-      params[param] = y[m];
-      PeriodicOrbit out;
-      bvp.Unpack(y.head(m), params, &out);
-      return out;
+      return unpack(y);
     }
   }
-  return Internal("the tangency system did not converge");
+  return Internal("the " + what + " did not converge");
 }
 
 }  // namespace drillbif::internal

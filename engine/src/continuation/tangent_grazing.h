@@ -7,6 +7,9 @@
 #ifndef DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
 #define DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
 
+#include <Eigen/Dense>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include "drillbif/orbit/periodic_orbit.h"
@@ -52,6 +55,17 @@ std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propag
 StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator& propagator,
                                             const PeriodicOrbit& guess, int param,
                                             double tolerance = 1e-12);
+
+// Newton on (G = 0, c = 0) from `guess` in its signature, with the unknowns X and the parameters
+// `free` (one or two); c = conditions(orbit) has free.size() components, so the system is square.
+// G's Jacobian is exact, c's rows central differences (step 1e-6 (1 + |y_j|): truncation and
+// rounding both ~1e-12 for O(1) conditions; they only steer Newton, the residual is exact).
+// Stops at a scaled step <= tolerance; INTERNAL when Newton fails (`what` names the system).
+StatusOr<PeriodicOrbit> SolveWithConditions(
+    const HybridModel& model, Propagator& propagator, const PeriodicOrbit& guess,
+    const std::vector<int>& free,
+    const std::function<Eigen::VectorXd(const PeriodicOrbit&)>& conditions, double tolerance,
+    const std::string& what);
 
 }  // namespace drillbif::internal
 
