@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <functional>
 #include <limits>
@@ -546,37 +547,69 @@ class CurveTracer {
     if (v.admissible || i < 0 || i >= static_cast<int>(segs.size())) return false;
     const PeriodicOrbit& o = end->point.orbit;
     const int k = static_cast<int>(segs.size());
-    // Segment j vanishing between two segments of one mode, seen (v) as its duration turning
-    // negative, or as a guard firing before the duration does (the duration goes like the
-    // square root of the distance to the grazing, and its end guard's rate h' with it): j's own
-    // guard inside j while j is at most 1e-5 long, or, at the very start of the next segment,
-    // the guard that led into j from the segment before it (j would start again at once). The
-    // solution is kept only within the bracket (below), so a wrong guess costs a Newton run.
-    auto vanishing = [&](int j) {
-      if (j <= 0 || j + 1 >= k || segs[j - 1].mode != segs[j + 1].mode) return false;
-      if (v.guard < 0) return j == i;
-      if (j == i) return v.guard == segs[i].guard && std::abs(o.durations[j]) <= 1e-5;
-      return j == i - 1 && v.at_start && v.guard == segs[j - 1].guard;
-    };
-    StatusOr<PeriodicOrbit> form = Status(StatusCode::kUnimplemented, "");
-    if (vanishing(i)) {
-      form = internal::TangentForm(o, i);
-    } else if (vanishing(i - 1)) {
-      form = internal::TangentForm(o, i - 1);
-    } else if (v.guard >= 0) {
-      form = internal::TouchForm(model_, propagator_, o, 1e-6, i, v.guard);
+    // Segment j vanishing, seen (v) as its duration turning negative, or as a guard firing
+    // before the duration does (the duration goes like the square root of the distance to the
+    // grazing, and its end guard's rate h' with it): j's own guard inside j while j is at most
+    // 1e-5 long, or, at the very start of the next segment, the guard that led into j from the
+    // segment before it (j would start again at once). A solution is kept only within the
+    // bracket (below), so a wrong guess costs a Newton run.
+    int j = -1;
+    if (v.guard < 0) {
+      j = i;
+    } else if (v.guard == segs[i].guard && std::abs(o.durations[i]) <= 1e-5) {
+      j = i;
+    } else if (i >= 2 && v.at_start && segs[i - 2].mode == segs[i].mode &&
+               v.guard == segs[i - 2].guard) {
+      j = i - 1;
     }
-    if (!form.ok()) return false;
-    const StatusOr<PeriodicOrbit> solved =
-        internal::SolveGrazingEnd(model_, propagator_, *form, kind_, index1_, index2_);
-    if (!solved.ok()) return false;
-    const double moved = std::hypot(solved->params[index1_] - end->point.value1,
-                                    solved->params[index2_] - end->point.value2);
-    if (moved > 2.0 * end->bracket + 1e-9) return false;
-    if (!CheckAdmissible(model_, propagator_, *solved).admissible) return false;
+    // Kept when within the bracket of the end, admissible (for a zero-length segment: but for
+    // that segment's own duration, zero to rounding) and, on a fold / PD curve, with the
+    // multiplier +1 / -1 among the eigenvalues to 1e-8 (independent of sigma and its borders:
+    // where a zero-length segment's saltation degenerates, sigma = 0 was met without it).
+    auto accept = [&](const StatusOr<PeriodicOrbit>& solved, int zero_length) {
+      if (!solved.ok()) return false;
+      const double moved = std::hypot(solved->params[index1_] - end->point.value1,
+                                      solved->params[index2_] - end->point.value2);
+      if (moved > 2.0 * end->bracket + 1e-9) return false;
+      for (const Admissibility& w : AdmissibilityViolations(model_, propagator_, *solved)) {
+        if (w.segment != zero_length || w.guard >= 0) return false;
+      }
+      if (kind_ == CurveKind::kFold || kind_ == CurveKind::kPeriodDoubling) {
+        const double target = kind_ == CurveKind::kFold ? 1.0 : -1.0;
+        const Stability st = OrbitStability(model_, propagator_, *solved);
+        if (std::none_of(
+                st.multipliers.begin(), st.multipliers.end(),
+                [&](const std::complex<double>& mu) { return std::abs(mu - target) <= 1e-8; })) {
+          return false;
+        }
+      }
+      return true;
+    };
+    const bool same_mode = j > 0 && j + 1 < k && segs[j - 1].mode == segs[j + 1].mode;
+    StatusOr<PeriodicOrbit> solved = Status(StatusCode::kUnimplemented, "");
+    std::string how = " (solved in tangent form)";
+    if (same_mode) {
+      const StatusOr<PeriodicOrbit> form = internal::TangentForm(o, j);
+      if (form.ok()) {
+        solved = internal::SolveGrazingEnd(model_, propagator_, *form, kind_, index1_, index2_);
+      }
+    } else if (j < 0 && v.guard >= 0) {
+      const StatusOr<PeriodicOrbit> form =
+          internal::TouchForm(model_, propagator_, o, 1e-6, i, v.guard);
+      if (form.ok()) {
+        solved = internal::SolveGrazingEnd(model_, propagator_, *form, kind_, index1_, index2_);
+      }
+    }
+    if (!accept(solved, -1) && j >= 0) {
+      solved = internal::SolveZeroLengthEnd(model_, propagator_, o, j, kind_, index1_, index2_);
+      how = " (solved with segment " + std::to_string(j) + " of zero length)";
+      if (!accept(solved, j)) return false;
+    } else if (!accept(solved, -1)) {
+      return false;
+    }
     end->point = PointFromOrbit(*solved);
     end->bracket = 0.0;
-    end->detail += " (solved in tangent form)";
+    end->detail += how;
     return true;
   }
 

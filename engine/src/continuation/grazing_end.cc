@@ -37,4 +37,30 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
       tolerance, "codimension-2 system");
 }
 
+StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator& propagator,
+                                           const PeriodicOrbit& guess, int segment, CurveKind kind,
+                                           int index1, int index2, double tolerance) {
+  if (segment < 0 || segment >= static_cast<int>(guess.durations.size())) {
+    return InvalidArgument("no segment " + std::to_string(segment));
+  }
+  const bool grazing = kind == CurveKind::kGrazing;
+  if (grazing && TangentEndRates(model, propagator, guess).size() != 1) {
+    return InvalidArgument("the end of a GRAZING curve needs its one tangent end");
+  }
+  BorderedSigma sigma;
+  if (!grazing) {
+    sigma =
+        BorderedSigma(ShiftedMonodromy(kind, OrbitStability(model, propagator, guess).monodromy));
+  }
+  return SolveWithConditions(
+      model, propagator, guess, {index1, index2},
+      [&](const PeriodicOrbit& o) {
+        const double own =
+            grazing ? TangentEndRate(model, propagator, o)
+                    : sigma(ShiftedMonodromy(kind, OrbitStability(model, propagator, o).monodromy));
+        return Eigen::Vector2d(o.durations[segment], own).eval();
+      },
+      tolerance, "zero-length segment system");
+}
+
 }  // namespace drillbif::internal

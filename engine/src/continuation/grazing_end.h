@@ -24,6 +24,16 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
                                         const PeriodicOrbit& guess, CurveKind kind, int index1,
                                         int index2, double tolerance = 1e-12);
 
+// The same point where the vanishing segment lies between segments of different modes, or where
+// its two events leave the monodromy discontinuous (no tangent form, or its solution is another
+// point): the orbit keeps its signature with segment `segment` held at zero length (its two
+// events, of different guards, at one point: a regular condition, unlike a segment between two of
+// one mode, whose two guards are one), plus the curve's own condition (sigma, or h' = 0 at the
+// tangent end of a grazing curve). Newton from `guess`, params[index1] and params[index2] free.
+StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator& propagator,
+                                           const PeriodicOrbit& guess, int segment, CurveKind kind,
+                                           int index1, int index2, double tolerance = 1e-12);
+
 }  // namespace drillbif::internal
 
 #endif  // DRILLBIF_CONTINUATION_GRAZING_END_H_

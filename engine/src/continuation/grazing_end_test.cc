@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -150,6 +151,56 @@ TEST_F(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
   EXPECT_LE(std::hypot(ends[0].point.value1 - ends[1].point.value1,
                        ends[0].point.value2 - ends[1].point.value2),
             1e-9);
+}
+
+// Where the vanishing segment lies between segments of different modes (a contact phase between
+// an impact and progression: the impact goes straight into progression), there is no tangent
+// form; the end is solved with that segment held at zero length. The a-branch fold curve from
+// a = 0.2718 ends so at the fold-grazing near (omega, a) = (0.0643, 0.2985), where the fold curve
+// of the other signature (impact straight into progression, from the omega-branch fold at
+// omega = 0.0622) ends too, located independently by bisection (bracket <= 1e-9). Measured
+// agreement 1e-13; asserted 1e-9, with the zero length to 1e-12 and the multiplier +1 to 1e-8.
+TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
+  const SpecialPoint* fold = Find(SpecialPointKind::kFold, 0.2718, 1e-3);
+  ASSERT_NE(fold, nullptr);
+  const CurveResult curve = ContinueCurve(model_, prop_, *fold, Box());
+  const Codim2Point* solved = nullptr;
+  for (const Codim2Point& q : curve.codim2) {
+    if (q.kind == Codim2Kind::kFoldGrazing && std::abs(q.point.value2 - 0.0643) < 1e-3) solved = &q;
+  }
+  ASSERT_NE(solved, nullptr) << curve.summary.message;
+  EXPECT_EQ(solved->bracket, 0.0) << solved->detail;
+  EXPECT_NE(solved->detail.find("of zero length"), std::string::npos) << solved->detail;
+  const std::vector<double>& tau = solved->point.orbit.durations;
+  EXPECT_LE(*std::min_element(tau.begin(), tau.end(),
+                              [](double x, double y) { return std::abs(x) < std::abs(y); }),
+            1e-12);
+  EXPECT_LE(DistanceToMultiplier(solved->point.stability, 1.0), 1e-8);
+
+  ContinuationOptions omega_branch;
+  omega_branch.param = "omega";
+  omega_branch.min = 0.05;
+  omega_branch.max = 2.0;
+  const ContinuationResult ro = Continue(model_, prop_, start_, omega_branch);
+  const SpecialPoint* other = nullptr;
+  for (const SpecialPoint& s : ro.special_points) {
+    if (s.kind == SpecialPointKind::kFold && std::abs(s.point.value - 0.0622) < 1e-3) other = &s;
+  }
+  ASSERT_NE(other, nullptr);
+  const TraceOptions box = testing::Issue4Box();
+  CurveOptions opt;
+  opt.param1 = box.param1, opt.min1 = box.min1, opt.max1 = box.max1;
+  opt.param2 = box.param2, opt.min2 = box.min2, opt.max2 = box.max2;
+  const CurveResult other_curve = ContinueCurve(model_, prop_, *other, opt);
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const Codim2Point& q : other_curve.codim2) {
+    if (q.kind != Codim2Kind::kFoldGrazing || q.bracket > 1e-9) continue;
+    EXPECT_LE(DistanceToMultiplier(q.point.stability, 1.0), 1e-8);
+    nearest = std::min(nearest, std::hypot(q.point.value1 - solved->point.value2,
+                                           q.point.value2 - solved->point.value1));
+  }
+  EXPECT_LE(nearest, 1e-9);
+  RecordProperty("distance_to_the_other_curves_end", std::to_string(nearest));
 }
 
 // A guess with the wrong number of tangent ends for the curve's kind is refused, naming both.

@@ -121,8 +121,14 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         // each touch alone (the other tangent end merged away) passes; one of them is usually the
         // curve it came from (known, below), the other the second boundary's (or the first
         // touch's in the signature beyond the second boundary).
-        if (point.bracket != 0.0) continue;
+        // (An end solved with a zero-length segment for its second grazing has one tangent end:
+        // the corner's own curve, two events held at one point, is not traced here.)
         const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
+        if (point.bracket != 0.0 ||
+            std::count_if(segs.begin(), segs.end(),
+                          [](const SegmentSpec& x) { return x.tangent; }) != 2) {
+          continue;
+        }
         for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
           if (!segs[j].tangent) continue;
           StatusOr<PeriodicOrbit> single = internal::MergedForm(point.point.orbit, j);
@@ -146,13 +152,18 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
         const int i = beyond.segment;
         StatusOr<PeriodicOrbit> tangent = Status(StatusCode::kUnimplemented, "");
-        if (std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; })) {
+        const bool has_tangent =
+            std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; });
+        if (has_tangent) {
           tangent = point.point.orbit;
+        } else if (point.bracket == 0.0) {
+          // Solved with a zero-length segment: its grazing is a corner (two events held at one
+          // point), whose curve is not traced here; left as without tangent form.
         } else if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
                    i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
           tangent = internal::TangentForm(point.point.orbit, i);
         }
-        if (!tangent.ok()) {
+        if (!tangent.ok() && !(point.bracket == 0.0 && !has_tangent)) {
           tangent = internal::GrazingTangentForm(model, propagator, point.point.orbit);
         }
         const SpecialPointKind k =
@@ -222,8 +233,10 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
     sum.notes.push_back(
         std::to_string(wide + no_form) + " codimension-2 points at curve ends not switched at: " +
         std::to_string(wide) + " located only to a bracket > 1e-6, " + std::to_string(no_form) +
-        " where the end orbit has no tangent form (no segment within 1e-6 of vanishing between "
-        "two of one mode, no guard within 1e-6 of touching inside a segment)");
+        " where the end's grazing has no tangent form (a corner, two events at one point such "
+        "as an impact straight into progression, whose curve is not traced; or no segment "
+        "within 1e-6 of vanishing between two of one mode, no guard within 1e-6 of touching "
+        "inside a segment)");
   }
   return true;
 }
