@@ -112,7 +112,10 @@ class CurveTracer {
     start_[m() + 1] = start.params[index2];
     if (std::isfinite(options.max1 - options.min1)) w1_ = options.max1 - options.min1;
     if (std::isfinite(options.max2 - options.min2)) w2_ = options.max2 - options.min2;
-    if (kind_ == CurveKind::kGrazing) return;
+    if (kind_ == CurveKind::kGrazing) {
+      corner_ = internal::CornerSegment(model_, start);
+      return;
+    }
     SetBorders(OrbitStability(model_, propagator_, Unpack(start_)).monodromy);
   }
 
@@ -161,7 +164,9 @@ class CurveTracer {
   // The same for an unpacked orbit; for fold / PD / NS curves its monodromy factors are kept in
   // *factors when asked (the condition's row of the Jacobian reuses them).
   double ConditionAt(const PeriodicOrbit& o, std::vector<StateMatrix>* factors = nullptr) const {
-    if (kind_ == CurveKind::kGrazing) return internal::TangentEndRate(model_, propagator_, o);
+    if (kind_ == CurveKind::kGrazing) {
+      return corner_ >= 0 ? o.durations[corner_] : internal::TangentEndRate(model_, propagator_, o);
+    }
     std::vector<StateMatrix> f = internal::MonodromyFactors(model_, propagator_, o);
     const double sigma = Sigma(internal::ReducedMonodromy(model_, f));
     if (factors) *factors = std::move(f);
@@ -200,7 +205,10 @@ class CurveTracer {
     // h = 1.5e-8 (1 + |y_j|) for these O(1) quantities. The Jacobian only steers Newton and the
     // tangent; the residual, and so every point on the curve, is exact.
     const double sigma0 = (*f)[m()];
-    if (kind_ == CurveKind::kGrazing) {
+    if (kind_ == CurveKind::kGrazing && corner_ >= 0) {
+      // The corner's duration is one of the unknowns: its row is a unit vector.
+      (*jac)(m(), corner_ * model_.state_dim() + model_.state_dim() - 1) = 1.0;
+    } else if (kind_ == CurveKind::kGrazing) {
       for (int j = 0; j < n(); ++j) {
         const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
         Vec yp = y;
@@ -322,9 +330,19 @@ class CurveTracer {
     return Evaluate(y, &f, &jac) && internal::UnitTangent(jac, prev, t);
   }
 
+  // Admissibility; on a corner's curve the corner's own duration, zero to rounding, counts as
+  // the smallest positive one (its two events at one point, as PointFromOrbit reports it), and
+  // the rest is checked as usual.
   bool Admissible(const PeriodicOrbit& o, std::string* why,
                   Admissibility* violation = nullptr) const {
-    const Admissibility a = CheckAdmissible(model_, propagator_, o);
+    Admissibility a;
+    if (corner_ >= 0 && std::abs(o.durations[corner_]) <= 1e-9) {
+      PeriodicOrbit p = o;
+      p.durations[corner_] = std::numeric_limits<double>::min();
+      a = CheckAdmissible(model_, propagator_, p);
+    } else {
+      a = CheckAdmissible(model_, propagator_, o);
+    }
     *why = a.message;
     if (violation && !a.admissible) *violation = a;
     return a.admissible;
@@ -338,6 +356,12 @@ class CurveTracer {
   }
 
   CurvePoint PointFromOrbit(PeriodicOrbit orbit) const {
+    // A corner's zero-length segment (Newton leaves it at ~1e-20 either side of zero) is
+    // reported as the smallest positive duration: its two events at one point, an orbit that
+    // CheckAdmissible takes as it is.
+    if (corner_ >= 0 && std::abs(orbit.durations[corner_]) <= 1e-9) {
+      orbit.durations[corner_] = std::numeric_limits<double>::min();
+    }
     CurvePoint p;
     p.value1 = orbit.params[index1_];
     p.value2 = orbit.params[index2_];
@@ -828,6 +852,9 @@ class CurveTracer {
   internal::OrbitBvp bvp1_;     // derivatives in both parameters
   Vec start_;
   mutable internal::BorderedSigma sigma_;  // SetBorders
+  // A grazing curve of a corner (internal::CornerSegment): the segment held at zero length, its
+  // duration the curve's condition; -1 for a grazing curve of a touch (a tangent end).
+  int corner_ = -1;
 };
 
 }  // namespace
@@ -866,13 +893,17 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
       // segment i - 1, in the same mode as i + 1, ends tangentially on its guard instead. Without
       // a vanishing segment (the grazing seen from the side where the guard is not reached, e.g.
       // a free flight touching Pi), the segment where a guard touches zero is split there.
+      // A corner (a segment of zero length between events of two surfaces) without a tangent
+      // form at that segment is traced as it is, the segment held at zero length.
       result.kind = CurveKind::kGrazing;
       const bool tangent_given =
           std::any_of(orbit.signature.segments.begin(), orbit.signature.segments.end(),
                       [](const SegmentSpec& seg) { return seg.tangent; });
+      const int corner = internal::CornerSegment(model, orbit);
+      const bool corner_given = corner >= 0 && !internal::TangentForm(orbit, corner).ok();
       StatusOr<PeriodicOrbit> tangent =
-          tangent_given ? StatusOr<PeriodicOrbit>(orbit)
-                        : internal::GrazingTangentForm(model, propagator, orbit);
+          tangent_given || corner_given ? StatusOr<PeriodicOrbit>(orbit)
+                                        : internal::GrazingTangentForm(model, propagator, orbit);
       if (!tangent.ok()) return fail(tangent.status());
       tangent_orbit = *std::move(tangent);
       break;

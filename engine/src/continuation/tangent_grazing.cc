@@ -111,6 +111,24 @@ StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator&
   return tangent;
 }
 
+int CornerSegment(const HybridModel& model, const PeriodicOrbit& orbit) {
+  const auto& segs = orbit.signature.segments;
+  const int k = static_cast<int>(segs.size());
+  if (std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; })) {
+    return -1;
+  }
+  for (int j = 1; j + 1 < k; ++j) {
+    if (std::abs(orbit.durations[j]) > 1e-9 || segs[j - 1].guard < 0 || segs[j].guard < 0) {
+      continue;
+    }
+    if (model.guards(segs[j - 1].mode)[segs[j - 1].guard].surface !=
+        model.guards(segs[j].mode)[segs[j].guard].surface) {
+      return j;
+    }
+  }
+  return -1;
+}
+
 StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit, int segment) {
   PeriodicOrbit o = tangent_orbit;
   auto& segs = o.signature.segments;

@@ -37,6 +37,13 @@ StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagat
 StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator& propagator,
                                            const PeriodicOrbit& orbit);
 
+// A corner: segment j of zero length (|duration| <= 1e-9), neither the first nor the last,
+// between events of two different surfaces (e.g. a contact phase between an impact and the
+// start of progression: the impact goes straight into progression). Holding it at zero length is
+// a regular grazing condition (the same surface twice would be the degenerate case above).
+// Returns j, or -1 when the orbit has none (or has a tangent end: a touch, not a corner).
+int CornerSegment(const HybridModel& model, const PeriodicOrbit& orbit);
+
 // The orbit without its tangent end: the (first, or the one at segment `segment`) tangent segment
 // and the one after it, in the same mode, merged into one segment. At a grazing this is the orbit
 // of the signature without the vanishing segment, touching the guard inside a segment.

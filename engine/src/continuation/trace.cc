@@ -79,11 +79,16 @@ bool Traceable(SpecialPointKind kind) {
 
 // A grazing start kind named after the surface of the tangent segment's guard.
 SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tangent_orbit) {
-  for (const SegmentSpec& seg : tangent_orbit.signature.segments) {
-    if (!seg.tangent) continue;
-    const std::string& surface = model.guards(seg.mode)[seg.guard].surface;
+  const std::vector<SegmentSpec>& segs = tangent_orbit.signature.segments;
+  const int corner = internal::CornerSegment(model, tangent_orbit);
+  for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
+    // A touch's surface, or a corner's second event's (e.g. l1 where an impact goes straight
+    // into progression).
+    if (!segs[j].tangent && j != corner) continue;
+    const std::string& surface = model.guards(segs[j].mode)[segs[j].guard].surface;
     if (surface == "l1") return SpecialPointKind::kGrazingL1;
     if (surface == "l2") return SpecialPointKind::kGrazingL2;
+    return SpecialPointKind::kGrazingPi;
   }
   return SpecialPointKind::kGrazingPi;
 }
@@ -122,13 +127,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         // curve it came from (known, below), the other the second boundary's (or the first
         // touch's in the signature beyond the second boundary).
         // (An end solved with a zero-length segment for its second grazing has one tangent end:
-        // the corner's own curve, two events held at one point, is not traced here.)
+        // merging it away leaves the corner, whose grazing curve starts there.)
         const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
-        if (point.bracket != 0.0 ||
-            std::count_if(segs.begin(), segs.end(),
-                          [](const SegmentSpec& x) { return x.tangent; }) != 2) {
-          continue;
-        }
+        if (point.bracket != 0.0) continue;
         for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
           if (!segs[j].tangent) continue;
           StatusOr<PeriodicOrbit> single = internal::MergedForm(point.point.orbit, j);
@@ -157,13 +158,14 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         if (has_tangent) {
           tangent = point.point.orbit;
         } else if (point.bracket == 0.0) {
-          // Solved with a zero-length segment: its grazing is a corner (two events held at one
-          // point), whose curve is not traced here; left as without tangent form.
+          // Solved with a zero-length segment: the grazing curve of that corner (two events held
+          // at one point) starts from it as it is.
+          tangent = point.point.orbit;
         } else if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
                    i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
           tangent = internal::TangentForm(point.point.orbit, i);
         }
-        if (!tangent.ok() && !(point.bracket == 0.0 && !has_tangent)) {
+        if (!tangent.ok()) {
           tangent = internal::GrazingTangentForm(model, propagator, point.point.orbit);
         }
         const SpecialPointKind k =
