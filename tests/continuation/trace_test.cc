@@ -75,6 +75,7 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(flip_grazings, 4);
   // Every fold, PD and grazing of the two branches: traced or named in a note.
   std::vector<SpecialPoint> located[2];  // on the omega-branch (a = 0.3), on the a-branch
+  int corner_starts = 0;
   for (const char* param : {"omega", "a"}) {
     ContinuationOptions branch;
     branch.param = param;
@@ -83,24 +84,32 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
     const ContinuationResult one = Continue(model, prop, *start, branch);
     located[std::string(param) == "a"] = one.special_points;
     for (const SpecialPoint& s : one.special_points) {
+      // A signature change at a corner (its orbit holding a segment at zero length, no tangent
+      // end) is a grazing too: the trace starts that corner's curve there, as a GRAZING_* point.
+      const std::vector<double>& tau = s.point.orbit.durations;
+      const bool corner =
+          s.kind == SpecialPointKind::kSignatureChange &&
+          std::any_of(tau.begin(), tau.end(), [](double d) { return std::abs(d) <= 1e-9; });
       const bool traceable =
           s.kind == SpecialPointKind::kFold || s.kind == SpecialPointKind::kPeriodDoubling ||
           s.kind == SpecialPointKind::kGrazingL1 || s.kind == SpecialPointKind::kGrazingL2 ||
-          s.kind == SpecialPointKind::kGrazingPi;
+          s.kind == SpecialPointKind::kGrazingPi || corner;
       if (!traceable) continue;
+      corner_starts += corner;
       bool accounted = false;
       for (const TracedCurve& c : r.curves) {
         accounted |= c.start_param == param && c.start.point.value == s.point.value;
       }
       const std::string omega = std::to_string(s.point.orbit.params[DO::kOmega]);
+      const std::string name = corner ? "GRAZING_" : SpecialPointKindName(s.kind);
       for (const std::string& note : r.summary.notes) {
-        accounted |= note.find(SpecialPointKindName(s.kind)) == 0 &&
-                     note.find("omega = " + omega) != std::string::npos;
+        accounted |= note.find(name) == 0 && note.find("omega = " + omega) != std::string::npos;
       }
       EXPECT_TRUE(accounted) << SpecialPointKindName(s.kind) << " on the " << param << "-branch at "
                              << s.point.value;
     }
   }
+  EXPECT_GE(corner_starts, 3);  // omega = 0.0683, 0.0581 (a = 0.3); a = 0.5387 (omega = 0.1)
   // Consistency with the one-parameter results: every crossing of omega = 0.1 (a = 0.3) by a curve
   // is a point of the curve's kind that the a-continuation at omega = 0.1 (the omega-continuation
   // at a = 0.3) located, to 1e-7 (issue 4). Both are solved to the corrector's tolerance (1e-10

@@ -318,7 +318,17 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                    std::abs(b.point.value - s.point.value) <=
                        1e-6 * (1.0 + std::abs(b.point.value));
           });
-      if (Traceable(s.kind) && !turn) starts.emplace_back(axis, s);
+      if (turn) continue;
+      if (Traceable(s.kind)) {
+        starts.emplace_back(axis, s);
+      } else if (s.kind == SpecialPointKind::kSignatureChange &&
+                 internal::CornerSegment(model, s.point.orbit) >= 0) {
+        // A signature change at a corner (a segment vanishing between events of two surfaces,
+        // e.g. an impact going straight into progression) is a grazing: its corner's curve.
+        SpecialPoint corner = s;
+        corner.kind = GrazingKind(model, s.point.orbit);
+        starts.emplace_back(axis, std::move(corner));
+      }
     }
     return true;
   };
