@@ -55,7 +55,7 @@ struct TraceOptions {
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
   // what issue 4's box needs (149 curves; 1025 with max_period 2, which 200 cut short).
   int max_switched_curves = 2000;
-  ContinuationOptions branch;     // for the one-parameter runs (param, min, max are set here)
+  ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
   // param1 / param2 of these options, whichever order a curve is traced in.
   CurveOptions curve;
