@@ -627,9 +627,7 @@ class CurveTracer {
     bool ok = accept(solved, -1);
     // Held at zero length only where the two events are of different surfaces (the same surface
     // twice, as l1 into and out of progression, is the degenerate case of tangent_grazing.h).
-    if (!ok && j > 0 && j + 1 < k &&
-        model_.guards(segs[j - 1].mode)[segs[j - 1].guard].surface !=
-            model_.guards(segs[j].mode)[segs[j].guard].surface) {
+    if (!ok && internal::EventsOfTwoSurfaces(model_, o.signature, j)) {
       solved = internal::SolveZeroLengthEnd(model_, propagator_, o, j, kind_, index1_, index2_);
       how = " (solved with segment " + std::to_string(j) + " of zero length)";
       ok = accept(solved, j);

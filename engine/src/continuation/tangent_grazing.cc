@@ -111,18 +111,23 @@ StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator&
   return tangent;
 }
 
+bool EventsOfTwoSurfaces(const HybridModel& model, const Signature& signature, int j) {
+  const auto& segs = signature.segments;
+  if (j <= 0 || j + 1 >= static_cast<int>(segs.size()) || segs[j - 1].guard < 0 ||
+      segs[j].guard < 0) {
+    return false;
+  }
+  return model.guards(segs[j - 1].mode)[segs[j - 1].guard].surface !=
+         model.guards(segs[j].mode)[segs[j].guard].surface;
+}
+
 int CornerSegment(const HybridModel& model, const PeriodicOrbit& orbit) {
   const auto& segs = orbit.signature.segments;
-  const int k = static_cast<int>(segs.size());
   if (std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; })) {
     return -1;
   }
-  for (int j = 1; j + 1 < k; ++j) {
-    if (std::abs(orbit.durations[j]) > 1e-9 || segs[j - 1].guard < 0 || segs[j].guard < 0) {
-      continue;
-    }
-    if (model.guards(segs[j - 1].mode)[segs[j - 1].guard].surface !=
-        model.guards(segs[j].mode)[segs[j].guard].surface) {
+  for (int j = 1; j + 1 < static_cast<int>(segs.size()); ++j) {
+    if (std::abs(orbit.durations[j]) <= 1e-9 && EventsOfTwoSurfaces(model, orbit.signature, j)) {
       return j;
     }
   }

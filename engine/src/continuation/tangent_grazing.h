@@ -37,6 +37,10 @@ StatusOr<PeriodicOrbit> TouchForm(const HybridModel& model, Propagator& propagat
 StatusOr<PeriodicOrbit> GrazingTangentForm(const HybridModel& model, Propagator& propagator,
                                            const PeriodicOrbit& orbit);
 
+// Whether segment j starts and ends at events of two different surfaces (the end of segment
+// j - 1 and its own end; false for the first or last segment, or at the section).
+bool EventsOfTwoSurfaces(const HybridModel& model, const Signature& signature, int j);
+
 // A corner: segment j of zero length (|duration| <= 1e-9), neither the first nor the last,
 // between events of two different surfaces (e.g. a contact phase between an impact and the
 // start of progression: the impact goes straight into progression). Holding it at zero length is
