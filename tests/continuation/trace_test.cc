@@ -19,28 +19,42 @@ namespace {
 
 using DO = DriftingOscillator;
 
-// A corner's grazing curve: its orbits hold a segment at zero length between events of two
-// surfaces (e.g. an impact straight into progression) and have no tangent end.
-bool IsCornerCurve(const CurveResult& c) {
-  if (c.kind != CurveKind::kGrazing || c.points.empty()) return false;
-  const PeriodicOrbit& o = c.points[c.points.size() / 2].orbit;
+// A corner: the orbit holds a segment at zero length (between events of two surfaces, e.g. an
+// impact straight into progression) and has no tangent end.
+bool HasCorner(const PeriodicOrbit& o) {
   return std::none_of(o.signature.segments.begin(), o.signature.segments.end(),
                       [](const SegmentSpec& s) { return s.tangent; }) &&
          std::any_of(o.durations.begin(), o.durations.end(),
                      [](double d) { return std::abs(d) <= 1e-9; });
 }
 
-TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok());
+// A corner's grazing curve.
+bool IsCornerCurve(const CurveResult& c) {
+  return c.kind == CurveKind::kGrazing && !c.points.empty() &&
+         HasCorner(c.points[c.points.size() / 2].orbit);
+}
+
+// The reference orbit (MODEL.md's parameters), solved from rest: where every trace here starts.
+class Trace : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const StatusOr<PeriodicOrbit> start =
+        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
+    ASSERT_TRUE(start.ok()) << start.status().ToString();
+    start_ = *start;
+  }
+
+  DO model_;
+  ExactPropagator prop_{model_};
+  PeriodicOrbit start_;
+};
+
+TEST_F(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   TraceOptions opt = testing::Issue4Box();
   // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (issue 4's acceptance).
-  opt.curve.crossings1 = {start->params[DO::kOmega]};
-  opt.curve.crossings2 = {start->params[DO::kA]};
-  const TraceResult r = TraceCurves(model, prop, *start, opt);
+  opt.curve.crossings1 = {start_.params[DO::kOmega]};
+  opt.curve.crossings2 = {start_.params[DO::kA]};
+  const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
   ASSERT_FALSE(r.curves.empty());
   int flip_grazings = 0;
@@ -81,15 +95,12 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
     branch.param = param;
     branch.min = std::string(param) == "omega" ? opt.min1 : opt.min2;
     branch.max = std::string(param) == "omega" ? opt.max1 : opt.max2;
-    const ContinuationResult one = Continue(model, prop, *start, branch);
+    const ContinuationResult one = Continue(model_, prop_, start_, branch);
     located[std::string(param) == "a"] = one.special_points;
     for (const SpecialPoint& s : one.special_points) {
       // A signature change at a corner (its orbit holding a segment at zero length, no tangent
       // end) is a grazing too: the trace starts that corner's curve there, as a GRAZING_* point.
-      const std::vector<double>& tau = s.point.orbit.durations;
-      const bool corner =
-          s.kind == SpecialPointKind::kSignatureChange &&
-          std::any_of(tau.begin(), tau.end(), [](double d) { return std::abs(d) <= 1e-9; });
+      const bool corner = s.kind == SpecialPointKind::kSignatureChange && HasCorner(s.point.orbit);
       const bool traceable =
           s.kind == SpecialPointKind::kFold || s.kind == SpecialPointKind::kPeriodDoubling ||
           s.kind == SpecialPointKind::kGrazingL1 || s.kind == SpecialPointKind::kGrazingL2 ||
@@ -127,8 +138,8 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   for (const TracedCurve& c : r.curves) {
     std::vector<double> at_omega;
     for (const CurvePoint& x : c.curve.crossings) {
-      const bool on_omega_line = x.value1 == start->params[DO::kOmega];
-      ASSERT_TRUE(on_omega_line || x.value2 == start->params[DO::kA]);
+      const bool on_omega_line = x.value1 == start_.params[DO::kOmega];
+      ASSERT_TRUE(on_omega_line || x.value2 == start_.params[DO::kA]);
       const double v = on_omega_line ? x.value2 : x.value1;
       double best = 1e300;
       for (const SpecialPoint& s : located[on_omega_line]) {
@@ -188,7 +199,8 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
       }
       ASSERT_NE(seed, nullptr);
       EXPECT_LE(multiplier_gap(seed->point.stability, target), 1e-8);
-      const std::optional<GuardValue> g = testing::TangentEndGuard(model, prop, seed->point.orbit);
+      const std::optional<GuardValue> g =
+          testing::TangentEndGuard(model_, prop_, seed->point.orbit);
       ASSERT_TRUE(g.has_value());
       EXPECT_LE(std::abs(g->h), 1e-9);
       EXPECT_LE(std::abs(g->dh), 1e-9);
@@ -216,7 +228,7 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
         return p.orbit.signature == c.start.point.orbit.signature;
       }));
       const std::optional<GuardValue> g =
-          testing::TangentEndGuard(model, prop, c.start.point.orbit);
+          testing::TangentEndGuard(model_, prop_, c.start.point.orbit);
       ASSERT_TRUE(g.has_value());
       EXPECT_LE(std::abs(g->h), 1e-9);
       EXPECT_LE(std::abs(g->dh), 1e-9);
@@ -258,8 +270,8 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
             q.violation.guard == segs[i].guard) {
           const PeriodicOrbit& o = q.point.orbit;
           const StateVector x =
-              prop.FlowMap(segs[i].mode, o.starts[i], o.durations[i], o.params, {}).x;
-          const GuardValue g = model.Guard(segs[i].mode, segs[i].guard, x, o.params);
+              prop_.FlowMap(segs[i].mode, o.starts[i], o.durations[i], o.params, {}).x;
+          const GuardValue g = model_.Guard(segs[i].mode, segs[i].guard, x, o.params);
           EXPECT_FALSE(std::abs(g.h) <= 1e-12 && std::abs(g.dh) <= 1e-9 && g.ddh > 0.0)
               << Codim2KindName(q.kind) << " at omega = " << q.point.value1 << ": " << q.detail;
         }
@@ -274,7 +286,8 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
       const int zero_length = static_cast<int>(
           std::count_if(tau.begin(), tau.end(), [](double d) { return std::abs(d) <= 1e-12; }));
       zero_length_ends += zero_length;
-      const std::vector<GuardValue> touches = testing::TangentEndGuards(model, prop, q.point.orbit);
+      const std::vector<GuardValue> touches =
+          testing::TangentEndGuards(model_, prop_, q.point.orbit);
       ASSERT_EQ(touches.size() + zero_length, q.kind == Codim2Kind::kDoubleGrazing ? 2u : 1u)
           << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
       for (const GuardValue& g : touches) {
@@ -299,34 +312,29 @@ TEST(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(cusps, 1);
 }
 
-TEST(Trace, InvalidRequestsNameTheProblem) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok());
+TEST_F(Trace, InvalidRequestsNameTheProblem) {
   TraceOptions same = testing::Issue4Box();
   same.param2 = same.param1;
-  EXPECT_EQ(TraceCurves(model, prop, *start, same).summary.status.code(),
+  EXPECT_EQ(TraceCurves(model_, prop_, start_, same).summary.status.code(),
             StatusCode::kInvalidArgument);
   TraceOptions unknown = testing::Issue4Box();
   unknown.param2 = std::string("zeta");
-  const TraceResult u = TraceCurves(model, prop, *start, unknown);
+  const TraceResult u = TraceCurves(model_, prop_, start_, unknown);
   EXPECT_EQ(u.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(u.summary.status.message().find("zeta"), std::string::npos);
   TraceOptions outside = testing::Issue4Box();
   outside.min2 = 1.0;  // the start orbit has a = 0.3
-  const TraceResult o = TraceCurves(model, prop, *start, outside);
+  const TraceResult o = TraceCurves(model_, prop_, start_, outside);
   EXPECT_EQ(o.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(o.summary.status.message().find("a lies outside"), std::string::npos);
   TraceOptions empty = testing::Issue4Box();
   empty.max1 = empty.min1;
-  EXPECT_EQ(TraceCurves(model, prop, *start, empty).summary.status.code(),
+  EXPECT_EQ(TraceCurves(model_, prop_, start_, empty).summary.status.code(),
             StatusCode::kInvalidArgument);
   for (int bad : {0, 3, 32, -2}) {
     TraceOptions period = testing::Issue4Box();
     period.max_period = bad;
-    const TraceResult r = TraceCurves(model, prop, *start, period);
+    const TraceResult r = TraceCurves(model_, prop_, start_, period);
     EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument) << bad;
     EXPECT_NE(r.summary.status.message().find("max_period"), std::string::npos) << bad;
   }
@@ -336,29 +344,24 @@ TEST(Trace, InvalidRequestsNameTheProblem) {
 // born at the omega-branch's period doublings (a = 0.3) have PDs and grazings, whose curves are
 // traced. Each crosses a = 0.3 where a period-2 omega-branch, switched onto and continued
 // independently here, locates the point (to 1e-7).
-TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok());
+TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
   TraceOptions opt = testing::Issue4Box();
   opt.max1 = 0.45;
   opt.min2 = 0.27, opt.max2 = 0.32;
-  const TraceResult plain = TraceCurves(model, prop, *start, opt);
+  const TraceResult plain = TraceCurves(model_, prop_, start_, opt);
   for (const TracedCurve& c : plain.curves) {
     EXPECT_EQ(c.start.point.orbit.signature.periods, 1);  // compute only what is asked
   }
   opt.max_period = 2;
   opt.curve.crossings2 = {0.3};
-  const TraceResult r = TraceCurves(model, prop, *start, opt);
+  const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
 
   // The reference: the period-2 omega-branch from the period doubling near omega = 0.2698.
   ContinuationOptions branch;
   branch.param = "omega";
   branch.min = opt.min1, branch.max = opt.max1;
-  const ContinuationResult omega1 = Continue(model, prop, *start, branch);
+  const ContinuationResult omega1 = Continue(model_, prop_, start_, branch);
   // Every period-2 omega-branch: switched onto by simulation where the doubling is
   // supercritical (0.2698), else algebraically (0.0944, next to a Pi grazing: simulation finds
   // nothing there), each continued over the box.
@@ -367,13 +370,13 @@ TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
   for (const SpecialPoint& s : omega1.special_points) {
     if (s.kind != SpecialPointKind::kPeriodDoubling) continue;
     ++doublings;
-    StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model, prop, s, "omega");
+    StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model_, prop_, s, "omega");
     if (!doubled.ok()) {
-      doubled = SwitchAtPeriodDoublingAlgebraic(model, prop, s.point.orbit, "omega");
+      doubled = SwitchAtPeriodDoublingAlgebraic(model_, prop_, s.point.orbit, "omega");
     }
     ASSERT_TRUE(doubled.ok()) << doubled.status().ToString();
     ASSERT_EQ(doubled->signature.periods, 2);
-    const ContinuationResult r2 = Continue(model, prop, *doubled, branch);
+    const ContinuationResult r2 = Continue(model_, prop_, *doubled, branch);
     omega2.special_points.insert(omega2.special_points.end(), r2.special_points.begin(),
                                  r2.special_points.end());
   }
@@ -393,7 +396,7 @@ TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
           c.from_curve >= 0 && std::hypot(p.value1 - c.start.point.orbit.params[DO::kOmega],
                                           p.value2 - c.start.point.orbit.params[DO::kA]) <= 1e-9;
       if (!at_seed) {
-        EXPECT_TRUE(CheckAdmissible(model, prop, p.orbit).admissible);
+        EXPECT_TRUE(CheckAdmissible(model_, prop_, p.orbit).admissible);
       }
     }
     ASSERT_FALSE(c.curve.crossings.empty()) << CurveKindName(c.curve.kind);
@@ -428,17 +431,12 @@ TEST(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
 // omega-branch's orbit at omega = 1.5, the PD curve of period 1 ends at the flip-grazing
 // (1.3946, 6.7289); a period-2 grazing curve ends there where its second pass grazes too
 // (DOUBLE_GRAZING), within that end's bisection bracket of the point.
-TEST(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> reference =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(reference.ok());
+TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   ContinuationOptions to;
   to.param = "omega";
   to.min = 0.05, to.max = 1.5;
   to.direction = ContinuationDirection::kIncreasing;
-  const ContinuationResult r0 = Continue(model, prop, *reference, to);
+  const ContinuationResult r0 = Continue(model_, prop_, start_, to);
   ASSERT_EQ(r0.summary.termination, Termination::kCompleted) << r0.summary.message;
   const ContinuationPoint& at = r0.points.back();
   ASSERT_EQ(at.value, 1.5);
@@ -446,7 +444,7 @@ TEST(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   opt.min1 = 1.3, opt.max1 = 1.75;
   opt.min2 = 0.2, opt.max2 = 7.5;
   opt.max_period = 2;
-  const TraceResult r = TraceCurves(model, prop, at.orbit, opt);
+  const TraceResult r = TraceCurves(model_, prop_, at.orbit, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
   int flips = 0;
   for (const TracedCurve& c : r.curves) {
@@ -479,25 +477,20 @@ TEST(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
 // Each crosses a = 0.3 where a period-4 omega-branch, reached independently here (period 1 ->
 // doublings -> period 2 -> doublings -> period 4, each branch continued over the box), locates a
 // point of its kind (to 1e-7).
-TEST(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok());
+TEST_F(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
   TraceOptions opt = testing::Issue4Box();
   opt.max1 = 0.45;
   opt.min2 = 0.295, opt.max2 = 0.305;
   opt.max_period = 4;
   opt.curve.crossings2 = {0.3};
-  const TraceResult r = TraceCurves(model, prop, *start, opt);
+  const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
 
   // The reference branches, level by level.
   ContinuationOptions branch;
   branch.param = "omega";
   branch.min = opt.min1, branch.max = opt.max1;
-  std::vector<ContinuationResult> level = {Continue(model, prop, *start, branch)};
+  std::vector<ContinuationResult> level = {Continue(model_, prop_, start_, branch)};
   for (int period = 1; period <= 2; period *= 2) {
     std::vector<ContinuationResult> next;
     for (const ContinuationResult& b : level) {
@@ -506,11 +499,11 @@ TEST(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
             s.point.orbit.signature.periods != period) {
           continue;
         }
-        StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model, prop, s, "omega");
+        StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model_, prop_, s, "omega");
         if (!doubled.ok()) {
-          doubled = SwitchAtPeriodDoublingAlgebraic(model, prop, s.point.orbit, "omega");
+          doubled = SwitchAtPeriodDoublingAlgebraic(model_, prop_, s.point.orbit, "omega");
         }
-        if (doubled.ok()) next.push_back(Continue(model, prop, *doubled, branch));
+        if (doubled.ok()) next.push_back(Continue(model_, prop_, *doubled, branch));
       }
     }
     level = std::move(next);
