@@ -13,9 +13,7 @@
 #include <vector>
 
 #include "drillbif/continuation/curve.h"
-#include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
-#include "problems/reference_orbit.h"
+#include "support/reference_orbit_test.h"
 #include "support/tangent_end.h"
 
 namespace drillbif {
@@ -23,18 +21,16 @@ namespace {
 
 using DO = DriftingOscillator;
 
-class Codim2Test : public ::testing::Test {
+class Codim2Test : public testing::ReferenceOrbitTest {
  protected:
   void SetUp() override {
-    const StatusOr<PeriodicOrbit> start =
-        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
-    ASSERT_TRUE(start.ok()) << start.status().ToString();
-    start_ = *start;
+    ReferenceOrbitTest::SetUp();
+    if (HasFatalFailure()) return;
     ContinuationOptions opt;
     opt.param = "omega";
     opt.min = 0.05;
     opt.max = 2.0;
-    omega_branch_ = Continue(model_, prop_, *start, opt);
+    omega_branch_ = Continue(model_, prop_, start_, opt);
     ASSERT_EQ(omega_branch_.summary.termination, Termination::kCompleted);
   }
 
@@ -64,9 +60,6 @@ class Codim2Test : public ::testing::Test {
     return closest;
   }
 
-  DO model_;
-  ExactPropagator prop_{model_};
-  PeriodicOrbit start_;
   ContinuationResult omega_branch_;
 };
 

@@ -8,10 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
 #include "problems/issue4_box.h"
-#include "problems/reference_orbit.h"
+#include "support/reference_orbit_test.h"
 #include "support/tangent_end.h"
 
 namespace drillbif {
@@ -34,20 +32,8 @@ bool IsCornerCurve(const CurveResult& c) {
          HasCorner(c.points[c.points.size() / 2].orbit);
 }
 
-// The reference orbit (MODEL.md's parameters), solved from rest: where every trace here starts.
-class Trace : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const StatusOr<PeriodicOrbit> start =
-        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
-    ASSERT_TRUE(start.ok()) << start.status().ToString();
-    start_ = *start;
-  }
-
-  DO model_;
-  ExactPropagator prop_{model_};
-  PeriodicOrbit start_;
-};
+// Every trace here starts at the reference orbit.
+class Trace : public testing::ReferenceOrbitTest {};
 
 TEST_F(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   TraceOptions opt = testing::Issue4Box();

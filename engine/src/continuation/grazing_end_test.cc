@@ -10,10 +10,8 @@
 #include <utility>
 #include <vector>
 
-#include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
 #include "problems/issue4_box.h"
-#include "problems/reference_orbit.h"
+#include "support/reference_orbit_test.h"
 #include "support/tangent_end.h"
 #include "tangent_grazing.h"
 
@@ -30,13 +28,11 @@ double DistanceToMultiplier(const Stability& st, double target) {
 
 // The reference orbit's a-branch at omega = 0.1 over a in [0.01, 8], and curves from its points
 // in (a, omega) over issue 4's box.
-class GrazingEnd : public ::testing::Test {
+class GrazingEnd : public testing::ReferenceOrbitTest {
  protected:
   void SetUp() override {
-    const StatusOr<PeriodicOrbit> start =
-        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
-    ASSERT_TRUE(start.ok()) << start.status().ToString();
-    start_ = *start;
+    ReferenceOrbitTest::SetUp();
+    if (HasFatalFailure()) return;
     ContinuationOptions branch;
     branch.param = "a";
     branch.min = 0.01;
@@ -61,9 +57,6 @@ class GrazingEnd : public ::testing::Test {
     return opt;
   }
 
-  DO model_;
-  ExactPropagator prop_{model_};
-  PeriodicOrbit start_;
   ContinuationResult a_branch_;
 };
 
