@@ -590,6 +590,8 @@ class CurveTracer {
     // that segment's own duration, zero to rounding) and, on a fold / PD curve, with the
     // multiplier +1 / -1 among the eigenvalues to 1e-8 (independent of sigma and its borders:
     // where a zero-length segment's saltation degenerates, sigma = 0 was met without it).
+    // `point` receives the accepted end (its stability is the one checked).
+    CurvePoint point;
     auto accept = [&](const StatusOr<PeriodicOrbit>& solved, int zero_length) {
       if (!solved.ok()) return false;
       const double moved = std::hypot(solved->params[index1_] - end->point.value1,
@@ -598,14 +600,13 @@ class CurveTracer {
       for (const Admissibility& w : AdmissibilityViolations(model_, propagator_, *solved)) {
         if (w.segment != zero_length || w.guard >= 0) return false;
       }
+      point = PointFromOrbit(*solved);
       if (kind_ == CurveKind::kFold || kind_ == CurveKind::kPeriodDoubling) {
         const double target = kind_ == CurveKind::kFold ? 1.0 : -1.0;
-        const Stability st = OrbitStability(model_, propagator_, *solved);
-        if (std::none_of(
-                st.multipliers.begin(), st.multipliers.end(),
-                [&](const std::complex<double>& mu) { return std::abs(mu - target) <= 1e-8; })) {
-          return false;
-        }
+        const std::vector<std::complex<double>>& mu = point.stability.multipliers;
+        return std::any_of(mu.begin(), mu.end(), [&](const std::complex<double>& z) {
+          return std::abs(z - target) <= 1e-8;
+        });
       }
       return true;
     };
@@ -633,7 +634,7 @@ class CurveTracer {
       ok = accept(solved, j);
     }
     if (!ok) return false;
-    end->point = PointFromOrbit(*solved);
+    end->point = std::move(point);
     end->bracket = 0.0;
     end->detail += how;
     return true;
