@@ -226,17 +226,18 @@ TEST_F(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   RecordProperty("switched_at_double_grazing", switched_at_double_grazing);
 
   // Every codimension-2 point in the box located exactly (bracket 0: FOLD_GRAZING / FLIP_GRAZING
-  // roots along grazing curves, and curve ends solved in tangent form or with a zero-length
-  // segment: FOLD_GRAZING / FLIP_GRAZING ends of fold / PD curves, DOUBLE_GRAZING ends of grazing
-  // curves) satisfies both its conditions, each checked directly on the orbit reported: h = h' =
-  // 0 at every tangent end to 1e-9 and zero-length segments to 1e-12 (one grazing for a fold- /
-  // flip-grazing, two for a double grazing), and the multiplier +1 /
-  // -1 to 1e-8 (the det root's |det| <= 1e-10, or sigma = 0 to the solver's 1e-12 scaled step,
-  // moves a simple multiplier by at most that over |prod of the others' gaps| >= 1e-2). Cusps:
-  // the multiplier +1 of the fold curve they lie on. Ends not solved keep a bisection bracket
-  // (e.g. a contact phase vanishing between two flights: impact and lift-off at one point, where
-  // the saltation degenerates).
-  int roots = 0, solved_ends = 0, bracketed_ends = 0, cusps = 0, zero_length_ends = 0;
+  // roots along grazing curves, and curve ends solved in tangent form, with a zero-length
+  // segment or with a touch merged into an event: FOLD_GRAZING / FLIP_GRAZING ends of fold / PD
+  // curves, DOUBLE_GRAZING ends of grazing curves) satisfies both its conditions, each checked
+  // directly on the orbit reported: h = h' = 0 at every tangent end to 1e-9 and zero-length
+  // segments to 1e-12 (one grazing for a fold- / flip-grazing, two for a double grazing), and the
+  // multiplier +1 / -1 to 1e-8 (the det root's |det| <= 1e-10, or sigma = 0 to the solver's 1e-12
+  // scaled step, moves a simple multiplier by at most that over |prod of the others' gaps| >=
+  // 1e-2). Cusps: the multiplier +1 of the fold curve they lie on. Ends not solved keep a bisection
+  // bracket (e.g. a contact phase vanishing between two flights: impact and lift-off at one point,
+  // where the saltation degenerates).
+  int roots = 0, solved_ends = 0, bracketed_ends = 0, cusps = 0, zero_length_ends = 0,
+      cubic_ends = 0;
   for (const TracedCurve& c : r.curves) {
     for (const Codim2Point& q : c.curve.codim2) {
       if (q.kind == Codim2Kind::kCusp) {
@@ -272,9 +273,23 @@ TEST_F(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
       const int zero_length = static_cast<int>(
           std::count_if(tau.begin(), tau.end(), [](double d) { return std::abs(d) <= 1e-12; }));
       zero_length_ends += zero_length;
+      // Or, for a double grazing, a segment ending where its guard touches zero to third order
+      // (h' = h'' = 0 there to the 1e-8: a touch merged into the crossing after it, as a
+      // contact force touching zero at lift-off), which stands in for both touches.
+      const PeriodicOrbit& o = q.point.orbit;
+      int cubic = 0;
+      for (size_t k = 0; k < o.signature.segments.size(); ++k) {
+        const SegmentSpec& seg = o.signature.segments[k];
+        if (seg.guard < 0 || seg.tangent) continue;
+        const StateVector x = prop_.FlowMap(seg.mode, o.starts[k], o.durations[k], o.params, {}).x;
+        const GuardValue g = model_.Guard(seg.mode, seg.guard, x, o.params);
+        if (std::abs(g.dh) <= 1e-8 && std::abs(g.ddh) <= 1e-8) ++cubic;
+      }
+      cubic_ends += cubic;
       const std::vector<GuardValue> touches =
           testing::TangentEndGuards(model_, prop_, q.point.orbit);
-      ASSERT_EQ(touches.size() + zero_length, q.kind == Codim2Kind::kDoubleGrazing ? 2u : 1u)
+      ASSERT_EQ(touches.size() + zero_length + 2 * cubic,
+                q.kind == Codim2Kind::kDoubleGrazing ? 2u : 1u)
           << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
       for (const GuardValue& g : touches) {
         EXPECT_LE(std::abs(g.h), 1e-9);
@@ -289,12 +304,14 @@ TEST_F(Trace, EveryLocatedPointIsOnATracedCurveOrExplained) {
   RecordProperty("codim2_roots", roots);
   RecordProperty("solved_ends", solved_ends);
   RecordProperty("zero_length_ends", zero_length_ends);
+  RecordProperty("cubic_ends", cubic_ends);
   RecordProperty("bracketed_ends", bracketed_ends);
   RecordProperty("cusps", cusps);
   EXPECT_GE(roots, 20);
   // Most ends are solved (232 of 303 when written); a regression to bisection alone shows here.
   EXPECT_GT(solved_ends, 3 * bracketed_ends);
   EXPECT_GE(zero_length_ends, 1);
+  EXPECT_GE(cubic_ends, 1);
   EXPECT_GE(cusps, 1);
 }
 

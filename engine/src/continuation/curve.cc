@@ -563,7 +563,10 @@ class CurveTracer {
   // the bisection's bracket of the end (else
   // it is another root: where the vanishing segment's events leave the monodromy discontinuous,
   // the tangent form's fold or PD condition is not the curve's) and is admissible; the end is then
-  // that point, in tangent form, with bracket 0.
+  // that point, in tangent form, with bracket 0. Failing that: held at zero length (events of two
+  // surfaces), and on a grazing curve the touch merged into the event next to it
+  // (SolveMergedTouchEnd; admissible but for the next mode's guard touching zero to third order
+  // at its start, which rounding may show as firing there).
   bool SolveEnd(Codim2Point* end) const {
     const Admissibility& v = end->violation;
     const std::vector<SegmentSpec>& segs = end->point.orbit.signature.segments;
@@ -592,12 +595,17 @@ class CurveTracer {
     // where a zero-length segment's saltation degenerates, sigma = 0 was met without it).
     // `point` receives the accepted end (its stability is the one checked).
     CurvePoint point;
-    auto accept = [&](const StatusOr<PeriodicOrbit>& solved, int zero_length) {
+    auto accept = [&](const StatusOr<PeriodicOrbit>& solved, int zero_length,
+                      int touch_start = -1) {
       if (!solved.ok()) return false;
       const double moved = std::hypot(solved->params[index1_] - end->point.value1,
                                       solved->params[index2_] - end->point.value2);
       if (moved > 2.0 * end->bracket + 1e-9) return false;
       for (const Admissibility& w : AdmissibilityViolations(model_, propagator_, *solved)) {
+        if (w.segment == touch_start && w.at_start &&
+            internal::TouchesAtStart(model_, *solved, w.segment, w.guard)) {
+          continue;
+        }
         if (w.segment != zero_length || w.guard >= 0) return false;
       }
       point = PointFromOrbit(*solved);
@@ -632,6 +640,11 @@ class CurveTracer {
       solved = internal::SolveZeroLengthEnd(model_, propagator_, o, j, kind_, index1_, index2_);
       how = " (solved with segment " + std::to_string(j) + " of zero length)";
       ok = accept(solved, j);
+    }
+    if (!ok && kind_ == CurveKind::kGrazing) {
+      solved = internal::SolveMergedTouchEnd(model_, propagator_, o, j, index1_, index2_);
+      how = " (solved with the touch merged into the event next to it)";
+      ok = accept(solved, -1, j);
     }
     if (!ok) return false;
     end->point = std::move(point);

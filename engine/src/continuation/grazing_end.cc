@@ -71,4 +71,68 @@ StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator&
       tolerance, "zero-length segment system");
 }
 
+StatusOr<PeriodicOrbit> SolveMergedTouchEnd(const HybridModel& model, Propagator& propagator,
+                                            const PeriodicOrbit& guess, int segment, int index1,
+                                            int index2, double tolerance) {
+  const auto& segs = guess.signature.segments;
+  const int k = static_cast<int>(segs.size()), j = segment;
+  if (j < 1 || j >= k) return InvalidArgument("no segment " + std::to_string(j) + " to merge at");
+  if (segs[j - 1].tangent && segs[j - 1].mode == segs[j].mode &&
+      segs[j - 1].guard == segs[j].guard) {
+    // The touch ends segment j - 1; merged, segment j - 1 ends at the crossing.
+    const StatusOr<PeriodicOrbit> merged = MergedForm(guess, j - 1);
+    if (!merged.ok()) return merged.status();
+    const int e = j - 1;
+    return SolveWithConditions(
+        model, propagator, *merged, {index1, index2},
+        [&model, &propagator, e](const PeriodicOrbit& o) {
+          const SegmentSpec& s = o.signature.segments[e];
+          const StateVector end =
+              propagator.FlowMap(s.mode, o.starts[e], o.durations[e], o.params, {}).x;
+          const GuardValue g = model.Guard(s.mode, s.guard, end, o.params);
+          return Eigen::Vector2d(g.dh, g.ddh).eval();
+        },
+        tolerance, "merged touch system");
+  }
+  if (!(segs[j].tangent && j + 1 < k && segs[j + 1].mode == segs[j].mode)) {
+    return InvalidArgument("segment " + std::to_string(j) +
+                           " is neither a touch's own segment nor follows one");
+  }
+  const StatusOr<PeriodicOrbit> merged = MergedForm(guess, j);
+  if (!merged.ok()) return merged.status();
+  const int mode = segs[j].mode, guard = segs[j].guard;
+  // h, h', h'' of the touched guard along the flow of the merged segment j at time t.
+  auto at = [&model, &propagator, j, mode, guard](const PeriodicOrbit& o, double t) {
+    const StateVector x = propagator.FlowMap(mode, o.starts[j], t, o.params, {}).x;
+    return model.Guard(mode, guard, x, o.params);
+  };
+  const GuardValue g0 = at(guess, 0.0);
+  const double scale = 1.0 + guess.starts[j].lpNorm<Eigen::Infinity>();
+  const bool structural = std::abs(g0.h) <= 1e-12 * scale && std::abs(g0.dh) <= 1e-12 * scale;
+  return SolveWithConditions(
+      model, propagator, *merged, {index1, index2},
+      [&at, structural](const PeriodicOrbit& o) {
+        const GuardValue g = at(o, 0.0);
+        if (!structural) return Eigen::Vector2d(g.h, g.dh).eval();
+        // h''' by the one-sided second-order difference of h'' (exact, from the model) along
+        // the flow: truncation ~ dt^2 |h^(5)| / 3, rounding ~ eps |h''| / dt.
+        constexpr double dt = 1e-5;
+        const double d3 = (-3.0 * g.ddh + 4.0 * at(o, dt).ddh - at(o, 2.0 * dt).ddh) / (2.0 * dt);
+        return Eigen::Vector2d(g.ddh, d3).eval();
+      },
+      tolerance, "merged touch system");
+}
+
+bool TouchesAtStart(const HybridModel& model, const PeriodicOrbit& orbit, int segment, int guard) {
+  const auto& segs = orbit.signature.segments;
+  if (segment < 0 || segment >= static_cast<int>(segs.size()) || guard < 0 ||
+      guard >= static_cast<int>(model.guards(segs[segment].mode).size())) {
+    return false;
+  }
+  const StateVector& x = orbit.starts[segment];
+  const GuardValue g = model.Guard(segs[segment].mode, guard, x, orbit.params);
+  const double tol = 1e-9 * (1.0 + x.lpNorm<Eigen::Infinity>());
+  return std::abs(g.h) <= tol && std::abs(g.dh) <= tol && std::abs(g.ddh) <= tol;
+}
+
 }  // namespace drillbif::internal

@@ -34,6 +34,29 @@ StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator&
                                            const PeriodicOrbit& guess, int segment, CurveKind kind,
                                            int index1, int index2, double tolerance = 1e-12);
 
+// A grazing curve's end where its touch merges with the event next to it (the segment `segment`
+// between them vanishes; no tangent or zero-length form applies, as the touch and the event are
+// of one guard, or the touched guard and its rate vanish at the event by construction). Near such
+// an end the touch time goes like the square root of the distance and the curve's system
+// degenerates, so bisection stalls far from it. With the touch merged into the event (MergedForm)
+// the point is a regular root of two conditions on the merged orbit:
+//   touch of guard E, then the crossing of E that ends the same mode (a contact phase whose force
+//   touches zero just before lift-off): h' = h'' = 0 at the crossing (a cubic tangency);
+//   event, then a touch of guard G right at the next mode's start: h = h' = 0 there, or, where
+//   these two vanish at every such event (a free flight leaving contact starts on the impact
+//   surface at zero relative speed), h'' = h''' = 0 (the flight's h ~ -c t^4).
+// params[index1] and params[index2] free; the solved orbit is in merged form. INVALID_ARGUMENT
+// where the orbit has neither pattern at `segment`, INTERNAL when Newton fails.
+StatusOr<PeriodicOrbit> SolveMergedTouchEnd(const HybridModel& model, Propagator& propagator,
+                                            const PeriodicOrbit& guess, int segment, int index1,
+                                            int index2, double tolerance = 1e-12);
+
+// Whether guard `guard` of segment `segment`'s mode touches zero at that segment's start to third
+// order (h, h', h'' all within 1e-9 (1 + |x|) of zero: far above the merged end's residual,
+// ~1e-12, and far below the h'' of any transversal touch): at a merged touch end the next mode
+// starts so (h ~ -c t^4), and rounding decides whether the locator sees it fire at once.
+bool TouchesAtStart(const HybridModel& model, const PeriodicOrbit& orbit, int segment, int guard);
+
 }  // namespace drillbif::internal
 
 #endif  // DRILLBIF_CONTINUATION_GRAZING_END_H_

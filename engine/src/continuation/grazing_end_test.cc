@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string>
 #include <utility>
@@ -194,6 +195,59 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
   }
   EXPECT_LE(nearest, 1e-9);
   RecordProperty("distance_to_the_other_curves_end", std::to_string(nearest));
+}
+
+// Where a contact phase's force touches zero just before lift-off, the touch merges with the
+// lift-off (F = F' = F'' = 0 there, a cubic tangency) and the flight after it starts with the
+// impact surface's h = h' = h'' = h''' = 0: two grazing curves end at that one point, the l2 touch
+// curve from the a-branch's GRAZING_L2 at a = 0.15635 and the Pi touch curve from its GRAZING_PI
+// at a = 0.15688 (omega = 0.1). Their bisections stall with wide brackets (the touch's segment
+// degenerates); each end is solved in merged form, one on the l2 guard's h' = h'' = 0 at
+// lift-off, the other on the Pi guard's h'' = h''' = 0 at the flight's start (h''' by
+// differences): two different systems. Checked: both agree (asserted 1e-9), and both orbits meet
+// the first system's conditions (F, F', F'' at lift-off, exact from the model) to the 1e-8.
+TEST_F(GrazingEnd, TouchMergingIntoLiftOffEndsTwoGrazingCurvesAtOnePoint) {
+  std::vector<Codim2Point> ends;
+  for (const auto& [kind, a] : {std::pair{SpecialPointKind::kGrazingL2, 0.156354},
+                                std::pair{SpecialPointKind::kGrazingPi, 0.156884}}) {
+    const SpecialPoint* start = Find(kind, a, 1e-5);
+    ASSERT_NE(start, nullptr) << SpecialPointKindName(kind) << " at a = " << a;
+    const CurveResult curve = ContinueCurve(model_, prop_, *start, Box());
+    ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+    const Codim2Point* end = nullptr;
+    for (const Codim2Point& q : curve.codim2) {
+      if (q.detail.find("merged") != std::string::npos) end = &q;
+    }
+    ASSERT_NE(end, nullptr) << curve.summary.message;
+    EXPECT_EQ(end->kind, Codim2Kind::kDoubleGrazing);
+    EXPECT_EQ(end->bracket, 0.0);
+    const PeriodicOrbit& o = end->point.orbit;
+    int lift_off = -1;
+    for (size_t k = 0; k < o.signature.segments.size(); ++k) {
+      const SegmentSpec& seg = o.signature.segments[k];
+      if (seg.guard >= 0 && model_.guards(seg.mode)[seg.guard].surface == "l2") {
+        lift_off = static_cast<int>(k);
+      }
+    }
+    ASSERT_GE(lift_off, 0) << SignatureString(model_, o.signature);
+    const SegmentSpec& seg = o.signature.segments[lift_off];
+    const StateVector x =
+        prop_.FlowMap(seg.mode, o.starts[lift_off], o.durations[lift_off], o.params, {}).x;
+    const GuardValue f = model_.Guard(seg.mode, seg.guard, x, o.params);
+    EXPECT_LE(std::abs(f.h), 1e-8);
+    EXPECT_LE(std::abs(f.dh), 1e-8);
+    EXPECT_LE(std::abs(f.ddh), 1e-8);
+    char measured[80];
+    std::snprintf(measured, sizeof measured, "%.1e %.1e %.1e", f.h, f.dh, f.ddh);
+    RecordProperty(std::string(SpecialPointKindName(kind)) + "_F_dF_ddF", measured);
+    ends.push_back(*end);
+  }
+  const double apart = std::hypot(ends[0].point.value1 - ends[1].point.value1,
+                                  ends[0].point.value2 - ends[1].point.value2);
+  EXPECT_LE(apart, 1e-9);
+  char measured[32];
+  std::snprintf(measured, sizeof measured, "%.1e", apart);
+  RecordProperty("distance_between_the_two_ends", measured);
 }
 
 // A guess with the wrong number of tangent ends for the curve's kind is refused, naming both.
