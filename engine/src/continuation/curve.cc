@@ -499,6 +499,18 @@ class CurveTracer {
         root);
   }
 
+  // A fold curve whose direction in the parameter plane reverses on the step from y (tangent t)
+  // to y1 (tangent t1): a cusp, located and appended.
+  void CuspOnStep(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1,
+                  std::vector<Codim2Point>* codim2) const {
+    if (kind_ != CurveKind::kFold) return;
+    const double psi1 = ParamDirection(t).dot(ParamDirection(t1));
+    Vec root;
+    if (psi1 < 0.0 && LocateCusp(y, t, t.dot(y1 - y), psi1, &root)) {
+      codim2->push_back({Codim2Kind::kCusp, MakePoint(root), "", 0.0, {}});
+    }
+  }
+
   // Whether a violation is an event reaching the Poincare section rather than a grazing: the
   // first or the last segment vanishes, or the first segment's own ending guard fires at its
   // start (the same, seen by the event locator before the duration turns negative).
@@ -719,6 +731,23 @@ class CurveTracer {
     // Roots of the test functions between the last point and the boundary (a fold- or
     // flip-grazing root can lie next to a double grazing end).
     RootsOnStep(y, t, b.ya, end.stability.monodromy, tests, dets, codim2);
+    // And a cusp: a fold curve approaching a fold-grazing nearly at rest in the parameter plane
+    // (its orbit changing while the parameters barely move) can turn just before its end.
+    if (Vec ta; kind_ == CurveKind::kFold && Tangent(b.ya, t, &ta)) {
+      const size_t found = codim2->size();
+      CuspOnStep(y, t, b.ya, ta, codim2);
+      // Not the end's own: there the fixed-signature curve meets the family of zero-length
+      // solutions and its parameters are stationary (they move as the square of the vanishing
+      // duration), so the direction's sign at b.ya is noise and a reversal is "located" at the
+      // end itself (five of the box's ends, within 1e-10 of it; the cusp this check adds in the
+      // box lies 1e-8 before its end, with the direction resolved on both sides: |u| 1.8e-6 at
+      // the step's start, 3.3e-7 at its end).
+      if (codim2->size() > found &&
+          std::hypot((codim2->back().point.value1 - b.ya[m()]) / w1_,
+                     (codim2->back().point.value2 - b.ya[m() + 1]) / w2_) <= 1e-9) {
+        codim2->pop_back();
+      }
+    }
     if (IsSectionCrossing(b.violation, end.orbit)) {
       crossing->happened = true;
       crossing->orbit = end.orbit;
@@ -838,14 +867,7 @@ class CurveTracer {
       RootsOnStep(y, t, y1, p.stability.monodromy, tests, &dets, codim2);
       SetBorders(p.stability.monodromy);
       points->push_back(std::move(p));
-      // A fold curve whose direction in the parameter plane reverses on this step: a cusp.
-      if (kind_ == CurveKind::kFold) {
-        const double psi1 = ParamDirection(t).dot(ParamDirection(t1));
-        Vec root;
-        if (psi1 < 0.0 && LocateCusp(y, t, t.dot(y1 - y), psi1, &root)) {
-          codim2->push_back({Codim2Kind::kCusp, MakePoint(root), "", 0.0, {}});
-        }
-      }
+      CuspOnStep(y, t, y1, t1, codim2);
       y = y1;
       t = t1;
       h_first = h;
