@@ -377,6 +377,39 @@ TEST(Continuation, HardParametersCompleteWithAdmissiblePoints) {
   }
 }
 
+// A period-2 orbit that is a period-1 orbit traversed twice reaches each boundary in both copies
+// at once. At xi = 0.5 the simulation settles on such an orbit (a = 0.3, omega = 0.1); continued in
+// omega, both of its impacts fall below the progression threshold at omega = 0.68815, so both CwP
+// phases must get a CwoP phase before them at that one point. Crossing one violation at a time
+// (before) left the other already violated at the step-off point and the branch FAILED there;
+// both are now switched together and the branch goes on to omega = 3.5 with admissible points.
+TEST(Continuation, SwitchesBothCopiesOfATwiceTraversedOrbitAtOnce) {
+  DO model;
+  ExactPropagator prop(model);
+  Params prm = testing::ReferenceParams();
+  prm[DO::kXi] = 0.5;
+  const PeriodicOrbit start = StartOrbit(model, prop, prm);
+  ASSERT_EQ(start.signature.periods, 2);
+  ContinuationOptions opt;
+  opt.param = "omega";
+  opt.min = 0.03;
+  opt.max = 3.5;
+  const ContinuationResult r = Continue(model, prop, start, opt);
+  const SpecialPoint* change = Find(r, SpecialPointKind::kSignatureChange, 0.68, 0.69);
+  ASSERT_NE(change, nullptr) << r.summary.message;
+  const std::string after = change->detail.substr(change->detail.find("->"));
+  size_t copies = 0;
+  for (size_t at = after.find("CwoP>l1 CwP"); at != std::string::npos;
+       at = after.find("CwoP>l1 CwP", at + 1)) {
+    ++copies;
+  }
+  EXPECT_EQ(copies, 2u) << change->detail;
+  double highest = 0.0;
+  for (const ContinuationPoint& p : r.points) highest = std::max(highest, p.value);
+  EXPECT_EQ(highest, opt.max) << r.summary.message;
+  ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, "xi = 0.5, omega");
+}
+
 TEST(Continuation, CallbackReceivesEveryPointAndCanCancel) {
   DO model;
   ExactPropagator prop(model);

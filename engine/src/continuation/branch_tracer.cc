@@ -268,6 +268,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   Vec y_star;
   Admissibility violation;
   double sigma_star = std::numeric_limits<double>::infinity();
+  std::vector<std::pair<double, Admissibility>> located;
   for (const Admissibility& v : violations) {
     auto psi = [&](const Vec& yy) {
       PeriodicOrbit o;
@@ -278,6 +279,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     Vec y_v;
     if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h, psi0, psi1, psi, true, &y_v)) continue;
     const double sigma = t_.dot(y_v - y_);
+    located.push_back({sigma, v});
     if (sigma < sigma_star) sigma_star = sigma, y_star = y_v, violation = v;
   }
   if (!std::isfinite(sigma_star)) return false;
@@ -335,7 +337,29 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
       DetectSpecialPoints(sigma, before, result);
     }
   }
-  const SwitchedOrbit sw = SwitchSignature(model_, propagator_, at_graze.orbit, violation);
+  // A period-n orbit that is a shorter one traversed several times (a period-2 branch beyond the
+  // doubling it met again) reaches the same boundary in each copy at once: the violations of the
+  // same kind (guard, at a start or not) located at this same point, to 1e-9 of the step, are
+  // switched together, from the last segment back so that each index still holds, and every
+  // zero-length segment inserted is stepped off together below. Crossing one at a time left the
+  // next already violated at the step-off point, with no bracket to locate it in.
+  std::vector<Admissibility> together = {violation};
+  for (const auto& [sigma, twin] : located) {
+    if (twin.segment != violation.segment && twin.guard == violation.guard &&
+        twin.at_start == violation.at_start && std::abs(sigma - sigma_star) <= 1e-9 * h) {
+      together.push_back(twin);
+    }
+  }
+  std::sort(together.begin(), together.end(),
+            [](const Admissibility& x, const Admissibility& y) { return x.segment > y.segment; });
+  SwitchedOrbit sw = SwitchSignature(model_, propagator_, at_graze.orbit, together.front());
+  for (size_t l = 1; l < together.size() && !sw.representation_only; ++l) {
+    SwitchedOrbit next = SwitchSignature(model_, propagator_, sw.orbit, together[l]);
+    if (next.representation_only) break;
+    next.detail = SignatureString(model_, at_graze.orbit.signature) + " -> " +
+                  SignatureString(model_, next.orbit.signature);
+    sw = std::move(next);
+  }
   if (!sw.representation_only) {
     SpecialPoint sp;
     sp.kind = sw.kind;
@@ -373,8 +397,10 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     // duration: fix it at a small kGrazeStep (lambda free), then go on where it grows.
     constexpr double kGrazeStep = 1e-3;
     const int per_segment = bvp_->size() / bvp_->segments();  // start state, then duration
+    for (int j = 0; j < bvp_->segments(); ++j) {
+      if (sw.orbit.durations[j] == 0.0) y[j * per_segment + per_segment - 1] = kGrazeStep;
+    }
     const int col = sw.new_segment * per_segment + per_segment - 1;
-    y[col] = kGrazeStep;
     fix[col] = 1.0;
     prev[col] = 1.0;
   }
