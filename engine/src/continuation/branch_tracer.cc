@@ -353,9 +353,16 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   std::sort(together.begin(), together.end(),
             [](const Admissibility& x, const Admissibility& y) { return x.segment > y.segment; });
   SwitchedOrbit sw = SwitchSignature(model_, propagator_, at_graze.orbit, together.front());
+  std::vector<int> inserted;  // the zero-length segments inserted, in sw.orbit
+  if (sw.new_segment >= 0) inserted.push_back(sw.new_segment);
   for (size_t l = 1; l < together.size() && !sw.representation_only; ++l) {
     SwitchedOrbit next = SwitchSignature(model_, propagator_, sw.orbit, together[l]);
     if (next.representation_only) break;
+    // Each switch lies before the earlier ones: their segments move by what this one added.
+    const int added = static_cast<int>(next.orbit.signature.segments.size()) -
+                      static_cast<int>(sw.orbit.signature.segments.size());
+    for (int& j : inserted) j += added;
+    if (next.new_segment >= 0) inserted.push_back(next.new_segment);
     next.detail = SignatureString(model_, at_graze.orbit.signature) + " -> " +
                   SignatureString(model_, next.orbit.signature);
     sw = std::move(next);
@@ -397,9 +404,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     // duration: fix it at a small kGrazeStep (lambda free), then go on where it grows.
     constexpr double kGrazeStep = 1e-3;
     const int per_segment = bvp_->size() / bvp_->segments();  // start state, then duration
-    for (int j = 0; j < bvp_->segments(); ++j) {
-      if (sw.orbit.durations[j] == 0.0) y[j * per_segment + per_segment - 1] = kGrazeStep;
-    }
+    for (const int j : inserted) y[j * per_segment + per_segment - 1] = kGrazeStep;
     const int col = sw.new_segment * per_segment + per_segment - 1;
     fix[col] = 1.0;
     prev[col] = 1.0;
