@@ -297,5 +297,73 @@ TEST(Curve, PiGrazingCurveFromTheNonImpactingSide) {
   }
 }
 
+// A grazing curve's orbit touches its surface at a tangent end only to the corrector's accuracy:
+// h(tau) of a few 1e-12 below zero puts a crossing of the guard sqrt(2 |h| / h'') before the
+// end, farther than rounding alone explains. Such a dip (issue 4's box: h = -4e-12, h'' = 0.065,
+// the crossing 1.1e-5 before the end) ended a grazing curve at a spurious double grazing. The
+// orbit is admissible at the corrector's residual, and not when its end is off the surface by
+// more than the corrector's tolerance (1e-10 (1 + |x|)).
+TEST(Curve, TangentEndOffTheSurfaceByTheCorrectorsResidualIsAdmissible) {
+  DO model;
+  ExactPropagator prop(model);
+  const ContinuationResult reference = BBranch(model, prop, 0.3);
+  const SpecialPoint* start = FindKind(reference, SpecialPointKind::kGrazingL1);
+  ASSERT_NE(start, nullptr);
+  CurveOptions opt;
+  opt.param1 = "b";
+  opt.param2 = "a";
+  opt.min1 = 0.0;
+  opt.max1 = 0.3;
+  opt.min2 = 0.29;
+  opt.max2 = 0.31;
+  const CurveResult curve = ContinueCurve(model, prop, *start, opt);
+  ASSERT_GE(curve.points.size(), 3u) << curve.summary.message;
+  const PeriodicOrbit on = curve.points[curve.points.size() / 2].orbit;
+  ASSERT_TRUE(CheckAdmissible(model, prop, on).admissible);
+  int i = 0;
+  while (i < static_cast<int>(on.durations.size()) && !on.signature.segments[i].tangent) ++i;
+  ASSERT_LT(i, static_cast<int>(on.durations.size()));
+  const SegmentSpec seg = on.signature.segments[i];
+  const double tau = on.durations[i];
+  // Lowers the touch by depth: the start moved against the gradient of h(tau) in the start state
+  // (h is linear in it to O(depth^2), far below rounding here).
+  auto lowered = [&](double depth) {
+    FlowRequest req;
+    req.state_jacobian = true;
+    const FlowResult fr = prop.FlowMap(seg.mode, on.starts[i], tau, on.params, req);
+    StateRow r = model.GuardGradient(seg.mode, seg.guard, fr.x, on.params) * fr.state_jacobian;
+    r[model.phase_index()] = 0.0;
+    PeriodicOrbit o = on;
+    o.starts[i] -= depth * r.transpose() / r.squaredNorm();
+    return o;
+  };
+  auto end_guard = [&](const PeriodicOrbit& o) {
+    return model.Guard(seg.mode, seg.guard,
+                       prop.FlowMap(seg.mode, o.starts[i], tau, o.params, {}).x, o.params);
+  };
+  const PeriodicOrbit residual = lowered(2e-11);
+  const GuardValue g = end_guard(residual);
+  ASSERT_NEAR(g.h, -2e-11, 1e-12);
+  ASSERT_GT(g.ddh, 0.0);
+  // The event locator sees the dip: a crossing of the tangent guard, before the end by more
+  // than 1e-6 tau and than rounding's window sqrt(2e-13 (1 + |x|) / h'') (so that only the
+  // residual can excuse it).
+  AdvanceRequest req;
+  req.mode = seg.mode, req.x0 = residual.starts[i], req.t_max = tau;
+  const AdvanceResult r = prop.Advance(req, residual.params);
+  ASSERT_EQ(r.end, AdvanceEnd::kEvent);
+  ASSERT_EQ(r.guard, seg.guard);
+  const double scale = 1.0 + r.x.lpNorm<Eigen::Infinity>();
+  EXPECT_GT(tau - r.duration, 1e-6 * tau);
+  EXPECT_GT(tau - r.duration, 2.0 * std::sqrt(2e-13 * scale / g.ddh));
+  EXPECT_TRUE(CheckAdmissible(model, prop, residual).admissible)
+      << CheckAdmissible(model, prop, residual).message;
+  // Off the surface by 1e-8, 100 times the corrector's tolerance: a crossing.
+  const Admissibility deep = CheckAdmissible(model, prop, lowered(1e-8));
+  EXPECT_FALSE(deep.admissible);
+  EXPECT_EQ(deep.segment, i);
+  EXPECT_EQ(deep.guard, seg.guard);
+}
+
 }  // namespace
 }  // namespace drillbif

@@ -129,14 +129,18 @@ namespace {
 
 // Whether an event of segment i's own guard at time t is the segment's end at tau: within
 // 1e-6 tau (a crossing cannot fall back through the surface in so short a time without touching it
-// tangentially there), or within what rounding in h (eps = 1e-13 (1 + |x|)) makes of the event
-// time there: eps / |h'| where the guard crosses, at most sqrt(2 eps / |h''|) (a short segment
-// ending at a shallow crossing: 1e-6 tau can be below it), sqrt(2 eps / h'') at a tangent end's
-// touch (h = h' = 0, h'' > 0: h
-// stays within rounding of zero for that long around it, and the locator can see a crossing
-// anywhere there; with h'' = 2e-4, 1e-6 before tau, and grazing curves ended at spurious double
-// grazings at random places along them). A real crossing that close to the end is itself a
-// degenerate (cubic) tangency.
+// tangentially there), or within what the end's error in h makes of the event time there. That
+// error, e, is rounding (1e-13 (1 + |x|)) plus the residual h(tau) the orbit was solved to (a
+// corrector stopping at a scaled step of 1e-10 leaves |h(tau)| up to a few 1e-12). Where the
+// guard crosses, the time is uncertain by e / |h'|, at most sqrt(2 e / |h''|) (a short segment
+// ending at a shallow crossing: 1e-6 tau can be below it). At a tangent end's touch (h = h' = 0,
+// h'' > 0) the quadratic h + h' s + h'' s^2 / 2 has its other root at most
+// sqrt(2 e / h'') + 2 |h'| / h'' before the end: h stays within that error of zero for so long
+// around it, and the locator can see a crossing anywhere there (with h'' = 2e-4, 1e-6 before
+// tau, grazing curves ended at spurious double grazings at random places along them; with
+// h'' = 0.065 and h(tau) = -4e-12 left by the corrector, 1.1e-5 before it, a grazing curve of
+// issue 4's box ended at one). A real crossing that close to the end is itself a degenerate
+// (cubic) tangency.
 bool IsOwnEnd(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
               size_t i, double t) {
   const SegmentSpec& seg = orbit.signature.segments[i];
@@ -144,11 +148,15 @@ bool IsOwnEnd(const HybridModel& model, Propagator& propagator, const PeriodicOr
   if (tau - t <= 1e-6 * tau) return true;
   const StateVector end = propagator.FlowMap(seg.mode, orbit.starts[i], tau, orbit.params, {}).x;
   const GuardValue g = model.Guard(seg.mode, seg.guard, end, orbit.params);
-  const double eps = 1e-13 * (1.0 + end.lpNorm<Eigen::Infinity>());
-  if (seg.tangent) return g.ddh > 0.0 && tau - t <= std::sqrt(2.0 * eps / g.ddh);
-  // A crossing's time is uncertain by eps / |h'|, and never by more than sqrt(2 eps / |h''|) (a
-  // near-zero rate must not open the window wide).
-  const double window = std::min(eps / std::abs(g.dh), std::sqrt(2.0 * eps / std::abs(g.ddh)));
+  // The residual is taken up to the corrector's tolerance, 1e-10 (1 + |x|): an end further off
+  // the surface is not a solved orbit's and its crossing is a crossing.
+  const double scale = 1.0 + end.lpNorm<Eigen::Infinity>();
+  const double e = 1e-13 * scale + std::min(std::abs(g.h), 1e-10 * scale);
+  if (seg.tangent) {
+    const double rate = std::min(std::abs(g.dh), 1e-10 * scale);
+    return g.ddh > 0.0 && tau - t <= std::sqrt(2.0 * e / g.ddh) + 2.0 * rate / g.ddh;
+  }
+  const double window = std::min(e / std::abs(g.dh), std::sqrt(2.0 * e / std::abs(g.ddh)));
   return std::isfinite(window) && tau - t <= window;
 }
 
