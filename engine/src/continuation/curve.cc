@@ -485,11 +485,12 @@ class CurveTracer {
 
   // A cusp on the step from y (tangent t) of length h, where the tangent's parameter part turns
   // against its direction u at y: the root of psi = u . (parameter part of the tangent at the
-  // corrected point), psi1 at the step's end, to |psi| <= 1e-10 |u|.
-  bool LocateCusp(const Vec& y, const Vec& t, double h, double psi1, Vec* root) const {
+  // corrected point), psi1 at the step's end, to |psi| <= tol |u| (tol 0: until the sign change
+  // is bracketed to rounding).
+  bool LocateCusp(const Vec& y, const Vec& t, double h, double psi1, double tol, Vec* root) const {
     const Eigen::Vector2d u = ParamDirection(t);
     return LocateOnStep(
-        y, t, h, u.squaredNorm(), psi1, 1e-10 * u.norm(),
+        y, t, h, u.squaredNorm(), psi1, tol * u.norm(),
         [&](const Vec& p, double* f) {
           Vec tp;
           if (!Tangent(p, t, &tp)) return false;
@@ -500,15 +501,45 @@ class CurveTracer {
   }
 
   // A fold curve whose direction in the parameter plane reverses on the step from y (tangent t)
-  // to y1 (tangent t1): a cusp, located and appended.
+  // to y1 (tangent t1): a cusp, located (to |psi| <= tol |u|, LocateCusp) and appended. With
+  // `probes`, that many points evenly inside the step are looked at first, and the first of
+  // them past a reversal ends the search interval instead of y1 (the step that ends a curve:
+  // see EndAtBoundary).
   void CuspOnStep(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1,
-                  std::vector<Codim2Point>* codim2) const {
+                  std::vector<Codim2Point>* codim2, double tol = 1e-10, int probes = 0) const {
     if (kind_ != CurveKind::kFold) return;
-    const double psi1 = ParamDirection(t).dot(ParamDirection(t1));
-    Vec root;
-    if (psi1 < 0.0 && LocateCusp(y, t, t.dot(y1 - y), psi1, &root)) {
-      codim2->push_back({Codim2Kind::kCusp, MakePoint(root), "", 0.0, {}});
+    const double h = t.dot(y1 - y);
+    double reach = h, psi_reach = ParamDirection(t).dot(ParamDirection(t1));
+    for (int k = 1; k <= probes; ++k) {
+      const double s = k * h / (probes + 1);
+      Vec p, tp;
+      int iterations = 0;
+      if (!Correct(y + s * t, t, &p, &iterations) || !Tangent(p, t, &tp)) continue;
+      const double psi = ParamDirection(t).dot(ParamDirection(tp));
+      if (psi < 0.0) {
+        reach = s, psi_reach = psi;
+        break;
+      }
     }
+    Vec root, tr;
+    if (!(psi_reach < 0.0 && LocateCusp(y, t, reach, psi_reach, tol, &root))) return;
+    // A cusp, not a turn: psi = 0 also where the direction has turned through a right angle
+    // within the step (a hairpin, |parameter part| ~ |u| there); at a cusp the parameter part
+    // itself vanishes (measured at the box's cusps: at most 2.5e-4 |u|, against 0.07 |u| at the
+    // one hairpin seen, with target_iterations 4). And not one already found on this curve (a
+    // curve passing a cusp twice, or the search reaching it from two steps).
+    if (!Tangent(root, t, &tr) || ParamDirection(tr).norm() > 1e-2 * ParamDirection(t).norm()) {
+      return;
+    }
+    CurvePoint point = MakePoint(root);
+    for (const Codim2Point& q : *codim2) {
+      if (q.kind == Codim2Kind::kCusp &&
+          std::hypot((q.point.value1 - point.value1) / w1_,
+                     (q.point.value2 - point.value2) / w2_) <= 1e-9) {
+        return;
+      }
+    }
+    codim2->push_back({Codim2Kind::kCusp, std::move(point), "", 0.0, {}});
   }
 
   // Whether a violation is an event reaching the Poincare section rather than a grazing: the
@@ -732,10 +763,18 @@ class CurveTracer {
     // flip-grazing root can lie next to a double grazing end).
     RootsOnStep(y, t, b.ya, end.stability.monodromy, tests, dets, codim2);
     // And a cusp: a fold curve approaching a fold-grazing nearly at rest in the parameter plane
-    // (its orbit changing while the parameters barely move) can turn just before its end.
+    // (its orbit changing while the parameters barely move) can turn just before its end. The
+    // direction at the end itself is not to be trusted (below), and next to it Newton may fail
+    // (the fixed-signature system meets its zero-length solutions there), so the step is probed
+    // at 7 inner points and the cusp located before the first one past a reversal, until the
+    // sign change is bracketed to rounding (psi is 1e-13 .. 1e-9 there). In issue 4's box this
+    // found 2 more cusps with the default steps (4e-9 and 5e-9, box-scaled, before their
+    // curve's end, where psi was 4e-13 of the wrong sign) and more with target_iterations 4
+    // (where the search's trial points next to the end did not correct): 21 -> 23 and
+    // 20 -> 22 cusps.
     if (Vec ta; kind_ == CurveKind::kFold && Tangent(b.ya, t, &ta)) {
       const size_t found = codim2->size();
-      CuspOnStep(y, t, b.ya, ta, codim2);
+      CuspOnStep(y, t, b.ya, ta, codim2, 0.0, 7);
       // Not the end's own: there the fixed-signature curve meets the family of zero-length
       // solutions and its parameters are stationary (they move as the square of the vanishing
       // duration), so the direction's sign at b.ya is noise and a reversal is "located" at the
