@@ -383,6 +383,10 @@ TEST(Continuation, HardParametersCompleteWithAdmissiblePoints) {
 // phases must get a CwoP phase before them at that one point. Crossing one violation at a time
 // (before) left the other already violated at the step-off point and the branch FAILED there;
 // both are now switched together and the branch goes on to omega = 3.5 with admissible points.
+// The same at omega = 0.69896, where both CwP phases vanish: located in arclength 1e-2 of a step
+// apart (the branch is stationary in omega there) but 6e-9 apart in omega, they are one switch;
+// crossed one at a time, the other direction (down to the fold at omega = 0.0909 and back) FAILED
+// there. Both directions now reach omega = 3.5.
 TEST(Continuation, SwitchesBothCopiesOfATwiceTraversedOrbitAtOnce) {
   DO model;
   ExactPropagator prop(model);
@@ -404,6 +408,16 @@ TEST(Continuation, SwitchesBothCopiesOfATwiceTraversedOrbitAtOnce) {
     ++copies;
   }
   EXPECT_EQ(copies, 2u) << change->detail;
+  EXPECT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  int vanishings = 0;
+  for (const SpecialPoint& s : r.special_points) {
+    if (s.kind != SpecialPointKind::kGrazingL1 || std::abs(s.point.value - 0.69896) > 1e-4)
+      continue;
+    ++vanishings;
+    // Both CwP phases gone in one switch.
+    EXPECT_EQ(s.detail.substr(s.detail.find("->")).find("CwP"), std::string::npos) << s.detail;
+  }
+  EXPECT_EQ(vanishings, 2) << r.summary.message;  // once in each direction
   double highest = 0.0;
   for (const ContinuationPoint& p : r.points) highest = std::max(highest, p.value);
   EXPECT_EQ(highest, opt.max) << r.summary.message;

@@ -268,7 +268,11 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   Vec y_star;
   Admissibility violation;
   double sigma_star = std::numeric_limits<double>::infinity();
-  std::vector<std::pair<double, Admissibility>> located;
+  struct Located {
+    double sigma, value;  // arclength from y_, parameter
+    Admissibility violation;
+  };
+  std::vector<Located> located;
   for (const Admissibility& v : violations) {
     auto psi = [&](const Vec& yy) {
       PeriodicOrbit o;
@@ -279,7 +283,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     Vec y_v;
     if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h, psi0, psi1, psi, true, &y_v)) continue;
     const double sigma = t_.dot(y_v - y_);
-    located.push_back({sigma, v});
+    located.push_back({sigma, y_v[m()], v});
     if (sigma < sigma_star) sigma_star = sigma, y_star = y_v, violation = v;
   }
   if (!std::isfinite(sigma_star)) return false;
@@ -339,15 +343,22 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   }
   // A period-n orbit that is a shorter one traversed several times (a period-2 branch beyond the
   // doubling it met again) reaches the same boundary in each copy at once: the violations of the
-  // same kind (guard, at a start or not) located at this same point, to 1e-9 of the step, are
-  // switched together, from the last segment back so that each index still holds, and every
-  // zero-length segment inserted is stepped off together below. Crossing one at a time left the
-  // next already violated at the step-off point, with no bracket to locate it in.
+  // same kind (guard, at a start or not) located at this same point, to 1e-9 of the step or to
+  // 1e-8 in the parameter, are switched together, from the last segment back so that each index
+  // still holds, and every zero-length segment inserted is stepped off together below. Crossing
+  // one at a time left the next already violated at the step-off point, with no bracket to
+  // locate it in. The parameter matters where a segment vanishes: the branch is stationary in it
+  // there, and the twin CwP phases of the xi = 0.5 period-2 omega-branch, vanishing at
+  // omega = 0.698960961 and 0.698960967 (6e-9 apart), were located 1e-2 of a step apart.
+  const double value_star = y_star[m()];
   std::vector<Admissibility> together = {violation};
-  for (const auto& [sigma, twin] : located) {
-    if (twin.segment != violation.segment && twin.guard == violation.guard &&
-        twin.at_start == violation.at_start && std::abs(sigma - sigma_star) <= 1e-9 * h) {
-      together.push_back(twin);
+  for (const Located& twin : located) {
+    const Admissibility& w = twin.violation;
+    if (w.segment != violation.segment && w.guard == violation.guard &&
+        w.at_start == violation.at_start &&
+        (std::abs(twin.sigma - sigma_star) <= 1e-9 * h ||
+         std::abs(twin.value - value_star) <= 1e-8 * (1.0 + std::abs(value_star)))) {
+      together.push_back(w);
     }
   }
   std::sort(together.begin(), together.end(),
