@@ -169,6 +169,41 @@ TEST(PeriodDoublingSwitch, AlgebraicSwitchWorksWhereSimulationFindsNothing) {
   testing::ExpectPeriodTwoBySimulation(model, prop, *alg, 1e-7, 1e-5);
 }
 
+// The period-2 branch born at the a-branch's doubling at a = 0.45763 (omega = 0.1) meets, near
+// a = 2.18218, a touch of l1 0.03 before the end of a CwoP phase that itself ends at l1: the
+// contact phase inserted there, stepped off at 1e-3, overran the short CwoP rest (durations
+// -1e-3 and 0 after it) and the branch FAILED at its next step, as did issue 4's box traced
+// with max_period 2. The step off is now shortened until every duration is positive; the branch
+// closes on itself with every point admissible.
+TEST(PeriodDoublingSwitch, PeriodTwoBranchSteppingOffATouchNextToAnotherEventCloses) {
+  DO model;
+  ExactPropagator prop(model);
+  const SpecialPoint pd = DoublingOnBranch(model, prop, "a", 0.01, 8.0, 0.4575, 0.4578);
+  const StatusOr<PeriodicOrbit> alg =
+      SwitchAtPeriodDoublingAlgebraic(model, prop, pd.point.orbit, "a");
+  ASSERT_TRUE(alg.ok()) << alg.status().ToString();
+  ContinuationOptions opt;
+  opt.param = "a";
+  opt.min = 0.01;
+  opt.max = 8.0;
+  opt.direction = alg->params[DO::kA] > pd.point.value ? ContinuationDirection::kIncreasing
+                                                       : ContinuationDirection::kDecreasing;
+  const ContinuationResult r = Continue(model, prop, *alg, opt);
+  EXPECT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  double highest = 0.0;
+  for (const ContinuationPoint& p : r.points) highest = std::max(highest, p.value);
+  EXPECT_GT(highest, 2.1822) << r.summary.message;  // through the touch
+  for (const ContinuationPoint& p : r.points) {
+    const bool special = std::any_of(
+        r.special_points.begin(), r.special_points.end(),
+        [&](const SpecialPoint& s) { return std::abs(s.point.value - p.value) < 1e-9; });
+    if (special) continue;  // a grazing point lies on the boundary
+    for (const double d : p.orbit.durations) EXPECT_GT(d, 0.0) << "a = " << p.value;
+    const Admissibility adm = CheckAdmissible(model, prop, p.orbit);
+    EXPECT_TRUE(adm.admissible) << "a = " << p.value << ": " << adm.message;
+  }
+}
+
 TEST(PeriodDoublingSwitch, AlgebraicSwitchRejectsBadInput) {
   DO model;
   ExactPropagator prop(model);

@@ -412,13 +412,29 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   } else {
     // A segment was inserted with zero duration: its duration grows like sqrt(|lambda -
     // lambda*|), so the new system folds exactly here. Step off the grazing point along that
-    // duration: fix it at a small kGrazeStep (lambda free), then go on where it grows.
-    constexpr double kGrazeStep = 1e-3;
+    // duration: fix it at a small value, 1e-3 (lambda free), then go on where it grows.
+    // Where the orbit has another short segment next to the touch, that step can overrun it
+    // (the solution then has negative durations): it is retried 10 and 100 times shorter, and
+    // the first with every duration positive is solved again below (once per switch). (The
+    // period-2 a-branch of issue 4's box at a = 2.18218: the touch of l1 0.03 before the end of
+    // a CwoP phase that ends at l1 too.)
     const int per_segment = bvp_->size() / bvp_->segments();  // start state, then duration
-    for (const int j : inserted) y[j * per_segment + per_segment - 1] = kGrazeStep;
     const int col = sw.new_segment * per_segment + per_segment - 1;
     fix[col] = 1.0;
     prev[col] = 1.0;
+    const Vec guess = y;
+    for (const double graze_step : {1e-3, 1e-4, 1e-5}) {
+      y = guess;
+      for (const int j : inserted) y[j * per_segment + per_segment - 1] = graze_step;
+      Vec y_off;
+      int off_iterations = 0;
+      if (!Correct(y, fix, &y_off, &off_iterations, /*accept_rounding_residual=*/true)) continue;
+      bool positive = true;
+      for (int j = 0; j < bvp_->segments(); ++j) {
+        positive = positive && y_off[j * per_segment + per_segment - 1] > 0.0;
+      }
+      if (positive) break;
+    }
   }
   double det = 0.0;
   int iterations = 0;
