@@ -16,15 +16,19 @@
 namespace drillbif {
 namespace {
 
-// The whole trace: both one-parameter branches and every curve (the start orbit excluded).
+// The whole trace: both one-parameter branches and every curve (the start orbit excluded), with
+// the corrector aiming at state.range(0) Newton iterations per curve step (3: the default, the
+// FINE curve steps of a trace request; 4: COARSE).
 void BM_TraceIssueBox(benchmark::State& state) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   const PeriodicOrbit start =
       *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  TraceOptions options = testing::Issue4Box();
+  options.curve.target_iterations = static_cast<int>(state.range(0));
   TraceResult r;
   for (auto _ : state) {
-    r = TraceCurves(model, prop, start, testing::Issue4Box());
+    r = TraceCurves(model, prop, start, options);
     benchmark::DoNotOptimize(r.curves.data());
   }
   double points = 0.0, codim2 = 0.0;
@@ -37,7 +41,7 @@ void BM_TraceIssueBox(benchmark::State& state) {
   state.counters["codim2"] = codim2;
   if (!r.summary.status.ok()) state.SkipWithError("trace failed");
 }
-BENCHMARK(BM_TraceIssueBox)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_TraceIssueBox)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One curve: the l1 grazing curve from the omega-branch grazing at 0.5088 (a = 0.3), 688 points
 // and four codimension-2 points (two flip-, one fold-, one double grazing); the cost per point of

@@ -69,6 +69,17 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     }
     opt.max_period = request.max_period();
   }
+  switch (request.curve_steps()) {
+    case v1::CURVE_STEPS_UNSPECIFIED:
+    case v1::CURVE_STEPS_FINE:
+      break;
+    case v1::CURVE_STEPS_COARSE:
+      opt.curve.target_iterations = 4;
+      break;
+    default:
+      return InvalidArgument("curve_steps: unknown value " +
+                             std::to_string(static_cast<int>(request.curve_steps())));
+  }
   if (Status s = opt.Validate(); !s.ok()) return s;
   return opt;
 }

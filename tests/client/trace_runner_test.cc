@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
 #include "client/output.h"
@@ -65,6 +66,34 @@ TEST(RunTrace, InvalidRequestsNameTheField) {
   contradiction.set_period2(true);
   contradiction.set_max_period(1);
   ExpectInvalid(contradiction, "max_period: 1 contradicts period2");
+  v1::TraceRequest steps = SmallBox();
+  steps.set_curve_steps(static_cast<v1::CurveSteps>(7));
+  ExpectInvalid(steps, "curve_steps");
+}
+
+// COARSE curve steps: fewer vertices, the same codimension-2 points (kind and position, to
+// 1e-7 of the box: each is solved to the same tolerance whatever the steps).
+TEST(RunTrace, CoarseCurveStepsGiveFewerVerticesAndTheSameCodim2Points) {
+  const StatusOr<v1::TraceResult> fine = RunTrace(SmallBox());
+  v1::TraceRequest request = SmallBox();
+  request.set_curve_steps(v1::CURVE_STEPS_COARSE);
+  const StatusOr<v1::TraceResult> coarse = RunTrace(request);
+  ASSERT_TRUE(fine.ok() && coarse.ok());
+  EXPECT_EQ(coarse->status(), "COMPLETED") << coarse->message();
+  int fine_vertices = 0, coarse_vertices = 0;
+  for (const v1::Curve& c : fine->curves()) fine_vertices += c.points_size();
+  for (const v1::Curve& c : coarse->curves()) coarse_vertices += c.points_size();
+  EXPECT_LT(2 * coarse_vertices, fine_vertices);
+  ASSERT_EQ(coarse->codim2_points_size(), fine->codim2_points_size());
+  for (const v1::Codim2Point& q : fine->codim2_points()) {
+    bool found = false;
+    for (const v1::Codim2Point& e : coarse->codim2_points()) {
+      found = found || (e.kind() == q.kind() &&
+                        std::hypot((e.params().omega() - q.params().omega()) / 0.15,
+                                   (e.params().a() - q.params().a()) / 0.05) <= 1e-7);
+    }
+    EXPECT_TRUE(found) << q.kind() << " at omega = " << q.params().omega();
+  }
 }
 
 // In omega in [0.05, 0.2], a in [0.27, 0.32] the one PD curve ends at a flip-grazing at one end;
