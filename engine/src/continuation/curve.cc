@@ -502,16 +502,17 @@ class CurveTracer {
 
   // A fold curve whose direction in the parameter plane reverses on the step from y (tangent t)
   // to y1 (tangent t1): a cusp, located (to |psi| <= tol |u|, LocateCusp) and appended. With
-  // `probes`, that many points evenly inside the step are looked at first, and the first of
-  // them past a reversal ends the search interval instead of y1 (the step that ends a curve:
-  // see EndAtBoundary).
+  // `probes`, that many points inside the step, at 1/2, 3/4, 7/8, ... of it (closing in on y1:
+  // the step that ends a curve, see EndAtBoundary, where a cusp lies in a hook just before the
+  // end and the direction stays reversed from it to the end), are looked at first, and the
+  // first of them past a reversal ends the search interval instead of y1.
   void CuspOnStep(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1,
                   std::vector<Codim2Point>* codim2, double tol = 1e-10, int probes = 0) const {
     if (kind_ != CurveKind::kFold) return;
     const double h = t.dot(y1 - y);
     double reach = h, psi_reach = ParamDirection(t).dot(ParamDirection(t1));
     for (int k = 1; k <= probes; ++k) {
-      const double s = k * h / (probes + 1);
+      const double s = h * (1.0 - std::ldexp(1.0, -k));
       Vec p, tp;
       int iterations = 0;
       if (!Correct(y + s * t, t, &p, &iterations) || !Tangent(p, t, &tp)) continue;
@@ -766,12 +767,13 @@ class CurveTracer {
     // (its orbit changing while the parameters barely move) can turn just before its end. The
     // direction at the end itself is not to be trusted (below), and next to it Newton may fail
     // (the fixed-signature system meets its zero-length solutions there), so the step is probed
-    // at 7 inner points and the cusp located before the first one past a reversal, until the
-    // sign change is bracketed to rounding (psi is 1e-13 .. 1e-9 there). In issue 4's box this
-    // found 2 more cusps with the default steps (4e-9 and 5e-9, box-scaled, before their
-    // curve's end, where psi was 4e-13 of the wrong sign) and more with target_iterations 4
-    // (where the search's trial points next to the end did not correct): 21 -> 23 and
-    // 20 -> 22 cusps.
+    // at 7 inner points closing in on the end and the cusp located before the first one past a
+    // reversal, until the sign change is bracketed to rounding (psi is 1e-13 .. 1e-9 there). In
+    // issue 4's box this found 2 more cusps with the default steps (4e-9 and 5e-9, box-scaled,
+    // before their curve's end, where psi was 4e-13 of the wrong sign) and 3 more with
+    // target_iterations 4 (where the search's trial points next to the end did not correct):
+    // 21 -> 23 and 20 -> 23 cusps, the same 23 (evenly spaced probes found 22 with the longer
+    // steps: their hooks are shorter than an eighth of the step).
     if (Vec ta; kind_ == CurveKind::kFold && Tangent(b.ya, t, &ta)) {
       const size_t found = codim2->size();
       CuspOnStep(y, t, b.ya, ta, codim2, 0.0, 7);
