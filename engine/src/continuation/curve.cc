@@ -622,8 +622,14 @@ class CurveTracer {
     // before the duration does (the duration goes like the square root of the distance to the
     // grazing, and its end guard's rate h' with it): j's own guard inside j while j is at most
     // 1e-5 long, or, at the very start of the next segment, the guard that led into j from the
-    // segment before it (j would start again at once). A solution is kept only within the
-    // bracket (below), so a wrong guess costs a Newton run.
+    // segment before it (j would start again at once), or, before the end of the segment before
+    // it, that segment's own guard (the one that starts j) firing early: the flow of that mode
+    // touches the guard where j shrinks away, as a contact phase's force reaching the progression
+    // threshold just before a short progression phase between two contact phases vanishes (a PD
+    // curve of issue 4's box with longer steps: l1 inside CwoP 6e-3 before its end, CwP 3e-3
+    // long, bracket 6e-3 as Newton fails next to the end); j at most 1e-2 long (a touch inside
+    // a segment followed by a long one is an interior grazing, the touch form's). A solution is
+    // kept only within the bracket (below), so a wrong guess costs a Newton run.
     int j = -1;
     if (v.guard < 0) {
       j = i;
@@ -632,6 +638,9 @@ class CurveTracer {
     } else if (i >= 2 && v.at_start && segs[i - 2].mode == segs[i].mode &&
                v.guard == segs[i - 2].guard) {
       j = i - 1;
+    } else if (!v.at_start && v.guard == segs[i].guard && i + 2 < k &&
+               segs[i + 2].mode == segs[i].mode && o.durations[i + 1] <= 1e-2) {
+      j = i + 1;
     }
     // Kept when within the bracket of the end, admissible (for a zero-length segment: but for
     // that segment's own duration, zero to rounding) and, on a fold / PD curve, with the
