@@ -766,7 +766,7 @@ int Main(int argc, char** argv) {
       ->group("Trace");
   trace
       ->add_option("--curve-steps", tr.curve_steps,
-                   "fine (default) or coarse: ~5x fewer vertices per curve, ~1.7x faster, the "
+                   "fine (default) or coarse: ~4.6x fewer vertices per curve, ~1.8x faster, the "
                    "same codimension-2 points to the same tolerance")
       ->check(CLI::IsMember({"fine", "coarse"}))
       ->group("Trace");
