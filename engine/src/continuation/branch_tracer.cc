@@ -415,26 +415,39 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     // duration: fix it at a small value, 1e-3 (lambda free), then go on where it grows.
     // Where the orbit has another short segment next to the touch, that step can overrun it
     // (the solution then has negative durations): it is retried 10 and 100 times shorter, and
-    // the first with every duration positive is solved again below (once per switch). (The
-    // period-2 a-branch of issue 4's box at a = 2.18218: the touch of l1 0.03 before the end of
-    // a CwoP phase that ends at l1 too.)
+    // the first with every duration positive is solved again below (once per switch); when none
+    // is, the shortest. The period-2 a-branch of issue 4's box at a = 2.18218 is such a case:
+    // the l1 touch lies 0.03 before the end of a CwoP phase that ends at l1 too, next to a CwP
+    // phase of zero length, and the solved step-off cancels the inserted CwP phase with the CwoP
+    // phase after it (-1e-3, -1e-4, -1e-5 at the three lengths). Stepped off at 1e-3 the next
+    // step could not bracket that negative duration and the branch FAILED; at 1e-5 it goes on
+    // and closes on itself with every point admissible. Why the insertion cancels is not
+    // understood (a twin touch 6.4e-6 away in a was switched just before).
     const int per_segment = bvp_->size() / bvp_->segments();  // start state, then duration
     const int col = sw.new_segment * per_segment + per_segment - 1;
     fix[col] = 1.0;
     prev[col] = 1.0;
-    const Vec guess = y;
-    for (const double graze_step : {1e-3, 1e-4, 1e-5}) {
-      y = guess;
-      for (const int j : inserted) y[j * per_segment + per_segment - 1] = graze_step;
+    auto step_off_guess = [&](double length) {
+      Vec g = y;
+      for (const int j : inserted) g[j * per_segment + per_segment - 1] = length;
+      return g;
+    };
+    double graze_step = 1e-3;
+    for (const double trial : {1e-3, 1e-4, 1e-5}) {
+      graze_step = trial;
       Vec y_off;
       int off_iterations = 0;
-      if (!Correct(y, fix, &y_off, &off_iterations, /*accept_rounding_residual=*/true)) continue;
+      if (!Correct(step_off_guess(trial), fix, &y_off, &off_iterations,
+                   /*accept_rounding_residual=*/true)) {
+        continue;
+      }
       bool positive = true;
       for (int j = 0; j < bvp_->segments(); ++j) {
         positive = positive && y_off[j * per_segment + per_segment - 1] > 0.0;
       }
       if (positive) break;
     }
+    y = step_off_guess(graze_step);
   }
   double det = 0.0;
   int iterations = 0;
