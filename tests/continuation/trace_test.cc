@@ -35,7 +35,7 @@ bool IsCornerCurve(const CurveResult& c) {
 // Every trace here starts at the reference orbit.
 class Trace : public testing::ReferenceOrbitTest {};
 
-// The same checks with the default steps and with longer ones (target_iterations 4: 5x fewer
+// The same checks with the default steps and with longer ones (target_iterations 4: 4.6x fewer
 // points): the defining conditions, the ends and the cusps must not depend on the steps taken.
 // With the longer steps, before the checks below held for them, six grazing curves ended at
 // spurious double grazings (a tangent end's residual seen as a crossing), a turn was taken for a
@@ -349,12 +349,12 @@ INSTANTIATE_TEST_SUITE_P(DefaultAndLongerSteps, TraceSteps, ::testing::Values(3,
                          });
 
 // Every codimension-2 point the default steps find (bisected ends to 1e-8 or better) is found
-// with steps 5x longer (target_iterations 4) too, within 1e-7 (box-scaled: the located points
-// agree to 1e-9 between curves, bisected ends to their 1e-8 bracket; two points of one kind are
-// at least 8e-6 apart in this box), cusps included: those in a fold curve's hook right before
-// its fold-grazing end (4e-9 .. 5e-9 from it, box-scaled) are found by the end step's probes,
-// which close in on the end (three were missed with evenly spaced probes). Longer steps had
-// jumped past a CwoP phase vanishing on a PD curve and missed its flip-grazing.
+// with longer steps (target_iterations 4, 4.6x fewer points) too, within 1e-7 (box-scaled: the
+// located points agree to 1e-9 between curves, bisected ends to their 1e-8 bracket; two points
+// of one kind are at least 8e-6 apart in this box), cusps included: those in a fold curve's hook
+// right before its fold-grazing end (4e-9 .. 5e-9 from it, box-scaled) are found by the end
+// step's probes, which close in on the end (three were missed with evenly spaced probes).
+// Longer steps had jumped past a CwoP phase vanishing on a PD curve and missed its flip-grazing.
 TEST_F(Trace, LongerStepsFindTheDefaultStepsPoints) {
   auto trace = [&](int target_iterations) {
     TraceOptions opt = testing::Issue4Box();
