@@ -251,12 +251,27 @@ class CurveTracer {
       op.starts[l][ps] = o.starts[l][ps];
       later[l - 1] = later[l] + suffix[l + 1] * dfl * prefix[l];
     }
+    // With a LinearForm the flow is affine in the start's non-phase part: moving it moves the end
+    // by Phi dx and leaves Phi, so only the saltation is recomputed (orbit/monodromy.h), one
+    // flow per segment instead of one per such unknown.
+    const bool affine = dynamic_cast<const LinearForm*>(&model_) != nullptr;
     for (int i = 0; i < k; ++i) {
+      FlowResult flow;
+      if (affine) {
+        FlowRequest req;
+        req.state_jacobian = true;
+        flow = propagator_.FlowMap(o.signature.segments[i].mode, o.starts[i], o.durations[i],
+                                   o.params, req);
+      }
       for (int r = 0; r <= d; ++r) {
         const int j = i * (d + 1) + r;
         const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
         StateMatrix full;
-        if (r < d) {
+        if (r < d && affine) {
+          const StateVector x_end = flow.x + h * flow.state_jacobian.col(r < ps ? r : r + 1);
+          full = suffix[i + 1] *
+                 internal::FactorFromFlow(model_, o, i, x_end, flow.state_jacobian) * prefix[i];
+        } else if (r < d) {
           double& x = op.starts[i][r < ps ? r : r + 1];
           const double x0 = x;
           x += h;

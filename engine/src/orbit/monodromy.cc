@@ -9,21 +9,27 @@ StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
   req.state_jacobian = true;
   const FlowResult fr =
       propagator.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], orbit.params, req);
+  return FactorFromFlow(model, orbit, i, fr.x, fr.state_jacobian);
+}
+
+StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit, int i,
+                           const StateVector& x_end, const StateMatrix& phi) {
+  const SegmentSpec& seg = orbit.signature.segments[i];
   // No saltation at the section, nor at a tangent end (same mode on both sides: it would be the
   // identity, and its formula divides by h' = 0 there).
-  if (seg.guard < 0 || seg.tangent) return fr.state_jacobian;
+  if (seg.guard < 0 || seg.tangent) return phi;
   // Saltation: S = DR + (f+ - DR f-) grad h / (grad h . f-) (Leine & Nijmeijer 2004).
   StateVector f_minus, f_plus;
-  model.VectorField(seg.mode, fr.x, orbit.params, &f_minus);
-  const Transition tr = model.Jump(seg.mode, seg.guard, fr.x, orbit.params);
+  model.VectorField(seg.mode, x_end, orbit.params, &f_minus);
+  const Transition tr = model.Jump(seg.mode, seg.guard, x_end, orbit.params);
   model.VectorField(orbit.signature.segments[i + 1].mode, tr.x, orbit.params, &f_plus);
-  const StateRow grad = model.GuardGradient(seg.mode, seg.guard, fr.x, orbit.params);
+  const StateRow grad = model.GuardGradient(seg.mode, seg.guard, x_end, orbit.params);
   // Fixed-capacity types throughout: this runs once per unknown in every curve Jacobian.
   const StateVector jump_f = tr.jacobian * f_minus;
   StateMatrix salt = tr.jacobian;
   salt.noalias() += ((f_plus - jump_f) / grad.dot(f_minus)) * grad;
   StateMatrix out;
-  out.noalias() = salt * fr.state_jacobian;
+  out.noalias() = salt * phi;
   return out;
 }
 

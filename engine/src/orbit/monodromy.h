@@ -17,6 +17,12 @@ namespace drillbif::internal {
 StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
                           const PeriodicOrbit& orbit, int i);
 
+// F_i = S_i Phi_i from segment i's end state `x_end` and flow Jacobian `phi` (SegmentFactor
+// without the flow: for a model with a LinearForm the flow is affine in the state without its
+// phase, so moving that part of a start by dx moves the end by phi dx and leaves phi as it is).
+StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit, int i,
+                           const StateVector& x_end, const StateMatrix& phi);
+
 // Every factor of the orbit, in segment order.
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit);
