@@ -161,13 +161,15 @@ class CurveTracer {
   // The defining condition: sigma(M -+ I) for folds and period doublings; for grazing, h' at the
   // tangent end (the guard's rate where it touches zero).
   double Condition(const Vec& y) const { return ConditionAt(Unpack(y)); }
-  // The same for an unpacked orbit; for fold / PD / NS curves its monodromy factors are kept in
-  // *factors when asked (the condition's row of the Jacobian reuses them).
-  double ConditionAt(const PeriodicOrbit& o, std::vector<StateMatrix>* factors = nullptr) const {
+  // The same for an unpacked orbit; for fold / PD / NS curves its monodromy factors, and the
+  // segments' flows they were made from, are kept in *factors / *flows when asked (the
+  // condition's row of the Jacobian reuses them).
+  double ConditionAt(const PeriodicOrbit& o, std::vector<StateMatrix>* factors = nullptr,
+                     std::vector<FlowResult>* flows = nullptr) const {
     if (kind_ == CurveKind::kGrazing) {
       return corner_ >= 0 ? o.durations[corner_] : internal::TangentEndRate(model_, propagator_, o);
     }
-    std::vector<StateMatrix> f = internal::MonodromyFactors(model_, propagator_, o);
+    std::vector<StateMatrix> f = internal::MonodromyFactors(model_, propagator_, o, flows);
     const double sigma = Sigma(internal::ReducedMonodromy(model_, f));
     if (factors) *factors = std::move(f);
     return sigma;
@@ -194,7 +196,8 @@ class CurveTracer {
     f->head(m()) = g;
     const PeriodicOrbit o = Unpack(y);
     std::vector<StateMatrix> factors;
-    (*f)[m()] = ConditionAt(o, &factors);
+    std::vector<FlowResult> flows;
+    (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
     if (!jac) return f->allFinite();
     jac->setZero(m() + 1, n());
     jac->topLeftCorner(m(), m()) = gx;
@@ -216,7 +219,7 @@ class CurveTracer {
         (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
       }
     } else {
-      SigmaRow(y, o, factors, sigma0, jac);
+      SigmaRow(y, o, factors, flows, sigma0, jac);
     }
     return f->allFinite() && jac->allFinite();
   }
@@ -227,9 +230,9 @@ class CurveTracer {
   // later factors' phase derivatives to first order, dF_l / ds_l computed once per segment (the
   // exact product of every perturbed factor would cost k^2 / 2 factors per row instead of 2k;
   // they differ by O(h^2), below the differences' own truncation).
-  // `o` is Unpack(y), `base` its factors.
+  // `o` is Unpack(y), `base` its factors, `flows` the segments' flows they were made from.
   void SigmaRow(const Vec& y, const PeriodicOrbit& o, const std::vector<StateMatrix>& base,
-                double sigma0, Mat* jac) const {
+                const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
     const int k = static_cast<int>(base.size()), d = model_.state_dim() - 1;
     const int ps = model_.phase_index();
     const double omega = model_.ForcingFrequency(o.params);
@@ -252,17 +255,11 @@ class CurveTracer {
       later[l - 1] = later[l] + suffix[l + 1] * dfl * prefix[l];
     }
     // With a LinearForm the flow is affine in the start's non-phase part: moving it moves the end
-    // by Phi dx and leaves Phi, so only the saltation is recomputed (orbit/monodromy.h), one
-    // flow per segment instead of one per such unknown.
+    // by Phi dx and leaves Phi, so only the saltation is recomputed (orbit/monodromy.h), from the
+    // segment's flow the base factor was made from.
     const bool affine = dynamic_cast<const LinearForm*>(&model_) != nullptr;
     for (int i = 0; i < k; ++i) {
-      FlowResult flow;
-      if (affine) {
-        FlowRequest req;
-        req.state_jacobian = true;
-        flow = propagator_.FlowMap(o.signature.segments[i].mode, o.starts[i], o.durations[i],
-                                   o.params, req);
-      }
+      const FlowResult& flow = flows[i];
       for (int r = 0; r <= d; ++r) {
         const int j = i * (d + 1) + r;
         const double h = 1.5e-8 * (1.0 + std::abs(y[j]));

@@ -34,10 +34,21 @@ StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit,
 }
 
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
-                                          const PeriodicOrbit& orbit) {
+                                          const PeriodicOrbit& orbit,
+                                          std::vector<FlowResult>* flows) {
   std::vector<StateMatrix> factors(orbit.durations.size());
+  if (flows) flows->resize(factors.size());
   for (size_t i = 0; i < factors.size(); ++i) {
-    factors[i] = SegmentFactor(model, propagator, orbit, static_cast<int>(i));
+    if (!flows) {
+      factors[i] = SegmentFactor(model, propagator, orbit, static_cast<int>(i));
+      continue;
+    }
+    FlowRequest req;
+    req.state_jacobian = true;
+    FlowResult& fr = (*flows)[i];
+    fr = propagator.FlowMap(orbit.signature.segments[i].mode, orbit.starts[i], orbit.durations[i],
+                            orbit.params, req);
+    factors[i] = FactorFromFlow(model, orbit, static_cast<int>(i), fr.x, fr.state_jacobian);
   }
   return factors;
 }

@@ -23,9 +23,11 @@ StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
 StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit, int i,
                            const StateVector& x_end, const StateMatrix& phi);
 
-// Every factor of the orbit, in segment order.
+// Every factor of the orbit, in segment order. `flows`, when given, receives each segment's flow
+// (end state and flow Jacobian) its factor was made from.
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
-                                          const PeriodicOrbit& orbit);
+                                          const PeriodicOrbit& orbit,
+                                          std::vector<FlowResult>* flows = nullptr);
 
 // A full-state monodromy without its phase row and column (Stability::monodromy).
 StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full);
