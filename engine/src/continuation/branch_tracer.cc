@@ -423,13 +423,12 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     // step could not bracket that negative duration and the branch FAILED; at 1e-5 it goes on
     // and closes on itself with every point admissible. Why the insertion cancels is not
     // understood (a twin touch 6.4e-6 away in a was switched just before).
-    const int per_segment = bvp_->size() / bvp_->segments();  // start state, then duration
-    const int col = sw.new_segment * per_segment + per_segment - 1;
+    const int col = bvp_->DurationIndex(sw.new_segment);
     fix[col] = 1.0;
     prev[col] = 1.0;
     auto step_off_guess = [&](double length) {
       Vec g = y;
-      for (const int j : inserted) g[j * per_segment + per_segment - 1] = length;
+      for (const int j : inserted) g[bvp_->DurationIndex(j)] = length;
       return g;
     };
     double graze_step = 1e-3;
@@ -443,7 +442,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
       }
       bool positive = true;
       for (int j = 0; j < bvp_->segments(); ++j) {
-        positive = positive && y_off[j * per_segment + per_segment - 1] > 0.0;
+        positive = positive && y_off[bvp_->DurationIndex(j)] > 0.0;
       }
       if (positive) break;
     }

@@ -210,7 +210,7 @@ class CurveTracer {
     const double sigma0 = (*f)[m()];
     if (kind_ == CurveKind::kGrazing && corner_ >= 0) {
       // The corner's duration is one of the unknowns: its row is a unit vector.
-      (*jac)(m(), corner_ * model_.state_dim() + model_.state_dim() - 1) = 1.0;
+      (*jac)(m(), bvp1_.DurationIndex(corner_)) = 1.0;
     } else if (kind_ == CurveKind::kGrazing) {
       for (int j = 0; j < n(); ++j) {
         const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
@@ -342,15 +342,22 @@ class CurveTracer {
     return Evaluate(y, &f, &jac) && internal::UnitTangent(jac, prev, t);
   }
 
+  // Whether the orbit holds the corner's segment at zero length to rounding (Newton leaves it at
+  // ~1e-20 either side of zero); it then stands for the smallest positive duration: its two
+  // events at one point, an orbit CheckAdmissible takes as it is.
+  bool AtCorner(const PeriodicOrbit& o) const {
+    return corner_ >= 0 && std::abs(o.durations[corner_]) <= 1e-9;
+  }
+  static constexpr double kCornerDuration = std::numeric_limits<double>::min();
+
   // Admissibility; on a corner's curve the corner's own duration, zero to rounding, counts as
-  // the smallest positive one (its two events at one point, as PointFromOrbit reports it), and
-  // the rest is checked as usual.
+  // kCornerDuration (as PointFromOrbit reports it), and the rest is checked as usual.
   bool Admissible(const PeriodicOrbit& o, std::string* why,
                   Admissibility* violation = nullptr) const {
     Admissibility a;
-    if (corner_ >= 0 && std::abs(o.durations[corner_]) <= 1e-9) {
+    if (AtCorner(o)) {
       PeriodicOrbit p = o;
-      p.durations[corner_] = std::numeric_limits<double>::min();
+      p.durations[corner_] = kCornerDuration;
       a = CheckAdmissible(model_, propagator_, p);
     } else {
       a = CheckAdmissible(model_, propagator_, o);
@@ -368,12 +375,7 @@ class CurveTracer {
   }
 
   CurvePoint PointFromOrbit(PeriodicOrbit orbit) const {
-    // A corner's zero-length segment (Newton leaves it at ~1e-20 either side of zero) is
-    // reported as the smallest positive duration: its two events at one point, an orbit that
-    // CheckAdmissible takes as it is.
-    if (corner_ >= 0 && std::abs(orbit.durations[corner_]) <= 1e-9) {
-      orbit.durations[corner_] = std::numeric_limits<double>::min();
-    }
+    if (AtCorner(orbit)) orbit.durations[corner_] = kCornerDuration;
     CurvePoint p;
     p.value1 = orbit.params[index1_];
     p.value2 = orbit.params[index2_];
@@ -869,8 +871,8 @@ class CurveTracer {
           // times the step at which the tangent says the first shrinking segment vanishes),
           // when not admissible, brackets that boundary with y.
           double vanish = std::numeric_limits<double>::infinity();
-          for (int i = 0, d = model_.state_dim() - 1; i < m() / (d + 1); ++i) {
-            const double tau = y[i * (d + 1) + d], rate = t[i * (d + 1) + d];
+          for (int i = 0; i < bvp1_.segments(); ++i) {
+            const double tau = y[bvp1_.DurationIndex(i)], rate = t[bvp1_.DurationIndex(i)];
             if (rate < 0.0) vanish = std::min(vanish, -tau / rate);
           }
           for (const double ahead_by : {h_first, 1.5 * vanish}) {

@@ -21,6 +21,8 @@ class OrbitBvp {
   const Signature& signature() const { return signature_; }
   // Number of unknowns (= number of conditions): k (d + 1) with k segments, d = state_dim - 1.
   int size() const { return segments() * (d_ + 1); }
+  // Index in X of segment i's duration (after its start state).
+  int DurationIndex(int i) const { return i * (d_ + 1) + d_; }
   int segments() const { return static_cast<int>(signature_.segments.size()); }
 
   // X from an orbit of this signature, and back (the phases s_i follow from the durations).
