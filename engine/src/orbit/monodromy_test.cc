@@ -7,15 +7,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <vector>
 
-#include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
-#include "problems/reference_orbit.h"
+#include "support/reference_orbit_test.h"
 
 namespace drillbif {
 namespace {
 
-using DO = DriftingOscillator;
+using Monodromy = testing::ReferenceOrbitTest;
 
 // At every segment of the reference orbit (impact, contact, progression, flight: each mode and
 // guard) and for each non-phase state component, a start moved by 1e-2 (far beyond any
@@ -23,33 +22,28 @@ using DO = DriftingOscillator;
 // factor recomputed from the moved start and FactorFromFlow at the moved end agree to rounding,
 // 1e-11 (1 + |F|) (both are sums of O(|F|) terms computed to ~1e-15 relative, the moved end
 // from Phi dx as well). Unmoved, FactorFromFlow is SegmentFactor.
-TEST(Monodromy, FactorFromAnAffineFlowIsTheFactorAtTheMovedStart) {
-  DO model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> orbit =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(orbit.ok()) << orbit.status().ToString();
-  ASSERT_NE(dynamic_cast<const LinearForm*>(&model), nullptr);
-  const int n = model.state_dim();
+TEST_F(Monodromy, FactorFromAnAffineFlowIsTheFactorAtTheMovedStart) {
+  ASSERT_NE(dynamic_cast<const LinearForm*>(&model_), nullptr);
+  const int n = model_.state_dim();
   double largest_change = 0.0;
-  for (int i = 0; i < static_cast<int>(orbit->durations.size()); ++i) {
+  for (int i = 0; i < static_cast<int>(start_.durations.size()); ++i) {
     FlowRequest req;
     req.state_jacobian = true;
-    const FlowResult fr = prop.FlowMap(orbit->signature.segments[i].mode, orbit->starts[i],
-                                       orbit->durations[i], orbit->params, req);
-    const StateMatrix base = internal::SegmentFactor(model, prop, *orbit, i);
-    EXPECT_LE((internal::FactorFromFlow(model, *orbit, i, fr.x, fr.state_jacobian) - base)
+    const FlowResult fr = prop_.FlowMap(start_.signature.segments[i].mode, start_.starts[i],
+                                        start_.durations[i], start_.params, req);
+    const StateMatrix base = internal::SegmentFactor(model_, prop_, start_, i);
+    EXPECT_LE((internal::FactorFromFlow(model_, start_, i, fr.x, fr.state_jacobian) - base)
                   .lpNorm<Eigen::Infinity>(),
               1e-14 * (1.0 + base.lpNorm<Eigen::Infinity>()))
         << "segment " << i;
     for (int j = 0; j < n; ++j) {
-      if (j == model.phase_index()) continue;
-      PeriodicOrbit moved = *orbit;
+      if (j == model_.phase_index()) continue;
+      PeriodicOrbit moved = start_;
       moved.starts[i][j] += 1e-2;
-      const StateMatrix full = internal::SegmentFactor(model, prop, moved, i);
+      const StateMatrix full = internal::SegmentFactor(model_, prop_, moved, i);
       const StateVector x_end = fr.x + 1e-2 * fr.state_jacobian.col(j);
       const StateMatrix shortcut =
-          internal::FactorFromFlow(model, *orbit, i, x_end, fr.state_jacobian);
+          internal::FactorFromFlow(model_, start_, i, x_end, fr.state_jacobian);
       EXPECT_LE((full - shortcut).lpNorm<Eigen::Infinity>(),
                 1e-11 * (1.0 + full.lpNorm<Eigen::Infinity>()))
           << "segment " << i << ", component " << j;
@@ -59,6 +53,18 @@ TEST(Monodromy, FactorFromAnAffineFlowIsTheFactorAtTheMovedStart) {
   // Not vacuous: the moves do change factors (the saltation depends on the end state), by far
   // more than the agreement asserted above.
   EXPECT_GT(largest_change, 1e-6);
+  // MonodromyFactors keeping the flows gives the same factors, and the flows they came from.
+  std::vector<FlowResult> flows;
+  const std::vector<StateMatrix> kept = internal::MonodromyFactors(model_, prop_, start_, &flows);
+  const std::vector<StateMatrix> plain = internal::MonodromyFactors(model_, prop_, start_);
+  ASSERT_EQ(flows.size(), plain.size());
+  for (size_t i = 0; i < plain.size(); ++i) {
+    EXPECT_EQ(kept[i], plain[i]) << "segment " << i;
+    EXPECT_EQ(internal::FactorFromFlow(model_, start_, static_cast<int>(i), flows[i].x,
+                                       flows[i].state_jacobian),
+              plain[i])
+        << "segment " << i;
+  }
 }
 
 }  // namespace
