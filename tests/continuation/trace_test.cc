@@ -32,6 +32,12 @@ bool IsCornerCurve(const CurveResult& c) {
          HasCorner(c.points[c.points.size() / 2].orbit);
 }
 
+// The distance of two codimension-2 points in the box's scaled parameters.
+double BoxDistance(const TraceOptions& box, const Codim2Point& p, const Codim2Point& q) {
+  return std::hypot((p.point.value1 - q.point.value1) / (box.max1 - box.min1),
+                    (p.point.value2 - q.point.value2) / (box.max2 - box.min2));
+}
+
 // Every trace here starts at the reference orbit.
 class Trace : public testing::ReferenceOrbitTest {};
 
@@ -259,16 +265,12 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
         // cusp from two steps).
         int same = 0;
         for (const Codim2Point& e : c.curve.codim2) {
-          same += e.kind == Codim2Kind::kCusp &&
-                  std::hypot((e.point.value1 - q.point.value1) / (opt.max1 - opt.min1),
-                             (e.point.value2 - q.point.value2) / (opt.max2 - opt.min2)) <= 1e-9;
+          same += e.kind == Codim2Kind::kCusp && BoxDistance(opt, e, q) <= 1e-9;
         }
         EXPECT_EQ(same, 1) << "CUSP at (" << q.point.value1 << ", " << q.point.value2 << ")";
         for (const Codim2Point& e : c.curve.codim2) {
           if (e.kind == Codim2Kind::kCusp || e.detail.empty()) continue;
-          EXPECT_GT(std::hypot((e.point.value1 - q.point.value1) / (opt.max1 - opt.min1),
-                               (e.point.value2 - q.point.value2) / (opt.max2 - opt.min2)),
-                    1e-9)
+          EXPECT_GT(BoxDistance(opt, e, q), 1e-9)
               << "CUSP at the end (" << e.point.value1 << ", " << e.point.value2 << ")";
         }
         continue;
@@ -363,10 +365,6 @@ TEST_F(Trace, LongerStepsFindTheDefaultStepsPoints) {
   };
   const TraceResult dflt = trace(3), longer = trace(4);
   const TraceOptions box = testing::Issue4Box();
-  auto dist = [&](const Codim2Point& p, const Codim2Point& q) {
-    return std::hypot((p.point.value1 - q.point.value1) / (box.max1 - box.min1),
-                      (p.point.value2 - q.point.value2) / (box.max2 - box.min2));
-  };
   int compared = 0;
   for (const TracedCurve& c : dflt.curves) {
     for (const Codim2Point& q : c.curve.codim2) {
@@ -375,7 +373,7 @@ TEST_F(Trace, LongerStepsFindTheDefaultStepsPoints) {
       bool found = false;
       for (const TracedCurve& l : longer.curves) {
         for (const Codim2Point& e : l.curve.codim2) {
-          found = found || (e.kind == q.kind && dist(e, q) <= 1e-7);
+          found = found || (e.kind == q.kind && BoxDistance(box, e, q) <= 1e-7);
         }
       }
       EXPECT_TRUE(found) << Codim2KindName(q.kind) << " at (" << q.point.value1 << ", "
