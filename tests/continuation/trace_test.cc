@@ -182,25 +182,24 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   };
   const double w1 = opt.max1 - opt.min1, w2 = opt.max2 - opt.min2;
   int switched_fold_pd = 0, switched_grazing = 0, switched_at_double_grazing = 0;
+  int stepped_off_back = 0, stepped_off_elsewhere = 0;
   for (const TracedCurve& c : r.curves) {
     if (c.from_curve < 0) continue;
     ASSERT_LT(c.from_curve, static_cast<int>(r.curves.size()));
     const CurveResult& from = r.curves[c.from_curve].curve;
-    const double u = c.start.point.orbit.params[DO::kOmega], v = c.start.point.orbit.params[DO::kA];
+    ASSERT_GE(c.from_codim2, 0);
+    ASSERT_LT(c.from_codim2, static_cast<int>(from.codim2.size()));
+    // The point it leaves (its start may be a point stepped off it).
+    const Codim2Point& left = from.codim2[c.from_codim2];
+    const double u = left.point.value1, v = left.point.value2;
     auto dist = [&](const CurvePoint& p) {
       return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
     };
     if (c.curve.kind != CurveKind::kGrazing) {
       ++switched_fold_pd;
       const double target = c.curve.kind == CurveKind::kFold ? 1.0 : -1.0;
-      const Codim2Point* seed = nullptr;
-      for (const Codim2Point& q : from.codim2) {
-        if (dist(q.point) < 1e-12) seed = &q;
-      }
-      ASSERT_NE(seed, nullptr);
-      EXPECT_LE(multiplier_gap(seed->point.stability, target), 1e-8);
-      const std::optional<GuardValue> g =
-          testing::TangentEndGuard(model_, prop_, seed->point.orbit);
+      EXPECT_LE(multiplier_gap(left.point.stability, target), 1e-8);
+      const std::optional<GuardValue> g = testing::TangentEndGuard(model_, prop_, left.point.orbit);
       ASSERT_TRUE(g.has_value());
       EXPECT_LE(std::abs(g->h), 1e-9);
       EXPECT_LE(std::abs(g->dh), 1e-9);
@@ -210,8 +209,27 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
         if (dist(q.point) < end) end = dist(q.point), back = &q;
       }
       ASSERT_NE(back, nullptr);
-      EXPECT_LE(end, 1e-8) << "the switched curve does not end at its codimension-2 point";
-      EXPECT_LE(multiplier_gap(back->point.stability, target), 1e-8);
+      // The curve of the orbit without the vanishing segment starts at the root itself. That of
+      // the orbit with it (the touch become a crossing) starts a step off the root, the inserted
+      // segment 1e-3 .. 1e-5 long: where the root's two one-sided monodromies agree it ends back
+      // there; where they do not (an impact's saltation at zero speed), Newton lands on that
+      // signature's curve elsewhere nearby, a curve found, not one leaving the root.
+      const double start_off = std::hypot((c.start.point.orbit.params[DO::kOmega] - u) / w1,
+                                          (c.start.point.orbit.params[DO::kA] - v) / w2);
+      if (start_off == 0.0 || end <= 1e-8) {
+        EXPECT_LE(end, 1e-8) << "the switched curve does not end at its codimension-2 point";
+        // (An end left bracketed is checked with the other bracketed ends below.)
+        if (back->bracket == 0.0) {
+          EXPECT_LE(multiplier_gap(back->point.stability, target), 1e-8)
+              << Codim2KindName(back->kind) << " at (" << back->point.value1 << ", "
+              << back->point.value2 << "): " << back->detail << ", bracket " << back->bracket
+              << ", stepped off by " << start_off;
+        }
+        stepped_off_back += start_off > 0.0;
+      } else {
+        ++stepped_off_elsewhere;
+        EXPECT_LE(start_off, 1e-2);
+      }
     } else {
       ++switched_grazing;
       double nearest = 1e300;
@@ -235,6 +253,14 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     }
   }
   EXPECT_GE(switched_fold_pd, 5);
+  // Curves stepped off roots: most come back to their root (the one-sided curves of the orbit
+  // with the vanishing segment, missed before they were tried: a PD curve between the
+  // flip-grazings (0.19253, 0.15646) and (0.19364, 0.15596) was found only by longer steps
+  // jumping onto it). Measured: 47 back, 12 elsewhere (target_iterations 3); 40, 15 (4).
+  EXPECT_GE(stepped_off_back, 2 * stepped_off_elsewhere);
+  EXPECT_GE(stepped_off_back, 20);
+  RecordProperty("stepped_off_back", stepped_off_back);
+  RecordProperty("stepped_off_elsewhere", stepped_off_elsewhere);
   EXPECT_GE(switched_grazing, 1);
   EXPECT_GE(switched_at_double_grazing, 1);
   RecordProperty("switched_at_double_grazing", switched_at_double_grazing);
@@ -350,14 +376,16 @@ INSTANTIATE_TEST_SUITE_P(DefaultAndLongerSteps, TraceSteps, ::testing::Values(3,
                            return "TargetIterations" + std::to_string(param.param);
                          });
 
-// Every codimension-2 point the default steps find (bisected ends to 1e-8 or better) is found
-// with longer steps (target_iterations 4, 4.6x fewer points) too, within 1e-7 (box-scaled: the
-// located points agree to 1e-9 between curves, bisected ends to their 1e-8 bracket; two points
-// of one kind are at least 8e-6 apart in this box), cusps included: those in a fold curve's hook
+// Every codimension-2 point longer steps (target_iterations 4, 4.6x fewer points) locate exactly
+// (bracket 0: roots, ends solved in tangent or zero-length form, cusps) is found with the default
+// steps too, within 1e-7 (box-scaled: the located points agree to 1e-9 between curves; two points
+// of one kind are at least 8e-6 apart in this box). Bisected ends are not compared: two of the
+// longer steps' (brackets <= 1e-8 in arclength) lie 1e-7 from the default steps' or on a chain of
+// curves these do not reach. Cusps included: those in a fold curve's hook
 // right before its fold-grazing end (4e-9 .. 5e-9 from it, box-scaled) are found by the end
 // step's probes, which close in on the end (three were missed with evenly spaced probes).
 // Longer steps had jumped past a CwoP phase vanishing on a PD curve and missed its flip-grazing.
-TEST_F(Trace, LongerStepsFindTheDefaultStepsPoints) {
+TEST_F(Trace, DefaultStepsFindTheLongerStepsPoints) {
   auto trace = [&](int target_iterations) {
     TraceOptions opt = testing::Issue4Box();
     opt.curve.target_iterations = target_iterations;
@@ -365,22 +393,33 @@ TEST_F(Trace, LongerStepsFindTheDefaultStepsPoints) {
   };
   const TraceResult dflt = trace(3), longer = trace(4);
   const TraceOptions box = testing::Issue4Box();
-  int compared = 0;
+  auto found_in = [&](const TraceResult& r, const Codim2Point& q) {
+    for (const TracedCurve& l : r.curves) {
+      for (const Codim2Point& e : l.curve.codim2) {
+        if (e.kind == q.kind && BoxDistance(box, e, q) <= 1e-7) return true;
+      }
+    }
+    return false;
+  };
+  int compared = 0, missed_by_longer = 0;
+  for (const TracedCurve& c : longer.curves) {
+    for (const Codim2Point& q : c.curve.codim2) {
+      if (q.bracket != 0.0) continue;
+      ++compared;
+      EXPECT_TRUE(found_in(dflt, q)) << Codim2KindName(q.kind) << " at (" << q.point.value1 << ", "
+                                     << q.point.value2 << "): " << q.detail;
+    }
+  }
+  // The other way round it does not hold since curves are started off roots of grazing curves
+  // (the crossing form, trace.cc): the network of curves below omega = 0.08 is reached through
+  // chains of switches, and longer steps miss links of them (measured: 94 of 963 points).
   for (const TracedCurve& c : dflt.curves) {
     for (const Codim2Point& q : c.curve.codim2) {
-      if (q.bracket > 1e-8) continue;
-      ++compared;
-      bool found = false;
-      for (const TracedCurve& l : longer.curves) {
-        for (const Codim2Point& e : l.curve.codim2) {
-          found = found || (e.kind == q.kind && BoxDistance(box, e, q) <= 1e-7);
-        }
-      }
-      EXPECT_TRUE(found) << Codim2KindName(q.kind) << " at (" << q.point.value1 << ", "
-                         << q.point.value2 << "): " << q.detail;
+      missed_by_longer += q.bracket <= 1e-8 && !found_in(longer, q);
     }
   }
   RecordProperty("compared", compared);
+  RecordProperty("missed_by_longer", missed_by_longer);
   EXPECT_GE(compared, 400);
 }
 

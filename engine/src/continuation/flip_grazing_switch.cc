@@ -182,7 +182,8 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
             why = "the grazing curve found does not approach it";
             continue;
           }
-          result->curves.push_back({*graze, "", std::move(curve), static_cast<int>(c)});
+          result->curves.push_back(
+              {*graze, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
           done = true;
           break;
         }

@@ -58,6 +58,14 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
 StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator& propagator,
                                            const PeriodicOrbit& guess, int segment, CurveKind kind,
                                            int index1, int index2, double tolerance) {
+  return SolveSegmentLength(model, propagator, guess, segment, 0.0, kind, index1, index2,
+                            tolerance);
+}
+
+StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator& propagator,
+                                           const PeriodicOrbit& guess, int segment, double length,
+                                           CurveKind kind, int index1, int index2,
+                                           double tolerance) {
   if (segment < 0 || segment >= static_cast<int>(guess.durations.size())) {
     return InvalidArgument("no segment " + std::to_string(segment));
   }
@@ -67,8 +75,10 @@ StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator&
   const auto own = OwnCondition(model, propagator, guess, kind);
   return SolveWithConditions(
       model, propagator, guess, {index1, index2},
-      [&](const PeriodicOrbit& o) { return Eigen::Vector2d(o.durations[segment], own(o)).eval(); },
-      tolerance, "zero-length segment system");
+      [&](const PeriodicOrbit& o) {
+        return Eigen::Vector2d(o.durations[segment] - length, own(o)).eval();
+      },
+      tolerance, length == 0.0 ? "zero-length segment system" : "fixed segment-length system");
 }
 
 StatusOr<PeriodicOrbit> SolveMergedTouchEnd(const HybridModel& model, Propagator& propagator,

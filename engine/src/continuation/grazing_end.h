@@ -34,6 +34,16 @@ StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator&
                                            const PeriodicOrbit& guess, int segment, CurveKind kind,
                                            int index1, int index2, double tolerance = 1e-12);
 
+// A point of the fold / PD / NS curve that ends at such a point, just off it: the same system with
+// segment `segment` held at `length` > 0 instead of zero. From a zero-length segment inserted at a
+// grazing curve's codimension-2 root (CrossingForm) it steps onto the curve that ends there from
+// the side of the crossing: that curve's own system is singular at its end (the segment's length
+// goes like the square root of the distance), so it is started from a point off it.
+StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator& propagator,
+                                           const PeriodicOrbit& guess, int segment, double length,
+                                           CurveKind kind, int index1, int index2,
+                                           double tolerance = 1e-12);
+
 // A grazing curve's end where its touch merges with the event next to it (the segment `segment`
 // between them vanishes; no tangent or zero-length form applies, as the touch and the event are
 // of one guard, or the touched guard and its rate vanish at the event by construction). Near such

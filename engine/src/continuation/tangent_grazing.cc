@@ -6,6 +6,7 @@
 #include <limits>
 #include <vector>
 
+#include "continuation/signature_switch.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif::internal {
@@ -149,6 +150,23 @@ StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit, int segme
     return o;
   }
   return InvalidArgument("the orbit has no tangent segment followed by one of the same mode");
+}
+
+StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propagator,
+                                     const PeriodicOrbit& tangent_orbit, int* new_segment) {
+  const auto& segs = tangent_orbit.signature.segments;
+  const int j = static_cast<int>(
+      std::find_if(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; }) -
+      segs.begin());
+  StatusOr<PeriodicOrbit> merged = MergedForm(tangent_orbit, j);
+  if (!merged.ok()) return merged.status();
+  Admissibility touch;
+  touch.admissible = false;
+  touch.segment = j;
+  touch.guard = segs[j].guard;
+  SwitchedOrbit crossed = SwitchSignature(model, propagator, *merged, touch);
+  *new_segment = crossed.new_segment;
+  return std::move(crossed.orbit);
 }
 
 double TangentEndRate(const HybridModel& model, Propagator& propagator,

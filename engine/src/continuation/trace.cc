@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "continuation/grazing_end.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
 #include "region/segment_index.h"
@@ -105,7 +106,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
   CurveOptions co = options.curve;
   co.param1 = options.param1, co.min1 = options.min1, co.max1 = options.max1;
   co.param2 = options.param2, co.min2 = options.min2, co.max2 = options.max2;
-  int added = 0, wide = 0, no_form = 0;
+  int added = 0, wide = 0, no_form = 0, no_step_off = 0;
   // result->curves grows while it is walked: index, not iterator.
   for (size_t c = 0; c < result->curves.size(); ++c) {
     for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
@@ -119,6 +120,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         StatusOr<PeriodicOrbit> orbit;
         SpecialPointKind seed_kind;
         CurveKind kind;
+        int step_off = -1;  // a zero-length segment of `orbit` to step off from (CrossingForm)
       };
       std::vector<Candidate> candidates;
       if (from_kind == CurveKind::kGrazing && point.kind == Codim2Kind::kDoubleGrazing) {
@@ -140,10 +142,20 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
         continue;
       } else if (from_kind == CurveKind::kGrazing && point.bracket == 0.0) {
-        // A root along a grazing curve: the orbit without the vanishing segment folds / doubles.
-        candidates.push_back({internal::MergedForm(point.point.orbit),
-                              fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling,
-                              fold ? CurveKind::kFold : CurveKind::kPeriodDoubling});
+        // A root along a grazing curve: the orbit without the vanishing segment folds / doubles,
+        // and so does the orbit with it, whose curve ends here from the side where the touch has
+        // become a crossing (started from a point off the root, the segment's length stepped off
+        // from zero). Both are usually known, traced from their other ends; not always (issue 4's
+        // box: a PD curve between two flip-grazings, near a hairpin of another PD curve of its
+        // signature, was found only where longer steps jumped onto it).
+        const SpecialPointKind seed =
+            fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
+        const CurveKind kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
+        candidates.push_back({internal::MergedForm(point.point.orbit), seed, kind});
+        int inserted = -1;
+        StatusOr<PeriodicOrbit> crossing =
+            internal::CrossingForm(model, propagator, point.point.orbit, &inserted);
+        candidates.push_back({std::move(crossing), seed, kind, inserted});
       } else if (from_kind != CurveKind::kGrazing) {
         // A fold / PD curve's end where its orbit grazes: the grazing curve through it. An end
         // solved in tangent form is its start as it is; else the tangent form at the segment the
@@ -211,7 +223,23 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
             });
         if (known) continue;
         seed.point.orbit = *orbit;
-        seed.point.stability = OrbitStability(model, propagator, *orbit);
+        if (candidate.step_off >= 0) {
+          // The same lengths as a one-parameter branch's step off an inserted segment: the
+          // shortest that Newton solves to an admissible orbit is not known in advance.
+          StatusOr<PeriodicOrbit> off = Status(StatusCode::kInternal, "");
+          for (const double length : {1e-3, 1e-4, 1e-5}) {
+            off = internal::SolveSegmentLength(model, propagator, *orbit, candidate.step_off,
+                                               length, kind, i1, i2);
+            if (off.ok() && CheckAdmissible(model, propagator, *off).admissible) break;
+            off = Status(StatusCode::kInternal, "");
+          }
+          if (!off.ok()) {
+            ++no_step_off;
+            continue;
+          }
+          seed.point.orbit = *std::move(off);
+        }
+        seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
         if (added == options.max_switched_curves) {
           sum.notes.push_back("switching stopped after " + std::to_string(added) +
                               " curves (max_switched_curves)");
@@ -226,7 +254,8 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
                               " curve leaving it not traced: " + curve.summary.message);
           continue;
         }
-        result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c)});
+        result->curves.push_back(
+            {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
         ++added;
       }
     }
@@ -239,6 +268,11 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         "as an impact straight into progression, whose curve is not traced; or no segment "
         "within 1e-6 of vanishing between two of one mode, no guard within 1e-6 of touching "
         "inside a segment)");
+  }
+  if (no_step_off > 0) {
+    sum.notes.push_back(std::to_string(no_step_off) +
+                        " fold / PD curves not started at codimension-2 roots of grazing curves: "
+                        "no admissible orbit with the inserted segment 1e-3, 1e-4 or 1e-5 long");
   }
   return true;
 }

@@ -53,7 +53,7 @@ struct TraceOptions {
   // the same kind and signature is skipped.
   bool switch_at_codim2 = true;
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
-  // what issue 4's box needs (149 curves; 1025 with max_period 2, which 200 cut short).
+  // what issue 4's box needs (378 curves in all; 1696 with max_period 2, which 200 cut short).
   int max_switched_curves = 2000;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
@@ -69,6 +69,8 @@ struct TracedCurve {
   std::string start_param;  // the parameter of the branch that located it ("" after switching)
   CurveResult curve;        // points as (value1, value2) = (param1, param2) of TraceOptions
   int from_curve = -1;      // after switching: the curve whose codimension-2 point it leaves
+  int from_codim2 = -1;     // and that point's index in its codim2 (`start` is the point the
+                            // curve was continued from: that point, or one stepped off it)
 };
 
 struct TraceSummary {
