@@ -165,6 +165,7 @@ StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propa
   touch.segment = j;
   touch.guard = segs[j].guard;
   SwitchedOrbit crossed = SwitchSignature(model, propagator, *merged, touch);
+  if (crossed.new_segment < 0) return Internal("the touch did not split: " + crossed.detail);
   *new_segment = crossed.new_segment;
   return std::move(crossed.orbit);
 }

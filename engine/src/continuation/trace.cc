@@ -145,9 +145,10 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         // A root along a grazing curve: the orbit without the vanishing segment folds / doubles,
         // and so does the orbit with it, whose curve ends here from the side where the touch has
         // become a crossing (started from a point off the root, the segment's length stepped off
-        // from zero). Both are usually known, traced from their other ends; not always (issue 4's
-        // box: a PD curve between two flip-grazings, near a hairpin of another PD curve of its
-        // signature, was found only where longer steps jumped onto it).
+        // from zero). Either may be known, traced from its other end; the second was not tried
+        // before, and issue 4's box then lacked 174 curves (a PD curve between two
+        // flip-grazings, next to a hairpin of another PD curve of its signature, was found only
+        // where longer steps jumped onto it).
         const SpecialPointKind seed =
             fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
         const CurveKind kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
