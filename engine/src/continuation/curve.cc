@@ -496,6 +496,10 @@ class CurveTracer {
 
   // The parameter part of the unit tangent, in the box's scaled coordinates.
   Eigen::Vector2d ParamDirection(const Vec& t) const { return {t[m()] / w1_, t[m() + 1] / w2_}; }
+  // Distance of two curve points' parameters, scaled by the box's widths.
+  double BoxDistance(const CurvePoint& a, const CurvePoint& b) const {
+    return std::hypot((a.value1 - b.value1) / w1_, (a.value2 - b.value2) / w2_);
+  }
 
   // A cusp on the step from y (tangent t) of length h, where the tangent's parameter part turns
   // against its direction u at y: the root of psi = u . (parameter part of the tangent at the
@@ -548,9 +552,7 @@ class CurveTracer {
     }
     CurvePoint point = MakePoint(root);
     for (const Codim2Point& q : *codim2) {
-      if (q.kind == Codim2Kind::kCusp &&
-          std::hypot((q.point.value1 - point.value1) / w1_,
-                     (q.point.value2 - point.value2) / w2_) <= 1e-9) {
+      if (q.kind == Codim2Kind::kCusp && BoxDistance(q.point, point) <= 1e-9) {
         return;
       }
     }
@@ -1071,14 +1073,11 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
   // that hook, where the cusp test's tangent ratio is relative to an already stationary tangent.
   // Measured in issue 4's box: such points 7e-10 from the end (box-scaled), real cusps in a
   // hook before an end 4e-9 .. 5e-9 from it; 1e-9 lies between.
-  const double w1 = std::isfinite(options.max1 - options.min1) ? options.max1 - options.min1 : 1.0;
-  const double w2 = std::isfinite(options.max2 - options.min2) ? options.max2 - options.min2 : 1.0;
   auto at_an_end = [&](const Codim2Point& cusp) {
     return cusp.kind == Codim2Kind::kCusp &&
            std::any_of(result.codim2.begin(), result.codim2.end(), [&](const Codim2Point& e) {
              return e.kind != Codim2Kind::kCusp && !e.detail.empty() &&
-                    std::hypot((e.point.value1 - cusp.point.value1) / w1,
-                               (e.point.value2 - cusp.point.value2) / w2) <= 1e-9;
+                    tracer.BoxDistance(e.point, cusp.point) <= 1e-9;
            });
   };
   result.codim2.erase(std::remove_if(result.codim2.begin(), result.codim2.end(), at_an_end),
