@@ -10,6 +10,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 
 #include "continuation/arclength.h"
 #include "continuation/bordered_sigma.h"
@@ -131,12 +132,23 @@ class CurveTracer {
 
   // Puts the start exactly on the curve: Newton on the extended system with lambda2 fixed (the
   // located point satisfies the defining condition only to the location's accuracy, and a grazing
-  // point re-expressed with a tangent end is slightly off the touch).
+  // point re-expressed with a tangent end is slightly off the touch). Where the curve's tangent
+  // has next to no parameter part (a fold curve at a fold-grazing, its parameters moving as the
+  // square of the vanishing duration), holding either parameter leaves Newton's matrix singular
+  // (condition ~1e14 measured, steps ~1e-8 that never settle): corrected then across the curve,
+  // orthogonal to its tangent there.
   bool CorrectStart() {
     Vec fixed = Vec::Zero(n()), y;
     fixed[m() + 1] = 1.0;
     int iterations = 0;
-    if (!Correct(start_, fixed, &y, &iterations)) return false;
+    if (!Correct(start_, fixed, &y, &iterations)) {
+      Vec f;
+      Mat jac;
+      if (!Evaluate(start_, &f, &jac)) return false;
+      // The null vector of the (n - 1) x n Jacobian: the last column of Q in jac^T = Q R.
+      const Mat q = Eigen::HouseholderQR<Mat>(jac.transpose()).householderQ();
+      if (!Correct(start_, q.col(n() - 1), &y, &iterations)) return false;
+    }
     start_ = y;
     return true;
   }
@@ -849,6 +861,26 @@ class CurveTracer {
     constexpr int kStallWindow = 50;
     std::vector<Eigen::Vector2d> recent;
     double h_first = h;  // the first step tried from y
+    // Where the steps from y fail or collapse next to a boundary: a prediction beyond it (the
+    // first step tried, or 1.5 times the step at which the tangent says the first shrinking
+    // segment vanishes), when not admissible, brackets that boundary with y.
+    auto end_ahead = [&]() -> std::optional<std::string> {
+      double vanish = std::numeric_limits<double>::infinity();
+      for (int i = 0; i < bvp1_.segments(); ++i) {
+        const double tau = y[bvp1_.DurationIndex(i)], rate = t[bvp1_.DurationIndex(i)];
+        if (rate < 0.0) vanish = std::min(vanish, -tau / rate);
+      }
+      for (const double ahead_by : {h_first, 1.5 * vanish}) {
+        if (!std::isfinite(ahead_by)) continue;
+        const Vec ahead = y + ahead_by * t;
+        std::string why;
+        Admissibility violation;
+        if (!Admissible(Unpack(ahead), &why, &violation)) {
+          return EndAtBoundary(y, t, ahead, why, violation, tests, &dets, points, codim2, crossing);
+        }
+      }
+      return std::nullopt;
+    };
     for (int step = 0; step < options_.max_steps; ++step) {
       Vec y1;
       int iterations = 0;
@@ -869,24 +901,9 @@ class CurveTracer {
         if (h < options_.min_step) {
           // Newton failed on every step from y down to min_step: next to a boundary where the
           // curve's own system degenerates (a segment vanishing like a square root) no
-          // prediction beyond it corrects. A prediction beyond it (the first step tried, or 1.5
-          // times the step at which the tangent says the first shrinking segment vanishes),
-          // when not admissible, brackets that boundary with y.
-          double vanish = std::numeric_limits<double>::infinity();
-          for (int i = 0; i < bvp1_.segments(); ++i) {
-            const double tau = y[bvp1_.DurationIndex(i)], rate = t[bvp1_.DurationIndex(i)];
-            if (rate < 0.0) vanish = std::min(vanish, -tau / rate);
-          }
-          for (const double ahead_by : {h_first, 1.5 * vanish}) {
-            if (!std::isfinite(ahead_by)) continue;
-            const Vec ahead = y + ahead_by * t;
-            std::string why;
-            Admissibility violation;
-            if (!Admissible(Unpack(ahead), &why, &violation)) {
-              return "the corrector failed short of a boundary, " +
-                     EndAtBoundary(y, t, ahead, why, violation, tests, &dets, points, codim2,
-                                   crossing);
-            }
+          // prediction beyond it corrects.
+          if (std::optional<std::string> end = end_ahead()) {
+            return "the corrector failed short of a boundary, " + *end;
           }
           return "the corrector failed down to min_step";
         }
@@ -904,12 +921,18 @@ class CurveTracer {
       }
       // A curve that creeps (the step collapsed while Newton still converges, as next to a
       // fold-grazing where a segment's duration goes to zero like a square root) is ended rather
-      // than left to spend max_steps.
+      // than left to spend max_steps: at the boundary ahead where there is one (three PD curves
+      // stepped off flip-grazings in issue 4's box crept, their parameters moving ~1e-9 per step,
+      // towards a progression phase between two contact phases vanishing 4e-4 ahead), else as
+      // stalled.
       recent.emplace_back(v1 / w1_, v2 / w2_);
       if (static_cast<int>(recent.size()) > kStallWindow) {
         const double moved = (recent.back() - recent.front()).norm();
         recent.erase(recent.begin());
         if (moved < 1e-6) {
+          if (std::optional<std::string> end = end_ahead()) {
+            return "the steps collapsed short of a boundary, " + *end;
+          }
           char where[160];
           std::snprintf(where, sizeof where,
                         "stalled: the parameters moved %.1e (of the box) in %d steps, near "

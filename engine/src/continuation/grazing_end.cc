@@ -72,6 +72,41 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
   if (kind == CurveKind::kGrazing && TangentEndRates(model, propagator, guess).size() != 1) {
     return InvalidArgument("the end of a GRAZING curve needs its one tangent end");
   }
+  const int next = segment + 1;
+  if (length > 0.0 && guess.durations[segment] == 0.0 &&
+      next < static_cast<int>(guess.durations.size()) && guess.durations[next] > length) {
+    // Stepped off a zero-length segment whose ends lie on one guard (CrossingForm's: the touch
+    // become a crossing there and back). At length zero the two ends' guard rows coincide and
+    // the crossing speed, the saltations' denominator, is zero, so Newton's matrix and the
+    // monodromy (sigma's borders) are singular there. First the orbit of that signature with
+    // the segment `length` long, one parameter free (no monodromy: a regular system, the
+    // crossing speed ~ h'' length / 2), then the whole system from it. From the root itself
+    // Newton lost its way (issue 4's box: a step-off solved or not by rounding differences in
+    // the root).
+    PeriodicOrbit g = guess;
+    const SegmentSpec& seg = g.signature.segments[segment];
+    const StateVector end = propagator.FlowMap(seg.mode, g.starts[segment], length, g.params, {}).x;
+    g.starts[next] = model.Jump(seg.mode, seg.guard, end, g.params).x;
+    g.durations[segment] = length;
+    g.durations[next] -= length;
+    for (const int free : {index1, index2}) {
+      const StatusOr<PeriodicOrbit> consistent = SolveWithConditions(
+          model, propagator, g, {free},
+          [&](const PeriodicOrbit& o) {
+            return Eigen::VectorXd::Constant(1, o.durations[segment] - length);
+          },
+          tolerance, "fixed segment-length orbit");
+      if (!consistent.ok()) continue;
+      const auto own = OwnCondition(model, propagator, *consistent, kind);
+      StatusOr<PeriodicOrbit> solved = SolveWithConditions(
+          model, propagator, *consistent, {index1, index2},
+          [&](const PeriodicOrbit& o) {
+            return Eigen::Vector2d(o.durations[segment] - length, own(o)).eval();
+          },
+          tolerance, "fixed segment-length system");
+      if (solved.ok()) return solved;
+    }
+  }
   const auto own = OwnCondition(model, propagator, guess, kind);
   return SolveWithConditions(
       model, propagator, guess, {index1, index2},

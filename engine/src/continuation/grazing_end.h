@@ -38,7 +38,9 @@ StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator&
 // segment `segment` held at `length` > 0 instead of zero. From a zero-length segment inserted at a
 // grazing curve's codimension-2 root (CrossingForm) it steps onto the curve that ends there from
 // the side of the crossing: that curve's own system is singular at its end (the segment's length
-// goes like the square root of the distance), so it is started from a point off it.
+// goes like the square root of the distance), so it is started from a point off it. From a
+// zero-length `segment` in `guess` the orbit with the segment `length` long is solved first with
+// one parameter free (no monodromy), then the whole system from it.
 StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator& propagator,
                                            const PeriodicOrbit& guess, int segment, double length,
                                            CurveKind kind, int index1, int index2,
