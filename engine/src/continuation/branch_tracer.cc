@@ -432,7 +432,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
       return g;
     };
     double graze_step = 1e-3;
-    for (const double trial : {1e-3, 1e-4, 1e-5}) {
+    for (const double trial : internal::kStepOffLengths) {
       graze_step = trial;
       Vec y_off;
       int off_iterations = 0;

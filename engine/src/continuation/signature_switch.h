@@ -3,6 +3,7 @@
 #ifndef DRILLBIF_CONTINUATION_SIGNATURE_SWITCH_H_
 #define DRILLBIF_CONTINUATION_SIGNATURE_SWITCH_H_
 
+#include <array>
 #include <limits>
 #include <string>
 
@@ -36,6 +37,12 @@ struct SwitchedOrbit {
   bool representation_only = false;
   std::string detail;  // "NC>Pi CwoP>l1 ... -> NC>Pi CwoP>l2 NC|"
 };
+
+// Lengths a zero-length segment inserted by a switch is stepped off to, tried in this order: the
+// shortest at which Newton solves an admissible orbit is not known in advance (a one-parameter
+// branch past a grazing, branch_tracer.cc; a fold / PD curve of the crossing form started off a
+// grazing curve's codimension-2 root, trace.cc).
+inline constexpr std::array<double, 3> kStepOffLengths = {1e-3, 1e-4, 1e-5};
 
 // The orbit at a located grazing point, re-expressed in the signature that continues past it:
 // a vanished segment removed (equal neighbours merged), or a segment split around a new

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "continuation/grazing_end.h"
+#include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
 #include "region/segment_index.h"
@@ -225,10 +226,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         if (known) continue;
         seed.point.orbit = *orbit;
         if (candidate.step_off >= 0) {
-          // The same lengths as a one-parameter branch's step off an inserted segment: the
-          // shortest that Newton solves to an admissible orbit is not known in advance.
+          // The same lengths as a one-parameter branch's step off an inserted segment.
           StatusOr<PeriodicOrbit> off = Status(StatusCode::kInternal, "");
-          for (const double length : {1e-3, 1e-4, 1e-5}) {
+          for (const double length : internal::kStepOffLengths) {
             off = internal::SolveSegmentLength(model, propagator, *orbit, candidate.step_off,
                                                length, kind, i1, i2);
             if (off.ok() && CheckAdmissible(model, propagator, *off).admissible) break;
