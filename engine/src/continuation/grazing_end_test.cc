@@ -43,10 +43,34 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
 
   // The a-branch's point of this kind within `tol` of a, or null.
   const SpecialPoint* Find(SpecialPointKind kind, double a, double tol) const {
-    for (const SpecialPoint& s : a_branch_.special_points) {
-      if (s.kind == kind && std::abs(s.point.value - a) < tol) return &s;
+    return FindOn(a_branch_, kind, a, tol);
+  }
+
+  // The branch's point of this kind within `tol` of value, or null.
+  static const SpecialPoint* FindOn(const ContinuationResult& branch, SpecialPointKind kind,
+                                    double value, double tol) {
+    for (const SpecialPoint& s : branch.special_points) {
+      if (s.kind == kind && std::abs(s.point.value - value) < tol) return &s;
     }
     return nullptr;
+  }
+
+  // The reference orbit's omega-branch at a = 0.3 over issue 4's omega range.
+  ContinuationResult OmegaBranch() {
+    ContinuationOptions branch;
+    branch.param = "omega";
+    branch.min = 0.05;
+    branch.max = 2.0;
+    return Continue(model_, prop_, start_, branch);
+  }
+
+  // Issue 4's box in (omega, a): the parameters of curves started on the omega-branch.
+  static CurveOptions OmegaABox() {
+    const TraceOptions box = testing::Issue4Box();
+    CurveOptions opt;
+    opt.param1 = box.param1, opt.min1 = box.min1, opt.max1 = box.max1;
+    opt.param2 = box.param2, opt.min2 = box.min2, opt.max2 = box.max2;
+    return opt;
   }
 
   // Issue 4's box, in (a, omega): the parameters of curves started on the a-branch.
@@ -183,21 +207,10 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
             1e-12);
   EXPECT_LE(DistanceToMultiplier(solved->point.stability, 1.0), 1e-8);
 
-  ContinuationOptions omega_branch;
-  omega_branch.param = "omega";
-  omega_branch.min = 0.05;
-  omega_branch.max = 2.0;
-  const ContinuationResult ro = Continue(model_, prop_, start_, omega_branch);
-  const SpecialPoint* other = nullptr;
-  for (const SpecialPoint& s : ro.special_points) {
-    if (s.kind == SpecialPointKind::kFold && std::abs(s.point.value - 0.0622) < 1e-3) other = &s;
-  }
+  const ContinuationResult ro = OmegaBranch();
+  const SpecialPoint* other = FindOn(ro, SpecialPointKind::kFold, 0.0622, 1e-3);
   ASSERT_NE(other, nullptr);
-  const TraceOptions box = testing::Issue4Box();
-  CurveOptions opt;
-  opt.param1 = box.param1, opt.min1 = box.min1, opt.max1 = box.max1;
-  opt.param2 = box.param2, opt.min2 = box.min2, opt.max2 = box.max2;
-  const CurveResult other_curve = ContinueCurve(model_, prop_, *other, opt);
+  const CurveResult other_curve = ContinueCurve(model_, prop_, *other, OmegaABox());
   double nearest = std::numeric_limits<double>::infinity();
   for (const Codim2Point& q : other_curve.codim2) {
     if (q.kind != Codim2Kind::kFoldGrazing || q.bracket > 1e-9) continue;
@@ -220,22 +233,11 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
 // at the root, that end solved independently (in tangent form, from the bisected end):
 // measured agreement 1.4e-14 and 4e-17 (box-scaled), asserted the issue's 1e-8.
 TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
-  ContinuationOptions omega_branch;
-  omega_branch.param = "omega";
-  omega_branch.min = 0.05;
-  omega_branch.max = 2.0;
-  const ContinuationResult ro = Continue(model_, prop_, start_, omega_branch);
-  const SpecialPoint* graze = nullptr;
-  for (const SpecialPoint& s : ro.special_points) {
-    if (s.kind == SpecialPointKind::kGrazingL1 && std::abs(s.point.value - 0.5088) < 1e-3) {
-      graze = &s;
-    }
-  }
+  const ContinuationResult ro = OmegaBranch();
+  const SpecialPoint* graze = FindOn(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
   ASSERT_NE(graze, nullptr);
+  const CurveOptions opt = OmegaABox();
   const TraceOptions box = testing::Issue4Box();
-  CurveOptions opt;
-  opt.param1 = box.param1, opt.min1 = box.min1, opt.max1 = box.max1;
-  opt.param2 = box.param2, opt.min2 = box.min2, opt.max2 = box.max2;
   const CurveResult grazing = ContinueCurve(model_, prop_, *graze, opt);
   const int i1 = DO::kOmega, i2 = DO::kA;
   const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
