@@ -75,10 +75,10 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
 
   // Issue 4's box, in (a, omega): the parameters of curves started on the a-branch.
   static CurveOptions Box() {
-    const TraceOptions box = testing::Issue4Box();
-    CurveOptions opt;
-    opt.param1 = box.param2, opt.min1 = box.min2, opt.max1 = box.max2;
-    opt.param2 = box.param1, opt.min2 = box.min1, opt.max2 = box.max1;
+    CurveOptions opt = OmegaABox();
+    std::swap(opt.param1, opt.param2);
+    std::swap(opt.min1, opt.min2);
+    std::swap(opt.max1, opt.max2);
     return opt;
   }
 
