@@ -96,14 +96,18 @@ TEST(RunTrace, CoarseCurveStepsGiveFewerVerticesAndTheSameCodim2Points) {
   }
 }
 
-// In omega in [0.05, 0.2], a in [0.27, 0.32] the one PD curve ends at a flip-grazing at one end;
-// at the other its orbit's first event reaches the Poincare section (an impact at s = 0, not a
-// grazing: the curve goes on in the rotated signature) and it leaves the box.
-TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtAFlipGrazing) {
+// In omega in [0.05, 0.2], a in [0.27, 0.32] the PD curve from the omega-branch ends at a
+// flip-grazing at one end; at the other its orbit's first event reaches the Poincare section (an
+// impact at s = 0, not a grazing: the curve goes on in the rotated signature) and it leaves the
+// box. Its flip-grazing is a corner (the contact phase between impact and progression vanishes),
+// past which the PD curve goes on without that phase: a second PD curve, switched from the
+// first, from the same point to the box.
+TEST(RunTrace, SmallBoxHasAPeriodDoublingCurveEndingAtAFlipGrazingAndItsContinuation) {
   const StatusOr<v1::TraceResult> r = RunTrace(SmallBox());
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->status(), "COMPLETED") << r->message();
-  int pd_curves = 0;
+  std::vector<int> pd_curves;
+  std::vector<const v1::Codim2Point*> flips;
   for (int i = 0; i < r->curves_size(); ++i) {
     const v1::Curve& c = r->curves(i);
     ASSERT_GT(c.points_size(), 0);
@@ -115,16 +119,27 @@ TEST(RunTrace, SmallBoxHasOnePeriodDoublingCurveEndingAtAFlipGrazing) {
       EXPECT_DOUBLE_EQ(v.params().b(), 0.15);
     }
     if (c.kind() != "PERIOD_DOUBLING") continue;
-    ++pd_curves;
+    pd_curves.push_back(i);
     EXPECT_EQ(c.period(), 1);
     int flip_grazings = 0;
     for (const v1::Codim2Point& q : r->codim2_points()) {
-      flip_grazings += q.curve() == i && q.kind() == "FLIP_GRAZING";
+      if (q.curve() != i || q.kind() != "FLIP_GRAZING") continue;
+      ++flip_grazings;
+      flips.push_back(&q);
     }
     EXPECT_EQ(flip_grazings, 1) << c.message();
-    EXPECT_THAT(c.message(), HasSubstr("through 1 section crossings, left the box"));
+    EXPECT_THAT(c.message(), HasSubstr("left the box"));
   }
-  EXPECT_EQ(pd_curves, 1);
+  ASSERT_EQ(pd_curves.size(), 2u);
+  const v1::Curve& first = r->curves(pd_curves[0]);
+  const v1::Curve& past = r->curves(pd_curves[1]);
+  EXPECT_THAT(first.message(), HasSubstr("through 1 section crossings, left the box"));
+  EXPECT_EQ(past.from_curve(), pd_curves[0]);
+  // The continuation's end at the corner is bisected (bracket <= 1e-8 in arclength), the first
+  // curve's solved there with the phase at zero length.
+  ASSERT_EQ(flips.size(), 2u);
+  EXPECT_NEAR(flips[0]->params().omega(), flips[1]->params().omega(), 1e-7);
+  EXPECT_NEAR(flips[0]->params().a(), flips[1]->params().a(), 1e-7);
   // The JSON names the issue asks for.
   const StatusOr<std::string> json = ToJson(*r, false);
   ASSERT_TRUE(json.ok());

@@ -189,7 +189,8 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     return gap;
   };
   const double w1 = opt.max1 - opt.min1, w2 = opt.max2 - opt.min2;
-  int switched_fold_pd = 0, switched_grazing = 0, switched_at_double_grazing = 0;
+  int switched_fold_pd = 0, switched_grazing = 0, switched_at_double_grazing = 0,
+      switched_past_corner = 0;
   int stepped_off_back = 0, stepped_off_elsewhere = 0;
   for (const TracedCurve& c : r.curves) {
     if (c.from_curve < 0) continue;
@@ -203,6 +204,21 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     auto dist = [&](const CurvePoint& p) {
       return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
     };
+    if (c.curve.kind != CurveKind::kGrazing && from.kind == c.curve.kind) {
+      // The same curve past a corner where its own orbit lost a zero-length segment (the end
+      // solved with that segment held at zero): it starts at that end, the same orbit without
+      // the segment, so at the same parameters and on the same multiplier.
+      ++switched_past_corner;
+      EXPECT_NE(left.detail.find("of zero length"), std::string::npos) << left.detail;
+      EXPECT_EQ(c.start.point.orbit.params[DO::kOmega], u);
+      EXPECT_EQ(c.start.point.orbit.params[DO::kA], v);
+      EXPECT_NE(c.start.point.orbit.signature, left.point.orbit.signature);
+      // Its start vertex: the end orbit corrected onto the curve (by the corrector's 1e-10).
+      double nearest = 1e300;
+      for (const CurvePoint& p : c.curve.points) nearest = std::min(nearest, dist(p));
+      EXPECT_LE(nearest, 1e-8) << "the curve past the corner does not start there";
+      continue;
+    }
     if (c.curve.kind != CurveKind::kGrazing) {
       ++switched_fold_pd;
       const double target = c.curve.kind == CurveKind::kFold ? 1.0 : -1.0;
@@ -261,6 +277,8 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     }
   }
   EXPECT_GE(switched_fold_pd, 5);
+  EXPECT_GE(switched_past_corner, 1);  // the PD curve from omega = 0.2698 (a = 0.3): PdCurveGoes...
+  RecordProperty("switched_past_corner", switched_past_corner);
   // Curves stepped off roots: most come back to their root (the one-sided curves of the orbit
   // with the vanishing segment, missed before they were tried: a PD curve between the
   // flip-grazings (0.19253, 0.15646) and (0.19364, 0.15596) was found only by longer steps
@@ -543,6 +561,55 @@ TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
     }
   }
   EXPECT_GE(period2, 3);
+}
+
+// A fold / PD curve that ends where a segment between events of two surfaces vanishes (a corner:
+// the contact phase between impact and progression, the impact going straight into progression)
+// goes on past it in the signature without that segment, as a one-parameter branch does through
+// such a SIGNATURE_CHANGE. In omega in [0.08, 0.28], a in [0.29, 0.6] the PD curve through the
+// a-branch's PD at a = 0.45763 (omega = 0.1) ends at the corner near (0.0931, 0.4649), solved with
+// that phase of zero length; its continuation (NC>Pi CwP>l1 CwoP>l2 NC) was not traced before, and
+// the a-branch at omega = 0.085 (from the attractor simulated there at a = 0.3, independent of
+// the trace) locates a PD at a = 0.47353 that no traced curve crossed. Now a PD curve leaving the
+// corner crosses omega = 0.085 there, to 1e-7 (issue 4's consistency; both are solved to ~1e-10).
+TEST_F(Trace, PdCurveGoesOnPastACorner) {
+  TraceOptions opt = testing::Issue4Box();
+  opt.min1 = 0.08, opt.max1 = 0.28;
+  opt.min2 = 0.29, opt.max2 = 0.6;
+  constexpr double kOmega = 0.085;
+  opt.curve.crossings1 = {kOmega};
+  const TraceResult r = TraceCurves(model_, prop_, start_, opt);
+  ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+
+  Params at = start_.params;
+  at[DO::kOmega] = kOmega;
+  StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, prop_, at, start_.starts[0]);
+  ASSERT_TRUE(found.ok()) << found.status().ToString();
+  PeriodicOrbit attractor = *found;
+  const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &attractor);
+  ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
+  ContinuationOptions branch;
+  branch.param = "a";
+  branch.min = opt.min2, branch.max = opt.max2;
+  const ContinuationResult a_branch = Continue(model_, prop_, attractor, branch);
+  const SpecialPoint* pd = nullptr;
+  for (const SpecialPoint& s : a_branch.special_points) {
+    if (s.kind == SpecialPointKind::kPeriodDoubling && s.point.value > 0.45) pd = &s;
+  }
+  ASSERT_NE(pd, nullptr) << a_branch.summary.message;
+
+  const TracedCurve* past = nullptr;
+  for (const TracedCurve& c : r.curves) {
+    if (c.curve.kind != CurveKind::kPeriodDoubling || c.from_curve < 0) continue;
+    const Codim2Point& left = r.curves[c.from_curve].curve.codim2[c.from_codim2];
+    if (left.detail.find("of zero length") == std::string::npos) continue;
+    for (const CurvePoint& x : c.curve.crossings) {
+      if (x.value1 == kOmega && std::abs(x.value2 - pd->point.value) <= 1e-7) past = &c;
+    }
+  }
+  ASSERT_NE(past, nullptr) << "no PD curve leaving a corner crosses omega = " << kOmega
+                           << " at a = " << pd->point.value;
+  EXPECT_EQ(past->curve.points.front().orbit.signature, pd->point.orbit.signature);
 }
 
 // Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings

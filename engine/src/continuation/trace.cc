@@ -185,6 +185,28 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         const SpecialPointKind k =
             tangent.ok() ? GrazingKind(model, *tangent) : SpecialPointKind::kGrazingPi;
         candidates.push_back({std::move(tangent), k, CurveKind::kGrazing});
+        // An end solved with a zero-length segment between events of two surfaces (a corner: a
+        // contact phase between an impact and progression vanishing, the impact going straight
+        // into progression) is no end of the fold / PD curve itself: past the corner its orbit
+        // goes on without that segment, as a one-parameter branch does through such a
+        // SIGNATURE_CHANGE, and so does the curve. (Issue 4's box: the PD curve through
+        // (omega, a) = (0.1, 0.45763) ended at such a corner at omega = 0.0931, and its
+        // continuation in the signature NC>Pi CwP>l1 CwoP>l2 NC, which the a-branches at
+        // omega = 0.065 .. 0.085 cross, was never traced.)
+        const bool fold_or_pd =
+            from_kind == CurveKind::kFold || from_kind == CurveKind::kPeriodDoubling;
+        if (fold_or_pd && !has_tangent && point.bracket == 0.0 && beyond.guard < 0 && i >= 0 &&
+            i < static_cast<int>(segs.size())) {
+          const internal::SwitchedOrbit past =
+              internal::SwitchSignature(model, propagator, point.point.orbit, beyond);
+          if (past.new_segment < 0 && !past.representation_only &&
+              past.orbit.signature != point.point.orbit.signature) {
+            candidates.push_back({past.orbit,
+                                  from_kind == CurveKind::kFold ? SpecialPointKind::kFold
+                                                                : SpecialPointKind::kPeriodDoubling,
+                                  from_kind});
+          }
+        }
       } else {
         continue;  // a bracketed root on a grazing curve
       }
