@@ -53,7 +53,7 @@ struct TraceOptions {
   // the same kind and signature is skipped.
   bool switch_at_codim2 = true;
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
-  // what issue 4's box needs (431 curves in all; 2849 with max_period 2, which 2000 cut short).
+  // what issue 4's box needs (436 curves in all; 2884 with max_period 2, which 2000 cut short).
   int max_switched_curves = 5000;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
