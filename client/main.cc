@@ -154,8 +154,9 @@ struct TraceFlags {
   bool region = false;
   std::vector<int> grid;  // empty: the job's default
   bool period2 = false;
-  int max_period = 0;       // 0: not given
-  std::string curve_steps;  // "": not given
+  int max_period = 0;         // 0: not given
+  std::string curve_steps;    // "": not given
+  std::vector<double> seeds;  // values of the first parameter
 };
 
 struct OptimumFlags {
@@ -408,6 +409,7 @@ v1::TraceRequest ToTraceRequest(const ModelFlags& m, const TraceFlags& f) {
   for (const std::string& name : f.params) request.add_trace_params(name);
   for (double v : f.min) request.add_min(v);
   for (double v : f.max) request.add_max(v);
+  for (double v : f.seeds) request.add_seeds(v);
   return request;
 }
 
@@ -468,6 +470,12 @@ void AddBoxFlags(CLI::App* cmd, TraceFlags* f) {
       ->required()
       ->delimiter(',')
       ->expected(2)
+      ->group(g);
+  cmd->add_option("--seeds", f->seeds,
+                  "Values of the first parameter whose attractors (at the other flags' values) "
+                  "and their branches start curves too, e.g. 0.07: curves the start's branches "
+                  "and switching do not reach")
+      ->delimiter(',')
       ->group(g);
 }
 

@@ -69,6 +69,13 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     }
     opt.max_period = request.max_period();
   }
+  for (const double seed : request.seeds()) {
+    if (!(std::isfinite(seed) && seed >= opt.min1 && seed <= opt.max1)) {
+      return InvalidArgument("seeds: each value of " + opt.param1 + " must lie in the box [" +
+                             Num(opt.min1) + ", " + Num(opt.max1) + "], got " + Num(seed));
+    }
+    opt.seeds1.push_back(seed);
+  }
   switch (request.curve_steps()) {
     case v1::CURVE_STEPS_UNSPECIFIED:
     case v1::CURVE_STEPS_FINE:
@@ -180,6 +187,7 @@ StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
   const StatusOr<StartSearch> search = StartSearchOf(request, params);
   if (!search.ok()) return search.status();
   out.options = *options;
+  out.options.seed_state = search->x0;
   ExactPropagator propagator(model);
   StatusOr<PeriodicOrbit> orbit =
       StartOrbit(propagator, params, search->x0, search->transient_periods);

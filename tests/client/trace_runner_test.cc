@@ -69,6 +69,12 @@ TEST(RunTrace, InvalidRequestsNameTheField) {
   v1::TraceRequest steps = SmallBox();
   steps.set_curve_steps(static_cast<v1::CurveSteps>(7));
   ExpectInvalid(steps, "curve_steps");
+  v1::TraceRequest seed = SmallBox();
+  seed.add_seeds(0.3);  // omega outside [0.05, 0.2]
+  ExpectInvalid(seed, "seeds");
+  v1::TraceRequest nan_seed = SmallBox();
+  nan_seed.add_seeds(std::nan(""));
+  ExpectInvalid(nan_seed, "seeds");
 }
 
 // COARSE curve steps: fewer vertices, the same codimension-2 points (kind and position, to

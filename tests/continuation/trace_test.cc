@@ -464,6 +464,9 @@ TEST_F(Trace, InvalidRequestsNameTheProblem) {
   const TraceResult o = TraceCurves(model_, prop_, start_, outside);
   EXPECT_EQ(o.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(o.summary.status.message().find("a lies outside"), std::string::npos);
+  TraceOptions seed = testing::Issue4Box();
+  seed.seeds1 = {2.5};
+  EXPECT_NE(seed.Validate().message().find("seeds1"), std::string::npos);
   TraceOptions empty = testing::Issue4Box();
   empty.max1 = empty.min1;
   EXPECT_EQ(TraceCurves(model_, prop_, start_, empty).summary.status.code(),
@@ -610,6 +613,76 @@ TEST_F(Trace, PdCurveGoesOnPastACorner) {
   ASSERT_NE(past, nullptr) << "no PD curve leaving a corner crosses omega = " << kOmega
                            << " at a = " << pd->point.value;
   EXPECT_EQ(past->curve.points.front().orbit.signature, pd->point.orbit.signature);
+}
+
+// Seeds: curves the start's branches and the switching do not reach are found from the
+// attractor at another value of param1. In omega in [0.06, 0.11], a in [0.2, 0.32] the a-branch
+// of the attractor at omega = 0.065 (independent of the trace) locates a PD at a = 0.21798 (an
+// orbit with seven impacts per forcing period) that no curve traced from the reference orbit
+// (omega = 0.1) crosses; with a seed at omega = 0.07 a PD curve started on the seed's branches
+// crosses omega = 0.065 there, to 1e-7 (both solved to ~1e-10). A seed where no periodic
+// attractor is found (omega = 0.055 would be one: the motion there is not periodic) is a note.
+TEST_F(Trace, SeedFindsCurvesTheStartDoesNotReach) {
+  TraceOptions opt = testing::Issue4Box();
+  opt.min1 = 0.06, opt.max1 = 0.11;
+  opt.min2 = 0.2, opt.max2 = 0.32;
+  constexpr double kCheck = 0.065, kSeed = 0.07;
+  opt.curve.crossings1 = {kCheck};
+  Params at = start_.params;
+  at[DO::kOmega] = kCheck;
+  const StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, prop_, at, start_.starts[0]);
+  ASSERT_TRUE(found.ok()) << found.status().ToString();
+  PeriodicOrbit attractor = *found;
+  const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &attractor);
+  ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
+  ContinuationOptions branch;
+  branch.param = "a";
+  branch.min = opt.min2, branch.max = opt.max2;
+  const ContinuationResult a_branch = Continue(model_, prop_, attractor, branch);
+  const SpecialPoint* pd = nullptr;
+  for (const SpecialPoint& s : a_branch.special_points) {
+    if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 0.21798) < 1e-4) {
+      pd = &s;
+    }
+  }
+  ASSERT_NE(pd, nullptr) << a_branch.summary.message;
+  auto crossed = [&](const TraceResult& r) {
+    for (const TracedCurve& c : r.curves) {
+      if (c.curve.kind != CurveKind::kPeriodDoubling) continue;
+      for (const CurvePoint& x : c.curve.crossings) {
+        if (x.value1 == kCheck && std::abs(x.value2 - pd->point.value) <= 1e-7) return &c;
+      }
+    }
+    return static_cast<const TracedCurve*>(nullptr);
+  };
+  const TraceResult without = TraceCurves(model_, prop_, start_, opt);
+  ASSERT_TRUE(without.summary.status.ok()) << without.summary.status.ToString();
+  EXPECT_EQ(crossed(without), nullptr);
+  opt.seeds1 = {kSeed};
+  const TraceResult with = TraceCurves(model_, prop_, start_, opt);
+  ASSERT_TRUE(with.summary.status.ok()) << with.summary.status.ToString();
+  const TracedCurve* c = crossed(with);
+  ASSERT_NE(c, nullptr) << "no PD curve crosses omega = " << kCheck
+                        << " at a = " << pd->point.value;
+  // Started on the seed's branches (a start the trace without seeds does not have), or switched
+  // onto from a curve that was.
+  while (c->from_curve >= 0) c = &with.curves[c->from_curve];
+  EXPECT_TRUE(std::none_of(without.curves.begin(), without.curves.end(),
+                           [&](const TracedCurve& t) {
+                             return t.from_curve < 0 && t.start.kind == c->start.kind &&
+                                    t.start.point.orbit.params == c->start.point.orbit.params;
+                           }))
+      << "started at omega = " << c->start.point.orbit.params[DO::kOmega];
+  EXPECT_GT(with.curves.size(), without.curves.size());
+
+  TraceOptions chaotic = opt;
+  chaotic.min1 = 0.05;
+  chaotic.seeds1 = {0.055};
+  chaotic.switch_at_codim2 = false;
+  const TraceResult none = TraceCurves(model_, prop_, start_, chaotic);
+  ASSERT_TRUE(none.summary.status.ok()) << none.summary.status.ToString();
+  EXPECT_TRUE(std::any_of(none.summary.notes.begin(), none.summary.notes.end(),
+                          [](const std::string& n) { return n.find("seed omega = 0.055") == 0; }));
 }
 
 // Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings

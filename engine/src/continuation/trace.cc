@@ -11,6 +11,7 @@
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
+#include "drillbif/simulate/simulator.h"
 #include "region/segment_index.h"
 
 namespace drillbif {
@@ -27,6 +28,13 @@ Status TraceOptions::Validate() const {
   }
   if (!(duplicate_distance > 0.0 && std::isfinite(duplicate_distance))) {
     return InvalidArgument("duplicate_distance: need a finite value > 0");
+  }
+  for (const double s : seeds1) {
+    if (!(std::isfinite(s) && s >= min1 && s <= max1)) {
+      return InvalidArgument("seeds1: each value of " + param1 + " must lie in the box [" +
+                             std::to_string(min1) + ", " + std::to_string(max1) + "], got " +
+                             std::to_string(s));
+    }
   }
   if (max_period < 1 || max_period > 16 || (max_period & (max_period - 1)) != 0) {
     return InvalidArgument(
@@ -392,6 +400,33 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
   for (int axis = 0; axis < 2; ++axis) {
     if (!branch_starts(start, axis, 0.05 * axis, 0.05 * (axis + 1), options.branch.direction)) {
       return result;
+    }
+  }
+  // The seeds' attractors and their branches (progress stays at the tenth meanwhile).
+  for (const double seed : options.seeds1) {
+    Params params = start.params;
+    params[*i1] = seed;
+    const StateVector x0 =
+        options.seed_state.size() > 0 ? options.seed_state : DefaultInitialState(model);
+    StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model, propagator, params, x0);
+    const std::string where = "seed " + options.param1 + " = " + std::to_string(seed) + ": ";
+    if (!found.ok()) {
+      sum.notes.push_back(where + found.status().message());
+      continue;
+    }
+    PeriodicOrbit attractor = *found;
+    const OrbitSolveSummary solved = SolveOrbit(model, propagator, {}, &attractor);
+    if (solved.status != SolveStatus::kConverged) {
+      sum.notes.push_back(where + "the attractor's orbit did not solve: " + solved.message);
+      continue;
+    }
+    if (attractor.signature.periods > options.max_period) {
+      sum.notes.push_back(where + "the attractor has period " +
+                          std::to_string(attractor.signature.periods) + " > max_period");
+      continue;
+    }
+    for (int axis = 0; axis < 2; ++axis) {
+      if (!branch_starts(attractor, axis, 0.1, 0.1, options.branch.direction)) return result;
     }
   }
   // The period-2p branches born at the period-p branches' doublings, p = 1, 2, ... while

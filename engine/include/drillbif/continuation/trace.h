@@ -43,6 +43,15 @@ struct TraceOptions {
   // the period-2 branches' doublings and flip-grazings, and so on. Asked for, not implied: each
   // level multiplies the work.
   int max_period = 1;
+  // More starts: at each of these values of param1 (inside the box), the attractor at that value
+  // and the start's other parameters (simulated from seed_state, solved as a periodic orbit) and
+  // its branches in both parameters over the box, like the start's; their points start curves
+  // unless already on a traced one. Curves that no branch through the start meets and no
+  // switching reaches are found so: in issue 4's box a seed at omega = 0.07 adds ~240 curves of
+  // the network below omega = 0.09. An attractor not found, or of a period above max_period, is
+  // named in a note.
+  std::vector<double> seeds1;
+  StateVector seed_state;  // empty: the model's default initial state
   // Also the curves that leave the codimension-2 points found (switching), repeatedly until no new
   // curve appears: from a FOLD_GRAZING / FLIP_GRAZING located as a root along a grazing curve,
   // the fold / PD curve of the orbit without the vanishing segment (the grazing orbit with its
