@@ -40,7 +40,25 @@ double BoxDistance(const TraceOptions& box, const Codim2Point& p, const Codim2Po
 }
 
 // Every trace here starts at the reference orbit.
-class Trace : public testing::ReferenceOrbitTest {};
+class Trace : public testing::ReferenceOrbitTest {
+ protected:
+  // The a-branch over [a_min, a_max] of the attractor at omega (a = 0.3 and the reference's other
+  // parameters, simulated from the reference orbit's start): one-parameter points independent of
+  // any trace.
+  void AttractorABranch(double omega, double a_min, double a_max, ContinuationResult* out) {
+    Params at = start_.params;
+    at[DO::kOmega] = omega;
+    const StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, prop_, at, start_.starts[0]);
+    ASSERT_TRUE(found.ok()) << found.status().ToString();
+    PeriodicOrbit attractor = *found;
+    const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &attractor);
+    ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
+    ContinuationOptions branch;
+    branch.param = "a";
+    branch.min = a_min, branch.max = a_max;
+    *out = Continue(model_, prop_, attractor, branch);
+  }
+};
 
 // The same checks with the default steps and with longer ones (target_iterations 4: 4.6x fewer
 // points): the defining conditions, the ends and the cusps must not depend on the steps taken.
@@ -584,17 +602,8 @@ TEST_F(Trace, PdCurveGoesOnPastACorner) {
   const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
 
-  Params at = start_.params;
-  at[DO::kOmega] = kOmega;
-  StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, prop_, at, start_.starts[0]);
-  ASSERT_TRUE(found.ok()) << found.status().ToString();
-  PeriodicOrbit attractor = *found;
-  const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &attractor);
-  ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
-  ContinuationOptions branch;
-  branch.param = "a";
-  branch.min = opt.min2, branch.max = opt.max2;
-  const ContinuationResult a_branch = Continue(model_, prop_, attractor, branch);
+  ContinuationResult a_branch;
+  ASSERT_NO_FATAL_FAILURE(AttractorABranch(kOmega, opt.min2, opt.max2, &a_branch));
   const SpecialPoint* pd = nullptr;
   for (const SpecialPoint& s : a_branch.special_points) {
     if (s.kind == SpecialPointKind::kPeriodDoubling && s.point.value > 0.45) pd = &s;
@@ -628,17 +637,8 @@ TEST_F(Trace, SeedFindsCurvesTheStartDoesNotReach) {
   opt.min2 = 0.2, opt.max2 = 0.32;
   constexpr double kCheck = 0.065, kSeed = 0.07;
   opt.curve.crossings1 = {kCheck};
-  Params at = start_.params;
-  at[DO::kOmega] = kCheck;
-  const StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, prop_, at, start_.starts[0]);
-  ASSERT_TRUE(found.ok()) << found.status().ToString();
-  PeriodicOrbit attractor = *found;
-  const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &attractor);
-  ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
-  ContinuationOptions branch;
-  branch.param = "a";
-  branch.min = opt.min2, branch.max = opt.max2;
-  const ContinuationResult a_branch = Continue(model_, prop_, attractor, branch);
+  ContinuationResult a_branch;
+  ASSERT_NO_FATAL_FAILURE(AttractorABranch(kCheck, opt.min2, opt.max2, &a_branch));
   const SpecialPoint* pd = nullptr;
   for (const SpecialPoint& s : a_branch.special_points) {
     if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 0.21798) < 1e-4) {
