@@ -72,6 +72,17 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
   if (kind == CurveKind::kGrazing && TangentEndRates(model, propagator, guess).size() != 1) {
     return InvalidArgument("the end of a GRAZING curve needs its one tangent end");
   }
+  // Newton on the orbit, both parameters and the curve's condition (bordered at `from`), with the
+  // segment held at `length`.
+  auto solve_from = [&](const PeriodicOrbit& from) {
+    const auto own = OwnCondition(model, propagator, from, kind);
+    return SolveWithConditions(
+        model, propagator, from, {index1, index2},
+        [&](const PeriodicOrbit& o) {
+          return Eigen::Vector2d(o.durations[segment] - length, own(o)).eval();
+        },
+        tolerance, length == 0.0 ? "zero-length segment system" : "fixed segment-length system");
+  };
   const int next = segment + 1;
   if (length > 0.0 && guess.durations[segment] == 0.0 &&
       next < static_cast<int>(guess.durations.size()) && guess.durations[next] > length) {
@@ -97,23 +108,11 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
           },
           tolerance, "fixed segment-length orbit");
       if (!consistent.ok()) continue;
-      const auto own = OwnCondition(model, propagator, *consistent, kind);
-      StatusOr<PeriodicOrbit> solved = SolveWithConditions(
-          model, propagator, *consistent, {index1, index2},
-          [&](const PeriodicOrbit& o) {
-            return Eigen::Vector2d(o.durations[segment] - length, own(o)).eval();
-          },
-          tolerance, "fixed segment-length system");
+      StatusOr<PeriodicOrbit> solved = solve_from(*consistent);
       if (solved.ok()) return solved;
     }
   }
-  const auto own = OwnCondition(model, propagator, guess, kind);
-  return SolveWithConditions(
-      model, propagator, guess, {index1, index2},
-      [&](const PeriodicOrbit& o) {
-        return Eigen::Vector2d(o.durations[segment] - length, own(o)).eval();
-      },
-      tolerance, length == 0.0 ? "zero-length segment system" : "fixed segment-length system");
+  return solve_from(guess);
 }
 
 StatusOr<PeriodicOrbit> SolveMergedTouchEnd(const HybridModel& model, Propagator& propagator,
