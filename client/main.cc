@@ -157,6 +157,7 @@ struct TraceFlags {
   int max_period = 0;         // 0: not given
   std::string curve_steps;    // "": not given
   std::vector<double> seeds;  // values of the first parameter
+  bool no_edge_branches = false;
 };
 
 struct OptimumFlags {
@@ -410,6 +411,7 @@ v1::TraceRequest ToTraceRequest(const ModelFlags& m, const TraceFlags& f) {
   for (double v : f.min) request.add_min(v);
   for (double v : f.max) request.add_max(v);
   for (double v : f.seeds) request.add_seeds(v);
+  request.set_no_edge_branches(f.no_edge_branches);
   return request;
 }
 
@@ -476,6 +478,11 @@ void AddBoxFlags(CLI::App* cmd, TraceFlags* f) {
                   "and their branches start curves too, e.g. 0.07: curves the start's branches "
                   "and switching do not reach")
       ->delimiter(',')
+      ->group(g);
+  cmd->add_flag("--no-edge-branches", f->no_edge_branches,
+                "Do not continue the branches along the box's edges through the curve ends on "
+                "them (by default they start more curves: those crossing the edge on a branch "
+                "a traced curve ends on)")
       ->group(g);
 }
 

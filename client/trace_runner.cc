@@ -76,6 +76,7 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     }
     opt.seeds1.push_back(seed);
   }
+  opt.edge_branches = !request.no_edge_branches();
   switch (request.curve_steps()) {
     case v1::CURVE_STEPS_UNSPECIFIED:
     case v1::CURVE_STEPS_FINE:

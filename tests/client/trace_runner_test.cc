@@ -107,9 +107,12 @@ TEST(RunTrace, CoarseCurveStepsGiveFewerVerticesAndTheSameCodim2Points) {
 // impact at s = 0, not a grazing: the curve goes on in the rotated signature) and it leaves the
 // box. Its flip-grazing is a corner (the contact phase between impact and progression vanishes),
 // past which the PD curve goes on without that phase: a second PD curve, switched from the
-// first, from the same point to the box.
+// first, from the same point to the box. (Without edge branches: with them two more PD curves
+// start on the branch along omega = 0.05, see the next test.)
 TEST(RunTrace, SmallBoxHasAPeriodDoublingCurveEndingAtAFlipGrazingAndItsContinuation) {
-  const StatusOr<v1::TraceResult> r = RunTrace(SmallBox());
+  v1::TraceRequest request = SmallBox();
+  request.set_no_edge_branches(true);
+  const StatusOr<v1::TraceResult> r = RunTrace(request);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->status(), "COMPLETED") << r->message();
   std::vector<int> pd_curves;
@@ -152,6 +155,53 @@ TEST(RunTrace, SmallBoxHasAPeriodDoublingCurveEndingAtAFlipGrazingAndItsContinua
   EXPECT_THAT(*json, HasSubstr("\"curves\":"));
   EXPECT_THAT(*json, HasSubstr("\"codim2Points\":"));
   EXPECT_THAT(*json, HasSubstr("\"kind\":\"FLIP_GRAZING\""));
+}
+
+// Edge branches (the default): in the small box the branches along omega = 0.05 and 0.2 through
+// the fold and PD curves' ends there locate points that no curve through the start's branches
+// crosses; their curves are added, each with an end on the edge its branch ran along.
+// no_edge_branches gives the curves without them, each also in the default result (same kind
+// and start).
+TEST(RunTrace, EdgeBranchesAddCurvesStartedOnTheBoxEdge) {
+  const StatusOr<v1::TraceResult> with = RunTrace(SmallBox());
+  v1::TraceRequest request = SmallBox();
+  request.set_no_edge_branches(true);
+  const StatusOr<v1::TraceResult> without = RunTrace(request);
+  ASSERT_TRUE(with.ok() && without.ok());
+  EXPECT_EQ(with->status(), "COMPLETED") << with->message();
+  auto edge_note = [](const v1::TraceResult& r) {
+    return std::any_of(r.notes().begin(), r.notes().end(), [](const std::string& n) {
+      return n.find("along the box's edges") != std::string::npos;
+    });
+  };
+  EXPECT_TRUE(edge_note(*with));
+  EXPECT_FALSE(edge_note(*without));
+  auto same = [](const v1::Curve& x, const v1::Curve& y) {
+    return x.kind() == y.kind() && x.start_kind() == y.start_kind() &&
+           x.points(0).params().omega() == y.points(0).params().omega() &&
+           x.points(0).params().a() == y.points(0).params().a();
+  };
+  for (const v1::Curve& c : without->curves()) {
+    EXPECT_TRUE(std::any_of(with->curves().begin(), with->curves().end(),
+                            [&](const v1::Curve& d) { return same(c, d); }))
+        << c.kind() << " from omega = " << c.points(0).params().omega();
+  }
+  int added = 0;
+  for (const v1::Curve& c : with->curves()) {
+    if (std::any_of(without->curves().begin(), without->curves().end(),
+                    [&](const v1::Curve& d) { return same(c, d); })) {
+      continue;
+    }
+    ++added;
+    // Started on an edge branch: one end on the box's edge (points run from end to end).
+    auto on_edge = [](const v1::CurveVertex& v) {
+      return v.params().omega() == 0.05 || v.params().omega() == 0.2 || v.params().a() == 0.27 ||
+             v.params().a() == 0.32;
+    };
+    EXPECT_TRUE(on_edge(c.points(0)) || on_edge(c.points(c.points_size() - 1)))
+        << c.kind() << " " << c.message();
+  }
+  EXPECT_GT(added, 0);
 }
 
 TEST(RunTrace, CancelStopsBeforeTheNextCurveAndKeepsWhatWasTraced) {

@@ -501,11 +501,13 @@ TEST_F(Trace, InvalidRequestsNameTheProblem) {
 // Period-2 curves, on request: in omega in [0.05, 0.45], a in [0.27, 0.32] the period-2 branches
 // born at the omega-branch's period doublings (a = 0.3) have PDs and grazings, whose curves are
 // traced. Each crosses a = 0.3 where a period-2 omega-branch, switched onto and continued
-// independently here, locates the point (to 1e-7).
+// independently here, locates the point (to 1e-7). Without edge branches: curves started on a
+// branch along the box's edge need not cross a = 0.3.
 TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
   TraceOptions opt = testing::Issue4Box();
   opt.max1 = 0.45;
   opt.min2 = 0.27, opt.max2 = 0.32;
+  opt.edge_branches = false;
   const TraceResult plain = TraceCurves(model_, prop_, start_, opt);
   for (const TracedCurve& c : plain.curves) {
     EXPECT_EQ(c.start.point.orbit.signature.periods, 1);  // compute only what is asked
@@ -624,14 +626,16 @@ TEST_F(Trace, PdCurveGoesOnPastACorner) {
   EXPECT_EQ(past->curve.points.front().orbit.signature, pd->point.orbit.signature);
 }
 
-// Seeds: curves the start's branches and the switching do not reach are found from the
-// attractor at another value of param1. In omega in [0.06, 0.11], a in [0.2, 0.32] the a-branch
-// of the attractor at omega = 0.065 (independent of the trace) locates a PD at a = 0.21798 (an
+// Seeds and edge branches: curves the start's branches and the switching do not reach are found
+// from the attractor at another value of param1, or from the branches along the box's edges
+// through the traced curves' ends. In omega in [0.06, 0.11], a in [0.2, 0.32] the a-branch of
+// the attractor at omega = 0.065 (independent of the trace) locates a PD at a = 0.21798 (an
 // orbit with seven impacts per forcing period) that no curve traced from the reference orbit
-// (omega = 0.1) crosses; with a seed at omega = 0.07 a PD curve started on the seed's branches
-// crosses omega = 0.065 there, to 1e-7 (both solved to ~1e-10). A seed where no periodic
-// attractor is found (omega = 0.055 would be one: the motion there is not periodic) is a note.
-TEST_F(Trace, SeedFindsCurvesTheStartDoesNotReach) {
+// (omega = 0.1) crosses without edge branches; with a seed at omega = 0.07, or with the edge
+// branches (the default), a PD curve started on the seed's / an edge's branches crosses
+// omega = 0.065 there, to 1e-7 (both solved to ~1e-10). A seed where no periodic attractor is
+// found (omega = 0.055 would be one: the motion there is not periodic) is a note.
+TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
   TraceOptions opt = testing::Issue4Box();
   opt.min1 = 0.06, opt.max1 = 0.11;
   opt.min2 = 0.2, opt.max2 = 0.32;
@@ -655,9 +659,29 @@ TEST_F(Trace, SeedFindsCurvesTheStartDoesNotReach) {
     }
     return static_cast<const TracedCurve*>(nullptr);
   };
+  opt.edge_branches = false;
   const TraceResult without = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(without.summary.status.ok()) << without.summary.status.ToString();
   EXPECT_EQ(crossed(without), nullptr);
+
+  TraceOptions edges = opt;
+  edges.edge_branches = true;
+  const TraceResult at_edges = TraceCurves(model_, prop_, start_, edges);
+  ASSERT_TRUE(at_edges.summary.status.ok()) << at_edges.summary.status.ToString();
+  const TracedCurve* e = crossed(at_edges);
+  ASSERT_NE(e, nullptr) << "with edge branches, no PD curve crosses omega = " << kCheck
+                        << " at a = " << pd->point.value;
+  // Started on an edge branch (its start on the box's edge), or switched onto from a curve that
+  // was.
+  while (e->from_curve >= 0) e = &at_edges.curves[e->from_curve];
+  const Params& at = e->start.point.orbit.params;
+  EXPECT_TRUE(at[DO::kOmega] == opt.min1 || at[DO::kOmega] == opt.max1 || at[DO::kA] == opt.min2 ||
+              at[DO::kA] == opt.max2)
+      << "started at omega = " << at[DO::kOmega] << ", a = " << at[DO::kA];
+  EXPECT_TRUE(std::any_of(
+      at_edges.summary.notes.begin(), at_edges.summary.notes.end(),
+      [](const std::string& n) { return n.find("along the box's edges") != std::string::npos; }));
+
   opt.seeds1 = {kSeed};
   const TraceResult with = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(with.summary.status.ok()) << with.summary.status.ToString();

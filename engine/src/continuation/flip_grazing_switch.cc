@@ -78,7 +78,8 @@ std::vector<Seed> SeedsNear(const TraceResult& result, int n, double u, double v
 
 bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagator,
                                  const TraceOptions& options,
-                                 const std::function<bool(double)>& report, TraceResult* result) {
+                                 const std::function<bool(double)>& report, size_t first_curve,
+                                 TraceResult* result) {
   const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
   const std::string* names[2] = {&options.param1, &options.param2};
   const double lo[2] = {options.min1, options.min2}, hi[2] = {options.max1, options.max2};
@@ -93,7 +94,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
   std::vector<int> found(options.max_period + 1, 0), tried(options.max_period + 1, 0);
   // result->curves grows while it is walked (the curves added here have flip-grazings too):
   // index, not iterator.
-  for (size_t c = 0; c < result->curves.size(); ++c) {
+  for (size_t c = first_curve; c < result->curves.size(); ++c) {
     for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
       const Codim2Point& point = result->curves[c].curve.codim2[q];
       const int n = point.point.orbit.signature.periods;

@@ -53,7 +53,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   TraceOptions opt = box;
   opt.max_period = 2;
   ASSERT_TRUE(GrazingCurvesAtFlipGrazings(
-      model, prop, opt, [](double) { return true; }, &result));
+      model, prop, opt, [](double) { return true; }, 0, &result));
   EXPECT_EQ(result.summary.notes.back(),
             "period-2 grazing curves leave 2 of 2 period-1 "
             "flip-grazing points");

@@ -13,6 +13,14 @@ namespace drillbif::internal {
 // Distance from (u, v) to the polyline of the curve, coordinates scaled by the box's widths.
 double DistanceToCurve(const CurveResult& c, double u, double v, double w1, double w2);
 
+// Whether (u, v) lies on the curve: within `tol` of its polyline plus, at each chord, an estimate
+// of how far the curve bows away from it between the vertices (chord length times the turning
+// angle at its ends over 4, twice the circular arc's L theta / 8; the angle capped at 0.5 rad,
+// beyond which the estimate means nothing). Coordinates scaled by the box's widths. For points
+// solved on a curve of the same kind and signature: a polyline's chord error (~1e-4 of the box
+// with COARSE steps) can exceed any fixed tolerance small enough to keep curves 1e-3 apart apart.
+bool OnCurve(const CurveResult& c, double u, double v, double w1, double w2, double tol);
+
 // The curve with (value1, value2) swapped, for a curve traced with the parameters in the other
 // order.
 void SwapValues(CurveResult* c);
@@ -25,11 +33,12 @@ std::string PeriodPrefix(int periods);
 
 // The period-2n grazing curves that leave the period-n curves' FLIP_GRAZING points, for
 // 2n <= TraceOptions::max_period (with switch_at_codim2), appended to result->curves; the
-// flip-grazings of the curves it adds are visited too. False when cancelled (`report` returned
-// false).
+// flip-grazings of the curves it adds are visited too; those of the curves before first_curve
+// are not (visited in an earlier round). False when cancelled (`report` returned false).
 bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagator,
                                  const TraceOptions& options,
-                                 const std::function<bool(double)>& report, TraceResult* result);
+                                 const std::function<bool(double)>& report, size_t first_curve,
+                                 TraceResult* result);
 
 }  // namespace drillbif::internal
 

@@ -31,8 +31,10 @@ struct TraceOptions {
   // a point of the same kind (coordinates scaled by the box's widths) is taken as on it. Small on
   // purpose: near omega = 0.1, a = 0.16 distinct curves lie 1e-3 of the box apart, and a curve
   // traced twice costs time while a curve skipped is lost. The polyline's chord error (~ step^2
-  // times the curvature) can exceed it; the curve would then be traced twice (not seen in
-  // issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at most).
+  // times the curvature) can exceed it; a located point would then start its curve twice (not
+  // seen in issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at
+  // most). Curves switched onto at codimension-2 points, compared with curves of the same
+  // signature, allow for that error too (a grazing curve with COARSE steps was traced twice).
   double duplicate_distance = 1e-5;
   // The longest period traced: 1 (default), 2, 4, 8 or 16. With 2, also the period-2 curves: at
   // every period doubling of the period-1 branches the period-2 branch born there
@@ -52,6 +54,17 @@ struct TraceOptions {
   // named in a note.
   std::vector<double> seeds1;
   StateVector seed_state;  // empty: the model's default initial state
+  // Then, repeatedly until no end is new: at each end of a fold, PD or NS curve on the box's edge,
+  // the branch along that edge (in the other parameter, over the box) through the end's orbit,
+  // unless a branch run along that edge located that end's point already; the curves of its
+  // points (unless on a traced one) and the curves leaving their codimension-2 points. Curves
+  // that neither cross a branch through the start nor meet a curve that does, but cross the
+  // box's edge on a branch a traced curve ends on, are found so: in issue 4's box three branches
+  // along omega = 0.05 (the decreasing a-branch snakes there through many more turns than at
+  // omega = 0.1) add 306 curves (742 in all, ~1.7x the time). Grazing curves' ends start no edge
+  // branch; the period-2n branches born at an edge branch's doublings are not continued
+  // (max_period > 1). An edge branch that stops early is a note, not a failure.
+  bool edge_branches = true;
   // Also the curves that leave the codimension-2 points found (switching), repeatedly until no new
   // curve appears: from a FOLD_GRAZING / FLIP_GRAZING located as a root along a grazing curve,
   // the fold / PD curve of the orbit without the vanishing segment (the grazing orbit with its
