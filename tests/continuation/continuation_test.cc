@@ -424,6 +424,42 @@ TEST(Continuation, SwitchesBothCopiesOfATwiceTraversedOrbitAtOnce) {
   ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, "xi = 0.5, omega");
 }
 
+// A guard crossing hidden behind a vanishing segment: at omega = 0.05 (reached from the reference
+// orbit by the omega-branch) the a-branch meets, near a = 0.21531, a touch of Pi inside a free
+// flight 72 long 1.2e-6 in a before its first segment (a free flight 0.02 long) vanishes, both
+// within one step. AdmissibilityViolations lists only the vanishing segment there; crossed first,
+// it left the touch already violated and the branch FAILED ("could not locate or cross"). Now
+// the touch is located and crossed first (a GRAZING_PI) and the branch reaches both bounds with
+// every point admissible.
+TEST(Continuation, CrossesAGuardTouchHiddenBehindAVanishingSegment) {
+  DO model;
+  ExactPropagator prop(model);
+  ContinuationOptions down;
+  down.param = "omega";
+  down.min = 0.05, down.max = 0.1;
+  down.direction = ContinuationDirection::kDecreasing;
+  const ContinuationResult w =
+      Continue(model, prop, StartOrbit(model, prop, testing::ReferenceParams()), down);
+  ASSERT_EQ(w.summary.termination, Termination::kCompleted) << w.summary.message;
+  const auto lowest = std::min_element(
+      w.points.begin(), w.points.end(),
+      [](const ContinuationPoint& x, const ContinuationPoint& y) { return x.value < y.value; });
+  ASSERT_NEAR(lowest->value, 0.05, 1e-9);
+  ContinuationOptions opt;
+  opt.param = "a";
+  opt.min = 0.01, opt.max = 8.0;
+  const ContinuationResult r = Continue(model, prop, lowest->orbit, opt);
+  EXPECT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  EXPECT_NE(Find(r, SpecialPointKind::kGrazingPi, 0.21530, 0.21532), nullptr);
+  double lo = opt.max, hi = opt.min;
+  for (const ContinuationPoint& p : r.points)
+    lo = std::min(lo, p.value), hi = std::max(hi, p.value);
+  // The bound points are solved with a at the bound, to rounding.
+  EXPECT_NEAR(lo, opt.min, 1e-15) << r.summary.message;
+  EXPECT_NEAR(hi, opt.max, 1e-14) << r.summary.message;
+  ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, "omega = 0.05, a");
+}
+
 TEST(Continuation, CallbackReceivesEveryPointAndCanCancel) {
   DO model;
   ExactPropagator prop(model);
