@@ -765,14 +765,32 @@ class CurveTracer {
     }
   }
 
+  // The requested lambda1 / lambda2 values crossed on the step y -> y1, each solved with that
+  // parameter fixed and appended to *crossings.
+  void CrossingsOnStep(const Vec& y, const Vec& y1, std::vector<CurvePoint>* crossings) const {
+    for (const int j : {m(), m() + 1}) {
+      for (double c : j == m() ? options_.crossings1 : options_.crossings2) {
+        if ((y[j] - c) * (y1[j] - c) > 0.0 || y[j] == y1[j]) continue;
+        const double w = (c - y[j]) / (y1[j] - y[j]);
+        Vec guess = y + w * (y1 - y), fixed = Vec::Zero(n()), yc;
+        guess[j] = c;
+        fixed[j] = 1.0;
+        int it = 0;
+        if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
+      }
+    }
+  }
+
   // The curve's end on the step from y (tangent t) towards yb, where the orbit is not admissible
   // (`why`, `violation`): a codimension-2 point appended to *codim2, or a Poincare-section
   // crossing (*crossing filled, the end appended to *points). Roots of the test functions on the
-  // way are appended too. Returns how the direction ended.
+  // way are appended too, and the requested crossings before the end (*crossings). Returns how
+  // the direction ended.
   std::string EndAtBoundary(const Vec& y, const Vec& t, const Vec& yb, const std::string& why,
                             const Admissibility& violation, const std::vector<Codim2Test>& tests,
                             std::vector<double>* dets, std::vector<CurvePoint>* points,
-                            std::vector<Codim2Point>* codim2, SectionCrossing* crossing) const {
+                            std::vector<CurvePoint>* crossings, std::vector<Codim2Point>* codim2,
+                            SectionCrossing* crossing) const {
     // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
     // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
     // grazing (a second boundary touched at once).
@@ -798,8 +816,11 @@ class CurveTracer {
       SolveEnd(&point);
     }
     // Roots of the test functions between the last point and the boundary (a fold- or
-    // flip-grazing root can lie next to a double grazing end).
+    // flip-grazing root can lie next to a double grazing end), and requested values crossed
+    // there (at a section crossing the curve goes on from b.ya in the rotated signature: a
+    // crossing of omega = 0.065 by a PD curve of issue 4's box, within such a step, was lost).
     RootsOnStep(y, t, b.ya, end.stability.monodromy, tests, dets, codim2);
+    CrossingsOnStep(y, b.ya, crossings);
     // And a cusp: a fold curve approaching a fold-grazing nearly at rest in the parameter plane
     // (its orbit changing while the parameters barely move) can turn just before its end. The
     // direction at the end itself is not to be trusted (below), and next to it Newton may fail
@@ -876,7 +897,8 @@ class CurveTracer {
         std::string why;
         Admissibility violation;
         if (!Admissible(Unpack(ahead), &why, &violation)) {
-          return EndAtBoundary(y, t, ahead, why, violation, tests, &dets, points, codim2, crossing);
+          return EndAtBoundary(y, t, ahead, why, violation, tests, &dets, points, crossings, codim2,
+                               crossing);
         }
       }
       return std::nullopt;
@@ -948,21 +970,10 @@ class CurveTracer {
         // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
         // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
         // grazing (a second boundary touched at once).
-        return EndAtBoundary(y, t, y1, why, violation, tests, &dets, points, codim2, crossing);
+        return EndAtBoundary(y, t, y1, why, violation, tests, &dets, points, crossings, codim2,
+                             crossing);
       }
-      // Requested lambda1 / lambda2 values crossed by this step: solve the crossing with that
-      // parameter fixed.
-      for (const int j : {m(), m() + 1}) {
-        for (double c : j == m() ? options_.crossings1 : options_.crossings2) {
-          if ((y[j] - c) * (y1[j] - c) > 0.0 || y[j] == y1[j]) continue;
-          const double w = (c - y[j]) / (y1[j] - y[j]);
-          Vec guess = y + w * (y1 - y), fixed = Vec::Zero(n()), yc;
-          guess[j] = c;
-          fixed[j] = 1.0;
-          int it = 0;
-          if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
-        }
-      }
+      CrossingsOnStep(y, y1, crossings);
       RootsOnStep(y, t, y1, p.stability.monodromy, tests, &dets, codim2);
       SetBorders(p.stability.monodromy);
       points->push_back(std::move(p));
