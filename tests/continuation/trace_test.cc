@@ -40,23 +40,30 @@ double BoxDistance(const TraceOptions& box, const Codim2Point& p, const Codim2Po
 }
 
 // Every trace here starts at the reference orbit.
+// The a-branch over [a_min, a_max] of the attractor at `omega` (the start's other parameters,
+// simulated from the start's state): independent of any trace.
+void AttractorABranch(const DO& model, Propagator& prop, const PeriodicOrbit& start, double omega,
+                      double a_min, double a_max, ContinuationResult* out) {
+  Params at = start.params;
+  at[DO::kOmega] = omega;
+  const StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model, prop, at, start.starts[0]);
+  ASSERT_TRUE(found.ok()) << found.status().ToString();
+  PeriodicOrbit attractor = *found;
+  const OrbitSolveSummary solved = SolveOrbit(model, prop, {}, &attractor);
+  ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
+  ContinuationOptions branch;
+  branch.param = "a";
+  branch.min = a_min, branch.max = a_max;
+  *out = Continue(model, prop, attractor, branch);
+}
+
 class Trace : public testing::ReferenceOrbitTest {
  protected:
   // The a-branch over [a_min, a_max] of the attractor at omega (a = 0.3 and the reference's other
   // parameters, simulated from the reference orbit's start): one-parameter points independent of
   // any trace.
   void AttractorABranch(double omega, double a_min, double a_max, ContinuationResult* out) {
-    Params at = start_.params;
-    at[DO::kOmega] = omega;
-    const StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, prop_, at, start_.starts[0]);
-    ASSERT_TRUE(found.ok()) << found.status().ToString();
-    PeriodicOrbit attractor = *found;
-    const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &attractor);
-    ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
-    ContinuationOptions branch;
-    branch.param = "a";
-    branch.min = a_min, branch.max = a_max;
-    *out = Continue(model_, prop_, attractor, branch);
+    drillbif::AttractorABranch(model_, prop_, start_, omega, a_min, a_max, out);
   }
 };
 
@@ -70,8 +77,11 @@ class TraceSteps : public testing::ReferenceOrbitTest, public ::testing::WithPar
 TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   TraceOptions opt = testing::Issue4Box();
   opt.curve.target_iterations = GetParam();
-  // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (issue 4's acceptance).
-  opt.curve.crossings1 = {start_.params[DO::kOmega]};
+  // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (issue 4's acceptance),
+  // and of the lines of the completeness check below.
+  const std::vector<double> lines = {0.065, 0.075, 0.085, 0.12, 0.2};
+  opt.curve.crossings1 = lines;
+  opt.curve.crossings1.push_back(start_.params[DO::kOmega]);
   opt.curve.crossings2 = {start_.params[DO::kA]};
   const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
@@ -165,7 +175,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     std::vector<double> at_omega;
     for (const CurvePoint& x : c.curve.crossings) {
       const bool on_omega_line = x.value1 == start_.params[DO::kOmega];
-      ASSERT_TRUE(on_omega_line || x.value2 == start_.params[DO::kA]);
+      if (!on_omega_line && x.value2 != start_.params[DO::kA]) continue;  // a completeness line
       const double v = on_omega_line ? x.value2 : x.value1;
       double best = 1e300;
       for (const SpecialPoint& s : located[on_omega_line]) {
@@ -194,6 +204,40 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   // (0.0683, 0.0629, 0.0581) and the a-branch's at a = 0.5387.
   EXPECT_GE(corner_crossings, 4);
   RecordProperty("corner_crossings", corner_crossings);
+
+  // Completeness (issue 4: every curve in the box): the a-branches of the attractors at
+  // omega = 0.065, 0.075, 0.085, 0.12 and 0.2, continued here independently of the trace over the
+  // box, locate ~257 folds, PDs and grazings (the branches snake below omega = 0.09, one more
+  // contact phase per turn); each is crossed by a traced curve of its kind there, to 1e-7 (both
+  // solved to ~1e-10). Without the edge branches 51 were not (28 / 16 / 7 at 0.065 / 0.075 /
+  // 0.085); then a crossing inside a step that ends at a section crossing was not recorded (3),
+  // and the fourth grazing curve through a double grazing was not switched onto (1).
+  int checked = 0;
+  for (const double w : lines) {
+    ContinuationResult branch;
+    ASSERT_NO_FATAL_FAILURE(
+        AttractorABranch(model_, prop_, start_, w, opt.min2, opt.max2, &branch));
+    EXPECT_EQ(branch.summary.termination, Termination::kCompleted) << branch.summary.message;
+    for (const SpecialPoint& s : branch.special_points) {
+      if (s.kind != SpecialPointKind::kFold && s.kind != SpecialPointKind::kPeriodDoubling &&
+          s.kind != SpecialPointKind::kGrazingL1 && s.kind != SpecialPointKind::kGrazingL2 &&
+          s.kind != SpecialPointKind::kGrazingPi) {
+        continue;
+      }
+      ++checked;
+      double best = 1e300;
+      for (const TracedCurve& c : r.curves) {
+        if (IsCornerCurve(c.curve) || !same_kind(c.curve, s.kind)) continue;
+        for (const CurvePoint& x : c.curve.crossings) {
+          if (x.value1 == w) best = std::min(best, std::abs(x.value2 - s.point.value));
+        }
+      }
+      EXPECT_LE(best, 1e-7) << SpecialPointKindName(s.kind) << " at omega = " << w
+                            << ", a = " << s.point.value << " on no traced curve";
+    }
+  }
+  EXPECT_GE(checked, 200);
+  RecordProperty("completeness_points", checked);
 
   // Switching at codimension-2 points: a fold / PD curve leaving a FOLD_GRAZING / FLIP_GRAZING
   // root of a grazing curve ends back at that point (its orbit grazes there), and both defining

@@ -153,11 +153,17 @@ StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit, int segme
 }
 
 StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propagator,
-                                     const PeriodicOrbit& tangent_orbit, int* new_segment) {
+                                     const PeriodicOrbit& tangent_orbit, int* new_segment,
+                                     int segment) {
   const auto& segs = tangent_orbit.signature.segments;
-  const int j = static_cast<int>(
-      std::find_if(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; }) -
-      segs.begin());
+  const int j =
+      segment >= 0 ? segment
+                   : static_cast<int>(std::find_if(segs.begin(), segs.end(),
+                                                   [](const SegmentSpec& s) { return s.tangent; }) -
+                                      segs.begin());
+  if (j >= static_cast<int>(segs.size()) || !segs[j].tangent) {
+    return InvalidArgument("no tangent segment " + std::to_string(j));
+  }
   StatusOr<PeriodicOrbit> merged = MergedForm(tangent_orbit, j);
   if (!merged.ok()) return merged.status();
   Admissibility touch;

@@ -54,14 +54,16 @@ int CornerSegment(const HybridModel& model, const PeriodicOrbit& orbit);
 // INVALID_ARGUMENT without such a tangent segment.
 StatusOr<PeriodicOrbit> MergedForm(const PeriodicOrbit& tangent_orbit, int segment = -1);
 
-// The orbit beyond its (first) touch on the side where the touch has become a crossing: the
-// tangent end crosses its guard into a zero-length segment of the mode across it, after which the
-// tangent segment's mode goes on (SwitchSignature's split of the merged orbit at the touch).
-// *new_segment is set to the zero-length segment's index. At a codimension-2 root of a grazing
-// curve the fold / PD curve of this signature ends from that side, MergedForm's from the other.
-// INVALID_ARGUMENT without a tangent segment followed by one of its mode.
+// The orbit beyond its (first, or the one at segment `segment`) touch on the side where the touch
+// has become a crossing: the tangent end crosses its guard into a zero-length segment of the mode
+// across it, after which the tangent segment's mode goes on (SwitchSignature's split of the merged
+// orbit at the touch); other tangent ends stay. *new_segment is set to the zero-length segment's
+// index. At a codimension-2 root of a grazing curve the fold / PD curve of this signature ends
+// from that side, MergedForm's from the other; at a double grazing, the grazing curve of the other
+// touch. INVALID_ARGUMENT without a tangent segment followed by one of its mode.
 StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propagator,
-                                     const PeriodicOrbit& tangent_orbit, int* new_segment);
+                                     const PeriodicOrbit& tangent_orbit, int* new_segment,
+                                     int segment = -1);
 
 // h' at the end of the orbit's tangent segment (the guard's rate where it touches zero); the
 // first tangent segment when there are several. NaN when the orbit has none.

@@ -202,12 +202,22 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         // merging it away leaves the corner, whose grazing curve starts there.)
         const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
         if (point.bracket != 0.0) continue;
+        // And the grazing curve of each touch beyond the other's boundary, where that touch
+        // has become a crossing (CrossingForm, stepped off as at a root of a grazing curve): the
+        // fourth half-curve through the point. (Issue 4's box: a grazing curve between two double
+        // grazings near (0.065, 0.166), which the a-branch at omega = 0.065 crosses, met neither
+        // other way.)
         for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
           if (!segs[j].tangent) continue;
           StatusOr<PeriodicOrbit> single = internal::MergedForm(point.point.orbit, j);
           if (!single.ok()) continue;
           const SpecialPointKind k = GrazingKind(model, *single);
           candidates.push_back({std::move(single), k, CurveKind::kGrazing});
+          int inserted = -1;
+          StatusOr<PeriodicOrbit> crossed =
+              internal::CrossingForm(model, propagator, point.point.orbit, &inserted, j);
+          if (crossed.ok())
+            candidates.push_back({std::move(crossed), k, CurveKind::kGrazing, inserted});
         }
       } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
         continue;
