@@ -209,9 +209,10 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   // omega = 0.065, 0.075, 0.085, 0.12 and 0.2, continued here independently of the trace over the
   // box, locate ~257 folds, PDs and grazings (the branches snake below omega = 0.09, one more
   // contact phase per turn); each is crossed by a traced curve of its kind there, to 1e-7 (both
-  // solved to ~1e-10). Without the edge branches 51 were not (28 / 16 / 7 at 0.065 / 0.075 /
-  // 0.085); then a crossing inside a step that ends at a section crossing was not recorded (3),
-  // and the fourth grazing curve through a double grazing was not switched onto (1).
+  // solved to ~1e-10). Before the edge branches 51 were not (28 / 16 / 7 at 0.065 / 0.075 /
+  // 0.085); with them, a crossing inside a step that ends at a section crossing was not recorded
+  // (3), and the fourth grazing curve through a double grazing was not switched onto (1). With
+  // all but the edge branches, 5 are not (longer steps).
   int checked = 0;
   for (const double w : lines) {
     ContinuationResult branch;

@@ -128,11 +128,12 @@ SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tang
 
 // What switching at codimension-2 points added and could not do, over all its rounds.
 struct SwitchTally {
-  int added = 0;        // curves
-  int wide = 0;         // ends located only to a bracket > 1e-6
-  int no_form = 0;      // ends whose grazing has no tangent form
-  int no_step_off = 0;  // roots where no inserted segment length gave an admissible orbit
-  bool capped = false;  // max_switched_curves reached
+  int added = 0;                // curves
+  int wide = 0;                 // ends located only to a bracket > 1e-6
+  int no_form = 0;              // ends whose grazing has no tangent form
+  int no_step_off = 0;          // roots where no inserted segment length gave an admissible orbit
+  int no_step_off_grazing = 0;  // likewise at double grazings
+  bool capped = false;          // max_switched_curves reached
 };
 
 // The notes for what switching could not do.
@@ -151,15 +152,17 @@ void TallyNotes(const SwitchTally& t, TraceSummary* sum) {
         "within 1e-6 of vanishing between two of one mode, no guard within 1e-6 of touching "
         "inside a segment)");
   }
-  if (t.no_step_off > 0) {
+  if (t.no_step_off + t.no_step_off_grazing > 0) {
     std::string lengths;
     for (const double l : internal::kStepOffLengths) {
       lengths += (lengths.empty() ? "" : ", ") + internal::FormatNumber(l, 1);
     }
-    sum->notes.push_back(std::to_string(t.no_step_off) +
-                         " fold / PD curves not started at codimension-2 roots of grazing "
-                         "curves: no admissible orbit with the inserted segment " +
-                         lengths + " long");
+    sum->notes.push_back(
+        "curves not started where no admissible orbit has the inserted segment " + lengths +
+        " long: " + std::to_string(t.no_step_off) +
+        " fold / PD curves at roots of grazing curves, " + std::to_string(t.no_step_off_grazing) +
+        " grazing curves beyond a double grazing's other boundary (not told apart from double "
+        "grazings past which the touch's curve does not go on)");
   }
 }
 
@@ -336,7 +339,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
             off = Status(StatusCode::kInternal, "");
           }
           if (!off.ok()) {
-            ++tally->no_step_off;
+            ++(kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
             continue;
           }
           seed.point.orbit = *std::move(off);
