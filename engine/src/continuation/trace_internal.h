@@ -31,6 +31,30 @@ bool IsGrazing(SpecialPointKind kind);
 // "" for period 1, else "period-n " (for notes).
 std::string PeriodPrefix(int periods);
 
+// What switching at codimension-2 points added and could not do, over all its rounds.
+struct SwitchTally {
+  int added = 0;                // curves
+  int wide = 0;                 // ends located only to a bracket > 1e-6
+  int no_form = 0;              // ends whose grazing has no tangent form
+  int no_step_off = 0;          // roots where no inserted segment length gave an admissible orbit
+  int no_step_off_grazing = 0;  // likewise at double grazings
+  bool capped = false;          // max_switched_curves reached
+};
+
+// The notes for what switching could not do.
+void TallyNotes(const SwitchTally& t, TraceSummary* sum);
+
+// A grazing start kind named after the surface of the tangent segment's guard (or of a corner's
+// second event).
+SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tangent_orbit);
+
+// The curves that leave the codimension-2 points of the traced curves from first_curve on
+// (TraceOptions::switch_at_codim2), appended to result->curves until none is new or the cap is
+// reached; *tally accumulates over calls. False when cancelled.
+bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const TraceOptions& options,
+                    const std::function<bool(double)>& report, size_t first_curve,
+                    SwitchTally* tally, TraceResult* result);
+
 // The period-2n grazing curves that leave the period-n curves' FLIP_GRAZING points, for
 // 2n <= TraceOptions::max_period (with switch_at_codim2), appended to result->curves; the
 // flip-grazings of the curves it adds are visited too; those of the curves before first_curve

@@ -1,0 +1,258 @@
+// Switching at codimension-2 points: the curves that leave the codimension-2 points found on the
+// traced curves (TraceOptions::switch_at_codim2; continuation/trace_internal.h).
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/format.h"
+#include "continuation/grazing_end.h"
+#include "continuation/signature_switch.h"
+#include "continuation/tangent_grazing.h"
+#include "continuation/trace_internal.h"
+
+namespace drillbif::internal {
+
+SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tangent_orbit) {
+  const std::vector<SegmentSpec>& segs = tangent_orbit.signature.segments;
+  const int corner = CornerSegment(model, tangent_orbit);
+  for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
+    // A touch's surface, or a corner's second event's (e.g. l1 where an impact goes straight
+    // into progression).
+    if (!segs[j].tangent && j != corner) continue;
+    const std::string& surface = model.guards(segs[j].mode)[segs[j].guard].surface;
+    if (surface == "l1") return SpecialPointKind::kGrazingL1;
+    if (surface == "l2") return SpecialPointKind::kGrazingL2;
+    return SpecialPointKind::kGrazingPi;
+  }
+  return SpecialPointKind::kGrazingPi;
+}
+
+void TallyNotes(const SwitchTally& t, TraceSummary* sum) {
+  if (t.capped) {
+    sum->notes.push_back("switching stopped after " + std::to_string(t.added) +
+                         " curves (max_switched_curves)");
+  }
+  if (t.wide + t.no_form > 0) {
+    sum->notes.push_back(
+        std::to_string(t.wide + t.no_form) +
+        " codimension-2 points at curve ends not switched at: " + std::to_string(t.wide) +
+        " located only to a bracket > 1e-6, " + std::to_string(t.no_form) +
+        " where the end's grazing has no tangent form (a corner, two events at one point such "
+        "as an impact straight into progression, whose curve is not traced; or no segment "
+        "within 1e-6 of vanishing between two of one mode, no guard within 1e-6 of touching "
+        "inside a segment)");
+  }
+  if (t.no_step_off + t.no_step_off_grazing > 0) {
+    std::string lengths;
+    for (const double l : kStepOffLengths) {
+      lengths += (lengths.empty() ? "" : ", ") + FormatNumber(l, 1);
+    }
+    sum->notes.push_back(
+        "curves not started where no admissible orbit has the inserted segment " + lengths +
+        " long: " + std::to_string(t.no_step_off) +
+        " fold / PD curves at roots of grazing curves, " + std::to_string(t.no_step_off_grazing) +
+        " grazing curves beyond a double grazing's other boundary (not told apart from double "
+        "grazings past which the touch's curve does not go on)");
+  }
+}
+
+bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const TraceOptions& options,
+                    const std::function<bool(double)>& report, size_t first_curve,
+                    SwitchTally* tally, TraceResult* result) {
+  TraceSummary& sum = result->summary;
+  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const int i1 = model.ParamIndex(options.param1).value();
+  const int i2 = model.ParamIndex(options.param2).value();
+  CurveOptions co = options.curve;
+  co.param1 = options.param1, co.min1 = options.min1, co.max1 = options.max1;
+  co.param2 = options.param2, co.min2 = options.min2, co.max2 = options.max2;
+  int& added = tally->added;
+  // result->curves grows while it is walked: index, not iterator.
+  for (size_t c = first_curve; c < result->curves.size(); ++c) {
+    for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
+      if (!report(0.99)) return false;
+      // Copies: result->curves grows below (references into it would dangle).
+      const CurveKind from_kind = result->curves[c].curve.kind;
+      const Codim2Point point = result->curves[c].curve.codim2[q];
+      const bool fold = point.kind == Codim2Kind::kFoldGrazing;
+      // The curves to try from this point: each start orbit, the kind of its point and curve.
+      struct Candidate {
+        StatusOr<PeriodicOrbit> orbit;
+        SpecialPointKind seed_kind;
+        CurveKind kind;
+        int step_off = -1;  // a zero-length segment of `orbit` to step off from (CrossingForm)
+      };
+      std::vector<Candidate> candidates;
+      if (from_kind == CurveKind::kGrazing && point.kind == Codim2Kind::kDoubleGrazing) {
+        // A grazing curve's end solved with both touches as tangent ends: the grazing curve of
+        // each touch alone (the other tangent end merged away) passes; one of them is usually the
+        // curve it came from (known, below), the other the second boundary's (or the first
+        // touch's in the signature beyond the second boundary).
+        // (An end solved with a zero-length segment for its second grazing has one tangent end:
+        // merging it away leaves the corner, whose grazing curve starts there.)
+        const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
+        if (point.bracket != 0.0) continue;
+        // And the grazing curve of each touch beyond the other's boundary, where that touch
+        // has become a crossing (CrossingForm, stepped off as at a root of a grazing curve): the
+        // fourth half-curve through the point. (Issue 4's box: a grazing curve between two double
+        // grazings near (0.065, 0.166), which the a-branch at omega = 0.065 crosses, met neither
+        // other way.)
+        for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
+          if (!segs[j].tangent) continue;
+          StatusOr<PeriodicOrbit> single = MergedForm(point.point.orbit, j);
+          if (!single.ok()) continue;
+          const SpecialPointKind k = GrazingKind(model, *single);
+          candidates.push_back({std::move(single), k, CurveKind::kGrazing});
+          int inserted = -1;
+          StatusOr<PeriodicOrbit> crossed =
+              CrossingForm(model, propagator, point.point.orbit, &inserted, j);
+          if (crossed.ok())
+            candidates.push_back({std::move(crossed), k, CurveKind::kGrazing, inserted});
+        }
+      } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
+        continue;
+      } else if (from_kind == CurveKind::kGrazing && point.bracket == 0.0) {
+        // A root along a grazing curve: the orbit without the vanishing segment folds / doubles,
+        // and so does the orbit with it, whose curve ends here from the side where the touch has
+        // become a crossing (started from a point off the root, the segment's length stepped off
+        // from zero). Either may be known, traced from its other end; the second was not tried
+        // before, and issue 4's box then lacked 174 curves (a PD curve between two
+        // flip-grazings, next to a hairpin of another PD curve of its signature, was found only
+        // where longer steps jumped onto it).
+        const SpecialPointKind seed =
+            fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
+        const CurveKind kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
+        candidates.push_back({MergedForm(point.point.orbit), seed, kind});
+        int inserted = -1;
+        StatusOr<PeriodicOrbit> crossing =
+            CrossingForm(model, propagator, point.point.orbit, &inserted);
+        candidates.push_back({std::move(crossing), seed, kind, inserted});
+      } else if (from_kind != CurveKind::kGrazing) {
+        // A fold / PD curve's end where its orbit grazes: the grazing curve through it. An end
+        // solved in tangent form is its start as it is; else the tangent form at the segment the
+        // violation beyond the end says vanishes (between two of one mode), else the form found
+        // from the orbit alone.
+        const Admissibility& beyond = point.violation;
+        const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
+        const int i = beyond.segment;
+        StatusOr<PeriodicOrbit> tangent = Status(StatusCode::kUnimplemented, "");
+        const bool has_tangent =
+            std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; });
+        if (has_tangent) {
+          tangent = point.point.orbit;
+        } else if (point.bracket == 0.0) {
+          // Solved with a zero-length segment: the grazing curve of that corner (two events held
+          // at one point) starts from it as it is.
+          tangent = point.point.orbit;
+        } else if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
+                   i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
+          tangent = TangentForm(point.point.orbit, i);
+        }
+        if (!tangent.ok()) {
+          tangent = GrazingTangentForm(model, propagator, point.point.orbit);
+        }
+        const SpecialPointKind k =
+            tangent.ok() ? GrazingKind(model, *tangent) : SpecialPointKind::kGrazingPi;
+        candidates.push_back({std::move(tangent), k, CurveKind::kGrazing});
+        // An end solved with a zero-length segment between events of two surfaces (a corner: a
+        // contact phase between an impact and progression vanishing, the impact going straight
+        // into progression) is no end of the fold / PD curve itself: past the corner its orbit
+        // goes on without that segment, as a one-parameter branch does through such a
+        // SIGNATURE_CHANGE, and so does the curve. (Issue 4's box: the PD curve through
+        // (omega, a) = (0.1, 0.45763) ended at such a corner at omega = 0.0931, and its
+        // continuation in the signature NC>Pi CwP>l1 CwoP>l2 NC, which the a-branches at
+        // omega = 0.065 .. 0.085 cross, was never traced.)
+        const bool fold_or_pd =
+            from_kind == CurveKind::kFold || from_kind == CurveKind::kPeriodDoubling;
+        if (fold_or_pd && !has_tangent && point.bracket == 0.0 && beyond.guard < 0 && i >= 0 &&
+            i < static_cast<int>(segs.size())) {
+          const SwitchedOrbit past = SwitchSignature(model, propagator, point.point.orbit, beyond);
+          if (past.new_segment < 0 && !past.representation_only &&
+              past.orbit.signature != point.point.orbit.signature) {
+            candidates.push_back({past.orbit,
+                                  from_kind == CurveKind::kFold ? SpecialPointKind::kFold
+                                                                : SpecialPointKind::kPeriodDoubling,
+                                  from_kind});
+          }
+        }
+      } else {
+        continue;  // a bracketed root on a grazing curve
+      }
+      for (Candidate& candidate : candidates) {
+        const StatusOr<PeriodicOrbit>& orbit = candidate.orbit;
+        const CurveKind kind = candidate.kind;
+        if (!orbit.ok()) {
+          ++(point.bracket > 1e-6 ? tally->wide : tally->no_form);
+          continue;
+        }
+        const Signature& curve_signature = orbit->signature;
+        SpecialPoint seed;
+        seed.kind = candidate.seed_kind;
+        seed.point.value = point.point.value1;
+        const double u = orbit->params[i1], v = orbit->params[i2];
+        // Known: on a traced curve of the same kind and signature, by its polyline or by one of
+        // its codimension-2 points (which lie between its vertices, off the chords by up to the
+        // chord error). The signature tells curves through one point apart: at a fold-grazing the
+        // fold curves of the orbits with and without the vanishing segment both pass, at a double
+        // grazing the grazing curves of either touch. (Grazing candidates compared by kind only
+        // were hidden by a grazing curve ending at a double grazing 4.5e-7 away.)
+        const bool known =
+            std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+              // A curve's signature rotates where it crosses the Poincare section: any of its
+              // points' signatures counts.
+              if (t.curve.kind != kind || t.curve.points.empty() ||
+                  std::none_of(
+                      t.curve.points.begin(), t.curve.points.end(),
+                      [&](const CurvePoint& p) { return p.orbit.signature == curve_signature; })) {
+                return false;
+              }
+              if (OnCurve(t.curve, u, v, w1, w2, options.duplicate_distance)) return true;
+              return std::any_of(
+                  t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
+                    return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
+                           options.duplicate_distance;
+                  });
+            });
+        if (known) continue;
+        seed.point.orbit = *orbit;
+        if (candidate.step_off >= 0) {
+          // The same lengths as a one-parameter branch's step off an inserted segment.
+          StatusOr<PeriodicOrbit> off = Status(StatusCode::kInternal, "");
+          for (const double length : kStepOffLengths) {
+            off = SolveSegmentLength(model, propagator, *orbit, candidate.step_off, length, kind,
+                                     i1, i2);
+            if (off.ok() && CheckAdmissible(model, propagator, *off).admissible) break;
+            off = Status(StatusCode::kInternal, "");
+          }
+          if (!off.ok()) {
+            ++(kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
+            continue;
+          }
+          seed.point.orbit = *std::move(off);
+        }
+        seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
+        if (added == options.max_switched_curves) {
+          tally->capped = true;
+          return true;
+        }
+        CurveResult curve = ContinueCurve(model, propagator, seed, co);
+        const std::string where = std::string(Codim2KindName(point.kind)) + " at " +
+                                  options.param1 + " = " + std::to_string(u) + ", " +
+                                  options.param2 + " = " + std::to_string(v);
+        if (curve.summary.termination == Termination::kFailed) {
+          sum.notes.push_back(where + ": the " + CurveKindName(kind) +
+                              " curve leaving it not traced: " + curve.summary.message);
+          continue;
+        }
+        result->curves.push_back(
+            {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
+        ++added;
+      }
+    }
+  }
+  return true;
+}
+
+}  // namespace drillbif::internal
