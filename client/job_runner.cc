@@ -330,6 +330,7 @@ void ToProto(const ContinuationPoint& in, v1::BranchPoint* out) {
   out->set_period(in.period);
   ToProto(in.stability, out->mutable_multipliers());
   out->set_structural_zeros(in.stability.structural_zeros);
+  out->set_structural_ones(in.stability.structural_ones);
   out->set_stable(in.stability.stable);
   ToProto(in.orbit.signature, out->mutable_signature());
   out->set_signature_text(SignatureString(model, in.orbit.signature));

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <complex>
 
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/flow/exact_propagator.h"
@@ -95,6 +96,64 @@ TEST(PeriodicOrbit, MonodromyMatchesFiniteDifferencesOfThePoincareMap) {
       }
     }
   }
+}
+
+// A pure-contact orbit ("CwoP|": the bit on the slider all period, no progression): the contact
+// constraint c = p - q - g keeps its value along the contact flow (p' = q' = y), so the monodromy
+// has the multiplier 1 with left eigenvector grad c = (1, 0, -1), a direction off the surface the
+// motion never takes. It is set apart (structural_ones); the others are those of the damped
+// oscillator the contact motion is, q'' + 2 xi q' + q = a cos s + b: exp(T (-xi +- i
+// sqrt(1 - xi^2))), T = 2 pi / omega (closed form). Before, the 1 came out at 1 +- 1e-15 and
+// decided `stable` by rounding. An orbit that leaves contact has no such multiplier.
+TEST(PeriodicOrbit, PureContactOrbitSetsTheConstraintsUnitMultiplierApart) {
+  DO model;
+  ExactPropagator prop(model);
+  Params params = testing::ReferenceParams();
+  params[DO::kOmega] = 0.42, params[DO::kA] = 0.02;
+  const PeriodicOrbit orbit = SolvedOrbit(model, prop, params);
+  ASSERT_EQ(SignatureString(model, orbit.signature), "CwoP|");
+  const Stability st = OrbitStability(model, prop, orbit);
+  EXPECT_EQ(st.structural_ones, 1);
+  ASSERT_EQ(st.monodromy.rows(), 3);  // p, y, q (the phase left out)
+  const Eigen::RowVector3d grad(1.0, 0.0, -1.0);
+  // Entries of M are O(1) here; rounding of the closed-form flow leaves ~1e-15.
+  EXPECT_LE((grad * st.monodromy - grad).norm(), 1e-12);
+  const double xi = params[DO::kXi], period = 2.0 * M_PI / params[DO::kOmega];
+  const std::complex<double> expected =
+      std::exp(period * std::complex<double>(-xi, std::sqrt(1.0 - xi * xi)));
+  ASSERT_EQ(st.multipliers.size(), 2u);
+  for (const std::complex<double>& mu : st.multipliers) {
+    EXPECT_NEAR(std::abs(mu - (mu.imag() > 0.0 ? expected : std::conj(expected))), 0.0, 1e-12);
+  }
+  EXPECT_TRUE(st.stable);
+  EXPECT_EQ(OrbitStability(model, prop, SolvedOrbit(model, prop, testing::ReferenceParams()))
+                .structural_ones,
+            0);
+}
+
+// Signatures that differ only in where the section cuts the orbit (an event crossing s = 0):
+// the same cyclic sequence of segments.
+TEST(Signature, SameUpToSectionComparesTheCycleOfSegments) {
+  DO model;
+  ExactPropagator prop(model);
+  Params params = testing::ReferenceParams();
+  params[DO::kOmega] = 1.0, params[DO::kA] = 0.1;
+  const Signature nc = SolvedOrbit(model, prop, params).signature;
+  ASSERT_EQ(SignatureString(model, nc), "NC>Pi CwoP>l2 NC|");
+  Signature rotated = nc;  // CwoP>l2 NC>Pi CwoP|
+  rotated.segments = {nc.segments[1], nc.segments[0], {nc.segments[1].mode, -1}};
+  EXPECT_TRUE(SameUpToSection(nc, rotated));
+  EXPECT_TRUE(SameUpToSection(rotated, nc));
+  EXPECT_FALSE(nc == rotated);
+  Signature doubled = rotated;
+  doubled.periods = 2;
+  EXPECT_FALSE(SameUpToSection(nc, doubled));
+  const Signature reference = SolvedOrbit(model, prop, testing::ReferenceParams()).signature;
+  EXPECT_FALSE(SameUpToSection(nc, reference));
+  Signature open = nc;  // last and first modes differ: no cut segment
+  open.segments.back().mode = nc.segments[1].mode;
+  EXPECT_FALSE(SameUpToSection(open, rotated));
+  EXPECT_TRUE(SameUpToSection(open, open));
 }
 
 TEST(PeriodicOrbit, StartNotNearAPeriodicOrbitIsAClearError) {

@@ -326,6 +326,40 @@ TEST(RobustOptimum, InvalidMarginsNameTheField) {
   }
 }
 
+// Where an event crosses the Poincare section inside the region, the same orbit's signature
+// rotates ("NC>Pi CwoP>l2 NC|" <-> "CwoP>l2 NC>Pi CwoP|"): one label, no seam. Below the l2
+// grazing curve the bit stays in contact ("CwoP|"), stable once the contact constraint's unit
+// multiplier is set apart (before, rounding decided: nodes of that orbit were in or out at
+// random). In omega in [1.3, 1.42], a in [0.09, 0.17] (spacing 0.01), from the attractor at
+// (1.36, 0.15): two labels, and every boundary edge is crossed by the traced l2 grazing curve
+// (in issue 4's box the seams were 205 of 863 boundary edges, none on a traced curve).
+TEST(StabilityRegion, OneLabelPerOrbitWhereTheSectionCutsItElsewhere) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  Params at = testing::ReferenceParams();
+  at[DriftingOscillator::kOmega] = 1.36, at[DriftingOscillator::kA] = 0.15;
+  const StatusOr<PeriodicOrbit> start = testing::SolvedOrbitFromRest(model, prop, at);
+  ASSERT_TRUE(start.ok()) << start.status().ToString();
+  TraceOptions box;
+  box.param1 = std::string("omega"), box.param2 = std::string("a");
+  box.min1 = 1.3, box.max1 = 1.42, box.min2 = 0.09, box.max2 = 0.17;
+  const TraceResult trace = TraceCurves(model, prop, *start, box);
+  ASSERT_TRUE(trace.summary.status.ok()) << trace.summary.status.ToString();
+  RegionOptions ro;
+  ro.param1 = box.param1, ro.param2 = box.param2;
+  ro.min1 = box.min1, ro.max1 = box.max1, ro.min2 = box.min2, ro.max2 = box.max2;
+  ro.n1 = 13, ro.n2 = 9;
+  const StabilityRegion region =
+      ComputeStabilityRegion(model, prop, *start, RegionCurvesOf(trace.curves), ro);
+  ASSERT_TRUE(region.summary.status.ok()) << region.summary.status.ToString();
+  std::vector<std::string> names;
+  for (const Signature& s : region.signatures) names.push_back(SignatureString(model, s));
+  ASSERT_EQ(names.size(), 2u) << region.summary.message;
+  EXPECT_NE(std::find(names.begin(), names.end(), "CwoP|"), names.end());
+  EXPECT_GT(region.summary.boundary_edges, 0);
+  EXPECT_EQ(region.summary.untraced_edges, 0) << region.summary.message;
+}
+
 TEST(StabilityRegion, BadRequestsAreClearErrors) {
   DriftingOscillator model;
   ExactPropagator prop(model);

@@ -86,8 +86,29 @@ Stability OrbitStability(const HybridModel& model, Propagator& propagator,
   st.monodromy =
       internal::ReducedMonodromy(model, internal::MonodromyFactors(model, propagator, orbit));
   const Eigen::VectorXcd mu = st.monodromy.eigenvalues();
+  // On a constraint surface throughout: the multiplier nearest 1 is the constraint's (within
+  // 1e-9 of 1: the flows keep the constraint's value to rounding, ~1e-15 measured).
+  bool confined = true;
+  for (size_t i = 0; i < orbit.durations.size() && confined; ++i) {
+    double c = 0.0;
+    StateRow grad;
+    ParamVector param_grad;
+    confined = model.ModeConstraint(orbit.signature.segments[i].mode, orbit.starts[i], orbit.params,
+                                    &c, &grad, &param_grad);
+  }
+  int unit = -1;
+  if (confined) {
+    for (int i = 0; i < mu.size(); ++i) {
+      if (std::abs(mu[i] - 1.0) <= 1e-9 &&
+          (unit < 0 || std::abs(mu[i] - 1.0) < std::abs(mu[unit] - 1.0))) {
+        unit = i;
+      }
+    }
+  }
+  st.structural_ones = unit >= 0 ? 1 : 0;
   st.stable = true;
   for (int i = 0; i < mu.size(); ++i) {
+    if (i == unit) continue;
     // Structural zeros: the contact manifold's normal direction and fully decayed components;
     // rounding leaves them at ~1e-16 times the monodromy's norm.
     if (std::abs(mu[i]) <= 1e-12 * std::max(1.0, st.monodromy.norm())) {

@@ -19,6 +19,24 @@ std::vector<std::string> SignatureModes(const HybridModel& model, const Signatur
   return modes;
 }
 
+bool SameUpToSection(const Signature& a, const Signature& b) {
+  if (a == b) return true;
+  if (a.periods != b.periods || a.segments.size() != b.segments.size()) return false;
+  const size_t k = a.segments.size();
+  auto cut = [](const Signature& s) { return s.segments.front().mode == s.segments.back().mode; };
+  if (!cut(a) || !cut(b)) return false;
+  if (k == 1) return a.segments[0].mode == b.segments[0].mode;
+  // The cycle: segments 0 .. k-2, each with the event that ends it (the last segment is the
+  // first's beginning, cut off by the section).
+  const size_t n = k - 1;
+  for (size_t shift = 0; shift < n; ++shift) {
+    bool same = true;
+    for (size_t i = 0; i < n && same; ++i) same = a.segments[i] == b.segments[(i + shift) % n];
+    if (same) return true;
+  }
+  return false;
+}
+
 Status ValidateSignature(const HybridModel& model, const Signature& signature) {
   if (signature.periods < 1) return InvalidArgument("signature periods must be >= 1");
   if (signature.segments.empty()) return InvalidArgument("signature has no segment");

@@ -206,9 +206,12 @@ class RegionBuilder {
     queue->push_back(node);
   }
 
+  // One label per orbit: signatures that differ only in where the section cuts the orbit (an
+  // event crossing s = 0 inside the region) share it, else the seam would count as a boundary
+  // (issue 4's box: 205 of 863 boundary edges, none on a traced curve, were such seams).
   int LabelOf(const Signature& signature) {
     for (size_t k = 0; k < region_.signatures.size(); ++k) {
-      if (region_.signatures[k] == signature) return static_cast<int>(k);
+      if (SameUpToSection(region_.signatures[k], signature)) return static_cast<int>(k);
     }
     region_.signatures.push_back(signature);
     return static_cast<int>(region_.signatures.size()) - 1;

@@ -43,8 +43,15 @@ struct PeriodicOrbit {
 struct Stability {
   std::vector<std::complex<double>> multipliers;  // nontrivial, by decreasing modulus
   int structural_zeros = 0;                       // multipliers zero to rounding, removed
-  bool stable = false;                            // every nontrivial |mu| < 1
-  Eigen::MatrixXd monodromy;                      // d z(T) / d z(0), state without phase
+  // An orbit that stays on a mode constraint's surface throughout (every segment in a mode with a
+  // ModeConstraint: the drifting oscillator's pure-contact orbits, "CwoP|") carries the
+  // constraint's value unchanged, so its monodromy has the multiplier 1 exactly, with the
+  // constraint's gradient as left eigenvector: a direction off the surface the motion never
+  // takes. It is removed (1 here) and does not count for stability; rounding put it at
+  // 1 +- 1e-15, and such orbits were called stable or not by that noise.
+  int structural_ones = 0;
+  bool stable = false;        // every nontrivial |mu| < 1
+  Eigen::MatrixXd monodromy;  // d z(T) / d z(0), state without phase
 };
 
 // Why an orbit is not admissible, if it is not.

@@ -38,6 +38,12 @@ struct Signature {
 std::string SignatureString(const HybridModel& model, const Signature& signature);
 // The modes of the segments, in order ("NC", "CwoP", ...).
 std::vector<std::string> SignatureModes(const HybridModel& model, const Signature& signature);
+// Whether two signatures describe one cyclic sequence of segments and differ only in where the
+// Poincare section s = 0 cuts it (where an event crosses the section the signature rotates:
+// "NC>Pi CwoP>l2 NC|" and "CwoP>l2 NC>Pi CwoP|"). The segment the section cuts is the first and
+// the last, of one mode; a signature whose last and first modes differ matches itself only.
+bool SameUpToSection(const Signature& a, const Signature& b);
+
 // INVALID_ARGUMENT unless the signature is well formed for the model (mode and guard indices,
 // only the last segment ending at the section, periods >= 1).
 Status ValidateSignature(const HybridModel& model, const Signature& signature);
