@@ -82,7 +82,8 @@ StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator
 // `free` (one or two); c = conditions(orbit) has free.size() components, so the system is square.
 // G's Jacobian is exact, c's rows central differences (step 1e-6 (1 + |y_j|): truncation and
 // rounding both ~1e-12 for O(1) conditions; they only steer Newton, the residual is exact).
-// Stops at a scaled step <= tolerance; INTERNAL when Newton fails (`what` names the system).
+// Stops at a scaled step <= tolerance; INTERNAL when Newton fails or stagnates (no tenfold
+// shrinking of the step over 8 iterations, after 16) (`what` names the system).
 StatusOr<PeriodicOrbit> SolveWithConditions(
     const HybridModel& model, Propagator& propagator, const PeriodicOrbit& guess,
     const std::vector<int>& free,
