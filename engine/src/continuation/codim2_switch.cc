@@ -108,8 +108,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
           int inserted = -1;
           StatusOr<PeriodicOrbit> crossed =
               CrossingForm(model, propagator, point.point.orbit, &inserted, j);
-          if (crossed.ok())
+          if (crossed.ok()) {
             candidates.push_back({std::move(crossed), k, CurveKind::kGrazing, inserted});
+          }
         }
       } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
         continue;

@@ -182,9 +182,9 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     } else if (r.summary.termination == Termination::kFailed) {
       // An edge branch searches for more curves; where it stops, the curves crossing the edge
       // beyond are found only if another edge branch or switching reaches them (in issue 4's
-      // box the two that stop, inserting a contact phase where an impact appears inside a free
-      // flight at omega = 0.05, a = 0.2153, run on a branch a third crosses there from the
-      // other side). Not a failure of the curves asked for.
+      // box one period-2 edge branch stops with max_period 2; two period-1 ones did at
+      // omega = 0.05, a = 0.2153, before branch_tracer.cc's CrossGrazing saw a touch hidden
+      // behind a vanishing segment). Not a failure of the curves asked for.
       sum.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
                           "-branch along the box's edge from " + edge +
                           " stopped early: " + r.summary.message);
