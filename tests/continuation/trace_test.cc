@@ -57,6 +57,12 @@ void AttractorABranch(const DO& model, Propagator& prop, const PeriodicOrbit& st
   *out = Continue(model, prop, attractor, branch);
 }
 
+// The curve that `c` was switched onto from, followed back to one started from a located point.
+const TracedCurve* StartedCurve(const TraceResult& r, const TracedCurve* c) {
+  while (c->from_curve >= 0) c = &r.curves[c->from_curve];
+  return c;
+}
+
 class Trace : public testing::ReferenceOrbitTest {
  protected:
   // The a-branch over [a_min, a_max] of the attractor at omega (a = 0.3 and the reference's other
@@ -718,7 +724,7 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
                         << " at a = " << pd->point.value;
   // Started on an edge branch (its start on the box's edge), or switched onto from a curve that
   // was.
-  while (e->from_curve >= 0) e = &at_edges.curves[e->from_curve];
+  e = StartedCurve(at_edges, e);
   const Params& at = e->start.point.orbit.params;
   EXPECT_TRUE(at[DO::kOmega] == opt.min1 || at[DO::kOmega] == opt.max1 || at[DO::kA] == opt.min2 ||
               at[DO::kA] == opt.max2)
@@ -735,7 +741,7 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
                         << " at a = " << pd->point.value;
   // Started on the seed's branches (a start the trace without seeds does not have), or switched
   // onto from a curve that was.
-  while (c->from_curve >= 0) c = &with.curves[c->from_curve];
+  c = StartedCurve(with, c);
   EXPECT_TRUE(std::none_of(without.curves.begin(), without.curves.end(),
                            [&](const TracedCurve& t) {
                              return t.from_curve < 0 && t.start.kind == c->start.kind &&

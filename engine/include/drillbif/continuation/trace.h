@@ -49,9 +49,9 @@ struct TraceOptions {
   // and the start's other parameters (simulated from seed_state, solved as a periodic orbit) and
   // its branches in both parameters over the box, like the start's; their points start curves
   // unless already on a traced one. Curves that no branch through the start meets and no
-  // switching reaches are found so: in issue 4's box a seed at omega = 0.07 adds ~240 curves of
-  // the network below omega = 0.09. An attractor not found, or of a period above max_period, is
-  // named in a note.
+  // switching reaches are found so: in issue 4's box a seed at omega = 0.07 added ~240 curves of
+  // the network below omega = 0.09 before the edge branches (below), and none once they were in.
+  // An attractor not found, or of a period above max_period, is named in a note.
   std::vector<double> seeds1;
   StateVector seed_state;  // empty: the model's default initial state
   // Then, repeatedly until no end is new: at each end of a fold, PD or NS curve on the box's edge,
