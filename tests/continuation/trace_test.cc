@@ -368,11 +368,12 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   // segments to 1e-12 (one grazing for a fold- / flip-grazing, two for a double grazing), and the
   // multiplier +1 / -1 to 1e-8 (the det root's |det| <= 1e-10, or sigma = 0 to the solver's 1e-12
   // scaled step, moves a simple multiplier by at most that over |prod of the others' gaps| >=
-  // 1e-2). Cusps: the multiplier +1 of the fold curve they lie on. Ends not solved keep a bisection
-  // bracket (e.g. a contact phase vanishing between two flights: impact and lift-off at one point,
-  // where the saltation degenerates).
+  // 1e-2). Cusps: the multiplier +1 of the fold curve they lie on. Where a contact phase
+  // vanishes between two flights (impact and lift-off at one point, where the saltations
+  // degenerate) the end is extrapolated along the curve to zero length (below). Ends not solved
+  // keep a bisection bracket.
   int roots = 0, solved_ends = 0, bracketed_ends = 0, cusps = 0, zero_length_ends = 0,
-      cubic_ends = 0;
+      cubic_ends = 0, extrapolated_ends = 0;
   for (const TracedCurve& c : r.curves) {
     for (const Codim2Point& q : c.curve.codim2) {
       if (q.kind == Codim2Kind::kCusp) {
@@ -394,6 +395,22 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
           EXPECT_GT(BoxDistance(opt, e, q), 1e-9)
               << "CUSP at the end (" << e.point.value1 << ", " << e.point.value2 << ")";
         }
+        continue;
+      }
+      // The 1e-8: a bisection bracket (arclength), or an extrapolated end's estimated
+      // error (parameters), below it.
+      EXPECT_LE(q.bracket, 1e-8) << Codim2KindName(q.kind) << " at (" << q.point.value1 << ", "
+                                 << q.point.value2 << "): " << q.detail;
+      if (q.detail.find("extrapolated") != std::string::npos) {
+        // The limit of the curve's points as a segment's length goes to zero: that segment of
+        // zero length exactly, and the curve's multiplier, extrapolated too, +1 / -1 to 1e-8.
+        ++extrapolated_ends;
+        const std::vector<double>& tau = q.point.orbit.durations;
+        EXPECT_EQ(std::count(tau.begin(), tau.end(), 0.0), 1);
+        EXPECT_LE(
+            multiplier_gap(q.point.stability, q.kind == Codim2Kind::kFoldGrazing ? 1.0 : -1.0),
+            1e-8)
+            << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
         continue;
       }
       if (q.bracket != 0.0) {
@@ -457,12 +474,14 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   RecordProperty("zero_length_ends", zero_length_ends);
   RecordProperty("cubic_ends", cubic_ends);
   RecordProperty("bracketed_ends", bracketed_ends);
+  RecordProperty("extrapolated_ends", extrapolated_ends);
   RecordProperty("cusps", cusps);
   EXPECT_GE(roots, 20);
   // Most ends are solved (232 of 303 when written); a regression to bisection alone shows here.
   EXPECT_GT(solved_ends, 3 * bracketed_ends);
   EXPECT_GE(zero_length_ends, 1);
   EXPECT_GE(cubic_ends, 1);
+  EXPECT_GE(extrapolated_ends, 1);
   EXPECT_GE(cusps, 1);
 }
 

@@ -638,7 +638,13 @@ class CurveTracer {
   // that point, in tangent form, with bracket 0. Failing that: held at zero length (events of two
   // surfaces), and on a grazing curve the touch merged into the event next to it
   // (SolveMergedTouchEnd; admissible but for the next mode's guard touching zero to third order
-  // at its start, which rounding may show as firing there).
+  // at its start, which rounding may show as firing there). Last, where none of these solves (a
+  // contact phase vanishing between two flights: the zero-length system is singular, the
+  // tangent form's root another point), the limit of the curve's points as the segment's length
+  // goes to zero (ExtrapolateZeroLength), kept under the same checks (the flight after the
+  // zero-length segment starts on the impact surface at zero speed, its guard touching zero
+  // there to third order, as above) and when its estimated error is below the bisection's
+  // bracket; that error is then the end's bracket.
   bool SolveEnd(Codim2Point* end) const {
     const Admissibility& v = end->violation;
     const std::vector<SegmentSpec>& segs = end->point.orbit.signature.segments;
@@ -649,19 +655,21 @@ class CurveTracer {
     // Segment j vanishing, seen (v) as its duration turning negative, or as a guard firing
     // before the duration does (the duration goes like the square root of the distance to the
     // grazing, and its end guard's rate h' with it): j's own guard inside j while j is at most
-    // 1e-5 long, or, at the very start of the next segment, the guard that led into j from the
-    // segment before it (j would start again at once), or, before the end of the segment before
-    // it, that segment's own guard (the one that starts j) firing early: the flow of that mode
-    // touches the guard where j shrinks away, as a contact phase's force reaching the progression
-    // threshold just before a short progression phase between two contact phases vanishes (a PD
-    // curve of issue 4's box with longer steps: l1 inside CwoP 6e-3 before its end, CwP 3e-3
-    // long, bracket 6e-3 as Newton fails next to the end); j at most 1e-2 long (a touch inside
-    // a segment followed by a long one is an interior grazing, the touch form's). A solution is
-    // kept only within the bracket (below), so a wrong guess costs a Newton run.
+    // 1e-5 long (1e-3 where it fires at j's start: j wants to end at once; a PD curve of issue
+    // 4's box stopped with a progression phase 2e-5 long whose l1 fired at its start), or, at the
+    // very start of the next segment, the guard that led into j from the segment before it (j would
+    // start again at once), or, before the end of the segment before it, that segment's own guard
+    // (the one that starts j) firing early: the flow of that mode touches the guard where j shrinks
+    // away, as a contact phase's force reaching the progression threshold just before a short
+    // progression phase between two contact phases vanishes (a PD curve of issue 4's box with
+    // longer steps: l1 inside CwoP 6e-3 before its end, CwP 3e-3 long, bracket 6e-3 as Newton fails
+    // next to the end); j at most 1e-2 long (a touch inside a segment followed by a long one is an
+    // interior grazing, the touch form's). A solution is kept only within the bracket (below), so a
+    // wrong guess costs a Newton run.
     int j = -1;
     if (v.guard < 0) {
       j = i;
-    } else if (v.guard == segs[i].guard && std::abs(o.durations[i]) <= 1e-5) {
+    } else if (v.guard == segs[i].guard && std::abs(o.durations[i]) <= (v.at_start ? 1e-3 : 1e-5)) {
       j = i;
     } else if (i >= 2 && v.at_start && segs[i - 2].mode == segs[i].mode &&
                v.guard == segs[i - 2].guard) {
@@ -676,8 +684,8 @@ class CurveTracer {
     // where a zero-length segment's saltation degenerates, sigma = 0 was met without it).
     // `point` receives the accepted end (its stability is the one checked).
     CurvePoint point;
-    auto accept = [&](const StatusOr<PeriodicOrbit>& solved, int zero_length,
-                      int touch_start = -1) {
+    auto accept = [&](const StatusOr<PeriodicOrbit>& solved, int zero_length, int touch_start = -1,
+                      const Stability* stability = nullptr) {
       if (!solved.ok()) return false;
       const double moved = std::hypot(solved->params[index1_] - end->point.value1,
                                       solved->params[index2_] - end->point.value2);
@@ -690,6 +698,7 @@ class CurveTracer {
         if (w.segment != zero_length || w.guard >= 0) return false;
       }
       point = PointFromOrbit(*solved);
+      if (stability != nullptr) point.stability = *stability;
       if (kind_ == CurveKind::kFold || kind_ == CurveKind::kPeriodDoubling) {
         const double target = kind_ == CurveKind::kFold ? 1.0 : -1.0;
         const std::vector<std::complex<double>>& mu = point.stability.multipliers;
@@ -727,9 +736,19 @@ class CurveTracer {
       how = " (solved with the touch merged into the event next to it)";
       ok = accept(solved, -1, j);
     }
+    double error = 0.0;
+    if (!ok && j >= 0) {
+      const StatusOr<internal::ExtrapolatedEnd> limit =
+          internal::ExtrapolateZeroLength(model_, propagator_, o, j, kind_, index1_, index2_);
+      if (limit.ok() && limit->error < end->bracket) {
+        ok = accept(limit->orbit, j, j + 1, &limit->stability);
+        error = limit->error;
+        how = " (extrapolated to segment " + std::to_string(j) + " of zero length)";
+      }
+    }
     if (!ok) return false;
     end->point = std::move(point);
-    end->bracket = 0.0;
+    end->bracket = error;
     end->detail += how;
     return true;
   }

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <functional>
 #include <vector>
 
@@ -113,6 +114,52 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
     }
   }
   return solve_from(guess);
+}
+
+StatusOr<ExtrapolatedEnd> ExtrapolateZeroLength(const HybridModel& model, Propagator& propagator,
+                                                const PeriodicOrbit& guess, int segment,
+                                                CurveKind kind, int index1, int index2,
+                                                double length) {
+  std::vector<PeriodicOrbit> at;  // the curve's points at tau = L, 2L, 4L
+  for (const double tau : {length, 2.0 * length, 4.0 * length}) {
+    StatusOr<PeriodicOrbit> solved = SolveSegmentLength(
+        model, propagator, at.empty() ? guess : at.back(), segment, tau, kind, index1, index2);
+    if (!solved.ok()) return solved.status();
+    at.push_back(*std::move(solved));
+  }
+  // w0 x(L) + w1 x(2L) + w2 x(4L), componentwise over the orbit's unknowns and parameters.
+  auto combine = [&at](double w0, double w1, double w2) {
+    PeriodicOrbit o = at[0];
+    o.params = w0 * at[0].params + w1 * at[1].params + w2 * at[2].params;
+    for (size_t k = 0; k < o.starts.size(); ++k) {
+      o.starts[k] = w0 * at[0].starts[k] + w1 * at[1].starts[k] + w2 * at[2].starts[k];
+      o.durations[k] = w0 * at[0].durations[k] + w1 * at[1].durations[k] + w2 * at[2].durations[k];
+    }
+    return o;
+  };
+  ExtrapolatedEnd end;
+  end.orbit = combine(8.0 / 3.0, -2.0, 1.0 / 3.0);  // the quadratic through L, 2L, 4L at 0
+  const PeriodicOrbit linear = combine(2.0, -1.0, 0.0);
+  end.orbit.durations[segment] = 0.0;
+  end.error = std::hypot(linear.params[index1] - end.orbit.params[index1],
+                         linear.params[index2] - end.orbit.params[index2]);
+  // The multipliers of L and 2L paired by proximity (they move by O(L) between the two).
+  const Stability near = OrbitStability(model, propagator, at[0]);
+  const Stability far = OrbitStability(model, propagator, at[1]);
+  if (near.multipliers.size() != far.multipliers.size()) {
+    return Internal("the multipliers at two lengths of the vanishing segment do not pair");
+  }
+  end.stability = near;
+  end.stability.stable = true;
+  for (std::complex<double>& mu : end.stability.multipliers) {
+    const auto& f = far.multipliers;
+    const auto nearest = std::min_element(f.begin(), f.end(), [&](const auto& x, const auto& y) {
+      return std::abs(x - mu) < std::abs(y - mu);
+    });
+    mu = 2.0 * mu - *nearest;
+    end.stability.stable = end.stability.stable && std::abs(mu) < 1.0;
+  }
+  return end;
 }
 
 StatusOr<PeriodicOrbit> SolveMergedTouchEnd(const HybridModel& model, Propagator& propagator,

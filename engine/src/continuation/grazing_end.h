@@ -46,6 +46,33 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
                                            CurveKind kind, int index1, int index2,
                                            double tolerance = 1e-12);
 
+// The same point as the limit of the curve's own points: where the zero-length system is singular
+// (both events of the vanishing segment degenerate at once, as a contact phase vanishing between
+// two flights: impact at zero speed and lift-off at zero force rate; Newton stagnates) and the
+// tangent form's root is another point. Along the curve the segment's length tau is a regular
+// coordinate near the end (the parameters move linearly in it, measured in issue 4's box), and
+// the fixed-length system (SolveSegmentLength) is regular for tau > 0. So the curve's points at
+// tau = L, 2L, 4L are solved (each from the last) and the orbit's unknowns and parameters
+// extrapolated to tau = 0 by the quadratic through them (weights 8/3, -2, 1/3; error O(L^3)); the
+// error of its parameters is estimated by the difference to the linear extrapolation from (L, 2L)
+// (whose error, -2 c L^2 for x(tau) = a + b tau + c tau^2, dominates: a bound). L = 1e-5: the
+// estimate is 1e-13 .. 3e-9 in issue 4's box, while the fold / PD condition at L stays well
+// conditioned (the saltations at the segment's events grow like 1/tau; at tau = 1e-7 the
+// multiplier +1 came out 1e-8 off and Newton can stagnate). A linear extrapolation left the
+// orbit's flight 4e-8 off the impact surface; the quadratic one, 1e-12.
+struct ExtrapolatedEnd {
+  PeriodicOrbit orbit;  // segment `segment` of zero length
+  // The curve's stability at tau = L with its multipliers extrapolated linearly to tau = 0 from
+  // (L, 2L), paired by proximity (the orbit's own monodromy at zero length is finite but
+  // ill-conditioned: its multiplier +1 came out 1e-8 .. 1e-6 off); `monodromy` is the one at L.
+  Stability stability;
+  double error = 0.0;  // estimated error of (params[index1], params[index2]), Euclidean
+};
+StatusOr<ExtrapolatedEnd> ExtrapolateZeroLength(const HybridModel& model, Propagator& propagator,
+                                                const PeriodicOrbit& guess, int segment,
+                                                CurveKind kind, int index1, int index2,
+                                                double length = 1e-5);
+
 // A grazing curve's end where its touch merges with the event next to it (the segment `segment`
 // between them vanishes; no tangent or zero-length form applies, as the touch and the event are
 // of one guard, or the touched guard and its rate vanish at the event by construction). Near such

@@ -105,8 +105,12 @@ const char* Codim2KindName(Codim2Kind kind);
 // grazing's tangency plus the curve's condition, or both tangencies of a double grazing) where
 // the violation is a segment vanishing between two of one mode or a guard touching zero inside a
 // segment; a solution within the bracket replaces the end (its orbit in tangent form, `detail`
-// ending "(solved in tangent form)", bracket 0). Ends without a tangent form (two events at one
-// point, a touch at a segment's very start) keep their bisection bracket.
+// ending "(solved in tangent form)", bracket 0). Where a segment vanishes and no such system is
+// regular (a contact phase vanishing between two flights), the end is the limit of the curve's
+// points as the segment's length goes to zero, extrapolated from lengths 1e-5 and 2e-5 (`detail`
+// ending "(extrapolated to segment j of zero length)"; `bracket` then the estimated error of its
+// two parameters, 1e-13 .. 3e-9 in issue 4's box, and its multipliers the curve's, extrapolated
+// likewise). Other ends keep their bisection bracket.
 struct Codim2Point {
   Codim2Kind kind = Codim2Kind::kFoldGrazing;
   CurvePoint point;
