@@ -40,12 +40,13 @@ double BoxDistance(const TraceOptions& box, const Codim2Point& p, const Codim2Po
 }
 
 // Every trace here starts at the reference orbit.
-// The a-branch over [a_min, a_max] of the attractor at `omega` (the start's other parameters,
-// simulated from the start's state): independent of any trace.
+// The a-branch over [a_min, a_max] of the attractor at `omega` (and `a` if given; the start's
+// other parameters, simulated from the start's state): independent of any trace.
 void AttractorABranch(const DO& model, Propagator& prop, const PeriodicOrbit& start, double omega,
-                      double a_min, double a_max, ContinuationResult* out) {
+                      double a_min, double a_max, ContinuationResult* out, double a = -1.0) {
   Params at = start.params;
   at[DO::kOmega] = omega;
+  if (a >= 0.0) at[DO::kA] = a;
   const StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model, prop, at, start.starts[0]);
   ASSERT_TRUE(found.ok()) << found.status().ToString();
   PeriodicOrbit attractor = *found;
@@ -85,8 +86,12 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   opt.curve.target_iterations = GetParam();
   // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (issue 4's acceptance),
   // and of the lines of the completeness check below.
-  const std::vector<double> lines = {0.065, 0.075, 0.085, 0.12, 0.2};
-  opt.curve.crossings1 = lines;
+  // (omega, a of the attractor whose a-branch is checked): at a = 0.3 the attractor is of period
+  // 2 at omega = 0.3 and chaotic at 0.5, 0.8 and 1.2; at these a it is of period 1.
+  const std::vector<std::pair<double, double>> lines = {{0.065, 0.3}, {0.075, 0.3}, {0.085, 0.3},
+                                                        {0.12, 0.3},  {0.2, 0.3},   {0.3, 3.0},
+                                                        {0.5, 3.0},   {0.8, 6.0},   {1.2, 6.0}};
+  for (const auto& line : lines) opt.curve.crossings1.push_back(line.first);
   opt.curve.crossings1.push_back(start_.params[DO::kOmega]);
   opt.curve.crossings2 = {start_.params[DO::kA]};
   const TraceResult r = TraceCurves(model_, prop_, start_, opt);
@@ -212,18 +217,18 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   RecordProperty("corner_crossings", corner_crossings);
 
   // Completeness (issue 4: every curve in the box): the a-branches of the attractors at
-  // omega = 0.065, 0.075, 0.085, 0.12 and 0.2, continued here independently of the trace over the
-  // box, locate ~257 folds, PDs and grazings (the branches snake below omega = 0.09, one more
-  // contact phase per turn); each is crossed by a traced curve of its kind there, to 1e-7 (both
-  // solved to ~1e-10). Before the edge branches 51 were not (28 / 16 / 7 at 0.065 / 0.075 /
-  // 0.085); with them, a crossing inside a step that ends at a section crossing was not recorded
-  // (3), and the fourth grazing curve through a double grazing was not switched onto (1). With
-  // all but the edge branches, 5 are not (longer steps).
+  // omega = 0.065, 0.075, 0.085, 0.12 and 0.2 (a = 0.3), 0.3 and 0.5 (a = 3), 0.8 and 1.2 (a = 6),
+  // continued here independently of the trace over the box, locate ~290 folds, PDs and grazings
+  // (the branches snake below omega = 0.09, one more contact phase per turn); each is crossed by
+  // a traced curve of its kind there, to 1e-7 (both solved to ~1e-10). Before the edge branches 51
+  // were not (28 / 16 / 7 at 0.065 / 0.075 / 0.085); with them, a crossing inside a step that ends
+  // at a section crossing was not recorded (3), and the fourth grazing curve through a double
+  // grazing was not switched onto (1). With all but the edge branches, 5 are not (longer steps).
   int checked = 0;
-  for (const double w : lines) {
+  for (const auto& [w, a] : lines) {
     ContinuationResult branch;
     ASSERT_NO_FATAL_FAILURE(
-        AttractorABranch(model_, prop_, start_, w, opt.min2, opt.max2, &branch));
+        AttractorABranch(model_, prop_, start_, w, opt.min2, opt.max2, &branch, a));
     EXPECT_EQ(branch.summary.termination, Termination::kCompleted) << branch.summary.message;
     for (const SpecialPoint& s : branch.special_points) {
       if (s.kind != SpecialPointKind::kFold && s.kind != SpecialPointKind::kPeriodDoubling &&
@@ -243,7 +248,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
                             << ", a = " << s.point.value << " on no traced curve";
     }
   }
-  EXPECT_GE(checked, 200);
+  EXPECT_GE(checked, 280);
   RecordProperty("completeness_points", checked);
 
   // Switching at codimension-2 points: a fold / PD curve leaving a FOLD_GRAZING / FLIP_GRAZING
