@@ -40,22 +40,28 @@ double BoxDistance(const TraceOptions& box, const Codim2Point& p, const Codim2Po
 }
 
 // Every trace here starts at the reference orbit.
-// The a-branch over [a_min, a_max] of the attractor at `omega` (and `a` if given; the start's
-// other parameters, simulated from the start's state): independent of any trace.
-void AttractorABranch(const DO& model, Propagator& prop, const PeriodicOrbit& start, double omega,
-                      double a_min, double a_max, ContinuationResult* out, double a = -1.0) {
+// The branch in `param` over [lo, hi] of the attractor at (omega, a) (the start's other
+// parameters, simulated from the start's state): independent of any trace.
+void AttractorBranch(const DO& model, Propagator& prop, const PeriodicOrbit& start, double omega,
+                     double a, const char* param, double lo, double hi, ContinuationResult* out) {
   Params at = start.params;
   at[DO::kOmega] = omega;
-  if (a >= 0.0) at[DO::kA] = a;
+  at[DO::kA] = a;
   const StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model, prop, at, start.starts[0]);
   ASSERT_TRUE(found.ok()) << found.status().ToString();
   PeriodicOrbit attractor = *found;
   const OrbitSolveSummary solved = SolveOrbit(model, prop, {}, &attractor);
   ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
   ContinuationOptions branch;
-  branch.param = "a";
-  branch.min = a_min, branch.max = a_max;
+  branch.param = param;
+  branch.min = lo, branch.max = hi;
   *out = Continue(model, prop, attractor, branch);
+}
+
+// The a-branch over [a_min, a_max] of the attractor at `omega` and the start's a.
+void AttractorABranch(const DO& model, Propagator& prop, const PeriodicOrbit& start, double omega,
+                      double a_min, double a_max, ContinuationResult* out) {
+  AttractorBranch(model, prop, start, omega, start.params[DO::kA], "a", a_min, a_max, out);
 }
 
 // The curve that `c` was switched onto from, followed back to one started from a located point.
@@ -93,7 +99,11 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
                                                         {0.5, 3.0},   {0.8, 6.0},   {1.2, 6.0}};
   for (const auto& line : lines) opt.curve.crossings1.push_back(line.first);
   opt.curve.crossings1.push_back(start_.params[DO::kOmega]);
-  opt.curve.crossings2 = {start_.params[DO::kA]};
+  // And the lines a = 0.15 and a = 4, where the omega-branches of the attractors at omega = 0.1
+  // are checked the same way.
+  const std::vector<double> a_lines = {0.15, 4.0};
+  opt.curve.crossings2 = a_lines;
+  opt.curve.crossings2.push_back(start_.params[DO::kA]);
   const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
   ASSERT_FALSE(r.curves.empty());
@@ -218,17 +228,32 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
 
   // Completeness (issue 4: every curve in the box): the a-branches of the attractors at
   // omega = 0.065, 0.075, 0.085, 0.12 and 0.2 (a = 0.3), 0.3 and 0.5 (a = 3), 0.8 and 1.2 (a = 6),
-  // continued here independently of the trace over the box, locate ~290 folds, PDs and grazings
-  // (the branches snake below omega = 0.09, one more contact phase per turn); each is crossed by
-  // a traced curve of its kind there, to 1e-7 (both solved to ~1e-10). Before the edge branches 51
-  // were not (28 / 16 / 7 at 0.065 / 0.075 / 0.085); with them, a crossing inside a step that ends
-  // at a section crossing was not recorded (3), and the fourth grazing curve through a double
-  // grazing was not switched onto (1). With all but the edge branches, 5 are not (longer steps).
+  // and the omega-branches of the attractors at omega = 0.1, a = 0.15 and 4, continued here
+  // independently of the trace over the box, locate 339 folds, PDs and grazings (the branches
+  // snake below omega = 0.09, one more contact phase per turn; the one at a = 0.15 has 44); each
+  // is crossed by a traced curve of its kind there, to 1e-7 (both solved to ~1e-10). Before the
+  // edge branches 51 were not (28 / 16 / 7 at 0.065 / 0.075 / 0.085); with them, a crossing inside
+  // a step that ends at a section crossing was not recorded (3), and the fourth grazing curve
+  // through a double grazing was not switched onto (1). With all but the edge branches, 5 are not
+  // (longer steps).
   int checked = 0;
+  std::vector<std::pair<double, ContinuationResult>> branches;  // (line, branch crossing it)
   for (const auto& [w, a] : lines) {
     ContinuationResult branch;
     ASSERT_NO_FATAL_FAILURE(
-        AttractorABranch(model_, prop_, start_, w, opt.min2, opt.max2, &branch, a));
+        AttractorBranch(model_, prop_, start_, w, a, "a", opt.min2, opt.max2, &branch));
+    branches.emplace_back(w, std::move(branch));
+  }
+  const size_t omega_lines = branches.size();
+  for (const double a : a_lines) {
+    ContinuationResult branch;
+    ASSERT_NO_FATAL_FAILURE(
+        AttractorBranch(model_, prop_, start_, 0.1, a, "omega", opt.min1, opt.max1, &branch));
+    branches.emplace_back(a, std::move(branch));
+  }
+  for (size_t b = 0; b < branches.size(); ++b) {
+    const auto& [line, branch] = branches[b];
+    const bool in_a = b < omega_lines;  // an a-branch on the line omega = `line`
     EXPECT_EQ(branch.summary.termination, Termination::kCompleted) << branch.summary.message;
     for (const SpecialPoint& s : branch.special_points) {
       if (s.kind != SpecialPointKind::kFold && s.kind != SpecialPointKind::kPeriodDoubling &&
@@ -241,14 +266,16 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
       for (const TracedCurve& c : r.curves) {
         if (IsCornerCurve(c.curve) || !same_kind(c.curve, s.kind)) continue;
         for (const CurvePoint& x : c.curve.crossings) {
-          if (x.value1 == w) best = std::min(best, std::abs(x.value2 - s.point.value));
+          if (in_a && x.value1 == line) best = std::min(best, std::abs(x.value2 - s.point.value));
+          if (!in_a && x.value2 == line) best = std::min(best, std::abs(x.value1 - s.point.value));
         }
       }
-      EXPECT_LE(best, 1e-7) << SpecialPointKindName(s.kind) << " at omega = " << w
-                            << ", a = " << s.point.value << " on no traced curve";
+      EXPECT_LE(best, 1e-7) << SpecialPointKindName(s.kind) << " at " << (in_a ? "omega" : "a")
+                            << " = " << line << ", " << branch.summary.message << " "
+                            << s.point.value << " on no traced curve";
     }
   }
-  EXPECT_GE(checked, 280);
+  EXPECT_GE(checked, 330);
   RecordProperty("completeness_points", checked);
 
   // Switching at codimension-2 points: a fold / PD curve leaving a FOLD_GRAZING / FLIP_GRAZING
