@@ -21,6 +21,20 @@ DriftingOscillator::DriftingOscillator()
       guards_{
           {{"impact", "Pi"}}, {{"progression", "l1"}, {"separation", "l2"}}, {{"stick", "l1"}}} {}
 
+std::vector<StateVector> DriftingOscillator::SpreadStates(const Params& params) {
+  const double g = params[kG], pi = std::acos(-1.0);
+  const double states[8][4] = {{0, 0, 0, 0},       {-50, 5, 0.5, 0},  {g, 0, 0, 0},
+                               {-200, -10, 1, 0},  {0.5, 0, 0.5, pi}, {-5, 0, 0, pi},
+                               {-20, 20, 0.2, pi}, {0.2, -5, 0.9, pi}};
+  std::vector<StateVector> out;
+  for (const auto& x : states) {
+    StateVector v(4);
+    v << x[kP], x[kY], x[kQ], x[kS];
+    out.push_back(v);
+  }
+  return out;
+}
+
 Params DriftingOscillator::MakeParams(double a, double b, double omega, double xi, double g,
                                       double phi0) {
   Params p(6);

@@ -20,6 +20,8 @@
 #ifndef DRILLBIF_MODEL_DRIFTING_OSCILLATOR_H_
 #define DRILLBIF_MODEL_DRIFTING_OSCILLATOR_H_
 
+#include <vector>
+
 #include "drillbif/model/hybrid_model.h"
 
 namespace drillbif {
@@ -44,6 +46,12 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
                            double g = 0.02, double phi0 = 0.0);
   // Contact force F = 2 xi y + q.
   static double ContactForce(const StateVector& x, const Params& params);
+  // Eight valid states (p, y, q, s) spread over the state space, starts for sampling coexisting
+  // attractors (orbit/attractors.h): at rest; the bit far from the slider moving towards it or
+  // away; at the slider's top (p = q + g); the slider pushed in halfway or fully; both phases
+  // s = 0 and pi. At (omega, a) = (0.9, 0.02) they find both the pure-contact orbit and one with a
+  // flight, at (0.3, 0.105) the pure-contact orbit and a two-flight orbit.
+  static std::vector<StateVector> SpreadStates(const Params& params);
 
   // HybridModel.
   std::string_view name() const override { return "drifting_oscillator"; }
