@@ -7,10 +7,12 @@
 #include <new>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "client/job_common.h"
 #include "client/trace_runner.h"
 #include "drillbif/flow/exact_propagator.h"
+#include "drillbif/orbit/attractors.h"
 #include "drillbif/orbit/signature.h"
 #include "drillbif/region/robust_optimum.h"
 #include "drillbif/version.h"
@@ -60,6 +62,50 @@ std::pair<int, int> GridFor(const v1::OptimumRequest& request, const OptimumOpti
     return static_cast<int>(std::clamp(std::ceil(width / h) + 1.0, 3.0, 1.0 * kMaxDefaultNodes));
   };
   return {nodes(w1, h1), nodes(w2, h2)};
+}
+
+// The coexistence check at the optimum (OptimumResult.attractors): fills `out` and returns the
+// message's sentence on it.
+std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propagator,
+                             const Params& params, const Signature& optimum,
+                             v1::OptimumResult* out) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<StateVector> states = DriftingOscillator::SpreadStates(params);
+  const StatusOr<AttractorSample> sample = SampleAttractors(model, propagator, params, states);
+  out->set_check_seconds(Seconds(start));
+  if (!sample.ok()) return "coexistence not checked: " + sample.status().message();
+  std::string others;
+  bool optimum_seen = false;
+  for (const Attractor& a : sample->attractors) {
+    v1::Attractor* p = out->add_attractors();
+    p->set_signature(SignatureString(model, a.orbit.signature));
+    p->set_period(a.orbit.signature.periods);
+    p->set_rop(a.rop);
+    p->set_stable(a.stable);
+    p->set_reached_from(static_cast<int>(a.reached_from.size()));
+    if (SameUpToSection(a.orbit.signature, optimum)) {
+      optimum_seen = true;
+      continue;
+    }
+    others += std::string(others.empty() ? "" : ", ") + p->signature() + " (ROP " +
+              internal::Num(a.rop) + ", from " + std::to_string(a.reached_from.size()) + ")";
+  }
+  out->set_not_periodic(static_cast<int>(sample->not_periodic.size()));
+  const std::string of = " of " + std::to_string(states.size()) + " spread initial states";
+  std::string sentence;
+  if (others.empty() && sample->not_periodic.empty()) {
+    sentence = "every one" + of + " settles on the optimum's orbit";
+  } else {
+    sentence = "other motions coexist there (simulation from" + of + "): ";
+    if (!others.empty()) sentence += others;
+    if (!sample->not_periodic.empty()) {
+      sentence += std::string(others.empty() ? "" : "; ") +
+                  std::to_string(sample->not_periodic.size()) +
+                  " settle on no periodic orbit of period <= 16";
+    }
+  }
+  if (!optimum_seen) sentence += "; none settles on the optimum's orbit";
+  return sentence;
 }
 
 StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
@@ -135,6 +181,9 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   out.set_near_box_edge(best.near_box_edge);
   out.set_signature(SignatureString(model, region.signatures[region.grid.label[best.node]]));
 
+  const std::string coexistence = CheckCoexistence(
+      model, propagator, params, region.signatures[region.grid.label[best.node]], &out);
+
   const bool failed = internal::TraceFailed(trace->result);
   out.set_status(failed ? "FAILED" : "COMPLETED");
   std::string message = "ROP " + internal::Num(best.rop) + " at " + region.param1 + " = " +
@@ -143,6 +192,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   if (failed) message += "; a curve failed to trace, so a boundary may be missing";
   if (best.near_box_edge) message += "; the margin reaches beyond the box, where nothing is known";
   if (!out.margin_size()) message += "; no bifurcation curve bounds the region in the box";
+  message += "; " + coexistence;
   out.set_message(message);
   return out;
 }

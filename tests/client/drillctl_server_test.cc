@@ -199,7 +199,7 @@ class DrillctlServer : public ::testing::Test {
   }
 
   // The output with every "...Seconds": value (wallSeconds, traceSeconds, regionSeconds,
-  // querySeconds: run times, which differ between runs) replaced by 0.
+  // querySeconds, checkSeconds: run times, which differ between runs) replaced by 0.
   static std::string WithoutTimes(const std::string& text) {
     static const std::regex seconds("\"([A-Za-z]*Seconds)\": *[-+0-9.eE]+");
     return std::regex_replace(text, seconds, "\"$1\": 0");

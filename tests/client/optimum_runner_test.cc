@@ -87,6 +87,18 @@ TEST(RunOptimum, FindsAStableOperatingPointWithTheMargin) {
   EXPECT_EQ(r->grid(0), 41);
   EXPECT_NEAR(r->spacing(1), 0.35 / 40, 1e-15);
   EXPECT_GT(r->curves(), 0);
+  // The coexistence check: every spread start accounted for, and the optimum's orbit among the
+  // attractors, its ROP from simulation equal to the region's (a Newton solve on the grid) to
+  // 1e-8 (both orbits solved to ~1e-11).
+  int starts = r->not_periodic();
+  bool optimum_found = false;
+  for (const v1::Attractor& a : r->attractors()) {
+    starts += a.reached_from();
+    optimum_found = optimum_found || (a.stable() && std::abs(a.rop() - r->rop()) <= 1e-8);
+  }
+  EXPECT_EQ(starts, 8);
+  EXPECT_TRUE(optimum_found) << r->message();
+  EXPECT_THAT(r->message(), HasSubstr("spread initial states"));
   // CSV: one row after the header.
   EXPECT_THAT(OptimumResultToCsv(*r), HasSubstr("a,b,omega,xi,g,phi0,rop,margin1,margin2"));
 }

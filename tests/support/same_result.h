@@ -25,6 +25,7 @@ inline void ClearTimes(v1::OptimumResult* r) {
   r->clear_trace_seconds();
   r->clear_region_seconds();
   r->clear_query_seconds();
+  r->clear_check_seconds();
 }
 
 // Exact equality (the JSON mapping prints doubles with the digits to read them back exactly).
