@@ -305,7 +305,8 @@ std::string OptimumResultToCsv(const v1::OptimumResult& result) {
   std::string out;
   AppendStatus(result.status(), result.message(), &out);
   out.append(
-      "a,b,omega,xi,g,phi0,rop,margin1,margin2,distance_scaled,nearest_curve_kind,signature\n");
+      "a,b,omega,xi,g,phi0,rop,margin1,margin2,distance_scaled,nearest_curve_kind,signature,"
+      "attractors\n");
   if (!result.has_params()) return out;
   const v1::ModelParams& p = result.params();
   Row row(&out);
@@ -317,7 +318,8 @@ std::string OptimumResultToCsv(const v1::OptimumResult& result) {
       row.Str("");
     }
   }
-  row.Num(result.distance_scaled()).Str(result.nearest_curve_kind()).Str(result.signature()).End();
+  row.Num(result.distance_scaled()).Str(result.nearest_curve_kind()).Str(result.signature());
+  row.Num(result.attractors_size()).End();
   return out;
 }
 

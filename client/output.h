@@ -60,8 +60,9 @@ std::string ContinueResultToCsv(const v1::ContinueResult& result);
 std::string TraceResultToCsv(const v1::TraceResult& result);
 
 // The optimum as one row (empty margin columns when there is none):
-//   a,b,omega,xi,g,phi0,rop,margin1,margin2,distance_scaled,nearest_curve_kind,signature
-// after the status comment when it did not complete.
+//   a,b,omega,xi,g,phi0,rop,margin1,margin2,distance_scaled,nearest_curve_kind,signature,attractors
+// (attractors: how many distinct periodic motions the coexistence check found; 1 when all starts
+// settle on the optimum's orbit) after the status comment when it did not complete.
 std::string OptimumResultToCsv(const v1::OptimumResult& result);
 
 }  // namespace drillbif::client

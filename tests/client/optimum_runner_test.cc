@@ -101,6 +101,7 @@ TEST(RunOptimum, FindsAStableOperatingPointWithTheMargin) {
   EXPECT_THAT(r->message(), HasSubstr("spread initial states"));
   // CSV: one row after the header.
   EXPECT_THAT(OptimumResultToCsv(*r), HasSubstr("a,b,omega,xi,g,phi0,rop,margin1,margin2"));
+  EXPECT_THAT(OptimumResultToCsv(*r), HasSubstr("," + std::to_string(r->attractors_size()) + "\n"));
 }
 
 TEST(RunOptimum, DefaultGridFollowsTheMargin) {
