@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <string>
 #include <utility>
@@ -88,6 +89,16 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
     return opt;
   }
 
+  // The codimension-2 point of `curve` of this kind that `pick` accepts (the last such), or null.
+  static const Codim2Point* FindCodim2(const CurveResult& curve, Codim2Kind kind,
+                                       const std::function<bool(const Codim2Point&)>& pick) {
+    const Codim2Point* found = nullptr;
+    for (const Codim2Point& q : curve.codim2) {
+      if (q.kind == kind && pick(q)) found = &q;
+    }
+    return found;
+  }
+
   ContinuationResult a_branch_;
 };
 
@@ -106,10 +117,8 @@ TEST_F(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
   const CurveResult curve = ContinueCurve(model_, prop_, *fold, opt);
   ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
   EXPECT_EQ(curve.summary.message.find("stalled"), std::string::npos) << curve.summary.message;
-  const Codim2Point* end = nullptr;
-  for (const Codim2Point& q : curve.codim2) {
-    if (q.kind == Codim2Kind::kFoldGrazing && q.point.value1 < 0.1) end = &q;
-  }
+  const Codim2Point* end = FindCodim2(curve, Codim2Kind::kFoldGrazing,
+                                      [](const Codim2Point& q) { return q.point.value1 < 0.1; });
   ASSERT_NE(end, nullptr) << curve.summary.message;
   EXPECT_EQ(end->bracket, 0.0) << end->detail;
   const std::vector<GuardValue> touch = testing::TangentEndGuards(model_, prop_, end->point.orbit);
@@ -167,10 +176,9 @@ TEST_F(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
     opt.target_iterations = steps.target_iterations;
     const CurveResult curve = ContinueCurve(model_, prop_, *pd, opt);
     ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
-    const Codim2Point* end = nullptr;
-    for (const Codim2Point& q : curve.codim2) {
-      if (q.kind == Codim2Kind::kFlipGrazing && std::abs(q.point.value2 - 0.2747) < 1e-3) end = &q;
-    }
+    const Codim2Point* end = FindCodim2(curve, Codim2Kind::kFlipGrazing, [](const Codim2Point& q) {
+      return std::abs(q.point.value2 - 0.2747) < 1e-3;
+    });
     ASSERT_NE(end, nullptr) << curve.summary.message;
     EXPECT_EQ(end->bracket, 0.0) << end->detail;
     const std::vector<GuardValue> touch =
@@ -200,10 +208,9 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
   const SpecialPoint* fold = Find(SpecialPointKind::kFold, 0.2718, 1e-3);
   ASSERT_NE(fold, nullptr);
   const CurveResult curve = ContinueCurve(model_, prop_, *fold, Box());
-  const Codim2Point* solved = nullptr;
-  for (const Codim2Point& q : curve.codim2) {
-    if (q.kind == Codim2Kind::kFoldGrazing && std::abs(q.point.value2 - 0.0643) < 1e-3) solved = &q;
-  }
+  const Codim2Point* solved = FindCodim2(curve, Codim2Kind::kFoldGrazing, [](const Codim2Point& q) {
+    return std::abs(q.point.value2 - 0.0643) < 1e-3;
+  });
   ASSERT_NE(solved, nullptr) << curve.summary.message;
   EXPECT_EQ(solved->bracket, 0.0) << solved->detail;
   EXPECT_NE(solved->detail.find("of zero length"), std::string::npos) << solved->detail;
@@ -353,11 +360,9 @@ TEST_F(GrazingEnd, ContactPhaseVanishingBetweenFlightsIsTheLimitOfTheCurve) {
   const SpecialPoint* fold = Find(SpecialPointKind::kFold, 0.2602, 1e-3);
   ASSERT_NE(fold, nullptr);
   const CurveResult curve = ContinueCurve(model_, prop_, *fold, Box());
-  const Codim2Point* end = nullptr;
-  for (const Codim2Point& q : curve.codim2) {
-    if (q.kind == Codim2Kind::kFoldGrazing && q.detail.find("extrapolated") != std::string::npos)
-      end = &q;
-  }
+  const Codim2Point* end = FindCodim2(curve, Codim2Kind::kFoldGrazing, [](const Codim2Point& q) {
+    return q.detail.find("extrapolated") != std::string::npos;
+  });
   ASSERT_NE(end, nullptr) << curve.summary.message;
   EXPECT_NEAR(end->point.value2, 0.0884, 1e-3);
   EXPECT_LE(end->bracket, 1e-8) << end->detail;
