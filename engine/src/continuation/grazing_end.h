@@ -56,7 +56,7 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
 // extrapolated to tau = 0 by the quadratic through them (weights 8/3, -2, 1/3; error O(L^3)); the
 // error of its parameters is estimated by the difference to the linear extrapolation from (L, 2L)
 // (whose error, -2 c L^2 for x(tau) = a + b tau + c tau^2, dominates: a bound). L = 1e-5: the
-// estimate is 1e-13 .. 3e-9 in issue 4's box, while the fold / PD condition at L stays well
+// estimate is 3e-13 .. 2.5e-9 in issue 4's box, while the fold / PD condition at L stays well
 // conditioned (the saltations at the segment's events grow like 1/tau; at tau = 1e-7 the
 // multiplier +1 came out 1e-8 off and Newton can stagnate). A linear extrapolation left the
 // orbit's flight 4e-8 off the impact surface; the quadratic one, 1e-12.

@@ -348,12 +348,12 @@ TEST_F(GrazingEnd, TouchMergingIntoLiftOffEndsTwoGrazingCurvesAtOnePoint) {
 // there) solves the end, and Newton fails next to it along the curve: the bisection left such
 // ends of issue 4's box bracketed to 1e-8 .. 1e-6. The fold curve of the a-branch's fold at
 // a = 0.2602 (omega = 0.1) ends so near (omega, a) = (0.0884, 0.2657); the end is extrapolated to
-// zero length from the curve's points at lengths 1e-5, 2e-5. Checked: its estimated error within
-// the issue's 1e-8; the extrapolated multiplier +1 to 1e-8; the grazing itself on the reported
-// orbit: the flight before the zero-length phase reaches the impact surface at zero speed, h = 0
-// and h' = 0 to 1e-9 (measured 2e-12: the extrapolation is quadratic, its error O(L^3); a linear
-// one left h 4e-8 off); and, independently of the extrapolation's arithmetic, the curve's own
-// point at length 1e-6 (10 times closer than its nearest; at 1e-7 Newton stagnates) lies where
+// zero length from the curve's points at lengths 1e-5, 2e-5, 4e-5. Checked: its estimated error
+// within the issue's 1e-8; the extrapolated multiplier +1 to 1e-8; the grazing itself on the
+// reported orbit: the flight before the zero-length phase reaches the impact surface at zero speed,
+// h = 0 and h' = 0 to 1e-9 (measured 2e-12: the extrapolation is quadratic, its error O(L^3); a
+// linear one left h 4e-8 off); and, independently of the extrapolation's arithmetic, the curve's
+// own point at length 1e-6 (10 times closer than its nearest; at 1e-7 Newton stagnates) lies where
 // the curve's linear approach puts it: its offset from the end a tenth of the 1e-5 point's
 // (1.1e-5), to 1e-9 (the quadratic term's 1e-11 |c|, and an end off by up to 1e-9 would pass).
 TEST_F(GrazingEnd, ContactPhaseVanishingBetweenFlightsIsTheLimitOfTheCurve) {

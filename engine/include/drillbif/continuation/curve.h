@@ -107,10 +107,10 @@ const char* Codim2KindName(Codim2Kind kind);
 // segment; a solution within the bracket replaces the end (its orbit in tangent form, `detail`
 // ending "(solved in tangent form)", bracket 0). Where a segment vanishes and no such system is
 // regular (a contact phase vanishing between two flights), the end is the limit of the curve's
-// points as the segment's length goes to zero, extrapolated from lengths 1e-5 and 2e-5 (`detail`
-// ending "(extrapolated to segment j of zero length)"; `bracket` then the estimated error of its
-// two parameters, 1e-13 .. 3e-9 in issue 4's box, and its multipliers the curve's, extrapolated
-// likewise). Other ends keep their bisection bracket.
+// points as the segment's length goes to zero, extrapolated from lengths 1e-5, 2e-5 and 4e-5
+// (`detail` ending "(extrapolated to segment j of zero length)"; `bracket` then the estimated
+// error of its two parameters, 3e-13 .. 2.5e-9 in issue 4's box, and its multipliers the curve's,
+// extrapolated too). Other ends keep their bisection bracket.
 struct Codim2Point {
   Codim2Kind kind = Codim2Kind::kFoldGrazing;
   CurvePoint point;
