@@ -91,9 +91,9 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   TraceOptions opt = testing::Issue4Box();
   opt.curve.target_iterations = GetParam();
   // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (issue 4's acceptance),
-  // and of the lines of the completeness check below.
-  // (omega, a of the attractor whose a-branch is checked): at a = 0.3 the attractor is of period
-  // 2 at omega = 0.3 and chaotic at 0.5, 0.8 and 1.2; at these a it is of period 1.
+  // and of the lines of the completeness check below: (omega, a of the attractor whose a-branch
+  // is checked; at a = 0.3 the attractor is of period 2 at omega = 0.3 and chaotic at 0.5, 0.8
+  // and 1.2, at these a of period 1).
   const std::vector<std::pair<double, double>> lines = {{0.065, 0.3}, {0.075, 0.3}, {0.085, 0.3},
                                                         {0.12, 0.3},  {0.2, 0.3},   {0.3, 3.0},
                                                         {0.5, 3.0},   {0.8, 6.0},   {1.2, 6.0}};
@@ -271,7 +271,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
         }
       }
       EXPECT_LE(best, 1e-7) << SpecialPointKindName(s.kind) << " at " << (in_a ? "omega" : "a")
-                            << " = " << line << ", " << branch.summary.message << " "
+                            << " = " << line << ", " << (in_a ? "a" : "omega") << " = "
                             << s.point.value << " on no traced curve";
     }
   }
