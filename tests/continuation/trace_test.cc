@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -62,6 +63,29 @@ void AttractorBranch(const DO& model, Propagator& prop, const PeriodicOrbit& sta
 void AttractorABranch(const DO& model, Propagator& prop, const PeriodicOrbit& start, double omega,
                       double a_min, double a_max, ContinuationResult* out) {
   AttractorBranch(model, prop, start, omega, start.params[DO::kA], "a", a_min, a_max, out);
+}
+
+// The trace's notes name, per period, how many codimension-2 points are known only to a bracket
+// above 1e-8 (the bound), and no note names such points where there are none. Returns
+// how many there are.
+int ExpectWideBracketNotes(const TraceResult& r) {
+  std::map<int, int> wide;
+  for (const TracedCurve& c : r.curves) {
+    for (const Codim2Point& q : c.curve.codim2) {
+      if (q.bracket > 1e-8) ++wide[q.point.orbit.signature.periods];
+    }
+  }
+  int noted = 0, total = 0;
+  for (const std::string& n : r.summary.notes) {
+    if (n.find("bracket above 1e-8") == std::string::npos) continue;
+    ++noted;
+    const int period = n.find("period-2 ") != std::string::npos ? 2 : 1;
+    EXPECT_EQ(n.substr(0, n.find(' ')), std::to_string(wide[period])) << n;
+  }
+  for (const auto& [period, count] : wide) total += count;
+  EXPECT_EQ(noted, static_cast<int>(std::count_if(wide.begin(), wide.end(),
+                                                  [](const auto& w) { return w.second > 0; })));
+  return total;
 }
 
 // The curve that `c` was switched onto from, followed back to one started from a located point.
@@ -514,6 +538,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(zero_length_ends, 1);
   EXPECT_GE(cubic_ends, 1);
   EXPECT_GE(extrapolated_ends, 1);
+  EXPECT_EQ(ExpectWideBracketNotes(r), 0);
   EXPECT_GE(cusps, 1);
 }
 
@@ -686,6 +711,7 @@ TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
     }
   }
   EXPECT_GE(period2, 3);
+  RecordProperty("wide_brackets", ExpectWideBracketNotes(r));
 }
 
 // A fold / PD curve that ends where a segment between events of two surfaces vanishes (a corner:

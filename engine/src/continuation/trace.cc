@@ -4,6 +4,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <utility>
 #include <vector>
 
@@ -409,6 +410,18 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         "curve ends on them");
   }
   TallyNotes(tally, &sum);
+  // Points the 1e-8 does not cover: their `bracket` says how far they are known.
+  std::map<int, int> wide;  // period -> codimension-2 points with bracket > 1e-8
+  for (const TracedCurve& c : result.curves) {
+    for (const Codim2Point& q : c.curve.codim2) {
+      if (q.bracket > 1e-8) ++wide[q.point.orbit.signature.periods];
+    }
+  }
+  for (const auto& [period, count] : wide) {
+    sum.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
+                        "codimension-2 points located only to a bracket above 1e-8 (see each "
+                        "one's bracket: the corrector failed next to the curve's end)");
+  }
   report(1.0);
   return result;
 }
