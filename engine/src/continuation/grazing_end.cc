@@ -116,14 +116,21 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
   return solve_from(guess);
 }
 
+// The fixed-length solves' scaled step: on a period-2 PD curve of issue 4's box sigma settles at
+// 1e-11 (a long orbit's monodromy), where Newton's steps hover at 1e-11 .. 1e-9 and 1e-12 is never
+// reached; at 1e-10 the extrapolated parameters carry ~5e-10 of that noise (the weights' sum of
+// magnitudes is 5), within the issue's 1e-8.
+constexpr double kExtrapolationTolerance = 1e-10;
+
 StatusOr<ExtrapolatedEnd> ExtrapolateZeroLength(const HybridModel& model, Propagator& propagator,
                                                 const PeriodicOrbit& guess, int segment,
                                                 CurveKind kind, int index1, int index2,
                                                 double length) {
   std::vector<PeriodicOrbit> at;  // the curve's points at tau = L, 2L, 4L
   for (const double tau : {length, 2.0 * length, 4.0 * length}) {
-    StatusOr<PeriodicOrbit> solved = SolveSegmentLength(
-        model, propagator, at.empty() ? guess : at.back(), segment, tau, kind, index1, index2);
+    StatusOr<PeriodicOrbit> solved =
+        SolveSegmentLength(model, propagator, at.empty() ? guess : at.back(), segment, tau, kind,
+                           index1, index2, kExtrapolationTolerance);
     if (!solved.ok()) return solved.status();
     at.push_back(*std::move(solved));
   }
