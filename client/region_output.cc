@@ -30,6 +30,7 @@ void ToProto(const HybridModel& model, const StabilityRegion& region, v1::Stabil
   out->set_solves(region.summary.solves);
   out->set_boundary_edges(region.summary.boundary_edges);
   out->set_untraced_edges(region.summary.untraced_edges);
+  out->set_seam_edges(region.summary.seam_edges);
   out->set_message(region.summary.message);
 }
 

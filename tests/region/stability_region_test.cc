@@ -15,10 +15,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
+#include "drillbif/orbit/attractors.h"
+#include "drillbif/orbit/signature.h"
 #include "drillbif/region/robust_optimum.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
@@ -358,6 +361,78 @@ TEST(StabilityRegion, OneLabelPerOrbitWhereTheSectionCutsItElsewhere) {
   EXPECT_NE(std::find(names.begin(), names.end(), "CwoP|"), names.end());
   EXPECT_GT(region.summary.boundary_edges, 0);
   EXPECT_EQ(region.summary.untraced_edges, 0) << region.summary.message;
+}
+
+// The orbit `o` moved to (omega, a) in 20 Newton steps along the straight line, or nullopt.
+std::optional<PeriodicOrbit> MovedTo(const DriftingOscillator& model, Propagator& prop,
+                                     PeriodicOrbit o, double omega, double a) {
+  const double w0 = o.params[DriftingOscillator::kOmega], a0 = o.params[DriftingOscillator::kA];
+  for (int k = 1; k <= 20; ++k) {
+    const double f = k / 20.0;
+    const double w = w0 + f * (omega - w0);
+    for (double& tau : o.durations) tau *= o.params[DriftingOscillator::kOmega] / w;
+    o.params[DriftingOscillator::kOmega] = w;
+    o.params[DriftingOscillator::kA] = a0 + f * (a - a0);
+    if (SolveOrbit(model, prop, {}, &o).status != SolveStatus::kConverged) return std::nullopt;
+  }
+  return o;
+}
+
+// A seam of the fill: where two stable orbits coexist the fill labels each node with the one it
+// reached, and where its two labels meet no curve is crossed. In omega in [0.8, 1], a in
+// [0.01, 0.03] (21 x 11 nodes), from the pure-contact orbit at (0.9, 0.02) (which coexists there
+// with an orbit with a flight: tests/orbit/attractors_test.cc), two boundary edges are crossed by
+// no traced curve, and both are seams: the pure-contact orbit goes on, stable, to the node across.
+// Checked independently at each untraced polygon vertex (bisected to the far node): both orbits,
+// moved there by Newton from (0.9, 0.02), are attractors by direct simulation (500 periods from
+// their start perturbed by 1e-6 settle on an orbit of the same signature). The 8 spread initial
+// states all settle on the pure-contact orbit there: a sample misses the flight orbit's basin.
+TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  Params at = testing::ReferenceParams();
+  at[DriftingOscillator::kOmega] = 0.9, at[DriftingOscillator::kA] = 0.02;
+  const StatusOr<AttractorSample> there =
+      SampleAttractors(model, prop, at, DriftingOscillator::SpreadStates(at));
+  ASSERT_TRUE(there.ok()) << there.status().ToString();
+  ASSERT_EQ(there->attractors.size(), 2u);
+  const bool contact_first =
+      SignatureString(model, there->attractors[0].orbit.signature) == "CwoP|";
+  const PeriodicOrbit& start = there->attractors[contact_first ? 0 : 1].orbit;
+  const PeriodicOrbit& flight = there->attractors[contact_first ? 1 : 0].orbit;
+  TraceOptions box;
+  box.param1 = std::string("omega"), box.param2 = std::string("a");
+  box.min1 = 0.8, box.max1 = 1.0, box.min2 = 0.01, box.max2 = 0.03;
+  const TraceResult trace = TraceCurves(model, prop, start, box);
+  ASSERT_TRUE(trace.summary.status.ok()) << trace.summary.status.ToString();
+  RegionOptions ro;
+  ro.param1 = box.param1, ro.param2 = box.param2;
+  ro.min1 = box.min1, ro.max1 = box.max1, ro.min2 = box.min2, ro.max2 = box.max2;
+  ro.n1 = 21, ro.n2 = 11;
+  const StabilityRegion region =
+      ComputeStabilityRegion(model, prop, start, RegionCurvesOf(trace.curves), ro);
+  ASSERT_TRUE(region.summary.status.ok()) << region.summary.status.ToString();
+  EXPECT_GT(region.summary.untraced_edges, 0) << region.summary.message;
+  EXPECT_EQ(region.summary.seam_edges, region.summary.untraced_edges) << region.summary.message;
+  int checked = 0;
+  for (const RegionPolygon& ring : region.polygons) {
+    for (const RegionVertex& v : ring.vertices) {
+      if (v.curve != RegionVertex::kUntraced) continue;
+      for (const PeriodicOrbit* o : {&start, &flight}) {
+        const std::optional<PeriodicOrbit> moved = MovedTo(model, prop, *o, v.value1, v.value2);
+        ASSERT_TRUE(moved.has_value()) << SignatureString(model, o->signature);
+        StateVector x0 = moved->starts[0];
+        x0[DriftingOscillator::kY] += 1e-6;
+        const StatusOr<PeriodicOrbit> settled = OrbitFromSimulation(model, prop, moved->params, x0);
+        ASSERT_TRUE(settled.ok()) << settled.status().ToString();
+        EXPECT_TRUE(SameUpToSection(settled->signature, o->signature))
+            << SignatureString(model, settled->signature) << " at (" << v.value1 << ", " << v.value2
+            << ")";
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 0);
 }
 
 TEST(StabilityRegion, BadRequestsAreClearErrors) {

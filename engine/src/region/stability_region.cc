@@ -174,6 +174,12 @@ class RegionBuilder {
         hi = mid;
       }
     }
+    // A seam of the fill rather than a boundary: b is inside in another signature and a's orbit
+    // goes on, stable and admissible, all the way to b, so two stable orbits coexist there.
+    if (grid_.Inside(b) && grid_.label[b] != grid_.label[a] &&
+        Solve(inside, pb[0], pb[1], &trial) == Outcome::kInside) {
+      ++region_.summary.seam_edges;
+    }
     const Eigen::Vector2d x = pa + lo * (pb - pa);
     e.value1 = x[0];
     e.value2 = x[1];
@@ -327,7 +333,8 @@ StabilityRegion ComputeStabilityRegion(const HybridModel& model, Propagator& pro
       " grid nodes inside in " + std::to_string(region.signatures.size()) + " signatures (" +
       std::to_string(summary.switches) + " switches), " + std::to_string(region.polygons.size()) +
       " rings, " + std::to_string(summary.boundary_edges) + " boundary edges (" +
-      std::to_string(summary.untraced_edges) + " crossed by no traced curve), " +
+      std::to_string(summary.untraced_edges) + " crossed by no traced curve, " +
+      std::to_string(summary.seam_edges) + " of them seams between coexisting stable orbits), " +
       std::to_string(summary.solves) + " Newton solves";
   return region;
 }

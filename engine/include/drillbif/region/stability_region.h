@@ -105,6 +105,12 @@ struct RegionSummary {
   int switches = 0;        // nodes reached in a new signature by simulation
   int boundary_edges = 0;  // grid edges joining nodes of different labels (each side counted)
   int untraced_edges = 0;  // of which crossed by no traced curve (located by bisection)
+  // Of those, seams between coexisting stable orbits: the node across is inside in another
+  // signature and the orbit of this side goes on, stable and admissible, to that node too (the
+  // fill labels each node with one orbit; there are two). No bifurcation is crossed there; the
+  // edge still bounds this signature's polygon (and is an obstacle for the optimum: the motion
+  // may settle on either orbit).
+  int seam_edges = 0;
   std::string message;
 };
 
