@@ -329,6 +329,23 @@ TEST(RobustOptimum, InvalidMarginsNameTheField) {
   }
 }
 
+// The curves of the (omega, a) box [w0, w1] x [a0, a1] traced from `start`, then the region on an
+// n1 x n2 grid bounded by them.
+StabilityRegion TracedRegion(const DriftingOscillator& model, Propagator& prop,
+                             const PeriodicOrbit& start, double w0, double w1, double a0, double a1,
+                             int n1, int n2) {
+  TraceOptions box;
+  box.param1 = std::string("omega"), box.param2 = std::string("a");
+  box.min1 = w0, box.max1 = w1, box.min2 = a0, box.max2 = a1;
+  const TraceResult trace = TraceCurves(model, prop, start, box);
+  EXPECT_TRUE(trace.summary.status.ok()) << trace.summary.status.ToString();
+  RegionOptions ro;
+  ro.param1 = box.param1, ro.param2 = box.param2;
+  ro.min1 = w0, ro.max1 = w1, ro.min2 = a0, ro.max2 = a1;
+  ro.n1 = n1, ro.n2 = n2;
+  return ComputeStabilityRegion(model, prop, start, RegionCurvesOf(trace.curves), ro);
+}
+
 // Where an event crosses the Poincare section inside the region, the same orbit's signature
 // rotates ("NC>Pi CwoP>l2 NC|" <-> "CwoP>l2 NC>Pi CwoP|"): one label, no seam. Below the l2
 // grazing curve the bit stays in contact ("CwoP|"), stable once the contact constraint's unit
@@ -343,17 +360,7 @@ TEST(StabilityRegion, OneLabelPerOrbitWhereTheSectionCutsItElsewhere) {
   at[DriftingOscillator::kOmega] = 1.36, at[DriftingOscillator::kA] = 0.15;
   const StatusOr<PeriodicOrbit> start = testing::SolvedOrbitFromRest(model, prop, at);
   ASSERT_TRUE(start.ok()) << start.status().ToString();
-  TraceOptions box;
-  box.param1 = std::string("omega"), box.param2 = std::string("a");
-  box.min1 = 1.3, box.max1 = 1.42, box.min2 = 0.09, box.max2 = 0.17;
-  const TraceResult trace = TraceCurves(model, prop, *start, box);
-  ASSERT_TRUE(trace.summary.status.ok()) << trace.summary.status.ToString();
-  RegionOptions ro;
-  ro.param1 = box.param1, ro.param2 = box.param2;
-  ro.min1 = box.min1, ro.max1 = box.max1, ro.min2 = box.min2, ro.max2 = box.max2;
-  ro.n1 = 13, ro.n2 = 9;
-  const StabilityRegion region =
-      ComputeStabilityRegion(model, prop, *start, RegionCurvesOf(trace.curves), ro);
+  const StabilityRegion region = TracedRegion(model, prop, *start, 1.3, 1.42, 0.09, 0.17, 13, 9);
   ASSERT_TRUE(region.summary.status.ok()) << region.summary.status.ToString();
   std::vector<std::string> names;
   for (const Signature& s : region.signatures) names.push_back(SignatureString(model, s));
@@ -400,17 +407,7 @@ TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
       SignatureString(model, there->attractors[0].orbit.signature) == "CwoP|";
   const PeriodicOrbit& start = there->attractors[contact_first ? 0 : 1].orbit;
   const PeriodicOrbit& flight = there->attractors[contact_first ? 1 : 0].orbit;
-  TraceOptions box;
-  box.param1 = std::string("omega"), box.param2 = std::string("a");
-  box.min1 = 0.8, box.max1 = 1.0, box.min2 = 0.01, box.max2 = 0.03;
-  const TraceResult trace = TraceCurves(model, prop, start, box);
-  ASSERT_TRUE(trace.summary.status.ok()) << trace.summary.status.ToString();
-  RegionOptions ro;
-  ro.param1 = box.param1, ro.param2 = box.param2;
-  ro.min1 = box.min1, ro.max1 = box.max1, ro.min2 = box.min2, ro.max2 = box.max2;
-  ro.n1 = 21, ro.n2 = 11;
-  const StabilityRegion region =
-      ComputeStabilityRegion(model, prop, start, RegionCurvesOf(trace.curves), ro);
+  const StabilityRegion region = TracedRegion(model, prop, start, 0.8, 1.0, 0.01, 0.03, 21, 11);
   ASSERT_TRUE(region.summary.status.ok()) << region.summary.status.ToString();
   EXPECT_GT(region.summary.untraced_edges, 0) << region.summary.message;
   EXPECT_EQ(region.summary.seam_edges, region.summary.untraced_edges) << region.summary.message;
