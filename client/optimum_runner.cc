@@ -177,7 +177,8 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   out.set_nearest_curve(best.nearest_curve);
   out.set_nearest_curve_kind(
       best.nearest_curve >= 0 ? CurveKindName(trace->result.curves[best.nearest_curve].curve.kind)
-                              : "UNTRACED");
+      : best.nearest_curve == RegionVertex::kSeam ? "SEAM"
+                                                  : "UNTRACED");
   out.set_near_box_edge(best.near_box_edge);
   out.set_signature(SignatureString(model, region.signatures[region.grid.label[best.node]]));
 

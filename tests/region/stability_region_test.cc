@@ -390,10 +390,11 @@ std::optional<PeriodicOrbit> MovedTo(const DriftingOscillator& model, Propagator
 // [0.01, 0.03] (21 x 11 nodes), from the pure-contact orbit at (0.9, 0.02) (which coexists there
 // with an orbit with a flight: tests/orbit/attractors_test.cc), two boundary edges are crossed by
 // no traced curve, and both are seams: the pure-contact orbit goes on, stable, to the node across.
-// Checked independently at each untraced polygon vertex (bisected to the far node): both orbits,
-// moved there by Newton from (0.9, 0.02), are attractors by direct simulation (500 periods from
-// their start perturbed by 1e-6 settle on an orbit of the same signature). The 8 spread initial
-// states all settle on the pure-contact orbit there: a sample misses the flight orbit's basin.
+// Checked independently at each seam vertex of the polygons (bisected to the far node): both
+// orbits, moved there by Newton from (0.9, 0.02), are attractors by direct simulation (500 periods
+// from their start perturbed by 1e-6 settle on an orbit of the same signature). The 8 spread
+// initial states all settle on the pure-contact orbit there: a sample misses the flight orbit's
+// basin.
 TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
   DriftingOscillator model;
   ExactPropagator prop(model);
@@ -414,7 +415,8 @@ TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
   int checked = 0;
   for (const RegionPolygon& ring : region.polygons) {
     for (const RegionVertex& v : ring.vertices) {
-      if (v.curve != RegionVertex::kUntraced) continue;
+      EXPECT_NE(v.curve, RegionVertex::kUntraced) << "(" << v.value1 << ", " << v.value2 << ")";
+      if (v.curve != RegionVertex::kSeam) continue;
       for (const PeriodicOrbit* o : {&start, &flight}) {
         const std::optional<PeriodicOrbit> moved = MovedTo(model, prop, *o, v.value1, v.value2);
         ASSERT_TRUE(moved.has_value()) << SignatureString(model, o->signature);

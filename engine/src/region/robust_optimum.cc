@@ -21,11 +21,14 @@ bool AlongBox(const RegionVertex& a, const RegionVertex& b, const StabilityRegio
          (a.value2 == r.min2 && b.value2 == r.min2) || (a.value2 == r.max2 && b.value2 == r.max2);
 }
 
-// The curve an obstacle edge belongs to: the one both ends share, else whichever end is on one.
+// The curve an obstacle edge belongs to: the one both ends share, else whichever end is on one;
+// with neither end on a curve, a seam where an end is on one (else untraced).
 int EdgeCurve(const RegionVertex& a, const RegionVertex& b) {
   if (a.curve >= 0 && (b.curve == a.curve || b.curve < 0)) return a.curve;
   if (b.curve >= 0 && a.curve < 0) return b.curve;
-  return a.curve >= 0 ? a.curve : RegionVertex::kUntraced;
+  if (a.curve >= 0) return a.curve;
+  const bool seam = a.curve == RegionVertex::kSeam || b.curve == RegionVertex::kSeam;
+  return seam ? RegionVertex::kSeam : RegionVertex::kUntraced;
 }
 
 // Coordinates in which the margin neighbourhood is the unit ball of the metric: u = (x - min) / s.

@@ -176,14 +176,13 @@ class RegionBuilder {
     }
     // A seam of the fill rather than a boundary: b is inside in another signature and a's orbit
     // goes on, stable and admissible, all the way to b, so two stable orbits coexist there.
-    if (grid_.Inside(b) && grid_.label[b] != grid_.label[a] &&
-        Solve(inside, pb[0], pb[1], &trial) == Outcome::kInside) {
-      ++region_.summary.seam_edges;
-    }
+    const bool seam = grid_.Inside(b) && grid_.label[b] != grid_.label[a] &&
+                      Solve(inside, pb[0], pb[1], &trial) == Outcome::kInside;
+    if (seam) ++region_.summary.seam_edges;
     const Eigen::Vector2d x = pa + lo * (pb - pa);
     e.value1 = x[0];
     e.value2 = x[1];
-    e.curve = RegionVertex::kUntraced;
+    e.curve = seam ? RegionVertex::kSeam : RegionVertex::kUntraced;
     return e;
   }
 

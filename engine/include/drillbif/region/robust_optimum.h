@@ -46,9 +46,10 @@ struct RobustOptimum {
   // no bounding curve at all.
   std::vector<double> margin;
   double distance_scaled = 0.0;  // Euclidean distance to the nearest obstacle, box-scaled units
-  int nearest_curve = RegionVertex::kUntraced;  // the curve of that obstacle (index), or kUntraced
-  bool near_box_edge = false;                   // the margin neighbourhood reaches beyond the box
-  int candidates = 0;  // inside nodes checked (rejected ones + the optimum)
+  // The curve of that obstacle (index), or kUntraced / kSeam.
+  int nearest_curve = RegionVertex::kUntraced;
+  bool near_box_edge = false;  // the margin neighbourhood reaches beyond the box
+  int candidates = 0;          // inside nodes checked (rejected ones + the optimum)
 };
 
 // INVALID_ARGUMENT for bad options or a region without a grid; FAILED_PRECONDITION for a region

@@ -68,10 +68,12 @@ struct RegionOptions {
 };
 
 // Where a polygon vertex lies: on traced curve `curve` (index into the curves given), on a
-// boundary no traced curve explains (kUntraced: located by bisection), or on the box (kBox).
+// boundary no traced curve explains (kUntraced: located by bisection), on the box (kBox), or on a
+// seam between two coexisting stable orbits (kSeam: RegionSummary::seam_edges; no bifurcation).
 struct RegionVertex {
   static constexpr int kUntraced = -1;
   static constexpr int kBox = -2;
+  static constexpr int kSeam = -3;
   double value1 = 0.0, value2 = 0.0;
   int curve = kBox;
 };
