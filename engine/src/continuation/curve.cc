@@ -386,7 +386,8 @@ class CurveTracer {
     return p;
   }
 
-  CurvePoint PointFromOrbit(PeriodicOrbit orbit) const {
+  // `stability` given: that one (an extrapolated end's), else the orbit's own.
+  CurvePoint PointFromOrbit(PeriodicOrbit orbit, const Stability* stability = nullptr) const {
     if (AtCorner(orbit)) orbit.durations[corner_] = kCornerDuration;
     CurvePoint p;
     p.value1 = orbit.params[index1_];
@@ -394,7 +395,7 @@ class CurveTracer {
     p.orbit = std::move(orbit);
     // ROP only (bit 0): Pc, 20 times its cost in quadrature, is asked for by no consumer of curves.
     p.measures = OrbitMeasures(model_, propagator_, p.orbit, 1u);
-    p.stability = OrbitStability(model_, propagator_, p.orbit);
+    p.stability = stability != nullptr ? *stability : OrbitStability(model_, propagator_, p.orbit);
     return p;
   }
 
@@ -697,8 +698,7 @@ class CurveTracer {
         }
         if (w.segment != zero_length || w.guard >= 0) return false;
       }
-      point = PointFromOrbit(*solved);
-      if (stability != nullptr) point.stability = *stability;
+      point = PointFromOrbit(*solved, stability);
       if (kind_ == CurveKind::kFold || kind_ == CurveKind::kPeriodDoubling) {
         const double target = kind_ == CurveKind::kFold ? 1.0 : -1.0;
         const std::vector<std::complex<double>>& mu = point.stability.multipliers;
