@@ -486,6 +486,17 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
           EXPECT_FALSE(std::abs(g.h) <= 1e-12 && std::abs(g.dh) <= 1e-9 && g.ddh > 0.0)
               << Codim2KindName(q.kind) << " at omega = " << q.point.value1 << ": " << q.detail;
         }
+        // Nor the first segment's touch reaching the Poincare section, its guard seen firing at
+        // the end of the last segment (of the same mode, running on across the section): an
+        // event crossing the section, where the curve goes on in the rotated signature (three
+        // grazing curves of this box ended so, one of them short of the omega-branch at
+        // a = 0.17). The touch is then within ~1e-8 of the section (sqrt(2 eps / h'')).
+        const int k = static_cast<int>(segs.size());
+        if (i == k - 1 && segs[0].tangent && q.violation.guard == segs[0].guard &&
+            segs[k - 1].mode == segs[0].mode) {
+          EXPECT_GT(q.point.orbit.durations[0], 1e-6)
+              << Codim2KindName(q.kind) << " at omega = " << q.point.value1 << ": " << q.detail;
+        }
         continue;
       }
       const bool end = c.curve.kind != CurveKind::kGrazing || q.kind == Codim2Kind::kDoubleGrazing;

@@ -574,11 +574,20 @@ class CurveTracer {
 
   // Whether a violation is an event reaching the Poincare section rather than a grazing: the
   // first or the last segment vanishes, or the first segment's own ending guard fires at its
-  // start (the same, seen by the event locator before the duration turns negative).
+  // start (the same, seen by the event locator before the duration turns negative), or, on a
+  // grazing curve whose first segment ends in its touch, that guard fires in the last segment
+  // (of the same mode, running on across the section into the first): the touch reaching the
+  // section, its guard within rounding of zero at the last segment's end. (Issue 4's box: a
+  // grazing curve ended so at (0.1318, 0.1577) as a DOUBLE_GRAZING, and its part beyond the
+  // section, crossed by the omega-branch at a = 0.17, was never traced.)
   // `end` is the last admissible orbit: its first segment must be of zero length to rounding
-  // (the guard firing anywhere else inside it is a grazing, not a crossing).
+  // (the guard firing anywhere else inside it is a grazing, not a crossing); for a touch seen in
+  // the last segment, up to 1e-6: the guard is quadratic about the touch, its value at the
+  // section ~h'' d^2 / 2 for the first segment d long, and rounding makes it fire while d is
+  // still ~sqrt(2 eps / h'') (4e-9 .. 1.9e-8 measured at the box's three such ends).
   bool IsSectionCrossing(const Admissibility& v, const PeriodicOrbit& end) const {
-    return MayBeSectionCrossing(v) && (v.guard < 0 || std::abs(end.durations[0]) <= 1e-9);
+    const double first_max = v.guard >= 0 && v.segment != 0 ? 1e-6 : 1e-9;
+    return MayBeSectionCrossing(v) && (v.guard < 0 || std::abs(end.durations[0]) <= first_max);
   }
 
   // IsSectionCrossing without the end's first-segment duration (which needs the boundary
@@ -588,6 +597,10 @@ class CurveTracer {
     const int k = static_cast<int>(segs.size());
     if (v.admissible || k < 3) return false;
     if (v.guard < 0) return v.segment == 0 || v.segment == k - 1;
+    if (v.segment == k - 1) {
+      return !v.at_start && segs[0].tangent && v.guard == segs[0].guard &&
+             segs[k - 1].mode == segs[0].mode;
+    }
     return v.segment == 0 && v.guard == segs[0].guard && !segs[0].tangent;
   }
 
@@ -870,7 +883,10 @@ class CurveTracer {
       crossing->happened = true;
       crossing->orbit = end.orbit;
       crossing->violation = b.violation;
-      crossing->violation.guard = -1;  // as the vanishing of that segment (SwitchSignature)
+      // As the vanishing of that segment (SwitchSignature); seen as a guard firing, the first
+      // segment, which ends on it.
+      if (b.violation.guard >= 0) crossing->violation.segment = 0;
+      crossing->violation.guard = -1;
       crossing->direction = ParamDirection(t).normalized();
       crossing->end = point;
       points->push_back(end);
