@@ -1,6 +1,7 @@
 // Switching at codimension-2 points: the curves that leave the codimension-2 points found on the
 // traced curves (TraceOptions::switch_at_codim2; continuation/trace_internal.h).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -13,6 +14,12 @@
 #include "continuation/trace_internal.h"
 
 namespace drillbif::internal {
+
+namespace {
+// The segment's lengths at a root's step-off when none of kStepOffLengths gives an admissible
+// orbit, each tried in turn until a curve gets away from the point.
+constexpr std::array<double, 2> kLastResortStepOffs = {1e-6, 1e-7};
+}  // namespace
 
 SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tangent_orbit) {
   const std::vector<SegmentSpec>& segs = tangent_orbit.signature.segments;
@@ -49,10 +56,12 @@ void TallyNotes(const SwitchTally& t, TraceSummary* sum) {
     for (const double l : kStepOffLengths) {
       lengths += (lengths.empty() ? "" : ", ") + FormatNumber(l, 1);
     }
+    for (const double l : kLastResortStepOffs) lengths += ", " + FormatNumber(l, 1);
     sum->notes.push_back(
         "curves not started where no admissible orbit has the inserted segment " + lengths +
-        " long: " + std::to_string(t.no_step_off) +
-        " fold / PD curves at roots of grazing curves, " + std::to_string(t.no_step_off_grazing) +
+        " long (or the curve from it does not get away from the point): " +
+        std::to_string(t.no_step_off) + " fold / PD curves at roots of grazing curves, " +
+        std::to_string(t.no_step_off_grazing) +
         " grazing curves beyond a double grazing's other boundary (not told apart from double "
         "grazings past which the touch's curve does not go on)");
   }
@@ -217,39 +226,71 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
                   });
             });
         if (known) continue;
-        seed.point.orbit = *orbit;
-        if (candidate.step_off >= 0) {
-          // The same lengths as a one-parameter branch's step off an inserted segment.
-          StatusOr<PeriodicOrbit> off = Status(StatusCode::kInternal, "");
+        // The orbits to start from: the candidate itself, or stepped off its zero-length
+        // segment at the first of kStepOffLengths that gives an admissible orbit (the same
+        // lengths as a one-parameter branch's step off an inserted segment), else at each
+        // kLastResortStepOffs length in turn. Next to a contact phase vanishing between
+        // flights the fixed-length system can stagnate or leave the flows' domain down to 1e-5
+        // and solve shorter (issue 4's box: a PD curve of 253 points between two flip-grazings
+        // near (0.062, 0.17), crossed by the omega-branch at a = 0.17, was not traced without
+        // it; with longer steps its start needed 1e-7).
+        std::vector<PeriodicOrbit> starts;
+        bool last_resort = false;  // starts stepped off at kLastResortStepOffs
+        if (candidate.step_off < 0) {
+          starts.push_back(*orbit);
+        } else {
+          auto step_off = [&](double length, std::vector<PeriodicOrbit>* to) {
+            StatusOr<PeriodicOrbit> off = SolveSegmentLength(
+                model, propagator, *orbit, candidate.step_off, length, kind, i1, i2);
+            if (!off.ok() || !CheckAdmissible(model, propagator, *off).admissible) return false;
+            to->push_back(*std::move(off));
+            return true;
+          };
           for (const double length : kStepOffLengths) {
-            off = SolveSegmentLength(model, propagator, *orbit, candidate.step_off, length, kind,
-                                     i1, i2);
-            if (off.ok() && CheckAdmissible(model, propagator, *off).admissible) break;
-            off = Status(StatusCode::kInternal, "");
+            if (step_off(length, &starts)) break;
           }
-          if (!off.ok()) {
-            ++(kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
+          if (starts.empty()) {
+            last_resort = true;
+            for (const double length : kLastResortStepOffs) step_off(length, &starts);
+          }
+        }
+        bool started = false;
+        for (size_t s = 0; s < starts.size() && !started; ++s) {
+          seed.point.orbit = std::move(starts[s]);
+          seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
+          if (added == options.max_switched_curves) {
+            tally->capped = true;
+            return true;
+          }
+          CurveResult curve = ContinueCurve(model, propagator, seed, co);
+          if (curve.summary.termination == Termination::kFailed) {
+            sum.notes.push_back(std::string(Codim2KindName(point.kind)) + " at " + options.param1 +
+                                " = " + std::to_string(u) + ", " + options.param2 + " = " +
+                                std::to_string(v) + ": the " + CurveKindName(kind) +
+                                " curve leaving it not traced: " + curve.summary.message);
+            started = true;  // named in the note, not counted as a failed step-off
             continue;
           }
-          seed.point.orbit = *std::move(off);
+          // Started at a last-resort length but never away from the point: from most such
+          // starts the curve ends at once both ways, back at the root and where its corrector
+          // fails at the first step (issue 4's box: nine curves at 1e-6, each within 1e-9 of its
+          // root, seven with their second end bracketed only to 5 .. 7 in arclength). Kept,
+          // such a curve would also hide the real curve of its signature through the point from
+          // a later start (it hid two, of 11 and 80 points). The next length is tried.
+          const bool stayed =
+              std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {
+                return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2) <=
+                       options.duplicate_distance;
+              });
+          if (last_resort && stayed) continue;
+          result->curves.push_back(
+              {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
+          ++added;
+          started = true;
         }
-        seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
-        if (added == options.max_switched_curves) {
-          tally->capped = true;
-          return true;
+        if (!started) {
+          ++(kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
         }
-        CurveResult curve = ContinueCurve(model, propagator, seed, co);
-        const std::string where = std::string(Codim2KindName(point.kind)) + " at " +
-                                  options.param1 + " = " + std::to_string(u) + ", " +
-                                  options.param2 + " = " + std::to_string(v);
-        if (curve.summary.termination == Termination::kFailed) {
-          sum.notes.push_back(where + ": the " + CurveKindName(kind) +
-                              " curve leaving it not traced: " + curve.summary.message);
-          continue;
-        }
-        result->curves.push_back(
-            {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
-        ++added;
       }
     }
   }
