@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -18,7 +19,8 @@ namespace drillbif::internal {
 namespace {
 // The segment's lengths at a root's step-off when none of kStepOffLengths gives an admissible
 // orbit, each tried in turn until a curve gets away from the point.
-constexpr std::array<double, 2> kLastResortStepOffs = {1e-6, 1e-7};
+constexpr std::array<double, 4> kLastResortStepOffs = {1e-6, 3e-7, 1e-7, 3e-8};
+
 }  // namespace
 
 SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tangent_orbit) {
@@ -69,7 +71,7 @@ void TallyNotes(const SwitchTally& t, TraceSummary* sum) {
 
 bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const TraceOptions& options,
                     const std::function<bool(double)>& report, size_t first_curve,
-                    SwitchTally* tally, TraceResult* result) {
+                    SwitchTally* tally, TraceResult* result, bool last_resort) {
   TraceSummary& sum = result->summary;
   const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
   const int i1 = model.ParamIndex(options.param1).value();
@@ -78,6 +80,147 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
   co.param1 = options.param1, co.min1 = options.min1, co.max1 = options.max1;
   co.param2 = options.param2, co.min2 = options.min2, co.max2 = options.max2;
   int& added = tally->added;
+  // Tries one candidate from point q of curve c: skipped when known, else traced from its start
+  // (appended to result->curves) or counted among the failures; a step-off no regular length
+  // starts is deferred to the last round. False when max_switched_curves is reached.
+  auto process = [&](size_t c, size_t q, const Codim2Point& point,
+                     const SwitchCandidate& candidate) {
+    const StatusOr<PeriodicOrbit>& orbit = candidate.orbit;
+    const CurveKind kind = candidate.kind;
+    if (!orbit.ok()) {
+      ++(point.bracket > 1e-6 ? tally->wide : tally->no_form);
+      return true;
+    }
+    const Signature& curve_signature = orbit->signature;
+    SpecialPoint seed;
+    seed.kind = candidate.seed_kind;
+    seed.point.value = point.point.value1;
+    const double u = orbit->params[i1], v = orbit->params[i2];
+    // Known: on a traced curve of the same kind and signature, by its polyline or by one of
+    // its codimension-2 points (which lie between its vertices, off the chords by up to the
+    // chord error). The signature tells curves through one point apart: at a fold-grazing the
+    // fold curves of the orbits with and without the vanishing segment both pass, at a double
+    // grazing the grazing curves of either touch. (Grazing candidates compared by kind only
+    // were hidden by a grazing curve ending at a double grazing 4.5e-7 away.)
+    const bool known =
+        std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+          // A curve's signature rotates where it crosses the Poincare section: any of its
+          // points' signatures counts.
+          if (t.curve.kind != kind) return false;
+          const CurvePoint* nearest = nullptr;
+          double nearest_distance = std::numeric_limits<double>::infinity();
+          for (const CurvePoint& p : t.curve.points) {
+            if (p.orbit.signature != curve_signature) continue;
+            const double d = std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
+            if (d < nearest_distance) nearest_distance = d, nearest = &p;
+          }
+          if (nearest == nullptr) return false;
+          // Nor does it always tell which touch: where one contact phase touches its guard
+          // twice (two tangent ends in a row at a double grazing), the curves of either
+          // touch alone have the same signature and differ in how long the tangent segment
+          // is (5.5 and 24.5 at (0.0628, 0.1813) in issue 4's box, where the one was taken
+          // for the other and the second touch's curve, crossed by the omega-branch at
+          // a = 0.18, was not traced). So a curve whose point of that signature next to this
+          // one (within 1e-2 of the box) has other durations, beyond a longest step and 10%,
+          // is another curve.
+          if (nearest_distance <= 1e-2) {
+            const std::vector<double>& d0 = nearest->orbit.durations;
+            const std::vector<double>& d1 = orbit->durations;
+            for (size_t i = 0; i < d0.size() && i < d1.size(); ++i) {
+              if (std::abs(d0[i] - d1[i]) > co.max_step + 0.1 * std::abs(d1[i])) return false;
+            }
+          }
+          if (OnCurve(t.curve, u, v, w1, w2, options.duplicate_distance)) return true;
+          return std::any_of(
+              t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
+                return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
+                       options.duplicate_distance;
+              });
+        });
+    if (known) return true;
+    // The orbits to start from: the candidate itself, or stepped off its zero-length
+    // segment at the first of kStepOffLengths that gives an admissible orbit (the same
+    // lengths as a one-parameter branch's step off an inserted segment), else, in the last
+    // round (`last_resort`), at each kLastResortStepOffs length in turn. Next to a contact
+    // phase vanishing between flights the fixed-length system can stagnate or leave the
+    // flows' domain down to 1e-5 and solve shorter (issue 4's box: a PD curve of 253 points
+    // between two flip-grazings near (0.062, 0.17), crossed by the omega-branch at a = 0.17,
+    // was not traced without it; with longer steps its start needed 1e-7). Last, because a
+    // curve started so close to its root is traced coarsely there (its first steps long
+    // against the square-root scale of the orbit's change) and, traced first, it hid the same
+    // curve traced from its other end, and that curve's crossing with the a-branch at
+    // omega = 0.09.
+    std::vector<PeriodicOrbit> starts;
+    if (candidate.step_off < 0) {
+      starts.push_back(*orbit);
+    } else {
+      auto step_off = [&](double length, std::vector<PeriodicOrbit>* to) {
+        StatusOr<PeriodicOrbit> off =
+            SolveSegmentLength(model, propagator, *orbit, candidate.step_off, length, kind, i1, i2);
+        if (!off.ok() || !CheckAdmissible(model, propagator, *off).admissible) return false;
+        to->push_back(*std::move(off));
+        return true;
+      };
+      if (!last_resort) {
+        for (const double length : kStepOffLengths) {
+          if (step_off(length, &starts)) break;
+        }
+        if (starts.empty()) {
+          tally->deferred.push_back({c, q, point, candidate});
+          return true;
+        }
+      } else {
+        for (const double length : kLastResortStepOffs) step_off(length, &starts);
+      }
+    }
+    bool started = false;
+    for (size_t s = 0; s < starts.size() && !started; ++s) {
+      seed.point.orbit = std::move(starts[s]);
+      seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
+      if (added == options.max_switched_curves) {
+        tally->capped = true;
+        return false;
+      }
+      CurveResult curve = ContinueCurve(model, propagator, seed, co);
+      if (curve.summary.termination == Termination::kFailed) {
+        sum.notes.push_back(std::string(Codim2KindName(point.kind)) + " at " + options.param1 +
+                            " = " + std::to_string(u) + ", " + options.param2 + " = " +
+                            std::to_string(v) + ": the " + CurveKindName(kind) +
+                            " curve leaving it not traced: " + curve.summary.message);
+        started = true;  // named in the note, not counted as a failed step-off
+        continue;
+      }
+      // Started at a last-resort length but never away from the point: from most such
+      // starts the curve ends at once both ways, back at the root and where its corrector
+      // fails at the first step (issue 4's box: nine curves at 1e-6, each within 1e-9 of its
+      // root, seven with their second end bracketed only to 5 .. 7 in arclength). Kept,
+      // such a curve would also hide the real curve of its signature through the point from
+      // a later start (it hid two, of 11 and 80 points). The next length is tried.
+      const bool stayed =
+          std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {
+            return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2) <=
+                   options.duplicate_distance;
+          });
+      if (last_resort && stayed) continue;
+      result->curves.push_back(
+          {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
+      ++added;
+      started = true;
+    }
+    if (!started) {
+      ++(kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
+    }
+    return true;
+  };
+  if (last_resort) {
+    std::vector<DeferredStepOff> deferred;
+    deferred.swap(tally->deferred);
+    for (const DeferredStepOff& d : deferred) {
+      if (!report(0.99)) return false;
+      if (!process(d.curve, d.codim2, d.point, d.candidate)) return true;
+    }
+    return true;
+  }
   // result->curves grows while it is walked: index, not iterator.
   for (size_t c = first_curve; c < result->curves.size(); ++c) {
     for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
@@ -86,14 +229,8 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       const CurveKind from_kind = result->curves[c].curve.kind;
       const Codim2Point point = result->curves[c].curve.codim2[q];
       const bool fold = point.kind == Codim2Kind::kFoldGrazing;
-      // The curves to try from this point: each start orbit, the kind of its point and curve.
-      struct Candidate {
-        StatusOr<PeriodicOrbit> orbit;
-        SpecialPointKind seed_kind;
-        CurveKind kind;
-        int step_off = -1;  // a zero-length segment of `orbit` to step off from (CrossingForm)
-      };
-      std::vector<Candidate> candidates;
+      // The curves to try from this point.
+      std::vector<SwitchCandidate> candidates;
       if (from_kind == CurveKind::kGrazing && point.kind == Codim2Kind::kDoubleGrazing) {
         // A grazing curve's end solved with both touches as tangent ends: the grazing curve of
         // each touch alone (the other tangent end merged away) passes; one of them is usually the
@@ -190,107 +327,8 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       } else {
         continue;  // a bracketed root on a grazing curve
       }
-      for (Candidate& candidate : candidates) {
-        const StatusOr<PeriodicOrbit>& orbit = candidate.orbit;
-        const CurveKind kind = candidate.kind;
-        if (!orbit.ok()) {
-          ++(point.bracket > 1e-6 ? tally->wide : tally->no_form);
-          continue;
-        }
-        const Signature& curve_signature = orbit->signature;
-        SpecialPoint seed;
-        seed.kind = candidate.seed_kind;
-        seed.point.value = point.point.value1;
-        const double u = orbit->params[i1], v = orbit->params[i2];
-        // Known: on a traced curve of the same kind and signature, by its polyline or by one of
-        // its codimension-2 points (which lie between its vertices, off the chords by up to the
-        // chord error). The signature tells curves through one point apart: at a fold-grazing the
-        // fold curves of the orbits with and without the vanishing segment both pass, at a double
-        // grazing the grazing curves of either touch. (Grazing candidates compared by kind only
-        // were hidden by a grazing curve ending at a double grazing 4.5e-7 away.)
-        const bool known =
-            std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
-              // A curve's signature rotates where it crosses the Poincare section: any of its
-              // points' signatures counts.
-              if (t.curve.kind != kind || t.curve.points.empty() ||
-                  std::none_of(
-                      t.curve.points.begin(), t.curve.points.end(),
-                      [&](const CurvePoint& p) { return p.orbit.signature == curve_signature; })) {
-                return false;
-              }
-              if (OnCurve(t.curve, u, v, w1, w2, options.duplicate_distance)) return true;
-              return std::any_of(
-                  t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
-                    return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
-                           options.duplicate_distance;
-                  });
-            });
-        if (known) continue;
-        // The orbits to start from: the candidate itself, or stepped off its zero-length
-        // segment at the first of kStepOffLengths that gives an admissible orbit (the same
-        // lengths as a one-parameter branch's step off an inserted segment), else at each
-        // kLastResortStepOffs length in turn. Next to a contact phase vanishing between
-        // flights the fixed-length system can stagnate or leave the flows' domain down to 1e-5
-        // and solve shorter (issue 4's box: a PD curve of 253 points between two flip-grazings
-        // near (0.062, 0.17), crossed by the omega-branch at a = 0.17, was not traced without
-        // it; with longer steps its start needed 1e-7).
-        std::vector<PeriodicOrbit> starts;
-        bool last_resort = false;  // starts stepped off at kLastResortStepOffs
-        if (candidate.step_off < 0) {
-          starts.push_back(*orbit);
-        } else {
-          auto step_off = [&](double length, std::vector<PeriodicOrbit>* to) {
-            StatusOr<PeriodicOrbit> off = SolveSegmentLength(
-                model, propagator, *orbit, candidate.step_off, length, kind, i1, i2);
-            if (!off.ok() || !CheckAdmissible(model, propagator, *off).admissible) return false;
-            to->push_back(*std::move(off));
-            return true;
-          };
-          for (const double length : kStepOffLengths) {
-            if (step_off(length, &starts)) break;
-          }
-          if (starts.empty()) {
-            last_resort = true;
-            for (const double length : kLastResortStepOffs) step_off(length, &starts);
-          }
-        }
-        bool started = false;
-        for (size_t s = 0; s < starts.size() && !started; ++s) {
-          seed.point.orbit = std::move(starts[s]);
-          seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
-          if (added == options.max_switched_curves) {
-            tally->capped = true;
-            return true;
-          }
-          CurveResult curve = ContinueCurve(model, propagator, seed, co);
-          if (curve.summary.termination == Termination::kFailed) {
-            sum.notes.push_back(std::string(Codim2KindName(point.kind)) + " at " + options.param1 +
-                                " = " + std::to_string(u) + ", " + options.param2 + " = " +
-                                std::to_string(v) + ": the " + CurveKindName(kind) +
-                                " curve leaving it not traced: " + curve.summary.message);
-            started = true;  // named in the note, not counted as a failed step-off
-            continue;
-          }
-          // Started at a last-resort length but never away from the point: from most such
-          // starts the curve ends at once both ways, back at the root and where its corrector
-          // fails at the first step (issue 4's box: nine curves at 1e-6, each within 1e-9 of its
-          // root, seven with their second end bracketed only to 5 .. 7 in arclength). Kept,
-          // such a curve would also hide the real curve of its signature through the point from
-          // a later start (it hid two, of 11 and 80 points). The next length is tried.
-          const bool stayed =
-              std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {
-                return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2) <=
-                       options.duplicate_distance;
-              });
-          if (last_resort && stayed) continue;
-          result->curves.push_back(
-              {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
-          ++added;
-          started = true;
-        }
-        if (!started) {
-          ++(kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
-        }
+      for (const SwitchCandidate& candidate : candidates) {
+        if (!process(c, q, point, candidate)) return true;
       }
     }
   }

@@ -405,6 +405,15 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
     if (starts.size() == starts_before) break;
     if (!trace_starts(starts_before, 0.99, 0.99) || !switch_from(curves_before)) return result;
   }
+  // Last, the step-offs at codimension-2 roots that only a last-resort length starts
+  // (SwitchAtCodim2), and the curves leaving the codimension-2 points of the curves they add.
+  while (!tally.deferred.empty()) {
+    const size_t before = result.curves.size();
+    if (!SwitchAtCodim2(model, propagator, options, report, before, &tally, &result, true) ||
+        !switch_from(before)) {
+      return result;
+    }
+  }
   if (edge_runs > 0) {
     sum.notes.push_back(std::to_string(edge_runs) + " branches run along the box's edges from " +
                         "curve ends on them");

@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "drillbif/continuation/trace.h"
 
@@ -31,6 +32,21 @@ bool IsGrazing(SpecialPointKind kind);
 // "" for period 1, else "period-n " (for notes).
 std::string PeriodPrefix(int periods);
 
+// A curve to try from a codimension-2 point: its start orbit, the kind of its point and curve.
+struct SwitchCandidate {
+  StatusOr<PeriodicOrbit> orbit;
+  SpecialPointKind seed_kind;
+  CurveKind kind;
+  int step_off = -1;  // a zero-length segment of `orbit` to step off from (CrossingForm)
+};
+
+// A candidate whose step-off needs a last-resort length (SwitchAtCodim2), kept for the end.
+struct DeferredStepOff {
+  size_t curve = 0, codim2 = 0;  // the point it leaves
+  Codim2Point point;
+  SwitchCandidate candidate;
+};
+
 // What switching at codimension-2 points added and could not do, over all its rounds.
 struct SwitchTally {
   int added = 0;                // curves
@@ -39,6 +55,7 @@ struct SwitchTally {
   int no_step_off = 0;          // roots where no inserted segment length gave an admissible orbit
   int no_step_off_grazing = 0;  // likewise at double grazings
   bool capped = false;          // max_switched_curves reached
+  std::vector<DeferredStepOff> deferred;  // for the last round
 };
 
 // The notes for what switching could not do.
@@ -50,10 +67,12 @@ SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tang
 
 // The curves that leave the codimension-2 points of the traced curves from first_curve on
 // (TraceOptions::switch_at_codim2), appended to result->curves until none is new or the cap is
-// reached; *tally accumulates over calls. False when cancelled.
+// reached; *tally accumulates over calls. Step-offs that no regular length starts are kept in
+// tally->deferred; with `last_resort` only those are tried (shorter lengths), and the curves
+// they start appended. False when cancelled.
 bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const TraceOptions& options,
                     const std::function<bool(double)>& report, size_t first_curve,
-                    SwitchTally* tally, TraceResult* result);
+                    SwitchTally* tally, TraceResult* result, bool last_resort = false);
 
 // The period-2n grazing curves that leave the period-n curves' FLIP_GRAZING points, for
 // 2n <= TraceOptions::max_period (with switch_at_codim2), appended to result->curves; the
