@@ -196,12 +196,13 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       // root, seven with their second end bracketed only to 5 .. 7 in arclength). Kept,
       // such a curve would also hide the real curve of its signature through the point from
       // a later start (it hid two, of 11 and 80 points). The next length is tried.
-      const bool stayed =
+      if (last_resort &&
           std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {
             return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2) <=
                    options.duplicate_distance;
-          });
-      if (last_resort && stayed) continue;
+          })) {
+        continue;
+      }
       result->curves.push_back(
           {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
       ++added;
