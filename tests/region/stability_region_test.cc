@@ -434,6 +434,65 @@ TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
   EXPECT_GT(checked, 0);
 }
 
+// A seam reached across a Poincare-section crossing: in omega in [0.85, 0.89], a in [0.01, 0.04]
+// (5 x 4 nodes), from the orbit with a flight at (0.87, 0.03), the fill labels (0.87, 0.02) with
+// the pure-contact orbit; the flight orbit goes on, stable, down to that node, but its
+// representation rotates on the way (an event crosses the section at a = 0.0213), so Newton with
+// its signature fixed gives an inadmissible orbit there. The one-parameter branch along the edge
+// carries it across (stability_region.cc, CarriedStable): every untraced edge is a seam (3 of 4
+// before). Checked independently at (0.87, 0.02): the branch's orbit there, perturbed by 1e-6,
+// settles on itself in 500 periods of direct simulation (an attractor, so stable and there),
+// as does the pure-contact orbit of the node's label.
+TEST(StabilityRegion, ASeamReachedAcrossASectionCrossingIsToldApart) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  Params at = testing::ReferenceParams();
+  at[DriftingOscillator::kOmega] = 0.87, at[DriftingOscillator::kA] = 0.03;
+  const StatusOr<AttractorSample> there =
+      SampleAttractors(model, prop, at, DriftingOscillator::SpreadStates(at));
+  ASSERT_TRUE(there.ok()) << there.status().ToString();
+  ASSERT_EQ(there->attractors.size(), 2u);
+  const bool contact_first =
+      SignatureString(model, there->attractors[0].orbit.signature) == "CwoP|";
+  const PeriodicOrbit& flight = there->attractors[contact_first ? 1 : 0].orbit;
+  const PeriodicOrbit& contact = there->attractors[contact_first ? 0 : 1].orbit;
+  const StabilityRegion region = TracedRegion(model, prop, flight, 0.85, 0.89, 0.01, 0.04, 5, 4);
+  ASSERT_TRUE(region.summary.status.ok()) << region.summary.status.ToString();
+  EXPECT_GT(region.summary.untraced_edges, 0) << region.summary.message;
+  EXPECT_EQ(region.summary.seam_edges, region.summary.untraced_edges) << region.summary.message;
+  for (const RegionPolygon& ring : region.polygons) {
+    for (const RegionVertex& v : ring.vertices) {
+      EXPECT_NE(v.curve, RegionVertex::kUntraced) << "(" << v.value1 << ", " << v.value2 << ")";
+    }
+  }
+  // The case: with its signature fixed the flight orbit at (0.87, 0.02) is not admissible.
+  PeriodicOrbit fixed = flight;
+  fixed.params[DriftingOscillator::kA] = 0.02;
+  ASSERT_EQ(SolveOrbit(model, prop, {}, &fixed).status, SolveStatus::kConverged);
+  EXPECT_FALSE(CheckAdmissible(model, prop, fixed).admissible);
+  ContinuationOptions down;
+  down.param = "a", down.min = 0.02, down.max = 0.03;
+  down.direction = ContinuationDirection::kDecreasing;
+  const ContinuationResult branch = Continue(model, prop, flight, down);
+  const auto at_node =
+      std::find_if(branch.points.begin(), branch.points.end(),
+                   [](const ContinuationPoint& p) { return std::abs(p.value - 0.02) <= 1e-12; });
+  ASSERT_NE(at_node, branch.points.end()) << branch.summary.message;
+  EXPECT_NE(at_node->orbit.signature, flight.signature);  // rotated on the way
+  const std::optional<PeriodicOrbit> contact_there = MovedTo(model, prop, contact, 0.87, 0.02);
+  ASSERT_TRUE(contact_there.has_value());
+  for (const PeriodicOrbit* o : {&at_node->orbit, &*contact_there}) {
+    const PeriodicOrbit& moved = *o;
+    StateVector x0 = moved.starts[0];
+    x0[DriftingOscillator::kY] += 1e-6;
+    const StatusOr<PeriodicOrbit> settled = OrbitFromSimulation(model, prop, moved.params, x0);
+    ASSERT_TRUE(settled.ok()) << settled.status().ToString();
+    EXPECT_TRUE(SameUpToSection(settled->signature, moved.signature))
+        << SignatureString(model, settled->signature) << " from "
+        << SignatureString(model, moved.signature);
+  }
+}
+
 TEST(StabilityRegion, BadRequestsAreClearErrors) {
   DriftingOscillator model;
   ExactPropagator prop(model);

@@ -1,6 +1,7 @@
 #include "drillbif/region/stability_region.h"
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <limits>
@@ -175,9 +176,12 @@ class RegionBuilder {
       }
     }
     // A seam of the fill rather than a boundary: b is inside in another signature and a's orbit
-    // goes on, stable and admissible, all the way to b, so two stable orbits coexist there.
-    const bool seam = grid_.Inside(b) && grid_.label[b] != grid_.label[a] &&
-                      Solve(inside, pb[0], pb[1], &trial) == Outcome::kInside;
+    // goes on, stable and admissible, all the way to b (by Newton in its signature, or, where its
+    // representation rotates on the way, along the edge's one-parameter branch), so two stable
+    // orbits coexist there.
+    const bool seam =
+        grid_.Inside(b) && grid_.label[b] != grid_.label[a] &&
+        (Solve(inside, pb[0], pb[1], &trial) == Outcome::kInside || CarriedStable(inside, pb));
     if (seam) ++region_.summary.seam_edges;
     const Eigen::Vector2d x = pa + lo * (pb - pa);
     e.value1 = x[0];
@@ -187,6 +191,39 @@ class RegionBuilder {
   }
 
  private:
+  // Whether the branch of `from` along the edge to `to` (one coordinate differs) reaches it with
+  // every point stable and no fold, period doubling, Neimark-Sacker point or grazing on the way:
+  // the one-parameter continuation carries the orbit on where its representation rotates (an
+  // event crossing the section), which Solve, with the signature fixed, cannot (issue 4's box:
+  // a seam at (0.87, 0.02125) went unclassified, the flight orbit's representation rotating at
+  // a = 0.0213 on its way to the far node).
+  bool CarriedStable(const PeriodicOrbit& from, const Eigen::Vector2d& to) {
+    const bool along1 = from.params[k1_] != to[0];
+    const int k = along1 ? k1_ : k2_;
+    const double x0 = from.params[k], x1 = to[along1 ? 0 : 1];
+    ContinuationOptions c;
+    c.param = along1 ? options_.param1 : options_.param2;
+    c.min = std::min(x0, x1);
+    c.max = std::max(x0, x1);
+    c.direction = x1 > x0 ? ContinuationDirection::kIncreasing : ContinuationDirection::kDecreasing;
+    c.locate_measure_maxima = false;
+    c.point_measures = 0;
+    c.stop_at = {SpecialPointKind::kFold,          SpecialPointKind::kPeriodDoubling,
+                 SpecialPointKind::kNeimarkSacker, SpecialPointKind::kGrazingL1,
+                 SpecialPointKind::kGrazingL2,     SpecialPointKind::kGrazingPi};
+    const ContinuationResult branch = Continue(model_, propagator_, from, c);
+    region_.summary.solves += branch.summary.steps + branch.summary.rejected_steps;
+    // (Reached: a point at the bound; a decreasing run lists its points from there.)
+    if (branch.summary.termination != Termination::kCompleted ||
+        std::none_of(branch.points.begin(), branch.points.end(), [&](const ContinuationPoint& p) {
+          return std::abs(p.value - x1) <= 1e-9 * (1.0 + std::abs(x1));
+        })) {
+      return false;
+    }
+    return std::all_of(branch.points.begin(), branch.points.end(),
+                       [](const ContinuationPoint& p) { return p.stability.stable; });
+  }
+
   Eigen::Vector2d Position(int node) const {
     return {grid_.values1[node % grid_.n1], grid_.values2[node / grid_.n1]};
   }
