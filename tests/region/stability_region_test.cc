@@ -385,6 +385,38 @@ std::optional<PeriodicOrbit> MovedTo(const DriftingOscillator& model, Propagator
   return o;
 }
 
+// The two stable orbits that coexist at (omega, a): the pure-contact one and the one with a flight
+// (found by SampleAttractors; exactly these two).
+void ContactAndFlight(const DriftingOscillator& model, Propagator& prop, double omega, double a,
+                      PeriodicOrbit* contact, PeriodicOrbit* flight) {
+  Params at = testing::ReferenceParams();
+  at[DriftingOscillator::kOmega] = omega, at[DriftingOscillator::kA] = a;
+  const StatusOr<AttractorSample> there =
+      SampleAttractors(model, prop, at, DriftingOscillator::SpreadStates(at));
+  ASSERT_TRUE(there.ok()) << there.status().ToString();
+  ASSERT_EQ(there->attractors.size(), 2u);
+  const bool contact_first =
+      SignatureString(model, there->attractors[0].orbit.signature) == "CwoP|";
+  *contact = there->attractors[contact_first ? 0 : 1].orbit;
+  *flight = there->attractors[contact_first ? 1 : 0].orbit;
+}
+
+// The region of `start` in the box (TracedRegion) has untraced edges, every one a seam, and no
+// polygon vertex left untraced.
+void AllUntracedAreSeams(const DriftingOscillator& model, Propagator& prop,
+                         const PeriodicOrbit& start, double min1, double max1, double min2,
+                         double max2, int n1, int n2, StabilityRegion* region) {
+  *region = TracedRegion(model, prop, start, min1, max1, min2, max2, n1, n2);
+  ASSERT_TRUE(region->summary.status.ok()) << region->summary.status.ToString();
+  EXPECT_GT(region->summary.untraced_edges, 0) << region->summary.message;
+  EXPECT_EQ(region->summary.seam_edges, region->summary.untraced_edges) << region->summary.message;
+  for (const RegionPolygon& ring : region->polygons) {
+    for (const RegionVertex& v : ring.vertices) {
+      EXPECT_NE(v.curve, RegionVertex::kUntraced) << "(" << v.value1 << ", " << v.value2 << ")";
+    }
+  }
+}
+
 // A seam of the fill: where two stable orbits coexist the fill labels each node with the one it
 // reached, and where its two labels meet no curve is crossed. In omega in [0.8, 1], a in
 // [0.01, 0.03] (21 x 11 nodes), from the pure-contact orbit at (0.9, 0.02) (which coexists there
@@ -398,24 +430,14 @@ std::optional<PeriodicOrbit> MovedTo(const DriftingOscillator& model, Propagator
 TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
   DriftingOscillator model;
   ExactPropagator prop(model);
-  Params at = testing::ReferenceParams();
-  at[DriftingOscillator::kOmega] = 0.9, at[DriftingOscillator::kA] = 0.02;
-  const StatusOr<AttractorSample> there =
-      SampleAttractors(model, prop, at, DriftingOscillator::SpreadStates(at));
-  ASSERT_TRUE(there.ok()) << there.status().ToString();
-  ASSERT_EQ(there->attractors.size(), 2u);
-  const bool contact_first =
-      SignatureString(model, there->attractors[0].orbit.signature) == "CwoP|";
-  const PeriodicOrbit& start = there->attractors[contact_first ? 0 : 1].orbit;
-  const PeriodicOrbit& flight = there->attractors[contact_first ? 1 : 0].orbit;
-  const StabilityRegion region = TracedRegion(model, prop, start, 0.8, 1.0, 0.01, 0.03, 21, 11);
-  ASSERT_TRUE(region.summary.status.ok()) << region.summary.status.ToString();
-  EXPECT_GT(region.summary.untraced_edges, 0) << region.summary.message;
-  EXPECT_EQ(region.summary.seam_edges, region.summary.untraced_edges) << region.summary.message;
+  PeriodicOrbit start, flight;
+  ASSERT_NO_FATAL_FAILURE(ContactAndFlight(model, prop, 0.9, 0.02, &start, &flight));
+  StabilityRegion region;
+  ASSERT_NO_FATAL_FAILURE(
+      AllUntracedAreSeams(model, prop, start, 0.8, 1.0, 0.01, 0.03, 21, 11, &region));
   int checked = 0;
   for (const RegionPolygon& ring : region.polygons) {
     for (const RegionVertex& v : ring.vertices) {
-      EXPECT_NE(v.curve, RegionVertex::kUntraced) << "(" << v.value1 << ", " << v.value2 << ")";
       if (v.curve != RegionVertex::kSeam) continue;
       for (const PeriodicOrbit* o : {&start, &flight}) {
         const std::optional<PeriodicOrbit> moved = MovedTo(model, prop, *o, v.value1, v.value2);
@@ -446,25 +468,11 @@ TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
 TEST(StabilityRegion, ASeamReachedAcrossASectionCrossingIsToldApart) {
   DriftingOscillator model;
   ExactPropagator prop(model);
-  Params at = testing::ReferenceParams();
-  at[DriftingOscillator::kOmega] = 0.87, at[DriftingOscillator::kA] = 0.03;
-  const StatusOr<AttractorSample> there =
-      SampleAttractors(model, prop, at, DriftingOscillator::SpreadStates(at));
-  ASSERT_TRUE(there.ok()) << there.status().ToString();
-  ASSERT_EQ(there->attractors.size(), 2u);
-  const bool contact_first =
-      SignatureString(model, there->attractors[0].orbit.signature) == "CwoP|";
-  const PeriodicOrbit& flight = there->attractors[contact_first ? 1 : 0].orbit;
-  const PeriodicOrbit& contact = there->attractors[contact_first ? 0 : 1].orbit;
-  const StabilityRegion region = TracedRegion(model, prop, flight, 0.85, 0.89, 0.01, 0.04, 5, 4);
-  ASSERT_TRUE(region.summary.status.ok()) << region.summary.status.ToString();
-  EXPECT_GT(region.summary.untraced_edges, 0) << region.summary.message;
-  EXPECT_EQ(region.summary.seam_edges, region.summary.untraced_edges) << region.summary.message;
-  for (const RegionPolygon& ring : region.polygons) {
-    for (const RegionVertex& v : ring.vertices) {
-      EXPECT_NE(v.curve, RegionVertex::kUntraced) << "(" << v.value1 << ", " << v.value2 << ")";
-    }
-  }
+  PeriodicOrbit contact, flight;
+  ASSERT_NO_FATAL_FAILURE(ContactAndFlight(model, prop, 0.87, 0.03, &contact, &flight));
+  StabilityRegion region;
+  ASSERT_NO_FATAL_FAILURE(
+      AllUntracedAreSeams(model, prop, flight, 0.85, 0.89, 0.01, 0.04, 5, 4, &region));
   // The case: with its signature fixed the flight orbit at (0.87, 0.02) is not admissible.
   PeriodicOrbit fixed = flight;
   fixed.params[DriftingOscillator::kA] = 0.02;
