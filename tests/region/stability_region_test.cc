@@ -501,6 +501,50 @@ TEST(StabilityRegion, ASeamReachedAcrossASectionCrossingIsToldApart) {
   }
 }
 
+// The optimum names a seam as its nearest obstacle (RobustOptimum::nearest_curve kSeam): in the
+// box above, from the pure-contact orbit (ROP 0 at every node: no progression phase), with a
+// scaled margin of 0.01. Checked against the polygons directly: the nearest of their edges that
+// do not lie along the box, by box-scaled Euclidean distance from the optimum, is at the distance
+// reported (to rounding) and joins vertices on no traced curve, one of them a seam vertex.
+TEST(StabilityRegion, TheOptimumNamesASeamAsItsNearestObstacle) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  PeriodicOrbit contact, flight;
+  ASSERT_NO_FATAL_FAILURE(ContactAndFlight(model, prop, 0.87, 0.03, &contact, &flight));
+  StabilityRegion region;
+  ASSERT_NO_FATAL_FAILURE(
+      AllUntracedAreSeams(model, prop, contact, 0.85, 0.89, 0.01, 0.04, 5, 4, &region));
+  OptimumOptions scaled;
+  scaled.scaled = true, scaled.margin = {0.01};
+  const RobustOptimum best = FindRobustOptimum(region, scaled);
+  ASSERT_TRUE(best.status.ok()) << best.status.ToString();
+  EXPECT_EQ(best.nearest_curve, RegionVertex::kSeam);
+  const double w1 = region.max1 - region.min1, w2 = region.max2 - region.min2;
+  double nearest = 1e300;
+  const RegionVertex* ends[2] = {nullptr, nullptr};
+  for (const RegionPolygon& ring : region.polygons) {
+    for (size_t i = 0; i < ring.vertices.size(); ++i) {
+      const RegionVertex& a = ring.vertices[i];
+      const RegionVertex& b = ring.vertices[(i + 1) % ring.vertices.size()];
+      const bool along_box =
+          (a.value1 == b.value1 && (a.value1 == region.min1 || a.value1 == region.max1)) ||
+          (a.value2 == b.value2 && (a.value2 == region.min2 || a.value2 == region.max2));
+      if (along_box) continue;
+      const double ax = (a.value1 - best.value1) / w1, ay = (a.value2 - best.value2) / w2;
+      const double dx = (b.value1 - a.value1) / w1, dy = (b.value2 - a.value2) / w2;
+      const double l2 = dx * dx + dy * dy;
+      const double t = l2 > 0.0 ? std::clamp(-(ax * dx + ay * dy) / l2, 0.0, 1.0) : 0.0;
+      const double d = std::hypot(ax + t * dx, ay + t * dy);
+      if (d < nearest) nearest = d, ends[0] = &a, ends[1] = &b;
+    }
+  }
+  ASSERT_NE(ends[0], nullptr);
+  EXPECT_NEAR(best.distance_scaled, nearest, 1e-12);
+  EXPECT_LT(ends[0]->curve, 0);
+  EXPECT_LT(ends[1]->curve, 0);
+  EXPECT_TRUE(ends[0]->curve == RegionVertex::kSeam || ends[1]->curve == RegionVertex::kSeam);
+}
+
 TEST(StabilityRegion, BadRequestsAreClearErrors) {
   DriftingOscillator model;
   ExactPropagator prop(model);
