@@ -456,6 +456,16 @@ TEST(StabilityRegion, SeamsBetweenCoexistingOrbitsAreToldApart) {
   EXPECT_GT(checked, 0);
 }
 
+// The two orbits coexisting at (0.87, 0.03) and the region in omega in [0.85, 0.89], a in
+// [0.01, 0.04] (5 x 4 nodes) from the one with a flight (or the pure-contact one), whose untraced
+// edges are all seams (AllUntracedAreSeams).
+void SectionSeamBox(const DriftingOscillator& model, Propagator& prop, bool from_flight,
+                    PeriodicOrbit* contact, PeriodicOrbit* flight, StabilityRegion* region) {
+  ASSERT_NO_FATAL_FAILURE(ContactAndFlight(model, prop, 0.87, 0.03, contact, flight));
+  ASSERT_NO_FATAL_FAILURE(AllUntracedAreSeams(model, prop, from_flight ? *flight : *contact, 0.85,
+                                              0.89, 0.01, 0.04, 5, 4, region));
+}
+
 // A seam reached across a Poincare-section crossing: in omega in [0.85, 0.89], a in [0.01, 0.04]
 // (5 x 4 nodes), from the orbit with a flight at (0.87, 0.03), the fill labels (0.87, 0.02) with
 // the pure-contact orbit; the flight orbit goes on, stable, down to that node, but its
@@ -469,10 +479,8 @@ TEST(StabilityRegion, ASeamReachedAcrossASectionCrossingIsToldApart) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   PeriodicOrbit contact, flight;
-  ASSERT_NO_FATAL_FAILURE(ContactAndFlight(model, prop, 0.87, 0.03, &contact, &flight));
   StabilityRegion region;
-  ASSERT_NO_FATAL_FAILURE(
-      AllUntracedAreSeams(model, prop, flight, 0.85, 0.89, 0.01, 0.04, 5, 4, &region));
+  ASSERT_NO_FATAL_FAILURE(SectionSeamBox(model, prop, true, &contact, &flight, &region));
   // The case: with its signature fixed the flight orbit at (0.87, 0.02) is not admissible.
   PeriodicOrbit fixed = flight;
   fixed.params[DriftingOscillator::kA] = 0.02;
@@ -510,10 +518,8 @@ TEST(StabilityRegion, TheOptimumNamesASeamAsItsNearestObstacle) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   PeriodicOrbit contact, flight;
-  ASSERT_NO_FATAL_FAILURE(ContactAndFlight(model, prop, 0.87, 0.03, &contact, &flight));
   StabilityRegion region;
-  ASSERT_NO_FATAL_FAILURE(
-      AllUntracedAreSeams(model, prop, contact, 0.85, 0.89, 0.01, 0.04, 5, 4, &region));
+  ASSERT_NO_FATAL_FAILURE(SectionSeamBox(model, prop, false, &contact, &flight, &region));
   OptimumOptions scaled;
   scaled.scaled = true, scaled.margin = {0.01};
   const RobustOptimum best = FindRobustOptimum(region, scaled);
