@@ -519,7 +519,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
         }
         // Nor the first segment's touch reaching the Poincare section, its guard seen firing at
         // the end of the last segment (of the same mode, running on across the section): an
-        // event crossing the section, where the curve goes on in the rotated signature (three
+        // event crossing the section, where the curve goes on in the rotated signature (four
         // grazing curves of this box ended so, one of them short of the omega-branch at
         // a = 0.17). The touch is then within ~1e-8 of the section (sqrt(2 eps / h'')).
         const int k = static_cast<int>(segs.size());

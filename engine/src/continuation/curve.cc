@@ -584,7 +584,8 @@ class CurveTracer {
   // (the guard firing anywhere else inside it is a grazing, not a crossing); for a touch seen in
   // the last segment, up to 1e-6: the guard is quadratic about the touch, its value at the
   // section ~h'' d^2 / 2 for the first segment d long, and rounding makes it fire while d is
-  // still ~sqrt(2 eps / h'') (4e-9 .. 1.9e-8 measured at the box's three such ends).
+  // still ~sqrt(2 eps / h'') (4e-9 .. 1.9e-8 measured at three of the box's four such ends, the
+  // fourth below 1e-9).
   bool IsSectionCrossing(const Admissibility& v, const PeriodicOrbit& end) const {
     const double first_max = v.guard >= 0 && v.segment != 0 ? 1e-6 : 1e-9;
     return MayBeSectionCrossing(v) && (v.guard < 0 || std::abs(end.durations[0]) <= first_max);
