@@ -99,9 +99,9 @@ std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propag
     sentence = "other motions coexist there (simulation from" + of + "): ";
     if (!others.empty()) sentence += others;
     if (!sample->not_periodic.empty()) {
-      sentence += std::string(others.empty() ? "" : "; ") +
-                  std::to_string(sample->not_periodic.size()) +
-                  " settle on no periodic orbit of period <= 16";
+      sentence +=
+          std::string(others.empty() ? "" : "; ") + std::to_string(sample->not_periodic.size()) +
+          " settle on no periodic orbit of period <= " + std::to_string(GuessOptions().max_period);
     }
   }
   if (!optimum_seen) sentence += "; none settles on the optimum's orbit";
@@ -180,10 +180,11 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
       : best.nearest_curve == RegionVertex::kSeam ? "SEAM"
                                                   : "UNTRACED");
   out.set_near_box_edge(best.near_box_edge);
-  out.set_signature(SignatureString(model, region.signatures[region.grid.label[best.node]]));
+  const Signature& optimum_signature = region.signatures[region.grid.label[best.node]];
+  out.set_signature(SignatureString(model, optimum_signature));
 
-  const std::string coexistence = CheckCoexistence(
-      model, propagator, params, region.signatures[region.grid.label[best.node]], &out);
+  const std::string coexistence =
+      CheckCoexistence(model, propagator, params, optimum_signature, &out);
 
   const bool failed = internal::TraceFailed(trace->result);
   out.set_status(failed ? "FAILED" : "COMPLETED");

@@ -188,7 +188,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
                             std::to_string(v) + ": the " + CurveKindName(kind) +
                             " curve leaving it not traced: " + curve.summary.message);
         started = true;  // named in the note, not counted as a failed step-off
-        continue;
+        break;
       }
       // Started at a last-resort length but never away from the point: from most such
       // starts the curve ends at once both ways, back at the root and where its corrector
