@@ -886,8 +886,10 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
 // Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings
 // (deliverable 2 of issue 4). In omega in [1.3, 1.75], a in [0.2, 7.5], traced from the
 // omega-branch's orbit at omega = 1.5, the PD curve of period 1 ends at the flip-grazing
-// (1.3946, 6.7289); a period-2 grazing curve ends there where its second pass grazes too
-// (DOUBLE_GRAZING), within that end's bisection bracket of the point.
+// (1.3946, 6.7289); a period-2 grazing curve ends there where its second pass grazes too, its
+// orbit becoming the period-1 orbit traversed twice: reported as that FLIP_GRAZING (the period-2
+// system is singular there and the bisection keeps a bracket above 1e-8; before such ends were
+// told apart, a DOUBLE_GRAZING within that bracket of the point).
 TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   ContinuationOptions to;
   to.param = "omega";
@@ -916,10 +918,12 @@ TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
           continue;
         }
         for (const Codim2Point& z : t.curve.codim2) {
-          // Both ends are located by bisection in arclength (parameters included).
-          reached |= z.kind == Codim2Kind::kDoubleGrazing &&
+          // The point is found twice (a grazing curve's root, the PD curve's end), the copies
+          // ~1e-13 apart.
+          reached |= z.kind == Codim2Kind::kFlipGrazing && z.point.orbit.signature.periods == 1 &&
                      std::hypot(z.point.value1 - q.point.value1, z.point.value2 - q.point.value2) <=
-                         z.bracket + q.bracket + 1e-9;
+                         z.bracket + q.bracket + 1e-12 &&
+                     z.detail.find("orbit traversed twice") != std::string::npos;
         }
       }
       EXPECT_TRUE(reached) << "flip-grazing at omega = " << q.point.value1

@@ -11,6 +11,7 @@
 // closer to the point than the vertex it was found from.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -205,6 +206,66 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
                                     " period-" + std::to_string(n) + " flip-grazing points");
   }
   return true;
+}
+
+int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, TraceResult* result) {
+  // The location tolerance: ends within it are left as they are.
+  constexpr double kLocated = 1e-8;
+  // The passes of a period-2n orbit born at a PD differ by eps ~ sqrt(mu), mu the distance from
+  // the PD curve; at the box's 405 such ends the section state's distance from the period-n
+  // orbit's is at most 3.9 sqrt(d) (d: their scaled parameter distance, 1e-12 .. 1e-5), while
+  // the period-2n ends that are not such merges lie 2e-4 or more from any period-n
+  // flip-grazing. 10 allows for the constant of other orbits; 1e-9 for the corrector's rounding.
+  constexpr double kPassSplit = 10.0;
+  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  struct Flip {
+    size_t curve;
+    Codim2Point point;
+  };
+  std::vector<Flip> flips;
+  for (size_t c = 0; c < result->curves.size(); ++c) {
+    for (const Codim2Point& q : result->curves[c].curve.codim2) {
+      if (q.kind == Codim2Kind::kFlipGrazing && q.bracket <= kLocated) flips.push_back({c, q});
+    }
+  }
+  auto split = [&](const StateVector& x, const StateVector& y) {
+    double sum = 0.0;
+    for (int i = 0; i < model.state_dim(); ++i) {
+      if (i != model.phase_index()) sum += (x[i] - y[i]) * (x[i] - y[i]);
+    }
+    return std::sqrt(sum);
+  };
+  int merged = 0;
+  for (TracedCurve& t : result->curves) {
+    for (Codim2Point& z : t.curve.codim2) {
+      const int periods = z.point.orbit.signature.periods;
+      if (z.bracket <= kLocated || z.violation.admissible || periods % 2 != 0) continue;
+      const Flip* nearest = nullptr;
+      double d = kOnCurve;
+      for (const Flip& f : flips) {
+        const double df = std::hypot((f.point.point.value1 - z.point.value1) / w1,
+                                     (f.point.point.value2 - z.point.value2) / w2);
+        if (f.point.point.orbit.signature.periods == periods / 2 && df <= d) nearest = &f, d = df;
+      }
+      if (nearest == nullptr ||
+          split(z.point.orbit.starts[0], nearest->point.point.orbit.starts[0]) >
+              kPassSplit * std::sqrt(d) + 1e-9) {
+        continue;
+      }
+      char beyond[64];
+      std::snprintf(beyond, sizeof beyond, " (%.1e away in arclength)", z.bracket);
+      z.detail = "the period-" + std::to_string(periods) + " orbit becomes the period-" +
+                 std::to_string(periods / 2) + " orbit traversed twice: the " +
+                 PeriodPrefix(periods / 2) + "FLIP_GRAZING of curve " +
+                 std::to_string(nearest->curve) + "; beyond the last admissible point" + beyond +
+                 ": " + z.detail;
+      z.kind = Codim2Kind::kFlipGrazing;
+      z.point = nearest->point.point;
+      z.bracket = nearest->point.bracket;
+      ++merged;
+    }
+  }
+  return merged;
 }
 
 }  // namespace drillbif::internal

@@ -419,6 +419,11 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         "curve ends on them");
   }
   TallyNotes(tally, &sum);
+  if (const int merged = internal::EndsAtFlipGrazings(model, options, &result); merged > 0) {
+    sum.notes.push_back(std::to_string(merged) +
+                        " curve ends where a period-2n orbit becomes the period-n orbit traversed "
+                        "twice, reported as that period-n FLIP_GRAZING");
+  }
   // Points the 1e-8 does not cover: their `bracket` says how far they are known.
   std::map<int, int> wide;  // period -> codimension-2 points with bracket > 1e-8
   for (const TracedCurve& c : result.curves) {
