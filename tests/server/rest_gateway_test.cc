@@ -499,7 +499,9 @@ TEST_F(RestGatewayTest, ListGetCancelAndDeleteOperations) {
 }
 
 // A running sweep of 1e5 values (minutes of work) cancelled through REST reaches CANCELLED; the
-// time from the cancel's answer to the store's CANCELLED is printed (the gRPC test bounds it).
+// time from the cancel's answer to the store's CANCELLED is printed (the 100 ms goal is measured
+// by bench/service_bench.cc; the bound here, 10x that, only tells a cancel that works from one
+// the sweep ignores until it ends).
 TEST_F(RestGatewayTest, CancelOfARunningSweepReachesCancelled) {
   v1::SubmitSweepRequest request;
   *request.mutable_request() = SmallSweep(0.0, 100000);
