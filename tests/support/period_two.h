@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "drillbif/orbit/periodic_orbit.h"
 #include "drillbif/simulate/simulator.h"
@@ -22,16 +23,28 @@ inline double DistanceWithoutPhase(const HybridModel& model, const StateVector& 
   return std::sqrt(sum);
 }
 
+// Distances from the orbit's section state of the Poincare samples of direct simulation from it
+// over `periods` forcing periods (after 1, 2, ...).
+inline std::vector<double> ReturnDistances(const HybridModel& model, Propagator& prop,
+                                           const PeriodicOrbit& orbit, int periods) {
+  SimulationOptions options;
+  options.transient_periods = 0;
+  options.sample_periods = periods;
+  options.outputs = SimulationOutputs{false, true, false, false, 0.0};
+  const SimulationResult s = Simulate(model, prop, orbit.params, orbit.starts[0], options);
+  std::vector<double> d;
+  for (const PoincareSample& p : s.poincare) {
+    d.push_back(DistanceWithoutPhase(model, p.x, orbit.starts[0]));
+  }
+  return d;
+}
+
 inline void ExpectPeriodTwoBySimulation(const HybridModel& model, Propagator& prop,
                                         const PeriodicOrbit& orbit, double tol, double split) {
-  SimulationOptions two;
-  two.transient_periods = 0;
-  two.sample_periods = 2;
-  two.outputs = SimulationOutputs{false, true, false, false, 0.0};
-  const SimulationResult s = Simulate(model, prop, orbit.params, orbit.starts[0], two);
-  ASSERT_EQ(s.poincare.size(), 2u);
-  EXPECT_LT(DistanceWithoutPhase(model, s.poincare[1].x, orbit.starts[0]), tol);
-  EXPECT_GT(DistanceWithoutPhase(model, s.poincare[0].x, orbit.starts[0]), split);
+  const std::vector<double> d = ReturnDistances(model, prop, orbit, 2);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_LT(d[1], tol);
+  EXPECT_GT(d[0], split);
 }
 
 }  // namespace drillbif::testing
