@@ -88,9 +88,9 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
 // there the period-n orbit traversed twice: the period-2n system is singular at that end (its
 // multiplier -1 squared is a second +1), Newton fails next to it and the end keeps a wide
 // bracket (1e-5 .. 10 in arclength in issue 4's box) although its parameters lie within ~1e-5
-// of the period-n point. Each such end (bracket above 1e-8, within kOnCurve of a located
-// period-n FLIP_GRAZING, its section state that point's to the O(sqrt(distance)) by which the
-// passes of a period-2n orbit next to its birth at a PD differ) is reported as that point: kind
+// of the period-n point. Each such end (bracket above 1e-8, within 1e-4 (box-scaled) of a
+// located period-n FLIP_GRAZING, its section state that point's to the O(sqrt(distance)) by which
+// the passes of a period-2n orbit next to its birth at a PD differ) is reported as that point: kind
 // FLIP_GRAZING, its orbit, parameters and bracket, `detail` naming the merge and the violation
 // beyond. Returns how many.
 int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, TraceResult* result);
