@@ -188,7 +188,9 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
             *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
         ++fold_pd_vertices;
         if (off > 1e-8) ++off_by_1e8, longest_off = std::max(longest_off, shortest);
-        if (shortest >= 1e-3) EXPECT_LE(off, 1e-8) << CurveKindName(c.curve.kind);
+        if (shortest >= 1e-3) {
+          EXPECT_LE(off, 1e-8) << CurveKindName(c.curve.kind);
+        }
       }
     }
   }
