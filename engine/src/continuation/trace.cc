@@ -94,6 +94,25 @@ bool IsGrazing(SpecialPointKind kind) {
          kind == SpecialPointKind::kGrazingPi;
 }
 
+bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o) {
+  if (o.signature.periods % 2 != 0) return false;
+  SimulationOptions half;
+  half.transient_periods = 0;
+  half.sample_periods = o.signature.periods / 2;
+  half.outputs = SimulationOutputs{false, true, false, false, 0.0};
+  const SimulationResult s = Simulate(model, propagator, o.params, o.starts[0], half);
+  if (!s.status.ok() || s.poincare.size() != static_cast<size_t>(half.sample_periods)) {
+    return false;
+  }
+  double d = 0.0, size = 0.0;
+  for (int i = 0; i < model.state_dim(); ++i) {
+    if (i == model.phase_index()) continue;
+    d = std::max(d, std::abs(s.poincare.back().x[i] - o.starts[0][i]));
+    size = std::max(size, std::abs(o.starts[0][i]));
+  }
+  return d <= 1e-6 * (1.0 + size);
+}
+
 }  // namespace internal
 
 namespace {
@@ -201,6 +220,19 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                        1e-6 * (1.0 + std::abs(b.point.value));
           });
       if (turn) continue;
+      // A fold of the period-2n system on the period-n orbit traversed twice is that orbit's
+      // doubling (multiplier -1, squared): issue 4's period-2 omega-branch from the doubling at
+      // omega = 0.2698 (a = 0.3) ran on through its other birth at 1.6258 onto the doubled
+      // branch and located a fold at 1.62585, 8e-5 from the branch point (so not the turn
+      // above); its "fold curve" was the period-1 PD curve, one point each way.
+      if (doubled && s.kind == SpecialPointKind::kFold &&
+          internal::TraversedTwice(model, propagator, s.point.orbit)) {
+        sum.notes.push_back(PeriodPrefix(orbit.signature.periods) + "FOLD at " + *a.name + " = " +
+                            std::to_string(s.point.value) + " on the period-" +
+                            std::to_string(orbit.signature.periods / 2) +
+                            " orbit traversed twice (its period doubling): not traced");
+        continue;
+      }
       if (Traceable(s.kind)) {
         starts.emplace_back(axis, s);
       } else if (s.kind == SpecialPointKind::kSignatureChange &&

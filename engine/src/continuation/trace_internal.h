@@ -32,6 +32,14 @@ bool IsGrazing(SpecialPointKind kind);
 // "" for period 1, else "period-n " (for notes).
 std::string PeriodPrefix(int periods);
 
+// Whether a period-2n orbit is the period-n orbit traversed twice: direct simulation from its
+// section state returns after n forcing periods to 1e-6 (1 + |x|) (without the phase). A doubled
+// orbit returns to the corrector's tolerance amplified by its multipliers (2.7e-12 measured at
+// the fold TraceCurves skips so, on issue 4's period-2 omega-branch at a = 0.3); the genuine
+// period-2 folds of those branches, no closer than 0.29; the fold where a period-2 branch turns
+// at its birth (told apart by its branch point), ~sqrt of its location tolerance (1.3e-3).
+bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o);
+
 // A curve to try from a codimension-2 point: its start orbit, the kind of its point and curve.
 struct SwitchCandidate {
   StatusOr<PeriodicOrbit> orbit;
