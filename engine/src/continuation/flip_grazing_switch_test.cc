@@ -19,6 +19,7 @@
 #include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
 #include "support/period_two.h"
+#include "support/special_point_near.h"
 #include "support/tangent_end.h"
 #include "trace_internal.h"
 
@@ -36,12 +37,8 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   branch.param = "omega";
   branch.min = box.min1, branch.max = box.max1;
   const ContinuationResult omega = Continue(model, prop, *start, branch);
-  const SpecialPoint* pd = nullptr;
-  for (const SpecialPoint& s : omega.special_points) {
-    if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 1.6258) < 1e-3) {
-      pd = &s;
-    }
-  }
+  const SpecialPoint* pd =
+      testing::SpecialPointNear(omega, SpecialPointKind::kPeriodDoubling, 1.6258, 1e-3);
   ASSERT_NE(pd, nullptr);
   CurveOptions co = box.curve;
   co.param1 = box.param1, co.min1 = box.min1, co.max1 = box.max1;

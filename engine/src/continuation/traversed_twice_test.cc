@@ -7,45 +7,35 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <vector>
 
-#include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
-#include "problems/reference_orbit.h"
+#include "support/reference_orbit_test.h"
+#include "support/special_point_near.h"
 #include "trace_internal.h"
 
 namespace drillbif::internal {
 namespace {
 
 using DO = DriftingOscillator;
+using TraversedTwiceTest = testing::ReferenceOrbitTest;
 
-TEST(TraversedTwice, TellsTheDoubledOrbitFromGenuinePeriodTwoFolds) {
-  DriftingOscillator model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok());
-  EXPECT_FALSE(TraversedTwice(model, prop, *start));  // period 1
+TEST_F(TraversedTwiceTest, TellsTheDoubledOrbitFromGenuinePeriodTwoFolds) {
+  EXPECT_FALSE(TraversedTwice(model_, prop_, start_));  // period 1
   ContinuationOptions branch;
   branch.param = "omega";
   branch.min = 0.05, branch.max = 2.0;
-  const ContinuationResult omega = Continue(model, prop, *start, branch);
-  const SpecialPoint* pd = nullptr;
-  for (const SpecialPoint& s : omega.special_points) {
-    if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 0.2698) < 1e-3) {
-      pd = &s;
-    }
-  }
+  const ContinuationResult omega = Continue(model_, prop_, start_, branch);
+  const SpecialPoint* pd =
+      testing::SpecialPointNear(omega, SpecialPointKind::kPeriodDoubling, 0.2698, 1e-3);
   ASSERT_NE(pd, nullptr);
   const StatusOr<PeriodicOrbit> doubled =
-      SwitchAtPeriodDoublingAlgebraic(model, prop, pd->point.orbit, "omega");
+      SwitchAtPeriodDoublingAlgebraic(model_, prop_, pd->point.orbit, "omega");
   ASSERT_TRUE(doubled.ok()) << doubled.status().ToString();
   ContinuationOptions two = branch;
   two.direction = doubled->params[DO::kOmega] > pd->point.value
                       ? ContinuationDirection::kIncreasing
                       : ContinuationDirection::kDecreasing;
   two.stop_at = {SpecialPointKind::kBranchPoint};
-  const ContinuationResult r = Continue(model, prop, *doubled, two);
+  const ContinuationResult r = Continue(model_, prop_, *doubled, two);
   int folds = 0, twice = 0;
   for (const SpecialPoint& s : r.special_points) {
     if (s.kind != SpecialPointKind::kFold) continue;
@@ -63,13 +53,13 @@ TEST(TraversedTwice, TellsTheDoubledOrbitFromGenuinePeriodTwoFolds) {
       split = 0.0;
       for (int i = 1; i < p; ++i) {
         if (!(o.signature.segments[i] == o.signature.segments[p + i])) split = 1e300;
-        for (int j = 0; j < model.state_dim() && split < 1e300; ++j) {
-          if (j == model.phase_index()) continue;
+        for (int j = 0; j < model_.state_dim() && split < 1e300; ++j) {
+          if (j == model_.phase_index()) continue;
           split = std::max(split, std::abs(o.starts[i][j] - o.starts[p + i][j]));
         }
       }
     }
-    const bool is_twice = TraversedTwice(model, prop, o);
+    const bool is_twice = TraversedTwice(model_, prop_, o);
     twice += is_twice;
     if (is_twice) {
       EXPECT_NEAR(s.point.value, 1.6258, 1e-3);
