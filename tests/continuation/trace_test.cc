@@ -198,8 +198,8 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(flip_grazings, 4);
   // Above: the fold / PD vertices' critical multiplier at +-1 to the 1e-8. Next to a
   // segment shorter than ~1e-3 (saltations growing like 1 / tau at its events) the condition's
-  // residual can stop at rounding's floor before that: 32 of 58900 vertices with the default
-  // steps, 25 of 11690 with the longer, next to segments 5.2e-4 .. 3e-7 long, up to 4.7e-5 off;
+  // residual can stop at rounding's floor before that: 32 of 58921 vertices with the default
+  // steps, 25 of 11688 with the longer, next to segments 5.2e-4 .. 3e-7 long, up to 4.7e-5 off;
   // every vertex whose segments are all 1e-3 or longer must be at +-1 to 1e-8. (Before the
   // corrector iterated on the condition's residual, 327 of 58902 were not, one next to a
   // shortest segment of 1.6e-2.)

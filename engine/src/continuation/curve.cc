@@ -348,23 +348,27 @@ class CurveTracer {
       return accept();
     };
     for (int it = 1; it <= options_.max_iterations; ++it) {
-      if (!Evaluate(*y, &f, &jac)) return converged_at > 0 && settle(after == 0);
+      // After convergence, chord steps: the residual alone (one monodromy, not one per unknown)
+      // and the last factorization (the Jacobian moves by O(the step), ~1e-10).
+      const bool chord = converged_at > 0;
+      if (!Evaluate(*y, &f, chord ? nullptr : &jac)) return chord && settle(after == 0);
       const double condition = std::abs(f[m()]);
-      if (converged_at > 0 &&
-          (condition <= condition_tolerance || condition > 0.5 * last_condition)) {
+      if (chord && (condition <= condition_tolerance || condition > 0.5 * last_condition)) {
         return settle(after == 0 || condition <= last_condition);
       }
-      a.topRows(n() - 1) = jac;
-      a.bottomRows(1) = dir.transpose();
+      if (!chord) {
+        a.topRows(n() - 1) = jac;
+        a.bottomRows(1) = dir.transpose();
+        lu.compute(a);
+      }
       r.head(n() - 1) = f;
       r[n() - 1] = dir.dot(*y - y_pred);
-      lu.compute(a);
       const Vec step = lu.solve(-r);
-      if (!step.allFinite()) return converged_at > 0 && settle(true);
+      if (!step.allFinite()) return chord && settle(true);
       y_before = *y;
       *y += step;
       last_condition = condition;
-      if (converged_at > 0) {
+      if (chord) {
         ++after;
         continue;
       }
