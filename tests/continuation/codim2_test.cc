@@ -14,6 +14,7 @@
 
 #include "drillbif/continuation/curve.h"
 #include "support/reference_orbit_test.h"
+#include "support/special_point_near.h"
 #include "support/tangent_end.h"
 
 namespace drillbif {
@@ -100,10 +101,8 @@ TEST_F(Codim2Test, TwoGrazingCurvesMeetAtTheDoubleGrazingEachLocates) {
   const ContinuationResult a_branch = Continue(model_, prop_, start_, opt);
   std::vector<std::vector<CurvePoint>> ends;
   for (const double a : {0.16756, 0.16938}) {
-    const SpecialPoint* graze = nullptr;
-    for (const SpecialPoint& s : a_branch.special_points) {
-      if (s.kind == SpecialPointKind::kGrazingL2 && std::abs(s.point.value - a) < 1e-4) graze = &s;
-    }
+    const SpecialPoint* graze =
+        testing::SpecialPointNear(a_branch, SpecialPointKind::kGrazingL2, a, 1e-4);
     ASSERT_NE(graze, nullptr) << "no l2 grazing near a = " << a;
     CurveOptions co;
     co.param1 = "a", co.param2 = std::string("omega");

@@ -13,6 +13,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
+#include "support/special_point_near.h"
 #include "support/tangent_end.h"
 
 namespace drillbif {
@@ -216,10 +217,7 @@ TEST(Curve, GrazingCurvesCrossXiOneHalfWhereTheBranchesThereLocate) {
     const ContinuationResult at_half = Continue(model, prop, half, branch);
     // The grazing of the reference branch near a = 0.1485 (a-branch) or omega = 0.5088
     // (omega-branch), and its curve in (param, xi).
-    const SpecialPoint* start = nullptr;
-    for (const SpecialPoint& s : at_reference.special_points) {
-      if (s.kind == kind && std::abs(s.point.value - near) < 1e-3) start = &s;
-    }
+    const SpecialPoint* start = testing::SpecialPointNear(at_reference, kind, near, 1e-3);
     ASSERT_NE(start, nullptr) << param;
     CurveOptions opt;
     opt.param1 = param;
@@ -261,12 +259,8 @@ TEST(Curve, PiGrazingCurveFromTheNonImpactingSide) {
   a_branch.param = "a";
   a_branch.min = 0.25, a_branch.max = 0.35;
   const ContinuationResult ra = Continue(model, prop, *reference, a_branch);
-  const SpecialPoint* start = nullptr;
-  for (const SpecialPoint& s : ra.special_points) {
-    if (s.kind == SpecialPointKind::kGrazingPi && std::abs(s.point.value - 0.29848) < 1e-4) {
-      start = &s;
-    }
-  }
+  const SpecialPoint* start =
+      testing::SpecialPointNear(ra, SpecialPointKind::kGrazingPi, 0.29848, 1e-4);
   ASSERT_NE(start, nullptr);
   for (double d : start->point.orbit.durations) EXPECT_GT(std::abs(d), 1e-3);  // none vanishes
   CurveOptions opt;

@@ -17,6 +17,7 @@
 #include "problems/drifting_reference.h"
 #include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
+#include "support/special_point_near.h"
 
 namespace drillbif {
 namespace {
@@ -31,13 +32,10 @@ class CuspTest : public ::testing::Test {
     opt.param = "a";
     opt.min = 0.01, opt.max = 8.0;
     const ContinuationResult branch = Continue(model_, prop_, *start, opt);
-    for (const SpecialPoint& s : branch.special_points) {
-      if (s.kind == SpecialPointKind::kFold && std::abs(s.point.value - 0.156617) < 1e-5) {
-        fold_ = s;
-        found_ = true;
-      }
-    }
-    ASSERT_TRUE(found_);
+    const SpecialPoint* fold =
+        testing::SpecialPointNear(branch, SpecialPointKind::kFold, 0.156617, 1e-5);
+    ASSERT_NE(fold, nullptr);
+    fold_ = *fold;
   }
 
   CurveResult Curve(std::vector<double> omegas) {
@@ -74,7 +72,6 @@ class CuspTest : public ::testing::Test {
   DriftingOscillator model_;
   ExactPropagator prop_{model_};
   SpecialPoint fold_;
-  bool found_ = false;
 };
 
 TEST_F(CuspTest, FoldCurveCuspIsWhereTwoFoldsOfTheOneParameterBranchesMeet) {

@@ -14,6 +14,7 @@
 
 #include "problems/issue4_box.h"
 #include "support/reference_orbit_test.h"
+#include "support/special_point_near.h"
 #include "support/tangent_end.h"
 
 namespace drillbif {
@@ -847,12 +848,8 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
   opt.curve.crossings1 = {kCheck};
   ContinuationResult a_branch;
   ASSERT_NO_FATAL_FAILURE(AttractorABranch(kCheck, opt.min2, opt.max2, &a_branch));
-  const SpecialPoint* pd = nullptr;
-  for (const SpecialPoint& s : a_branch.special_points) {
-    if (s.kind == SpecialPointKind::kPeriodDoubling && std::abs(s.point.value - 0.21798) < 1e-4) {
-      pd = &s;
-    }
-  }
+  const SpecialPoint* pd =
+      testing::SpecialPointNear(a_branch, SpecialPointKind::kPeriodDoubling, 0.21798, 1e-4);
   ASSERT_NE(pd, nullptr) << a_branch.summary.message;
   auto crossed = [&](const TraceResult& r) {
     for (const TracedCurve& c : r.curves) {

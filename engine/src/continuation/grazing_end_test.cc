@@ -14,6 +14,7 @@
 
 #include "problems/issue4_box.h"
 #include "support/reference_orbit_test.h"
+#include "support/special_point_near.h"
 #include "support/tangent_end.h"
 #include "tangent_grazing.h"
 
@@ -50,16 +51,7 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
 
   // The a-branch's point of this kind within `tol` of a, or null.
   const SpecialPoint* Find(SpecialPointKind kind, double a, double tol) const {
-    return FindOn(a_branch_, kind, a, tol);
-  }
-
-  // The branch's point of this kind within `tol` of value, or null.
-  static const SpecialPoint* FindOn(const ContinuationResult& branch, SpecialPointKind kind,
-                                    double value, double tol) {
-    for (const SpecialPoint& s : branch.special_points) {
-      if (s.kind == kind && std::abs(s.point.value - value) < tol) return &s;
-    }
-    return nullptr;
+    return testing::SpecialPointNear(a_branch_, kind, a, tol);
   }
 
   // The reference orbit's omega-branch at a = 0.3 over issue 4's omega range.
@@ -221,7 +213,7 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
   EXPECT_LE(DistanceToMultiplier(solved->point.stability, 1.0), 1e-8);
 
   const ContinuationResult ro = OmegaBranch();
-  const SpecialPoint* other = FindOn(ro, SpecialPointKind::kFold, 0.0622, 1e-3);
+  const SpecialPoint* other = testing::SpecialPointNear(ro, SpecialPointKind::kFold, 0.0622, 1e-3);
   ASSERT_NE(other, nullptr);
   const CurveResult other_curve = ContinueCurve(model_, prop_, *other, OmegaABox());
   double nearest = std::numeric_limits<double>::infinity();
@@ -247,7 +239,8 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
 // measured agreement 1.4e-14 and 4e-17 (box-scaled), asserted the issue's 1e-8.
 TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
   const ContinuationResult ro = OmegaBranch();
-  const SpecialPoint* graze = FindOn(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
+  const SpecialPoint* graze =
+      testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
   ASSERT_NE(graze, nullptr);
   const CurveOptions opt = OmegaABox();
   const TraceOptions box = testing::Issue4Box();
