@@ -212,8 +212,9 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
   // The location tolerance: ends within it are left as they are.
   constexpr double kLocated = 1e-8;
   // The passes of a period-2n orbit born at a PD differ by eps ~ sqrt(mu), mu the distance from
-  // the PD curve; at the box's 405 such ends the section state's distance from the period-n
-  // orbit's is at most 3.9 sqrt(d) (d: their scaled parameter distance, 1e-12 .. 1e-5), while
+  // the PD curve; at the box's 405 such ends the section state's largest component difference
+  // from the period-n orbit's is at most 3.9 sqrt(d) (d: their scaled parameter distance,
+  // 1e-12 .. 1e-5; over the three components, so the distance at most 6.8 sqrt(d)), while
   // the period-2n ends that are not such merges lie 2e-4 or more from any period-n
   // flip-grazing. 10 allows for the constant of other orbits; 1e-9 for the corrector's rounding.
   constexpr double kPassSplit = 10.0;
@@ -228,13 +229,6 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
       if (q.kind == Codim2Kind::kFlipGrazing && q.bracket <= kLocated) flips.push_back({c, q});
     }
   }
-  auto split = [&](const StateVector& x, const StateVector& y) {
-    double sum = 0.0;
-    for (int i = 0; i < model.state_dim(); ++i) {
-      if (i != model.phase_index()) sum += (x[i] - y[i]) * (x[i] - y[i]);
-    }
-    return std::sqrt(sum);
-  };
   int merged = 0;
   for (TracedCurve& t : result->curves) {
     for (Codim2Point& z : t.curve.codim2) {
@@ -247,9 +241,9 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
                                      (f.point.point.value2 - z.point.value2) / w2);
         if (f.point.point.orbit.signature.periods == periods / 2 && df <= d) nearest = &f, d = df;
       }
-      if (nearest == nullptr ||
-          split(z.point.orbit.starts[0], nearest->point.point.orbit.starts[0]) >
-              kPassSplit * std::sqrt(d) + 1e-9) {
+      if (nearest == nullptr || DistanceWithoutPhase(model, z.point.orbit.starts[0],
+                                                     nearest->point.point.orbit.starts[0]) >
+                                    kPassSplit * std::sqrt(d) + 1e-9) {
         continue;
       }
       char beyond[64];

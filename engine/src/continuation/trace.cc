@@ -94,6 +94,14 @@ bool IsGrazing(SpecialPointKind kind) {
          kind == SpecialPointKind::kGrazingPi;
 }
 
+double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, const StateVector& y) {
+  double sum = 0.0;
+  for (int i = 0; i < model.state_dim(); ++i) {
+    if (i != model.phase_index()) sum += (x[i] - y[i]) * (x[i] - y[i]);
+  }
+  return std::sqrt(sum);
+}
+
 bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o) {
   if (o.signature.periods % 2 != 0) return false;
   SimulationOptions half;
@@ -104,13 +112,11 @@ bool TraversedTwice(const HybridModel& model, Propagator& propagator, const Peri
   if (!s.status.ok() || s.poincare.size() != static_cast<size_t>(half.sample_periods)) {
     return false;
   }
-  double d = 0.0, size = 0.0;
+  double size = 0.0;
   for (int i = 0; i < model.state_dim(); ++i) {
-    if (i == model.phase_index()) continue;
-    d = std::max(d, std::abs(s.poincare.back().x[i] - o.starts[0][i]));
-    size = std::max(size, std::abs(o.starts[0][i]));
+    if (i != model.phase_index()) size = std::max(size, std::abs(o.starts[0][i]));
   }
-  return d <= 1e-6 * (1.0 + size);
+  return DistanceWithoutPhase(model, s.poincare.back().x, o.starts[0]) <= 1e-6 * (1.0 + size);
 }
 
 }  // namespace internal

@@ -32,8 +32,12 @@ bool IsGrazing(SpecialPointKind kind);
 // "" for period 1, else "period-n " (for notes).
 std::string PeriodPrefix(int periods);
 
+// Euclidean distance of two states over every component but the phase.
+double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, const StateVector& y);
+
 // Whether a period-2n orbit is the period-n orbit traversed twice: direct simulation from its
-// section state returns after n forcing periods to 1e-6 (1 + |x|) (without the phase). A doubled
+// section state returns after n forcing periods to 1e-6 (1 + |x|) (DistanceWithoutPhase; |x| the
+// largest component but the phase). A doubled
 // orbit returns to the corrector's tolerance amplified by its multipliers (2.7e-12 measured at
 // the fold TraceCurves skips so, on issue 4's period-2 omega-branch at a = 0.3); the genuine
 // period-2 folds of those branches, no closer than 0.29; the fold where a period-2 branch turns
