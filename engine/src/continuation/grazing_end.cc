@@ -9,6 +9,7 @@
 
 #include "continuation/bordered_sigma.h"
 #include "continuation/tangent_grazing.h"
+#include "orbit/monodromy.h"
 
 namespace drillbif::internal {
 
@@ -26,10 +27,14 @@ std::function<double(const PeriodicOrbit&)> OwnCondition(const HybridModel& mode
       return TangentEndRate(model, propagator, o);
     };
   }
-  const BorderedSigma sigma(
-      ShiftedMonodromy(kind, OrbitStability(model, propagator, guess).monodromy));
-  return [&model, &propagator, kind, sigma](const PeriodicOrbit& o) {
-    return sigma(ShiftedMonodromy(kind, OrbitStability(model, propagator, o).monodromy));
+  // The monodromy alone (Stability::monodromy without the multipliers): the fixed-length and
+  // codimension-2 solves evaluate this 2n times per Newton iteration (central differences).
+  auto monodromy = [&model, &propagator](const PeriodicOrbit& o) {
+    return ReducedMonodromy(model, MonodromyFactors(model, propagator, o));
+  };
+  const BorderedSigma sigma(ShiftedMonodromy(kind, monodromy(guess)));
+  return [kind, sigma, monodromy](const PeriodicOrbit& o) {
+    return sigma(ShiftedMonodromy(kind, monodromy(o)));
   };
 }
 
