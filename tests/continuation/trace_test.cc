@@ -917,6 +917,26 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
 // orbit becoming the period-1 orbit traversed twice: reported as that FLIP_GRAZING (the period-2
 // system is singular there and the bisection keeps a bracket above 1e-8; before such ends were
 // told apart, a DOUBLE_GRAZING within that bracket of the point).
+// Curves of long orbits are long in the unknowns: at omega ~ 0.1 a period-2 PD curve moves the
+// orbit's drift coordinate ~6000 times as far as omega, ~0.05 per step at the corrector's
+// accuracy, so crossing omega in [0.09, 0.11] takes ~4000 steps. Each is traced to its ends (the
+// box, a codimension-2 point), none stopped by the step limit (at 2000 per direction 12 were).
+TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEnds) {
+  TraceOptions opt = testing::Issue4Box();
+  opt.min1 = 0.09, opt.max1 = 0.11;
+  opt.min2 = 0.25, opt.max2 = 0.75;
+  opt.max_period = 2;
+  const TraceResult r = TraceCurves(model_, prop_, start_, opt);
+  ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+  size_t longest = 0;
+  for (const TracedCurve& c : r.curves) {
+    EXPECT_EQ(c.curve.summary.message.find("max_steps"), std::string::npos)
+        << c.curve.summary.message;
+    longest = std::max(longest, c.curve.points.size());
+  }
+  EXPECT_GT(longest, 2 * 2000 + 1u);  // more than two directions of 2000 steps hold
+}
+
 TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   ContinuationOptions to;
   to.param = "omega";

@@ -53,8 +53,11 @@ struct CurveOptions {
   double max_step = 1.0;       // longest step
   int target_iterations = 3;   // corrector iterations aimed for
   int max_iterations = 8;      // more fails the step (retried shorter)
-  int max_steps = 2000;        // per direction
+  int max_steps = 10000;       // per direction (see below)
   double tolerance = 1e-10;    // corrector: scaled Newton step
+  // max_steps: curves of long orbits are long in the unknowns (at omega ~ 0.1 a period-2 orbit's
+  // drift coordinate moves ~6000 times as far as omega along its PD curve): in issue 4's box
+  // with period 2, 12 of the period-2 curves of omega in [0.09, 0.11] stopped at 2000.
   // Values of lambda2 where the curve's crossing points are solved exactly (Newton with lambda2
   // fixed, from the interpolation between the two points around it), e.g. to compare with a
   // one-parameter continuation at that value.
