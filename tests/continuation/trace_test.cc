@@ -910,13 +910,6 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
                           [](const std::string& n) { return n.find("seed omega = 0.055") == 0; }));
 }
 
-// Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings
-// (deliverable 2 of issue 4). In omega in [1.3, 1.75], a in [0.2, 7.5], traced from the
-// omega-branch's orbit at omega = 1.5, the PD curve of period 1 ends at the flip-grazing
-// (1.3946, 6.7289); a period-2 grazing curve ends there where its second pass grazes too, its
-// orbit becoming the period-1 orbit traversed twice: reported as that FLIP_GRAZING (the period-2
-// system is singular there and the bisection keeps a bracket above 1e-8; before such ends were
-// told apart, a DOUBLE_GRAZING within that bracket of the point).
 // Curves of long orbits are long in the unknowns: at omega ~ 0.1 a period-2 PD curve moves the
 // orbit's drift coordinate ~6000 times as far as omega, ~0.05 per step at the corrector's
 // accuracy, so crossing omega in [0.09, 0.11] takes ~4000 steps. Each is traced to its ends (the
@@ -937,6 +930,13 @@ TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEnds) {
   EXPECT_GT(longest, 2 * 2000 + 1u);  // more than two directions of 2000 steps hold
 }
 
+// Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings
+// (deliverable 2 of issue 4). In omega in [1.3, 1.75], a in [0.2, 7.5], traced from the
+// omega-branch's orbit at omega = 1.5, the PD curve of period 1 ends at the flip-grazing
+// (1.3946, 6.7289); a period-2 grazing curve ends there where its second pass grazes too, its
+// orbit becoming the period-1 orbit traversed twice: reported as that FLIP_GRAZING (the period-2
+// system is singular there and the bisection keeps a bracket above 1e-8; before such ends were
+// told apart, a DOUBLE_GRAZING within that bracket of the point).
 TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   ContinuationOptions to;
   to.param = "omega";
