@@ -5,6 +5,7 @@
 #include <cmath>
 #include <complex>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "continuation/bordered_sigma.h"
@@ -28,9 +29,11 @@ std::function<double(const PeriodicOrbit&)> OwnCondition(const HybridModel& mode
     };
   }
   // The monodromy alone (Stability::monodromy without the multipliers): the fixed-length and
-  // codimension-2 solves evaluate this 2n times per Newton iteration (central differences).
-  auto monodromy = [&model, &propagator](const PeriodicOrbit& o) {
-    return ReducedMonodromy(model, MonodromyFactors(model, propagator, o));
+  // codimension-2 solves evaluate this 2n + 1 times per Newton iteration (central differences),
+  // each difference moving one unknown, and so few of the factors.
+  auto factors = std::make_shared<FactorCache>();
+  auto monodromy = [&model, &propagator, factors](const PeriodicOrbit& o) {
+    return ReducedMonodromy(model, factors->Of(model, propagator, o));
   };
   const BorderedSigma sigma(ShiftedMonodromy(kind, monodromy(guess)));
   return [kind, sigma, monodromy](const PeriodicOrbit& o) {

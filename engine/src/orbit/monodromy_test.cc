@@ -67,5 +67,60 @@ TEST_F(Monodromy, FactorFromAnAffineFlowIsTheFactorAtTheMovedStart) {
   }
 }
 
+// Counts the flows asked of it.
+class CountingPropagator : public Propagator {
+ public:
+  explicit CountingPropagator(Propagator& inner) : inner_(inner) {}
+  std::string_view name() const override { return "counting"; }
+  FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
+                     const FlowRequest& request) override {
+    ++flows;
+    return inner_.FlowMap(mode, x0, t, params, request);
+  }
+  AdvanceResult Advance(const AdvanceRequest& request, const Params& params) override {
+    return inner_.Advance(request, params);
+  }
+  int flows = 0;
+
+ private:
+  Propagator& inner_;
+};
+
+// FactorCache gives exactly (bitwise) MonodromyFactors' factors for orbits that differ from its
+// reference in one start, one duration, the parameters or the signature, and flows only the
+// segments whose inputs moved: one for a moved start or duration, all for moved parameters or
+// another signature (which then becomes the reference).
+TEST_F(Monodromy, FactorCacheGivesTheFactorsFlowingOnlyWhatMoved) {
+  CountingPropagator counting(prop_);
+  internal::FactorCache cache;
+  const int k = static_cast<int>(start_.durations.size());
+  ASSERT_GE(k, 3);
+  auto expect_exact = [&](const PeriodicOrbit& o, int flows, const char* what) {
+    counting.flows = 0;
+    const std::vector<StateMatrix> got = cache.Of(model_, counting, o);
+    EXPECT_EQ(counting.flows, flows) << what;
+    const std::vector<StateMatrix> plain = internal::MonodromyFactors(model_, prop_, o);
+    ASSERT_EQ(got.size(), plain.size()) << what;
+    for (size_t i = 0; i < plain.size(); ++i) EXPECT_EQ(got[i], plain[i]) << what << ", " << i;
+  };
+  expect_exact(start_, k, "the first orbit (the reference)");
+  expect_exact(start_, 0, "the reference again");
+  PeriodicOrbit moved = start_;
+  moved.starts[1][0] += 1e-7;
+  expect_exact(moved, 1, "segment 1's start moved");
+  moved = start_;
+  moved.durations[2] += 1e-7;
+  expect_exact(moved, 1, "segment 2's duration moved");
+  moved = start_;
+  moved.params[0] += 1e-7;
+  expect_exact(moved, k, "a parameter moved");
+  PeriodicOrbit other = start_;  // the same inputs, segment 0 ending in a tangency instead
+  other.signature.segments[0].tangent = !other.signature.segments[0].tangent;
+  expect_exact(other, k, "another signature");
+  moved = other;
+  moved.starts[0][0] += 1e-7;
+  expect_exact(moved, 1, "its segment 0's start moved");
+}
+
 }  // namespace
 }  // namespace drillbif
