@@ -41,7 +41,7 @@ Eigen::MatrixXd ReducedMonodromy(const HybridModel& model, const std::vector<Sta
 // are exactly MonodromyFactors'. An orbit of another signature or parameters, or with no factor
 // in common, becomes the reference. For difference quotients, each moving one unknown: a start's
 // component moves its own factor, a duration its own and (through the phases) the later ones, a
-// parameter all; with k segments ~k^2 + 10 k factors per Jacobian row instead of 8 k^2.
+// parameter all; with k segments k^2 + 11 k factors per Jacobian row instead of 8 k^2 + 4 k.
 class FactorCache {
  public:
   // The factors of `orbit` (valid until the next call).
