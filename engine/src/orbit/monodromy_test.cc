@@ -1,7 +1,8 @@
 // The monodromy factor from a given flow (FactorFromFlow): for a model with a LinearForm, moving
 // a segment's start in its non-phase part by dx moves the end by Phi dx and leaves Phi as it is,
 // so the factor at the moved start is FactorFromFlow at the moved end with the same Phi. The
-// curve tracer's sigma row relies on it (continuation/curve.cc).
+// curve tracer's sigma row relies on it (continuation/curve.cc). And FactorCache: the same factors
+// as MonodromyFactors, flowing only the segments whose inputs moved.
 #include "monodromy.h"
 
 #include <gtest/gtest.h>
