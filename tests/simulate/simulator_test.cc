@@ -9,6 +9,7 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "support/spy_propagator.h"
 
 namespace drillbif {
 namespace {
@@ -88,26 +89,7 @@ TEST(LongRun, KeepsTheInvariantSetAndThePhaseOverOneHundredThousandPeriods) {
   EXPECT_NEAR(last.t, (kTwoPi * last.period + last.s) / prm[DO::kOmega], 1e-9 * last.t);
 }
 
-// A propagator that records what the simulator asked of it.
-class SpyPropagator : public Propagator {
- public:
-  explicit SpyPropagator(Propagator& inner) : inner_(inner) {}
-  std::string_view name() const override { return "spy"; }
-  FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
-                     const FlowRequest& request) override {
-    return inner_.FlowMap(mode, x0, t, params, request);
-  }
-  AdvanceResult Advance(const AdvanceRequest& request, const Params& params) override {
-    measures_asked |= request.measures;
-    samples_asked |= request.sample_dt > 0.0;
-    return inner_.Advance(request, params);
-  }
-  bool measures_asked = false;
-  bool samples_asked = false;
-
- private:
-  Propagator& inner_;
-};
+using testing::SpyPropagator;
 
 TEST(OutputsOnDemand, ComputesNothingThatWasNotAsked) {
   DO model;

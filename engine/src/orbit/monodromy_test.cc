@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "support/reference_orbit_test.h"
+#include "support/spy_propagator.h"
 
 namespace drillbif {
 namespace {
@@ -68,38 +69,19 @@ TEST_F(Monodromy, FactorFromAnAffineFlowIsTheFactorAtTheMovedStart) {
   }
 }
 
-// Counts the flows asked of it.
-class CountingPropagator : public Propagator {
- public:
-  explicit CountingPropagator(Propagator& inner) : inner_(inner) {}
-  std::string_view name() const override { return "counting"; }
-  FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
-                     const FlowRequest& request) override {
-    ++flows;
-    return inner_.FlowMap(mode, x0, t, params, request);
-  }
-  AdvanceResult Advance(const AdvanceRequest& request, const Params& params) override {
-    return inner_.Advance(request, params);
-  }
-  int flows = 0;
-
- private:
-  Propagator& inner_;
-};
-
 // FactorCache gives exactly (bitwise) MonodromyFactors' factors for orbits that differ from its
 // reference in one start, one duration, the parameters or the signature, and flows only the
 // segments whose inputs moved: one for a moved start or duration, all for moved parameters or
 // another signature (which then becomes the reference).
 TEST_F(Monodromy, FactorCacheGivesTheFactorsFlowingOnlyWhatMoved) {
-  CountingPropagator counting(prop_);
+  testing::SpyPropagator spy(prop_);
   internal::FactorCache cache;
   const int k = static_cast<int>(start_.durations.size());
   ASSERT_GE(k, 3);
   auto expect_exact = [&](const PeriodicOrbit& o, int flows, const char* what) {
-    counting.flows = 0;
-    const std::vector<StateMatrix> got = cache.Of(model_, counting, o);
-    EXPECT_EQ(counting.flows, flows) << what;
+    spy.flows = 0;
+    const std::vector<StateMatrix> got = cache.Of(model_, spy, o);
+    EXPECT_EQ(spy.flows, flows) << what;
     const std::vector<StateMatrix> plain = internal::MonodromyFactors(model_, prop_, o);
     ASSERT_EQ(got.size(), plain.size()) << what;
     for (size_t i = 0; i < plain.size(); ++i) EXPECT_EQ(got[i], plain[i]) << what << ", " << i;
