@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "drillbif/continuation/curve.h"
+#include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
 #include "support/special_point_near.h"
 #include "support/tangent_end.h"
@@ -53,14 +54,6 @@ class Codim2Test : public testing::ReferenceOrbitTest {
     return ContinueCurve(model_, prop_, start, opt);
   }
 
-  static double DistanceToMultiplier(const CurvePoint& p, double target) {
-    double closest = std::numeric_limits<double>::infinity();
-    for (const auto& mu : p.stability.multipliers) {
-      closest = std::min(closest, std::abs(mu - target));
-    }
-    return closest;
-  }
-
   ContinuationResult omega_branch_;
 };
 
@@ -87,7 +80,7 @@ TEST_F(Codim2Test, PeriodDoublingCurveCrossesOmegaOneTenthWhereTheABranchLocates
   // Both are located to 1e-10 in a (the crossing to the corrector's 1e-10, the branch's point to
   // locate_tolerance); the issue asks for 1e-7.
   EXPECT_LE(nearest, 1e-7) << "crossing at a = " << c.value2;
-  EXPECT_LE(DistanceToMultiplier(c, -1.0), 1e-8);
+  EXPECT_LE(testing::DistanceToMultiplier(c.stability, -1.0), 1e-8);
 }
 
 // Two different l2 grazing curves, traced from the a-branch at omega = 0.1 (grazings at
@@ -154,7 +147,7 @@ TEST_F(Codim2Test, GrazingCurveCarriesFlipAndFoldGrazingsSatisfyingBothCondition
     // The multiplier: the root is located to |det(M -+ I)| <= 1e-10, so the critical multiplier
     // is within 1e-10 / |mu_other -+ 1| (>= 0.09 here) plus the corrector's 1e-10 amplified by
     // dmu/dY = O(10): 1e-8 bounds both.
-    EXPECT_LE(DistanceToMultiplier(q.point, flip ? -1.0 : 1.0), 1e-8)
+    EXPECT_LE(testing::DistanceToMultiplier(q.point.stability, flip ? -1.0 : 1.0), 1e-8)
         << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
     // The grazing: the tangent segment end has h = 0 and h' = 0 to the corrector's accuracy.
     const std::optional<GuardValue> g = testing::TangentEndGuard(model_, prop_, q.point.orbit);
@@ -180,7 +173,7 @@ TEST_F(Codim2Test, PeriodDoublingCurveEndsAtTheFlipGrazingsOfTheGrazingCurve) {
     // The boundary bisection converged (no stalled corrector next to it).
     EXPECT_LE(end.bracket, 1e-9) << end.detail;
     // Still a period doubling: the PD curve's own condition, 1e-8 as on the crossings.
-    EXPECT_LE(DistanceToMultiplier(end.point, -1.0), 1e-8);
+    EXPECT_LE(testing::DistanceToMultiplier(end.point.stability, -1.0), 1e-8);
     // The same point from the grazing curve's determinant root. Each is located to ~1e-10 in
     // arclength (boundary bracket 1e-12, corrector 1e-10; |det| <= 1e-10 with d det/ds = O(1)),
     // and both curves cross there at an O(1) angle: 1e-7 leaves a factor 100 for the slopes.
@@ -203,7 +196,7 @@ TEST_F(Codim2Test, FoldCurveEndsAtAFoldGrazing) {
   const Codim2Point& end = curve.codim2.front();
   EXPECT_EQ(end.kind, Codim2Kind::kFoldGrazing);
   EXPECT_LE(end.bracket, 1e-9) << end.detail;
-  EXPECT_LE(DistanceToMultiplier(end.point, 1.0), 1e-8);
+  EXPECT_LE(testing::DistanceToMultiplier(end.point.stability, 1.0), 1e-8);
   EXPECT_TRUE(CheckAdmissible(model_, prop_, end.point.orbit).admissible);
 }
 
@@ -235,7 +228,7 @@ TEST_F(Codim2Test, CurveGoesOnThroughAPoincareSectionCrossing) {
   const CurvePoint& x = curve.crossings.front();
   EXPECT_EQ(x.value1, 0.19);
   // The corrector's 1e-10 amplified by d mu / d Y = O(10).
-  EXPECT_LE(DistanceToMultiplier(x, -1.0), 1e-8);
+  EXPECT_LE(testing::DistanceToMultiplier(x.stability, -1.0), 1e-8);
   // Either side in a: the critical multiplier (the largest; the others are ~1e-8 here) is real
   // and on opposite sides of -1. It moves fast (measured mu + 1 = -0.034 and +0.035 at a -+ 1e-7:
   // d mu / d a ~ 3.5e5, the orbit is close to grazing), so the sides are taken 1e-7 away, where

@@ -11,6 +11,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
+#include "support/multipliers.h"
 
 namespace drillbif {
 namespace {
@@ -338,11 +339,8 @@ TEST_P(RangeContinuationTest, RunsToBothEndsThroughEverySpecialPoint) {
   EXPECT_NEAR(r.points.back().value, hi, 1e-9) << r.summary.message;
   EXPECT_GE(r.special_points.size(), 3u);
   for (const SpecialPoint& s : r.special_points) {
-    double closest = std::numeric_limits<double>::infinity();
     const double target = s.kind == SpecialPointKind::kFold ? 1.0 : -1.0;
-    for (const auto& mu : s.point.stability.multipliers) {
-      closest = std::min(closest, std::abs(mu - target));
-    }
+    const double closest = testing::DistanceToMultiplier(s.point.stability, target);
     if (s.kind == SpecialPointKind::kFold || s.kind == SpecialPointKind::kPeriodDoubling) {
       EXPECT_LE(closest, 1e-9) << SpecialPointKindName(s.kind) << " at " << s.point.value;
     }

@@ -13,6 +13,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
+#include "support/multipliers.h"
 #include "support/special_point_near.h"
 #include "support/tangent_end.h"
 
@@ -130,10 +131,7 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
     }
     // The crossing's defining condition: a multiplier at +1 (fold) or -1 (period doubling), to the
     // corrector's accuracy (1e-10 relative to the unknowns, amplified by dmu/dY = O(10)).
-    double closest = std::numeric_limits<double>::infinity();
-    for (const auto& mu : c.stability.multipliers)
-      closest = std::min(closest, std::abs(mu - target));
-    EXPECT_LE(closest, 1e-8) << "a = " << c.value2;
+    EXPECT_LE(testing::DistanceToMultiplier(c.stability, target), 1e-8) << "a = " << c.value2;
   }
   for (const CurvePoint& p : curve.points) {
     EXPECT_GE(p.value2, opt.min2);

@@ -17,6 +17,7 @@
 #include "problems/drifting_reference.h"
 #include "problems/issue4_box.h"
 #include "problems/reference_orbit.h"
+#include "support/multipliers.h"
 #include "support/special_point_near.h"
 
 namespace drillbif {
@@ -93,11 +94,7 @@ TEST_F(CuspTest, FoldCurveCuspIsWhereTwoFoldsOfTheOneParameterBranchesMeet) {
   EXPECT_NEAR(a_c, 0.15436, 1e-4);
   // The fold condition holds there: the multiplier +1, to the corrector's 1e-10 amplified by
   // dmu/dY = O(10).
-  double closest = 1e300;
-  for (const auto& mu : cusp->point.stability.multipliers) {
-    closest = std::min(closest, std::abs(mu - 1.0));
-  }
-  EXPECT_LE(closest, 1e-8);
+  EXPECT_LE(testing::DistanceToMultiplier(cusp->point.stability, 1.0), 1e-8);
 
   // The curve's halves lie at omega < w_c (the vertices next to the cusp, measured: both
   // approach from below in omega). At w_c - d (d = 4e-4, 1e-4) the curve crosses twice near a_c,

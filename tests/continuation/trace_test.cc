@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <complex>
 #include <cstdio>
 #include <map>
 #include <string>
@@ -13,6 +12,7 @@
 #include <vector>
 
 #include "problems/issue4_box.h"
+#include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
 #include "support/special_point_near.h"
 #include "support/tangent_end.h"
@@ -181,10 +181,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     if (c.curve.kind == CurveKind::kFold || c.curve.kind == CurveKind::kPeriodDoubling) {
       const double target = c.curve.kind == CurveKind::kFold ? 1.0 : -1.0;
       for (const CurvePoint& p : c.curve.points) {
-        double off = 1e300;
-        for (const std::complex<double>& mu : p.stability.multipliers) {
-          off = std::min(off, std::abs(mu - target));
-        }
+        const double off = testing::DistanceToMultiplier(p.stability, target);
         const double shortest =
             *std::min_element(p.orbit.durations.begin(), p.orbit.durations.end());
         ++fold_pd_vertices;
@@ -360,11 +357,6 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   // point has h = h' = 0 at its tangent end and the multiplier +1 / -1 (det root to 1e-10), and
   // the switched curve's end, bisected independently, has the multiplier +1 / -1 and lies at the
   // same parameters. A grazing curve leaving a fold / PD curve's end passes through that end.
-  auto multiplier_gap = [](const Stability& st, double target) {
-    double gap = 1e300;
-    for (const auto& mu : st.multipliers) gap = std::min(gap, std::abs(mu - target));
-    return gap;
-  };
   const double w1 = opt.max1 - opt.min1, w2 = opt.max2 - opt.min2;
   int switched_fold_pd = 0, switched_grazing = 0, switched_at_double_grazing = 0,
       switched_past_corner = 0;
@@ -399,7 +391,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     if (c.curve.kind != CurveKind::kGrazing) {
       ++switched_fold_pd;
       const double target = c.curve.kind == CurveKind::kFold ? 1.0 : -1.0;
-      EXPECT_LE(multiplier_gap(left.point.stability, target), 1e-8);
+      EXPECT_LE(testing::DistanceToMultiplier(left.point.stability, target), 1e-8);
       const std::optional<GuardValue> g = testing::TangentEndGuard(model_, prop_, left.point.orbit);
       ASSERT_TRUE(g.has_value());
       EXPECT_LE(std::abs(g->h), 1e-9);
@@ -421,7 +413,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
         EXPECT_LE(end, 1e-8) << "the switched curve does not end at its codimension-2 point";
         // (An end left bracketed is checked with the other bracketed ends below.)
         if (back->bracket == 0.0) {
-          EXPECT_LE(multiplier_gap(back->point.stability, target), 1e-8)
+          EXPECT_LE(testing::DistanceToMultiplier(back->point.stability, target), 1e-8)
               << Codim2KindName(back->kind) << " at (" << back->point.value1 << ", "
               << back->point.value2 << "): " << back->detail << ", bracket " << back->bracket
               << ", stepped off by " << start_off;
@@ -496,7 +488,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     for (const Codim2Point& q : c.curve.codim2) {
       if (q.kind == Codim2Kind::kCusp) {
         ++cusps;
-        EXPECT_LE(multiplier_gap(q.point.stability, 1.0), 1e-8);
+        EXPECT_LE(testing::DistanceToMultiplier(q.point.stability, 1.0), 1e-8);
         // Not a curve's end taken for a cusp: at a fold-grazing end the fold curve's parameters
         // are stationary (they move as the square of the vanishing duration), so the direction
         // test sees a reversal there; such a point is the end, not a cusp (five of them within
@@ -525,9 +517,9 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
         ++extrapolated_ends;
         const std::vector<double>& tau = q.point.orbit.durations;
         EXPECT_EQ(std::count(tau.begin(), tau.end(), 0.0), 1);
-        EXPECT_LE(
-            multiplier_gap(q.point.stability, q.kind == Codim2Kind::kFoldGrazing ? 1.0 : -1.0),
-            1e-8)
+        EXPECT_LE(testing::DistanceToMultiplier(q.point.stability,
+                                                q.kind == Codim2Kind::kFoldGrazing ? 1.0 : -1.0),
+                  1e-8)
             << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
         continue;
       }
@@ -594,7 +586,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
       }
       if (q.kind == Codim2Kind::kDoubleGrazing) continue;
       const double target = q.kind == Codim2Kind::kFoldGrazing ? 1.0 : -1.0;
-      EXPECT_LE(multiplier_gap(q.point.stability, target), 1e-8)
+      EXPECT_LE(testing::DistanceToMultiplier(q.point.stability, target), 1e-8)
           << Codim2KindName(q.kind) << " at omega = " << q.point.value1;
     }
   }
@@ -775,11 +767,8 @@ TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
       EXPECT_LE(best, 1e-7) << CurveKindName(c.curve.kind)
                             << " crosses a = 0.3 at omega = " << x.value1;
       if (c.curve.kind == CurveKind::kPeriodDoubling) {
-        double closest = 1e300;
-        for (const auto& mu : x.stability.multipliers) {
-          closest = std::min(closest, std::abs(mu + 1.0));
-        }
-        EXPECT_LE(closest, 1e-8);  // the corrector's 1e-10 amplified by dmu/dY = O(10)
+        // The corrector's 1e-10 amplified by dmu/dY = O(10).
+        EXPECT_LE(testing::DistanceToMultiplier(x.stability, -1.0), 1e-8);
       }
     }
   }

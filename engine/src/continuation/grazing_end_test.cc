@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "problems/issue4_box.h"
+#include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
 #include "support/special_point_near.h"
 #include "support/tangent_end.h"
@@ -27,12 +28,6 @@ std::string Sci(double x) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3g", x);
   return buf;
-}
-
-double DistanceToMultiplier(const Stability& st, double target) {
-  double closest = std::numeric_limits<double>::infinity();
-  for (const auto& mu : st.multipliers) closest = std::min(closest, std::abs(mu - target));
-  return closest;
 }
 
 // The reference orbit's a-branch at omega = 0.1 over a in [0.01, 8], and curves from its points
@@ -117,7 +112,7 @@ TEST_F(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
   ASSERT_EQ(touch.size(), 1u);
   EXPECT_LE(std::abs(touch[0].h), 1e-9);
   EXPECT_LE(std::abs(touch[0].dh), 1e-9);
-  EXPECT_LE(DistanceToMultiplier(end->point.stability, 1.0), 1e-8);
+  EXPECT_LE(testing::DistanceToMultiplier(end->point.stability, 1.0), 1e-8);
 
   const int ia = model_.ParamIndex("a").value(), iw = model_.ParamIndex("omega").value();
   PeriodicOrbit away = end->point.orbit;
@@ -178,7 +173,7 @@ TEST_F(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
     ASSERT_EQ(touch.size(), 1u);
     EXPECT_LE(std::abs(touch[0].h), 1e-9);
     EXPECT_LE(std::abs(touch[0].dh), 1e-9);
-    EXPECT_LE(DistanceToMultiplier(end->point.stability, -1.0), 1e-8);
+    EXPECT_LE(testing::DistanceToMultiplier(end->point.stability, -1.0), 1e-8);
     ends.push_back(*end);
   }
   for (size_t e = 1; e < ends.size(); ++e) {
@@ -210,7 +205,7 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
   EXPECT_LE(*std::min_element(tau.begin(), tau.end(),
                               [](double x, double y) { return std::abs(x) < std::abs(y); }),
             1e-12);
-  EXPECT_LE(DistanceToMultiplier(solved->point.stability, 1.0), 1e-8);
+  EXPECT_LE(testing::DistanceToMultiplier(solved->point.stability, 1.0), 1e-8);
 
   const ContinuationResult ro = OmegaBranch();
   const SpecialPoint* other = testing::SpecialPointNear(ro, SpecialPointKind::kFold, 0.0622, 1e-3);
@@ -219,7 +214,7 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
   double nearest = std::numeric_limits<double>::infinity();
   for (const Codim2Point& q : other_curve.codim2) {
     if (q.kind != Codim2Kind::kFoldGrazing || q.bracket > 1e-9) continue;
-    EXPECT_LE(DistanceToMultiplier(q.point.stability, 1.0), 1e-8);
+    EXPECT_LE(testing::DistanceToMultiplier(q.point.stability, 1.0), 1e-8);
     nearest = std::min(nearest, std::hypot(q.point.value1 - solved->point.value2,
                                            q.point.value2 - solved->point.value1));
   }
@@ -260,7 +255,7 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
     ASSERT_TRUE(off.ok()) << "at omega = " << root.point.value1 << ": " << off.status().ToString();
     EXPECT_NEAR(off->durations[inserted], 1e-3, 1e-12);
     EXPECT_TRUE(CheckAdmissible(model_, prop_, *off).admissible);
-    EXPECT_LE(DistanceToMultiplier(OrbitStability(model_, prop_, *off), -1.0), 1e-8);
+    EXPECT_LE(testing::DistanceToMultiplier(OrbitStability(model_, prop_, *off), -1.0), 1e-8);
     SpecialPoint seed;
     seed.kind = SpecialPointKind::kPeriodDoubling;
     seed.point.value = off->params[i1];
@@ -359,7 +354,7 @@ TEST_F(GrazingEnd, ContactPhaseVanishingBetweenFlightsIsTheLimitOfTheCurve) {
   ASSERT_NE(end, nullptr) << curve.summary.message;
   EXPECT_NEAR(end->point.value2, 0.0884, 1e-3);
   EXPECT_LE(end->bracket, 1e-8) << end->detail;
-  EXPECT_LE(DistanceToMultiplier(end->point.stability, 1.0), 1e-8);
+  EXPECT_LE(testing::DistanceToMultiplier(end->point.stability, 1.0), 1e-8);
   const PeriodicOrbit& o = end->point.orbit;
   const auto zero = std::find(o.durations.begin(), o.durations.end(), 0.0);
   ASSERT_NE(zero, o.durations.end());
