@@ -80,11 +80,11 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
   co.param1 = options.param1, co.min1 = options.min1, co.max1 = options.max1;
   co.param2 = options.param2, co.min2 = options.min2, co.max2 = options.max2;
   int& added = tally->added;
-  // Tries one candidate from point q of curve c: skipped when known, else traced from its start
-  // (appended to result->curves) or counted among the failures; a step-off no regular length
-  // starts is deferred to the last round. False when max_switched_curves is reached.
-  auto process = [&](size_t c, size_t q, const Codim2Point& point,
-                     const SwitchCandidate& candidate) {
+  // Tries one candidate from point q of curve c (-1: one of its unverified ends): skipped when
+  // known, else traced from its start (appended to result->curves) or counted among the failures;
+  // a step-off no regular length starts is deferred to the last round. False when
+  // max_switched_curves is reached.
+  auto process = [&](size_t c, int q, const Codim2Point& point, const SwitchCandidate& candidate) {
     const StatusOr<PeriodicOrbit>& orbit = candidate.orbit;
     const CurveKind kind = candidate.kind;
     if (!orbit.ok()) {
@@ -203,8 +203,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
           })) {
         continue;
       }
-      result->curves.push_back(
-          {seed, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
+      result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c), q});
       ++added;
       started = true;
     }
@@ -224,11 +223,19 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
   }
   // result->curves grows while it is walked: index, not iterator.
   for (size_t c = first_curve; c < result->curves.size(); ++c) {
-    for (size_t q = 0; q < result->curves[c].curve.codim2.size(); ++q) {
+    // After its codimension-2 points the curve's unverified ends (CurveResult::unverified_ends):
+    // not located, but the curves that may leave there are tried as from a located end (in
+    // issue 4's box with max_period 2 that adds 413 curves and 11 period-2 codimension-2 points,
+    // located to 1e-8, that no other curve reaches).
+    const size_t located = result->curves[c].curve.codim2.size();
+    const size_t ends = located + result->curves[c].curve.unverified_ends.size();
+    for (size_t e = 0; e < ends; ++e) {
       if (!report(0.99)) return false;
       // Copies: result->curves grows below (references into it would dangle).
       const CurveKind from_kind = result->curves[c].curve.kind;
-      const Codim2Point point = result->curves[c].curve.codim2[q];
+      const Codim2Point point = e < located ? result->curves[c].curve.codim2[e]
+                                            : result->curves[c].curve.unverified_ends[e - located];
+      const int q = e < located ? static_cast<int>(e) : -1;
       const bool fold = point.kind == Codim2Kind::kFoldGrazing;
       // The curves to try from this point.
       std::vector<SwitchCandidate> candidates;

@@ -474,6 +474,17 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         "codimension-2 points located only to a bracket above 1e-8 (see each "
                         "one's bracket: the corrector failed next to the curve's end)");
   }
+  std::map<int, int> unverified;  // period -> curve ends not claimed as points
+  for (const TracedCurve& c : result.curves) {
+    for (const Codim2Point& e : c.curve.unverified_ends)
+      ++unverified[e.point.orbit.signature.periods];
+  }
+  for (const auto& [period, count] : unverified) {
+    sum.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
+                        "curve ends not located: the corrector failed next to them and only a "
+                        "prediction beyond, not a solved orbit, is inadmissible (no point "
+                        "claimed; named in the curves' messages)");
+  }
   report(1.0);
   return result;
 }

@@ -54,7 +54,8 @@ struct SwitchCandidate {
 
 // A candidate whose step-off needs a last-resort length (SwitchAtCodim2), kept for the end.
 struct DeferredStepOff {
-  size_t curve = 0, codim2 = 0;  // the point it leaves
+  size_t curve = 0;  // the point it leaves: the curve's codim2[codim2], or (-1) an unverified end
+  int codim2 = 0;
   Codim2Point point;
   SwitchCandidate candidate;
 };

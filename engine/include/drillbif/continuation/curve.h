@@ -129,6 +129,10 @@ struct CurveResult {
   std::vector<CurvePoint> points;     // along the curve
   std::vector<CurvePoint> crossings;  // at the requested lambda1 / lambda2 values, in order found
   std::vector<Codim2Point> codim2;    // in the order found
+  // Ends where the corrector failed next to the last point and only a prediction beyond it, not
+  // a corrected orbit, is inadmissible: not located, so not among codim2 (the summary's message
+  // names them); kept for switching to try the curves that may leave there.
+  std::vector<Codim2Point> unverified_ends;
   ContinuationSummary summary;
 };
 

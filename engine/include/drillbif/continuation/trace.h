@@ -92,8 +92,9 @@ struct TracedCurve {
   std::string start_param;  // the parameter of the branch that located it ("" after switching)
   CurveResult curve;        // points as (value1, value2) = (param1, param2) of TraceOptions
   int from_curve = -1;      // after switching: the curve whose codimension-2 point it leaves
-  int from_codim2 = -1;     // and that point's index in its codim2 (`start` is the point the
-                            // curve was continued from: that point, or one stepped off it)
+  int from_codim2 = -1;     // and that point's index in its codim2, -1 for one of its
+                            // unverified_ends (`start` is the point the curve was continued
+                            // from: that point, or one stepped off it)
 };
 
 struct TraceSummary {
