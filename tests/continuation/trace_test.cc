@@ -910,7 +910,8 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
 // grazing: it is named in the curve's message and kept among the curve's unverified ends, not
 // its codimension-2 points (before, the one-point curves of those starts each claimed two
 // FOLD_GRAZING points, bracketed to ~0.02 or, measured along the tangent only, to 1.5e-10 with
-// the prediction 1.5e-2 off the curve; of the box's 64 entries bracketed above 1e-8, 12 are left).
+// the prediction 1.5e-2 off the curve, and at section crossings whose rotated signature did not
+// correct with brackets of ~100; of the box's 64 entries bracketed above 1e-8, 4 are left).
 TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEndsAndClaimOnlyTheEndsReached) {
   TraceOptions opt = testing::Issue4Box();
   opt.min1 = 0.09, opt.max1 = 0.11;

@@ -91,8 +91,10 @@ struct SectionCrossing {
   PeriodicOrbit orbit;        // the last point's orbit, its first or last segment ~0 long
   Admissibility violation;    // that segment's vanishing, just beyond
   Eigen::Vector2d direction;  // the curve's parameter direction there (box-scaled, unit)
-  // The curve's end as it is reported when the rotated signature cannot be taken up there.
+  // The curve's end as it is reported when the rotated signature cannot be taken up there; as an
+  // unverified end (CurveResult::unverified_ends) where only a prediction brackets the crossing.
   Codim2Point end;
+  bool unverified = false;
 };
 
 class CurveTracer {
@@ -662,14 +664,34 @@ class CurveTracer {
   // only known to lie between ya and the nearest corrected inadmissible point `beyond`. ya is
   // always a corrected admissible point; `why` / `violation` name the violation at `beyond`.
   // `beyond_corrected`: whether `beyond` is a corrected point (not where the end came from a
-  // prediction, end_ahead's, and no midpoint beyond the boundary corrected since).
+  // prediction, end_ahead's, and no midpoint beyond the boundary corrected since). From a
+  // prediction, a midpoint beyond counts so only where it lands within kMaxDrift of its distance
+  // from ya (as a step's, below): issue 4's period-2 curves next to slow lift-offs brought
+  // predictions ~65 ahead (where the tangent said a flight vanishes), whose first midpoints
+  // corrected ~50 away onto orbits with that flight -24 long, and the end was reported with a
+  // bracket of ~100 though the curve had stopped for its corrector failing at the last point (8
+  // of the 12 entries above 1e-8 in omega [0.09, 0.11], a [0.25, 0.75]). The bisection's course
+  // is the same either way (refusing such midpoints moved a period-1 curve's end of issue 4's
+  // box, whose bisection had jumped 7e-4 along it, to a FOLD_GRAZING 4e-5 before the jump, and
+  // left a 3-point piece of it at the box's edge untraced).
   struct Boundary {
     Vec ya, yb, beyond;
     std::string why;
     Admissibility violation;
     bool beyond_corrected = true;
+    bool from_prediction = false;
     double Width(const Vec& t) const { return t.dot(beyond - ya); }
   };
+  // A step is refused (and retried shorter, as when Newton fails) when the corrected point lies
+  // farther than kMaxDrift times the step from the prediction: along a smooth curve of curvature
+  // kappa the distance is about kappa h^2 / 2, so beyond h / 4 the tangent turns by ~0.5 rad
+  // within the step, or the corrector has landed on another branch of solutions. With
+  // target_iterations 4 a step of 0.86 on the PD curve from the flip-grazing at
+  // (omega, a) = (0.35, 0.2446) landed 0.44 h away, with the CwoP phase that vanishes at
+  // a = 0.17943 (the flip-grazing the default steps find) 0.81 long instead of crossing zero, and
+  // the curve went on to another flip-grazing 1e-2 further.
+  static constexpr double kMaxDrift = 0.25;
+
   void Bisect(const Vec& t, double tol, Boundary* b) const {
     tol *= 1.0 + b->ya.lpNorm<Eigen::Infinity>();
     for (int it = 0; it < 80 && t.dot(b->yb - b->ya) > tol; ++it) {
@@ -684,7 +706,8 @@ class CurveTracer {
         b->ya = yc;
       } else {
         b->yb = b->beyond = yc, b->why = reason, b->violation = violation;
-        b->beyond_corrected = true;
+        b->beyond_corrected =
+            !b->from_prediction || (yc - mid).norm() <= kMaxDrift * (mid - b->ya).norm();
       }
     }
   }
@@ -879,7 +902,7 @@ class CurveTracer {
     // test function changes sign between the bisected and the solved end) that is all it
     // needs; else (and where the violation may be a section crossing, told apart by a
     // first segment of zero length to rounding) on to 1e-12.
-    Boundary b{y, yb, yb, why, violation, unverified == nullptr};
+    Boundary b{y, yb, yb, why, violation, unverified == nullptr, unverified != nullptr};
     Bisect(t, 1e-8, &b);
     if (MayBeSectionCrossing(b.violation)) Bisect(t, 1e-12, &b);
     const Codim2Kind k = kind_ == CurveKind::kFold            ? Codim2Kind::kFoldGrazing
@@ -938,6 +961,7 @@ class CurveTracer {
       crossing->violation.guard = -1;
       crossing->direction = ParamDirection(t).normalized();
       crossing->end = point;
+      crossing->unverified = !b.beyond_corrected;
       points->push_back(end);
       return "crossed the Poincare section";
     }
@@ -947,9 +971,13 @@ class CurveTracer {
     // (~2e-7) moves that event ~1e-4 earlier, which reads as the guard crossed inside the segment
     // (issue 4's period-2 curves next to a = 0.689, omega = 0.1, in the box omega [0.09, 0.11],
     // a [0.25, 0.75]: such ends were reported as codimension-2 points with brackets up to 345;
-    // of the box's 64 entries bracketed above 1e-8, 10 are left without them). The direction
-    // ends there, and the codimension-2 point it may be heading for is not claimed: kept apart
-    // (CurveResult::unverified_ends), for switching to try the curves that may leave it.
+    // and section crossings only a prediction brackets are taken up as any other, but where the
+    // rotated signature does not correct they are unverified ends too (ContinueCurve): the last
+    // flight vanishing in a prediction ~65 ahead while it was 24 long at the last point, 8 ends
+    // with brackets of ~100. Of the box's 64 entries bracketed above 1e-8, 4 are left).
+    // The direction ends there, and the codimension-2 point it may be heading for is not claimed:
+    // kept apart (CurveResult::unverified_ends), for switching to try the curves that may leave
+    // it.
     if (!b.beyond_corrected && !solved) {
       unverified->push_back(point);
       return "next to (" + options_.param1 + ", " + options_.param2 + ") = (" +
@@ -1012,14 +1040,7 @@ class CurveTracer {
       int iterations = 0;
       Vec t1;
       // A step is refused (and retried shorter, as when Newton fails) when the corrected point
-      // lies farther than kMaxDrift times the step from the prediction: along a smooth curve of
-      // curvature kappa the distance is about kappa h^2 / 2, so beyond h / 4 the tangent turns by
-      // ~0.5 rad within the step, or the corrector has landed on another branch of solutions.
-      // With target_iterations 4 a step of 0.86 on the PD curve from the flip-grazing at
-      // (omega, a) = (0.35, 0.2446) landed 0.44 h away, with the CwoP phase that vanishes at
-      // a = 0.17943 (the flip-grazing the default steps find) 0.81 long instead of crossing zero,
-      // and the curve went on to another flip-grazing 1e-2 further.
-      constexpr double kMaxDrift = 0.25;
+      // drifted (kMaxDrift).
       if (!Correct(y + h * t, t, &y1, &iterations, &t1) ||
           (y1 - (y + h * t)).norm() > kMaxDrift * h) {
         ++sum->rejected_steps;
@@ -1183,12 +1204,21 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                                                       *i2, sw.orbit));
       if (!rotated.back()->CorrectStart()) {
         // Not taken up there (seen where the first segment's guard fires at its start, after
-        // contact phases): the curve ends there, reported as before, with the reason.
+        // contact phases): the curve ends there, reported as before, with the reason; not as a
+        // point where only a prediction brackets the crossing (EndAtBoundary).
+        const std::string why = "a Poincare-section crossing whose rotated signature " + sw.detail +
+                                " could not be corrected";
+        if (cross.unverified) {
+          result.unverified_ends.push_back(cross.end);
+          return through + "the corrector failed next to (" + options.param1 + ", " +
+                 options.param2 + ") = (" + std::to_string(cross.end.point.value1) + ", " +
+                 std::to_string(cross.end.point.value2) + "), where only a prediction beyond, " +
+                 "not a corrected orbit, is inadmissible (" + cross.end.detail + "; " + why +
+                 "): no " + Codim2KindName(cross.end.kind) + " point claimed";
+        }
         result.codim2.push_back(cross.end);
         return through + "ended at a " + Codim2KindName(cross.end.kind) +
-               " point: " + cross.end.detail +
-               " (a Poincare-section crossing whose rotated signature " + sw.detail +
-               " could not be corrected)";
+               " point: " + cross.end.detail + " (" + why + ")";
       }
       current = rotated.back().get();
       dir = cross.direction;
