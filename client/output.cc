@@ -281,17 +281,26 @@ std::string TraceResultToCsv(const v1::TraceResult& result) {
           .End();
     }
   }
-  for (const v1::Codim2Point& q : result.codim2_points()) {
-    std::string line = q.kind() + " curve=" + std::to_string(q.curve());
-    const v1::ModelParams& p = q.params();
+  // "KIND curve=i a=... phi0=...".
+  auto point_line = [](const std::string& kind, int curve, const v1::ModelParams& p) {
+    std::string line = kind + " curve=" + std::to_string(curve);
     for (const auto& [name, v] :
          {std::pair{" a=", p.a()}, std::pair{" b=", p.b()}, std::pair{" omega=", p.omega()},
           std::pair{" xi=", p.xi()}, std::pair{" g=", p.g()}, std::pair{" phi0=", p.phi0()}}) {
       line.append(name);
       AppendNumber(v, &line);
     }
+    return line;
+  };
+  for (const v1::Codim2Point& q : result.codim2_points()) {
+    std::string line = point_line(q.kind(), q.curve(), q.params());
     if (!q.detail().empty()) line.append(" detail=").append(q.detail());
     AppendComment(line, &out);
+  }
+  for (int i = 0; i < result.curves_size(); ++i) {
+    for (const v1::CurveVertex& e : result.curves(i).unverified_ends()) {
+      AppendComment(point_line("UNVERIFIED_END", i, e.params()), &out);
+    }
   }
   for (const std::string& note : result.notes()) AppendComment("note: " + note, &out);
   if (result.has_region()) {

@@ -114,6 +114,9 @@ v1::TraceResult ToProto(const TraceResult& r) {
     curve->set_from_curve(c.from_curve);
     curve->set_message(c.curve.summary.message);
     for (const CurvePoint& p : c.curve.points) ToProto(p, curve->add_points());
+    for (const Codim2Point& e : c.curve.unverified_ends) {
+      ToProto(e.point, curve->add_unverified_ends());
+    }
     for (const Codim2Point& q : c.curve.codim2) {
       v1::Codim2Point* cp = out.add_codim2_points();
       cp->set_kind(Codim2KindName(q.kind));

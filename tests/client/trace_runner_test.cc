@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -109,6 +110,52 @@ TEST(RunTrace, CoarseCurveStepsGiveFewerVerticesAndTheSameCodim2Points) {
 // past which the PD curve goes on without that phase: a second PD curve, switched from the
 // first, from the same point to the box. (Without edge branches: with them two more PD curves
 // start on the branch along omega = 0.05, see the next test.)
+// With period 2, omega in [0.099, 0.101], a in [0.25, 0.75] holds period-2 curves next to slow
+// lift-offs (a = 0.689), whose corrector fails next to ends that only a prediction brackets
+// (engine/src/continuation/curve.cc, EndAtBoundary): each is an unverified end of its curve, named
+// in the curve's message, counted in a note, and not among the codimension-2 points.
+TEST(RunTrace, UnverifiedCurveEndsAreListedNamedAndNotClaimed) {
+  v1::TraceRequest request;
+  request.add_trace_params(std::string("omega"));
+  request.add_trace_params(std::string("a"));
+  request.add_min(0.099);
+  request.add_min(0.25);
+  request.add_max(0.101);
+  request.add_max(0.75);
+  request.set_period2(true);
+  const StatusOr<v1::TraceResult> r = RunTrace(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  int ends = 0;
+  for (const v1::Curve& c : r->curves()) {
+    ends += c.unverified_ends_size();
+    int named = 0;
+    for (size_t at = c.message().find("point claimed"); at != std::string::npos;
+         at = c.message().find("point claimed", at + 1)) {
+      ++named;
+    }
+    EXPECT_EQ(named, c.unverified_ends_size()) << c.message();
+    for (const v1::CurveVertex& e : c.unverified_ends()) {
+      for (const v1::Codim2Point& q : r->codim2_points()) {
+        EXPECT_FALSE(q.params().omega() == e.params().omega() && q.params().a() == e.params().a())
+            << q.kind() << " claimed at an unverified end";
+      }
+    }
+  }
+  ASSERT_GT(ends, 0);
+  const std::string count = std::to_string(ends) + " period-2 curve ends not located";
+  EXPECT_TRUE(std::any_of(r->notes().begin(), r->notes().end(), [&](const std::string& n) {
+    return n.rfind(count, 0) == 0;
+  })) << count;
+  // CSV: one comment line each.
+  const std::string csv = TraceResultToCsv(*r);
+  int lines = 0;
+  for (size_t at = csv.find("# UNVERIFIED_END curve="); at != std::string::npos;
+       at = csv.find("# UNVERIFIED_END curve=", at + 1)) {
+    ++lines;
+  }
+  EXPECT_EQ(lines, ends);
+}
+
 TEST(RunTrace, SmallBoxHasAPeriodDoublingCurveEndingAtAFlipGrazingAndItsContinuation) {
   v1::TraceRequest request = SmallBox();
   request.set_no_edge_branches(true);
