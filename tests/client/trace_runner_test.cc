@@ -103,13 +103,6 @@ TEST(RunTrace, CoarseCurveStepsGiveFewerVerticesAndTheSameCodim2Points) {
   }
 }
 
-// In omega in [0.05, 0.2], a in [0.27, 0.32] the PD curve from the omega-branch ends at a
-// flip-grazing at one end; at the other its orbit's first event reaches the Poincare section (an
-// impact at s = 0, not a grazing: the curve goes on in the rotated signature) and it leaves the
-// box. Its flip-grazing is a corner (the contact phase between impact and progression vanishes),
-// past which the PD curve goes on without that phase: a second PD curve, switched from the
-// first, from the same point to the box. (Without edge branches: with them two more PD curves
-// start on the branch along omega = 0.05, see the next test.)
 // With period 2, omega in [0.099, 0.101], a in [0.25, 0.75] holds period-2 curves next to slow
 // lift-offs (a = 0.689), whose corrector fails next to ends that only a prediction brackets
 // (engine/src/continuation/curve.cc, EndAtBoundary): each is an unverified end of its curve, named
@@ -156,6 +149,13 @@ TEST(RunTrace, UnverifiedCurveEndsAreListedNamedAndNotClaimed) {
   EXPECT_EQ(lines, ends);
 }
 
+// In omega in [0.05, 0.2], a in [0.27, 0.32] the PD curve from the omega-branch ends at a
+// flip-grazing at one end; at the other its orbit's first event reaches the Poincare section (an
+// impact at s = 0, not a grazing: the curve goes on in the rotated signature) and it leaves the
+// box. Its flip-grazing is a corner (the contact phase between impact and progression vanishes),
+// past which the PD curve goes on without that phase: a second PD curve, switched from the
+// first, from the same point to the box. (Without edge branches: with them two more PD curves
+// start on the branch along omega = 0.05, see the next test.)
 TEST(RunTrace, SmallBoxHasAPeriodDoublingCurveEndingAtAFlipGrazingAndItsContinuation) {
   v1::TraceRequest request = SmallBox();
   request.set_no_edge_branches(true);

@@ -1210,8 +1210,8 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                                 " could not be corrected";
         if (cross.unverified) {
           result.unverified_ends.push_back(cross.end);
-          return through + "the corrector failed next to (" + options.param1 + ", " +
-                 options.param2 + ") = (" + std::to_string(cross.end.point.value1) + ", " +
+          return through + "stopped next to (" + options.param1 + ", " + options.param2 + ") = (" +
+                 std::to_string(cross.end.point.value1) + ", " +
                  std::to_string(cross.end.point.value2) + "), where only a prediction beyond, " +
                  "not a corrected orbit, is inadmissible (" + cross.end.detail + "; " + why +
                  "): no " + Codim2KindName(cross.end.kind) + " point claimed";

@@ -481,8 +481,8 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
   }
   for (const auto& [period, count] : unverified) {
     sum.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
-                        "curve ends not located: the corrector failed next to them and only a "
-                        "prediction beyond, not a solved orbit, is inadmissible (no point "
+                        "curve ends not located: the steps failed or collapsed next to them and "
+                        "only a prediction beyond, not a solved orbit, is inadmissible (no point "
                         "claimed; named in the curves' messages)");
   }
   report(1.0);
