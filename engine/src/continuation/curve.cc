@@ -85,6 +85,17 @@ namespace {
 using Vec = Eigen::VectorXd;
 using Mat = Eigen::MatrixXd;
 
+// How a curve's message names an unverified end (CurveResult::unverified_ends) `end`, whose
+// prediction beyond was inadmissible for `why`: "next to (param1, param2) = (.., ..), where
+// ...: no FOLD_GRAZING point claimed".
+std::string UnverifiedEndText(const CurveOptions& options, const Codim2Point& end,
+                              const std::string& why) {
+  return "next to (" + options.param1 + ", " + options.param2 + ") = (" +
+         std::to_string(end.point.value1) + ", " + std::to_string(end.point.value2) +
+         "), where only a prediction beyond, not a corrected orbit, is inadmissible (" + why +
+         "): no " + Codim2KindName(end.kind) + " point claimed";
+}
+
 // Where a traced direction met the Poincare section (CurveTracer::Trace).
 struct SectionCrossing {
   bool happened = false;
@@ -911,9 +922,10 @@ class CurveTracer {
                                                               : Codim2Kind::kFlipGrazing;
     CurvePoint end = MakePoint(b.ya);
     Codim2Point point{k, end, b.why, b.Width(t), b.violation};
-    bool solved = !IsSectionCrossing(b.violation, end.orbit) && SolveEnd(&point) &&
+    const bool crossing_first = IsSectionCrossing(b.violation, end.orbit);
+    bool solved = !crossing_first && SolveEnd(&point) &&
                   SameSigns(tests, end.stability.monodromy, point.point.stability.monodromy);
-    if (!IsSectionCrossing(b.violation, end.orbit) && !solved) {
+    if (!crossing_first && !solved) {
       Bisect(t, 1e-12, &b);
       end = MakePoint(b.ya);
       point = {k, end, b.why, b.Width(t), b.violation};
@@ -980,10 +992,7 @@ class CurveTracer {
     // it.
     if (!b.beyond_corrected && !solved) {
       unverified->push_back(point);
-      return "next to (" + options_.param1 + ", " + options_.param2 + ") = (" +
-             std::to_string(end.value1) + ", " + std::to_string(end.value2) +
-             "), where only a prediction beyond, not a corrected orbit, is inadmissible (" + b.why +
-             "): no " + Codim2KindName(k) + " point claimed";
+      return UnverifiedEndText(options_, point, b.why);
     }
     codim2->push_back(point);
     return std::string("ended at a ") + Codim2KindName(k) + " point: " + point.detail;
@@ -1210,11 +1219,8 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                                 " could not be corrected";
         if (cross.unverified) {
           result.unverified_ends.push_back(cross.end);
-          return through + "stopped next to (" + options.param1 + ", " + options.param2 + ") = (" +
-                 std::to_string(cross.end.point.value1) + ", " +
-                 std::to_string(cross.end.point.value2) + "), where only a prediction beyond, " +
-                 "not a corrected orbit, is inadmissible (" + cross.end.detail + "; " + why +
-                 "): no " + Codim2KindName(cross.end.kind) + " point claimed";
+          return through + "stopped " +
+                 UnverifiedEndText(options, cross.end, cross.end.detail + "; " + why);
         }
         result.codim2.push_back(cross.end);
         return through + "ended at a " + Codim2KindName(cross.end.kind) +
