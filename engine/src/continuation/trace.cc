@@ -463,21 +463,20 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         "twice, reported as that period-n FLIP_GRAZING");
   }
   // Points the 1e-8 does not cover: their `bracket` says how far they are known.
-  std::map<int, int> wide;  // period -> codimension-2 points with bracket > 1e-8
+  // Per period: codimension-2 points with bracket > 1e-8, and curve ends not claimed as points.
+  std::map<int, int> wide, unverified;
   for (const TracedCurve& c : result.curves) {
     for (const Codim2Point& q : c.curve.codim2) {
       if (q.bracket > 1e-8) ++wide[q.point.orbit.signature.periods];
+    }
+    for (const Codim2Point& e : c.curve.unverified_ends) {
+      ++unverified[e.point.orbit.signature.periods];
     }
   }
   for (const auto& [period, count] : wide) {
     sum.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
                         "codimension-2 points located only to a bracket above 1e-8 (see each "
                         "one's bracket: the corrector failed next to the curve's end)");
-  }
-  std::map<int, int> unverified;  // period -> curve ends not claimed as points
-  for (const TracedCurve& c : result.curves) {
-    for (const Codim2Point& e : c.curve.unverified_ends)
-      ++unverified[e.point.orbit.signature.periods];
   }
   for (const auto& [period, count] : unverified) {
     sum.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
