@@ -53,6 +53,12 @@ void TallyNotes(const SwitchTally& t, TraceSummary* sum) {
         "within 1e-6 of vanishing between two of one mode, no guard within 1e-6 of touching "
         "inside a segment)");
   }
+  if (t.unverified_no_form > 0) {
+    sum->notes.push_back(std::to_string(t.unverified_no_form) +
+                         " unverified curve ends not switched at: no tangent form of a grazing "
+                         "there (no segment within 1e-6 of vanishing between two of one mode, no "
+                         "guard within 1e-6 of touching inside a segment)");
+  }
   if (t.no_step_off + t.no_step_off_grazing > 0) {
     std::string lengths;
     for (const double l : kStepOffLengths) {
@@ -88,7 +94,8 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
     const StatusOr<PeriodicOrbit>& orbit = candidate.orbit;
     const CurveKind kind = candidate.kind;
     if (!orbit.ok()) {
-      ++(point.bracket > 1e-6 ? tally->wide : tally->no_form);
+      // An unverified end is no located point: counted apart, whatever its bracket.
+      ++(q < 0 ? tally->unverified_no_form : point.bracket > 1e-6 ? tally->wide : tally->no_form);
       return true;
     }
     const Signature& curve_signature = orbit->signature;

@@ -65,6 +65,7 @@ struct SwitchTally {
   int added = 0;                // curves
   int wide = 0;                 // ends located only to a bracket > 1e-6
   int no_form = 0;              // ends whose grazing has no tangent form
+  int unverified_no_form = 0;   // unverified ends (CurveResult) likewise, of any bracket
   int no_step_off = 0;          // roots where no inserted segment length gave an admissible orbit
   int no_step_off_grazing = 0;  // likewise at double grazings
   bool capped = false;          // max_switched_curves reached
