@@ -131,7 +131,7 @@ v1::TraceResult ToProto(const TraceResult& r) {
                                             : "COMPLETED");
   out.set_message(std::to_string(r.curves.size()) + " curves, " +
                   std::to_string(out.codim2_points_size()) + " codimension-2 points, " +
-                  std::to_string(r.summary.notes.size()) + " located points not traced (notes)");
+                  std::to_string(r.summary.notes.size()) + " notes");
   return out;
 }
 
