@@ -4,12 +4,14 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <memory>
 #include <new>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "client/job_common.h"
+#include "client/optimum_cache.h"
 #include "client/trace_runner.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/orbit/attractors.h"
@@ -108,40 +110,85 @@ std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propag
   return sentence;
 }
 
+// The curves of the request's trace: `cache`'s (*reused set), else traced and put there unless
+// cancelled. Null with *cancelled set when the trace was cancelled.
+StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const v1::TraceRequest& request,
+                                                         const std::string& key,
+                                                         const ProgressCallback& progress,
+                                                         OptimumCache* cache, bool* reused,
+                                                         bool* cancelled) {
+  *reused = *cancelled = false;
+  if (cache != nullptr) {
+    if (std::shared_ptr<const OptimumCurves> held = cache->FindCurves(key)) {
+      *reused = true;
+      return held;
+    }
+  }
+  StatusOr<internal::EngineTrace> trace = internal::TraceRequestCurves(request, progress);
+  if (!trace.ok()) {
+    const Status& s = trace.status();
+    return s.code() == StatusCode::kInvalidArgument ? InvalidArgument("trace." + s.message()) : s;
+  }
+  if (trace->result.summary.cancelled) {
+    *cancelled = true;
+    return std::shared_ptr<const OptimumCurves>();
+  }
+  auto curves = std::make_shared<OptimumCurves>();
+  curves->start = std::move(trace->start);
+  curves->options = trace->options;
+  curves->region_curves = RegionCurvesOf(trace->result.curves);
+  for (const TracedCurve& c : trace->result.curves) curves->kinds.push_back(c.curve.kind);
+  curves->failed = internal::TraceFailed(trace->result);
+  if (cache != nullptr) cache->PutCurves(key, curves);
+  return std::shared_ptr<const OptimumCurves>(std::move(curves));
+}
+
 StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
-                                    const ProgressCallback& progress) {
+                                    const ProgressCallback& progress, OptimumCache* cache) {
   StatusOr<OptimumOptions> options = ToOptimumOptions(request);
   if (!options.ok()) return options.status();
   // The curves take most of the time: 85% of the progress bar.
   constexpr double kShare = 0.85;
   ProgressCallback curves_progress;
   if (progress) curves_progress = [&](double f) { return progress(kShare * f); };
-  StatusOr<internal::EngineTrace> trace =
-      internal::TraceRequestCurves(request.trace(), curves_progress);
-  if (!trace.ok()) {
-    const Status& s = trace.status();
-    return s.code() == StatusCode::kInvalidArgument ? InvalidArgument("trace." + s.message()) : s;
-  }
+  const std::string key = cache != nullptr ? OptimumCache::KeyOf(request.trace()) : "";
+  const auto trace_start = std::chrono::steady_clock::now();
+  bool reused = false, cancelled = false;
+  StatusOr<std::shared_ptr<const OptimumCurves>> found =
+      CurvesFor(request.trace(), key, curves_progress, cache, &reused, &cancelled);
+  if (!found.ok()) return found.status();
   v1::OptimumResult out;
   out.set_engine_version(EngineVersion());
-  out.set_curves(static_cast<int>(trace->result.curves.size()));
-  out.set_trace_seconds(Seconds(trace->started));
-  if (trace->result.summary.cancelled) {
+  out.set_trace_seconds(Seconds(trace_start));
+  out.set_curves_reused(reused);
+  if (cancelled) {
     out.set_status("CANCELLED");
     out.set_message("cancelled while tracing the curves");
     return out;
   }
+  const OptimumCurves& curves = **found;
+  out.set_curves(static_cast<int>(curves.kinds.size()));
 
   const auto region_start = std::chrono::steady_clock::now();
-  const auto [n1, n2] = GridFor(request, *options, trace->options);
+  const auto [n1, n2] = GridFor(request, *options, curves.options);
   const auto& model = Model();
   ExactPropagator propagator(model);
-  RegionProgress region_progress;
-  if (progress) region_progress = [&](double f) { return progress(kShare + (1 - kShare) * f); };
-  const StabilityRegion region =
-      ComputeStabilityRegion(model, propagator, trace->start, RegionCurvesOf(trace->result.curves),
-                             internal::RegionOptionsFor(trace->options, n1, n2), region_progress);
-  if (!region.summary.status.ok()) return region.summary.status;
+  std::shared_ptr<const StabilityRegion> held =
+      cache != nullptr ? cache->FindRegion(key, n1, n2) : nullptr;
+  out.set_region_reused(held != nullptr);
+  if (held == nullptr) {
+    RegionProgress region_progress;
+    if (progress) {
+      region_progress = [&](double f) { return progress(kShare + (1 - kShare) * f); };
+    }
+    auto computed = std::make_shared<StabilityRegion>(ComputeStabilityRegion(
+        model, propagator, curves.start, curves.region_curves,
+        internal::RegionOptionsFor(curves.options, n1, n2), region_progress));
+    if (!computed->summary.status.ok()) return computed->summary.status;
+    if (cache != nullptr && !computed->summary.cancelled) cache->PutRegion(key, n1, n2, computed);
+    held = std::move(computed);
+  }
+  const StabilityRegion& region = *held;
   out.set_region_seconds(Seconds(region_start));
   out.add_grid(n1);
   out.add_grid(n2);
@@ -163,7 +210,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
     out.set_message(best.status.message());
     return out;
   }
-  Params params = trace->start.params;
+  Params params = curves.start.params;
   const int k1 = model.ParamIndex(region.param1).value();
   const int k2 = model.ParamIndex(region.param2).value();
   params[k1] = best.value1;
@@ -175,10 +222,10 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   }
   out.set_distance_scaled(std::isfinite(best.distance_scaled) ? best.distance_scaled : 0.0);
   out.set_nearest_curve(best.nearest_curve);
-  out.set_nearest_curve_kind(
-      best.nearest_curve >= 0 ? CurveKindName(trace->result.curves[best.nearest_curve].curve.kind)
-      : best.nearest_curve == RegionVertex::kSeam ? "SEAM"
-                                                  : "UNTRACED");
+  out.set_nearest_curve_kind(best.nearest_curve >= 0
+                                 ? CurveKindName(curves.kinds[best.nearest_curve])
+                             : best.nearest_curve == RegionVertex::kSeam ? "SEAM"
+                                                                         : "UNTRACED");
   out.set_near_box_edge(best.near_box_edge);
   const Signature& optimum_signature = region.signatures[region.grid.label[best.node]];
   out.set_signature(SignatureString(model, optimum_signature));
@@ -186,7 +233,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   const std::string coexistence =
       CheckCoexistence(model, propagator, params, optimum_signature, &out);
 
-  const bool failed = internal::TraceFailed(trace->result);
+  const bool failed = curves.failed;
   out.set_status(failed ? "FAILED" : "COMPLETED");
   std::string message = "ROP " + internal::Num(best.rop) + " at " + region.param1 + " = " +
                         internal::Num(best.value1) + ", " + region.param2 + " = " +
@@ -202,9 +249,9 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
 }  // namespace
 
 StatusOr<v1::OptimumResult> RunOptimum(const v1::OptimumRequest& request,
-                                       const ProgressCallback& progress) {
+                                       const ProgressCallback& progress, OptimumCache* cache) {
   try {
-    return Optimum(request, progress);
+    return Optimum(request, progress, cache);
   } catch (const std::bad_alloc&) {
     return Internal("out of memory while computing the optimum");
   } catch (const std::exception& e) {

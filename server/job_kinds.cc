@@ -251,7 +251,8 @@ Status ValidateAtSubmit(v1::JobKind kind, const google::protobuf::Message& reque
 
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
                            const ProgressCallback& progress,
-                           const std::function<void(double)>& value) {
+                           const std::function<void(double)>& value,
+                           client::OptimumCache* optimum_cache) {
   switch (kind) {
     case v1::SIMULATE:
       return Run<v1::SimulateRequest, v1::SimulateResult>(request_bytes, progress,
@@ -270,8 +271,11 @@ StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
     case v1::TRACE:
       return Run<v1::TraceRequest, v1::TraceResult>(request_bytes, progress, client::RunTrace);
     case v1::OPTIMUM:
-      return Run<v1::OptimumRequest, v1::OptimumResult>(request_bytes, progress,
-                                                        client::RunOptimum);
+      return Run<v1::OptimumRequest, v1::OptimumResult>(
+          request_bytes, progress,
+          [optimum_cache](const v1::OptimumRequest& r, const ProgressCallback& p) {
+            return client::RunOptimum(r, p, optimum_cache);
+          });
     default:
       return InvalidArgument("unknown job kind");
   }

@@ -13,6 +13,7 @@
 #include <string>
 #include <string_view>
 
+#include "client/optimum_cache.h"
 #include "drillbif/common/status.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/service.pb.h"
@@ -62,10 +63,11 @@ struct JobOutput {
 // FAILED_PRECONDITION, INTERNAL); INVALID_ARGUMENT for an unknown kind or unparsable bytes.
 // `progress` as in the runners (fraction in [0, 1]; return false to cancel); `value` (optional)
 // receives the current parameter value where the kind has one (sweep: the grid point finished
-// last; continue: each accepted point).
+// last; continue: each accepted point). `optimum_cache` (optional) is RunOptimum's cache.
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
                            const ProgressCallback& progress,
-                           const std::function<void(double)>& value = {});
+                           const std::function<void(double)>& value = {},
+                           client::OptimumCache* optimum_cache = nullptr);
 
 // The number of points a request of `kind` will produce, when known before the run (sweep:
 // steps times directions), else 0. Used to estimate JobMetadata.points from the progress.

@@ -132,7 +132,7 @@ void WorkerPool::RunOne(const JobRecord& job) {
 
   spdlog::info("job {} ({}) started, attempt {}", job.id, job.kind, job.attempts);
   engine_runs_.fetch_add(1);
-  StatusOr<JobOutput> output = RunJob(kind, job.request, progress, value);
+  StatusOr<JobOutput> output = RunJob(kind, job.request, progress, value, &optimum_cache_);
   const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
 
   // How the run ended, decided before anything is recorded: run_done_ (the duration histogram)

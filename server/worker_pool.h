@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "client/optimum_cache.h"
 #include "drillbif/common/status.h"
 #include "server/store/job_store.h"
 #include "server/watch_hub.h"
@@ -104,6 +105,8 @@ class WorkerPool {
   const OptimumDoneCallback optimum_done_;
   const JobRunCallback run_done_;
   std::atomic<int64_t> engine_runs_{0};
+  // Curves and regions of optimum jobs, for later optimum jobs over the same curves.
+  client::OptimumCache optimum_cache_;
 
   std::mutex mutex_;
   std::condition_variable cv_;

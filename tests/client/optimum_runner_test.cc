@@ -7,10 +7,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <string>
 
+#include "client/optimum_cache.h"
 #include "client/output.h"
 #include "client/trace_runner.h"
+#include "support/same_result.h"
 #include "support/small_requests.h"
 
 namespace drillbif::client {
@@ -113,6 +116,93 @@ TEST(RunOptimum, DefaultGridFollowsTheMargin) {
   ASSERT_EQ(r->grid_size(), 2);
   EXPECT_EQ(r->grid(0), 11);
   EXPECT_EQ(r->grid(1), 11);
+}
+
+// With a cache (the server's worker pool has one), a second request over the same curves reuses
+// them, and over the same grid the region too; each answer is the one computed from scratch
+// (every field but the times and the reuse flags, bitwise).
+TEST(RunOptimum, AnotherMarginOverKnownCurvesReusesThemAndGivesTheSameAnswer) {
+  OptimumCache cache;
+  v1::OptimumRequest first = Request();
+  first.add_grid(41);
+  first.add_grid(41);
+  const StatusOr<v1::OptimumResult> r1 = RunOptimum(first, {}, &cache);
+  ASSERT_TRUE(r1.ok()) << r1.status().ToString();
+  EXPECT_FALSE(r1->curves_reused());
+  EXPECT_FALSE(r1->region_reused());
+
+  // Another margin, the same grid: curves and region reused.
+  v1::OptimumRequest second = first;
+  second.set_margin(0, 0.02);
+  second.set_margin(1, 0.04);
+  const StatusOr<v1::OptimumResult> r2 = RunOptimum(second, {}, &cache);
+  const StatusOr<v1::OptimumResult> fresh2 = RunOptimum(second);
+  ASSERT_TRUE(r2.ok() && fresh2.ok());
+  EXPECT_TRUE(r2->curves_reused());
+  EXPECT_TRUE(r2->region_reused());
+  EXPECT_FALSE(fresh2->curves_reused());
+  testing::ExpectSameResult(*r2, *fresh2);
+
+  // Another grid: the curves reused, the region computed.
+  v1::OptimumRequest third = second;
+  third.set_grid(0, 31);
+  const StatusOr<v1::OptimumResult> r3 = RunOptimum(third, {}, &cache);
+  const StatusOr<v1::OptimumResult> fresh3 = RunOptimum(third);
+  ASSERT_TRUE(r3.ok() && fresh3.ok());
+  EXPECT_TRUE(r3->curves_reused());
+  EXPECT_FALSE(r3->region_reused());
+  testing::ExpectSameResult(*r3, *fresh3);
+
+  // Another box: nothing reused.
+  v1::OptimumRequest other = first;
+  other.mutable_trace()->set_max(1, 0.55);
+  const StatusOr<v1::OptimumResult> r4 = RunOptimum(other, {}, &cache);
+  ASSERT_TRUE(r4.ok()) << r4.status().ToString();
+  EXPECT_FALSE(r4->curves_reused());
+  EXPECT_FALSE(r4->region_reused());
+}
+
+// A cancelled optimum leaves nothing in the cache: the next request computes its curves.
+TEST(RunOptimum, ACancelledRunIsNotReused) {
+  OptimumCache cache;
+  v1::OptimumRequest request = Request();
+  request.add_grid(41);
+  request.add_grid(41);
+  const StatusOr<v1::OptimumResult> cancelled = RunOptimum(
+      request, [](double) { return false; }, &cache);
+  ASSERT_TRUE(cancelled.ok()) << cancelled.status().ToString();
+  EXPECT_EQ(cancelled->status(), "CANCELLED");
+  EXPECT_EQ(cache.FindCurves(OptimumCache::KeyOf(request.trace())), nullptr);
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request, {}, &cache);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_FALSE(r->curves_reused());
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+}
+
+// Least recently used curves go first; a region goes with its curves.
+TEST(OptimumCache, KeepsTheMostRecentlyUsed) {
+  OptimumCache cache(2, 1);
+  auto curves = std::make_shared<OptimumCurves>();
+  auto region = std::make_shared<StabilityRegion>();
+  cache.PutCurves("a", curves);
+  cache.PutRegion("a", 3, 3, region);
+  cache.PutCurves("b", curves);
+  EXPECT_NE(cache.FindCurves("a"), nullptr);  // a is now the most recent
+  cache.PutCurves("c", curves);               // drops b
+  EXPECT_EQ(cache.FindCurves("b"), nullptr);
+  EXPECT_EQ(cache.FindRegion("a", 3, 3), region);
+  cache.PutRegion("a", 4, 4, region);  // one region per curves: drops (3, 3)
+  EXPECT_EQ(cache.FindRegion("a", 3, 3), nullptr);
+  EXPECT_EQ(cache.FindRegion("a", 4, 4), region);
+  cache.PutRegion("b", 3, 3, region);  // b's curves are gone: not kept
+  EXPECT_EQ(cache.FindRegion("b", 3, 3), nullptr);
+  cache.PutCurves("a", curves);  // new curves: their old regions go
+  EXPECT_EQ(cache.FindRegion("a", 4, 4), nullptr);
+  // The key is the request's content.
+  v1::OptimumRequest r1 = Request(), r2 = Request();
+  EXPECT_EQ(OptimumCache::KeyOf(r1.trace()), OptimumCache::KeyOf(r2.trace()));
+  r2.mutable_trace()->mutable_params()->set_b(0.16);
+  EXPECT_NE(OptimumCache::KeyOf(r1.trace()), OptimumCache::KeyOf(r2.trace()));
 }
 
 TEST(RunTrace, RegionOnRequestOnly) {

@@ -301,6 +301,36 @@ TEST_F(GrpcServiceTest, OptimumComputedOnDemandThenStored) {
   EXPECT_EQ(EngineRuns(), runs) << "stored answers must not run the engine";
 }
 
+// An optimum job with another margin over the curves and grid of an earlier one: a new job (its
+// answer differs), run without tracing or filling the region again (the worker pool's
+// client::OptimumCache), and its answer is the runner's from scratch.
+TEST_F(GrpcServiceTest, AnotherMarginReusesTheCurvesAndRegionOfAnEarlierOptimum) {
+  v1::SubmitOptimumRequest submit;
+  *submit.mutable_request()->mutable_trace() = SmallBoxTrace();
+  submit.mutable_request()->add_grid(23);
+  submit.mutable_request()->add_grid(23);
+  submit.mutable_request()->add_margin(0.005);
+  Operation first;
+  auto context = Context();
+  ASSERT_TRUE(jobs_->SubmitOptimum(context.get(), submit, &first).ok());
+  first = WaitDone(first.name());
+  ASSERT_EQ(MetadataOf(first).state(), v1::SUCCEEDED);
+
+  submit.mutable_request()->set_margin(0, 0.01);
+  Operation second;
+  auto second_context = Context();
+  ASSERT_TRUE(jobs_->SubmitOptimum(second_context.get(), submit, &second).ok());
+  second = WaitDone(second.name());
+  EXPECT_FALSE(MetadataOf(second).cache_hit());  // a new job: another answer
+  const auto served = ResponseOf<v1::OptimumResult>(second);
+  EXPECT_TRUE(served.curves_reused());
+  EXPECT_TRUE(served.region_reused());
+  StatusOr<v1::OptimumResult> direct = client::RunOptimum(submit.request());
+  ASSERT_TRUE(direct.ok());
+  EXPECT_FALSE(direct->curves_reused());
+  ExpectSameResult(served, *direct);
+}
+
 TEST_F(GrpcServiceTest, IdenticalRequestIsACacheHitWithoutEngineRun) {
   v1::SubmitSimulateRequest request;
   request.mutable_request()->set_sample_periods(7);

@@ -1,5 +1,6 @@
 // Equality of a served result with the job runner's own, ignoring the wall-clock fields (which
-// differ between any two runs). Shared by the service tests.
+// differ between any two runs) and, for an optimum, whether its curves and region were reused
+// from an earlier request (how it was computed, not what). Shared by the service tests.
 #ifndef DRILLBIF_TESTS_SUPPORT_SAME_RESULT_H_
 #define DRILLBIF_TESTS_SUPPORT_SAME_RESULT_H_
 
@@ -26,6 +27,8 @@ inline void ClearTimes(v1::OptimumResult* r) {
   r->clear_region_seconds();
   r->clear_query_seconds();
   r->clear_check_seconds();
+  r->clear_curves_reused();
+  r->clear_region_reused();
 }
 
 // Exact equality (the JSON mapping prints doubles with the digits to read them back exactly).
