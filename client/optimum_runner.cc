@@ -111,7 +111,7 @@ std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propag
 }
 
 // The curves of the request's trace: `cache`'s (*reused set), else traced and put there unless
-// cancelled. Null with *cancelled set when the trace was cancelled.
+// cancelled (*cancelled set: the curves traced until then).
 StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const v1::TraceRequest& request,
                                                          const std::string& key,
                                                          const ProgressCallback& progress,
@@ -129,17 +129,14 @@ StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const v1::TraceRequest&
     const Status& s = trace.status();
     return s.code() == StatusCode::kInvalidArgument ? InvalidArgument("trace." + s.message()) : s;
   }
-  if (trace->result.summary.cancelled) {
-    *cancelled = true;
-    return std::shared_ptr<const OptimumCurves>();
-  }
+  *cancelled = trace->result.summary.cancelled;
   auto curves = std::make_shared<OptimumCurves>();
   curves->start = std::move(trace->start);
   curves->options = trace->options;
   curves->region_curves = RegionCurvesOf(trace->result.curves);
   for (const TracedCurve& c : trace->result.curves) curves->kinds.push_back(c.curve.kind);
   curves->failed = internal::TraceFailed(trace->result);
-  if (cache != nullptr) cache->PutCurves(key, curves);
+  if (cache != nullptr && !*cancelled) cache->PutCurves(key, curves);
   return std::shared_ptr<const OptimumCurves>(std::move(curves));
 }
 
@@ -161,13 +158,13 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   out.set_engine_version(EngineVersion());
   out.set_trace_seconds(Seconds(trace_start));
   out.set_curves_reused(reused);
+  const OptimumCurves& curves = **found;
+  out.set_curves(static_cast<int>(curves.kinds.size()));
   if (cancelled) {
     out.set_status("CANCELLED");
     out.set_message("cancelled while tracing the curves");
     return out;
   }
-  const OptimumCurves& curves = **found;
-  out.set_curves(static_cast<int>(curves.kinds.size()));
 
   const auto region_start = std::chrono::steady_clock::now();
   const auto [n1, n2] = GridFor(request, *options, curves.options);
