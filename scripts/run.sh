@@ -7,7 +7,8 @@
 #        drillctl --server 127.0.0.1:PORT continue --param b --min 0 --max 0.2
 #      (the reference orbit, MODEL.md's parameters), and prints its special points and the ROP
 #      optimum along the branch (the stable ROP maximum: ROP ~0.5387 at b ~0.16382);
-#   4. asks the server for the robust ROP optimum in (omega, a) on a small box (drillctl optimum);
+#   4. asks the server for the robust ROP optimum in (omega, a) on a small box (drillctl optimum),
+#      then for another margin over the same curves (which the server reuses);
 #   5. lists the server's jobs and stops the server with SIGTERM (graceful shutdown).
 # Build output and the server's log go to stderr; stdout is the report. Takes ~5 s once built.
 set -euo pipefail
@@ -77,6 +78,17 @@ echo "== $drillctl --server $DRILLBIF_SERVER optimum --params omega,a --min 0.05
 awk -F, 'NR == 2 && $7 != "" {
   printf "robust ROP optimum at b = %s: ROP = %.4f at omega = %s, a = %s (margins %.4f, %.4f)\n",
          $2, $7, $3, $1, $8, $9 }' "$work/optimum.csv"
+echo
+# Another margin over the same curves and grid: the server reuses them (curvesReused,
+# regionReused) and answers in milliseconds.
+echo "== $drillctl --server $DRILLBIF_SERVER optimum --params omega,a --min 0.05,0.25 --max 0.15,0.6 --margin 0.02,0.04 --grid 21,21"
+"$drillctl" optimum --params omega,a --min 0.05,0.25 --max 0.15,0.6 --margin 0.02,0.04 \
+  --grid 21,21 > "$work/optimum2.json"
+for field in rop curvesReused regionReused traceSeconds regionSeconds querySeconds; do
+  grep -m1 "^ *\"$field\":" "$work/optimum2.json" | tr -d ' ,\n'
+  echo -n ' '
+done
+echo
 echo
 echo "== $drillctl --server $DRILLBIF_SERVER jobs list --format csv"
 "$drillctl" jobs list --format csv | cut -d, -f1-7
