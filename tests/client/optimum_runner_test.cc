@@ -118,48 +118,39 @@ TEST(RunOptimum, DefaultGridFollowsTheMargin) {
   EXPECT_EQ(r->grid(1), 11);
 }
 
+// Runs `request` with `cache`, expects the reuse flags given, and the answer of a run from
+// scratch (every field but the times and the reuse flags, bitwise).
+void ExpectReuse(const v1::OptimumRequest& request, OptimumCache* cache, bool curves, bool region) {
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request, {}, cache);
+  const StatusOr<v1::OptimumResult> fresh = RunOptimum(request);
+  ASSERT_TRUE(r.ok() && fresh.ok());
+  EXPECT_EQ(r->curves_reused(), curves);
+  EXPECT_EQ(r->region_reused(), region);
+  EXPECT_FALSE(fresh->curves_reused() || fresh->region_reused());
+  testing::ExpectSameResult(*r, *fresh);
+}
+
 // With a cache (the server's worker pool has one), a second request over the same curves reuses
-// them, and over the same grid the region too; each answer is the one computed from scratch
-// (every field but the times and the reuse flags, bitwise).
+// them, and over the same grid the region too; each answer is the one computed from scratch.
 TEST(RunOptimum, AnotherMarginOverKnownCurvesReusesThemAndGivesTheSameAnswer) {
   OptimumCache cache;
   v1::OptimumRequest first = Request();
   first.add_grid(41);
   first.add_grid(41);
-  const StatusOr<v1::OptimumResult> r1 = RunOptimum(first, {}, &cache);
-  ASSERT_TRUE(r1.ok()) << r1.status().ToString();
-  EXPECT_FALSE(r1->curves_reused());
-  EXPECT_FALSE(r1->region_reused());
-
+  ExpectReuse(first, &cache, false, false);
   // Another margin, the same grid: curves and region reused.
   v1::OptimumRequest second = first;
   second.set_margin(0, 0.02);
   second.set_margin(1, 0.04);
-  const StatusOr<v1::OptimumResult> r2 = RunOptimum(second, {}, &cache);
-  const StatusOr<v1::OptimumResult> fresh2 = RunOptimum(second);
-  ASSERT_TRUE(r2.ok() && fresh2.ok());
-  EXPECT_TRUE(r2->curves_reused());
-  EXPECT_TRUE(r2->region_reused());
-  EXPECT_FALSE(fresh2->curves_reused());
-  testing::ExpectSameResult(*r2, *fresh2);
-
+  ExpectReuse(second, &cache, true, true);
   // Another grid: the curves reused, the region computed.
   v1::OptimumRequest third = second;
   third.set_grid(0, 31);
-  const StatusOr<v1::OptimumResult> r3 = RunOptimum(third, {}, &cache);
-  const StatusOr<v1::OptimumResult> fresh3 = RunOptimum(third);
-  ASSERT_TRUE(r3.ok() && fresh3.ok());
-  EXPECT_TRUE(r3->curves_reused());
-  EXPECT_FALSE(r3->region_reused());
-  testing::ExpectSameResult(*r3, *fresh3);
-
+  ExpectReuse(third, &cache, true, false);
   // Another box: nothing reused.
   v1::OptimumRequest other = first;
   other.mutable_trace()->set_max(1, 0.55);
-  const StatusOr<v1::OptimumResult> r4 = RunOptimum(other, {}, &cache);
-  ASSERT_TRUE(r4.ok()) << r4.status().ToString();
-  EXPECT_FALSE(r4->curves_reused());
-  EXPECT_FALSE(r4->region_reused());
+  ExpectReuse(other, &cache, false, false);
 }
 
 // A cancelled optimum leaves nothing in the cache: the next request computes its curves.
