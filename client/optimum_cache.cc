@@ -5,19 +5,35 @@
 
 #include <algorithm>
 
+#include "client/trace_runner.h"
+
 namespace drillbif::client {
 
 OptimumCache::OptimumCache(size_t capacity, size_t regions_per_curves)
     : capacity_(std::max<size_t>(capacity, 1)),
       regions_per_curves_(std::max<size_t>(regions_per_curves, 1)) {}
 
+std::shared_ptr<const OptimumCurves> OptimumCurvesOf(const PeriodicOrbit& start,
+                                                     const TraceOptions& options,
+                                                     const TraceResult& trace) {
+  auto curves = std::make_shared<OptimumCurves>();
+  curves->start = start;
+  curves->options = options;
+  curves->region_curves = RegionCurvesOf(trace.curves);
+  for (const TracedCurve& c : trace.curves) curves->kinds.push_back(c.curve.kind);
+  curves->failed = internal::TraceFailed(trace);
+  return curves;
+}
+
 std::string OptimumCache::KeyOf(const v1::TraceRequest& request) {
+  v1::TraceRequest curves_only = request;
+  curves_only.clear_region();
   std::string bytes;
   {
     google::protobuf::io::StringOutputStream stream(&bytes);
     google::protobuf::io::CodedOutputStream out(&stream);
     out.SetSerializationDeterministic(true);
-    request.SerializeToCodedStream(&out);
+    curves_only.SerializeToCodedStream(&out);
   }
   return bytes;
 }

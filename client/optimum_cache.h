@@ -3,7 +3,9 @@
 // stability region by trace request and grid. The curves take ~25 s for issue 4's box and the
 // region ~2.4 s; the query alone takes milliseconds, so another margin (or `scaled`) over the same
 // curves and grid is answered from here in milliseconds, and another grid without tracing again.
-// The server's worker pool owns one; `drillctl --local` runs one job per process and has none.
+// Trace jobs of period-1 curves put theirs here too (and their region), for an optimum asked
+// after the map was drawn. The server's worker pool owns one; `drillctl --local` runs one job per
+// process and has none.
 #ifndef DRILLBIF_CLIENT_OPTIMUM_CACHE_H_
 #define DRILLBIF_CLIENT_OPTIMUM_CACHE_H_
 
@@ -30,6 +32,11 @@ struct OptimumCurves {
   bool failed = false;                     // a curve or a branch of the trace failed
 };
 
+// The curves of a trace as the optimum uses them.
+std::shared_ptr<const OptimumCurves> OptimumCurvesOf(const PeriodicOrbit& start,
+                                                     const TraceOptions& options,
+                                                     const TraceResult& trace);
+
 // Thread-safe. Holds the curves of at most `capacity` trace requests (least recently used
 // dropped first), each with the regions of at most `regions_per_curves` grids. Only complete
 // (not cancelled) curves and regions are to be put.
@@ -37,7 +44,8 @@ class OptimumCache {
  public:
   explicit OptimumCache(size_t capacity = 4, size_t regions_per_curves = 2);
 
-  // The cache's key of a trace request: its deterministic serialization.
+  // The cache's key of a trace request: its deterministic serialization without `region` (which
+  // does not change the curves; an optimum's trace has none).
   static std::string KeyOf(const v1::TraceRequest& request);
 
   // Null when not held.

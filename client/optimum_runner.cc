@@ -130,14 +130,10 @@ StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const v1::TraceRequest&
     return s.code() == StatusCode::kInvalidArgument ? InvalidArgument("trace." + s.message()) : s;
   }
   *cancelled = trace->result.summary.cancelled;
-  auto curves = std::make_shared<OptimumCurves>();
-  curves->start = std::move(trace->start);
-  curves->options = trace->options;
-  curves->region_curves = RegionCurvesOf(trace->result.curves);
-  for (const TracedCurve& c : trace->result.curves) curves->kinds.push_back(c.curve.kind);
-  curves->failed = internal::TraceFailed(trace->result);
+  std::shared_ptr<const OptimumCurves> curves =
+      OptimumCurvesOf(trace->start, trace->options, trace->result);
   if (cache != nullptr && !*cancelled) cache->PutCurves(key, curves);
-  return std::shared_ptr<const OptimumCurves>(std::move(curves));
+  return curves;
 }
 
 StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,

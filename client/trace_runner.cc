@@ -3,10 +3,12 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <memory>
 #include <new>
 #include <string>
 
 #include "client/job_common.h"
+#include "client/optimum_cache.h"
 #include "client/region_output.h"
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
@@ -144,7 +146,8 @@ StatusOr<std::pair<int, int>> GridSizeOf(const v1::RegionRequest& request) {
   return std::pair<int, int>(request.grid(0), request.grid(1));
 }
 
-StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressCallback& progress) {
+StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressCallback& progress,
+                                OptimumCache* cache) {
   std::pair<int, int> grid;
   if (request.has_region()) {
     StatusOr<std::pair<int, int>> g = GridSizeOf(request.region());
@@ -158,17 +161,27 @@ StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressC
   StatusOr<internal::EngineTrace> trace = internal::TraceRequestCurves(request, curves_progress);
   if (!trace.ok()) return trace.status();
   v1::TraceResult out = ToProto(trace->result);
+  // Curves an optimum can use (period 1 only, as its are) go to the cache for later optimum jobs.
+  const bool for_optimum = cache != nullptr && !trace->result.summary.cancelled &&
+                           !request.period2() && request.max_period() <= 1;
+  const std::string key = for_optimum ? OptimumCache::KeyOf(request) : "";
+  if (for_optimum) {
+    cache->PutCurves(key, OptimumCurvesOf(trace->start, trace->options, trace->result));
+  }
   if (request.has_region() && !trace->result.summary.cancelled) {
     const Osc& model = Model();
     ExactPropagator propagator(model);
     RegionProgress region_progress;
     if (progress) region_progress = [&](double f) { return progress(share + (1 - share) * f); };
-    const StabilityRegion region = ComputeStabilityRegion(
+    auto region = std::make_shared<StabilityRegion>(ComputeStabilityRegion(
         model, propagator, trace->start, RegionCurvesOf(trace->result.curves),
-        internal::RegionOptionsFor(trace->options, grid.first, grid.second), region_progress);
-    if (!region.summary.status.ok()) return region.summary.status;
-    if (region.summary.cancelled) out.set_status("CANCELLED");
-    client::ToProto(model, region, out.mutable_region());
+        internal::RegionOptionsFor(trace->options, grid.first, grid.second), region_progress));
+    if (!region->summary.status.ok()) return region->summary.status;
+    if (region->summary.cancelled) out.set_status("CANCELLED");
+    client::ToProto(model, *region, out.mutable_region());
+    if (for_optimum && !region->summary.cancelled) {
+      cache->PutRegion(key, grid.first, grid.second, std::move(region));
+    }
   }
   out.set_engine_version(EngineVersion());
   out.set_wall_seconds(internal::Seconds(trace->started));
@@ -225,9 +238,9 @@ RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2) {
 }  // namespace internal
 
 StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
-                                   const ProgressCallback& progress) {
+                                   const ProgressCallback& progress, OptimumCache* cache) {
   try {
-    return Trace(request, progress);
+    return Trace(request, progress, cache);
   } catch (const std::bad_alloc&) {
     return Internal("out of memory while tracing");
   } catch (const std::exception& e) {

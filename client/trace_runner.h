@@ -13,6 +13,8 @@
 
 namespace drillbif::client {
 
+class OptimumCache;
+
 // Finds the start orbit as RunContinue does and traces; with `region` set, also computes the
 // stability region around the start (which must then be a stable period-1 orbit). Errors:
 // INVALID_ARGUMENT naming the field (trace_params not two different known names, min/max not one
@@ -20,9 +22,11 @@ namespace drillbif::client {
 // start outside the box, invalid params, initial_state or transient_periods); FAILED_PRECONDITION
 // when the start state leads to no periodic orbit. `progress` (optional) is called from the calling
 // thread with the fraction done and returns false to cancel (the result is then CANCELLED, with the
-// curves traced so far).
+// curves traced so far). With a `cache`, the curves of a trace of period-1 curves (and its region)
+// are put there for later optimum jobs (client/optimum_cache.h) unless cancelled.
 StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
-                                   const ProgressCallback& progress = {});
+                                   const ProgressCallback& progress = {},
+                                   OptimumCache* cache = nullptr);
 
 namespace internal {
 

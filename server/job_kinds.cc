@@ -269,7 +269,11 @@ StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
             return client::RunContinue(r, p, value);
           });
     case v1::TRACE:
-      return Run<v1::TraceRequest, v1::TraceResult>(request_bytes, progress, client::RunTrace);
+      return Run<v1::TraceRequest, v1::TraceResult>(
+          request_bytes, progress,
+          [optimum_cache](const v1::TraceRequest& r, const ProgressCallback& p) {
+            return client::RunTrace(r, p, optimum_cache);
+          });
     case v1::OPTIMUM:
       return Run<v1::OptimumRequest, v1::OptimumResult>(
           request_bytes, progress,

@@ -63,7 +63,8 @@ struct JobOutput {
 // FAILED_PRECONDITION, INTERNAL); INVALID_ARGUMENT for an unknown kind or unparsable bytes.
 // `progress` as in the runners (fraction in [0, 1]; return false to cancel); `value` (optional)
 // receives the current parameter value where the kind has one (sweep: the grid point finished
-// last; continue: each accepted point). `optimum_cache` (optional) is RunOptimum's cache.
+// last; continue: each accepted point). `optimum_cache` (optional) is RunOptimum's cache, which
+// RunTrace fills too.
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
                            const ProgressCallback& progress,
                            const std::function<void(double)>& value = {},

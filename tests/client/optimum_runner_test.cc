@@ -153,6 +153,28 @@ TEST(RunOptimum, AnotherMarginOverKnownCurvesReusesThemAndGivesTheSameAnswer) {
   ExpectReuse(other, &cache, false, false);
 }
 
+// A trace of the same box (the map drawn first, with its region) leaves its curves and region for
+// an optimum asked next; a trace of period-2 curves leaves nothing (the optimum's are period 1).
+TEST(RunOptimum, ATraceOfTheSameBoxLeavesItsCurvesAndRegion) {
+  OptimumCache cache;
+  v1::TraceRequest period2 = testing::SmallBoxTrace();
+  period2.set_period2(true);
+  period2.set_max(0, 0.12);  // keeps the run short
+  ASSERT_TRUE(RunTrace(period2, {}, &cache).ok());
+  EXPECT_EQ(cache.FindCurves(OptimumCache::KeyOf(period2)), nullptr);
+
+  v1::TraceRequest map = testing::SmallBoxTrace();
+  map.mutable_region()->add_grid(41);
+  map.mutable_region()->add_grid(41);
+  const StatusOr<v1::TraceResult> traced = RunTrace(map, {}, &cache);
+  ASSERT_TRUE(traced.ok()) << traced.status().ToString();
+  v1::OptimumRequest request = Request();
+  request.add_grid(41);
+  request.add_grid(41);
+  ExpectReuse(request, &cache, true, true);
+  EXPECT_EQ(OptimumCache::KeyOf(map), OptimumCache::KeyOf(request.trace()));  // region left out
+}
+
 // A cancelled optimum leaves nothing in the cache: the next request computes its curves.
 TEST(RunOptimum, ACancelledRunIsNotReused) {
   OptimumCache cache;

@@ -331,6 +331,38 @@ TEST_F(GrpcServiceTest, AnotherMarginReusesTheCurvesAndRegionOfAnEarlierOptimum)
   ExpectSameResult(served, *direct);
 }
 
+// A trace job (the map, with its region) leaves its curves and region for an optimum job over the
+// same box and grid. (A box of its own: other tests' optimum jobs fill the same cache.)
+TEST_F(GrpcServiceTest, AnOptimumAfterATraceOfItsBoxReusesTheTrace) {
+  v1::TraceRequest box = SmallBoxTrace();
+  box.set_max(1, 0.58);
+  v1::SubmitTraceRequest trace;
+  *trace.mutable_request() = box;
+  trace.mutable_request()->mutable_region()->add_grid(23);
+  trace.mutable_request()->mutable_region()->add_grid(23);
+  Operation traced;
+  auto context = Context();
+  ASSERT_TRUE(jobs_->SubmitTrace(context.get(), trace, &traced).ok());
+  traced = WaitDone(traced.name());
+  ASSERT_EQ(MetadataOf(traced).state(), v1::SUCCEEDED);
+
+  v1::SubmitOptimumRequest submit;
+  *submit.mutable_request()->mutable_trace() = box;
+  submit.mutable_request()->add_grid(23);
+  submit.mutable_request()->add_grid(23);
+  submit.mutable_request()->add_margin(0.005);
+  Operation op;
+  auto optimum_context = Context();
+  ASSERT_TRUE(jobs_->SubmitOptimum(optimum_context.get(), submit, &op).ok());
+  op = WaitDone(op.name());
+  const auto served = ResponseOf<v1::OptimumResult>(op);
+  EXPECT_TRUE(served.curves_reused());
+  EXPECT_TRUE(served.region_reused());
+  StatusOr<v1::OptimumResult> direct = client::RunOptimum(submit.request());
+  ASSERT_TRUE(direct.ok());
+  ExpectSameResult(served, *direct);
+}
+
 TEST_F(GrpcServiceTest, IdenticalRequestIsACacheHitWithoutEngineRun) {
   v1::SubmitSimulateRequest request;
   request.mutable_request()->set_sample_periods(7);
