@@ -190,11 +190,15 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       }
       CurveResult curve = ContinueCurve(model, propagator, seed, co);
       if (curve.summary.termination == Termination::kFailed) {
-        sum.notes.push_back(
-            PeriodPrefix(point.point.orbit.signature.periods) + Codim2KindName(point.kind) +
-            " at " + options.param1 + " = " + std::to_string(u) + ", " + options.param2 + " = " +
-            std::to_string(v) + ": the " + PeriodPrefix(orbit->signature.periods) +
-            CurveKindName(kind) + " curve leaving it not traced: " + curve.summary.message);
+        // An unverified end is no located point (CurveResult::unverified_ends): named so.
+        const std::string what = q < 0 ? std::string("curve end (unverified: no ") +
+                                             Codim2KindName(point.kind) + " point claimed)"
+                                       : std::string(Codim2KindName(point.kind));
+        sum.notes.push_back(PeriodPrefix(point.point.orbit.signature.periods) + what + " at " +
+                            options.param1 + " = " + std::to_string(u) + ", " + options.param2 +
+                            " = " + std::to_string(v) + ": the " +
+                            PeriodPrefix(orbit->signature.periods) + CurveKindName(kind) +
+                            " curve leaving it not traced: " + curve.summary.message);
         started = true;  // named in the note, not counted as a failed step-off
         break;
       }
