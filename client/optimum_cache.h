@@ -10,7 +10,6 @@
 #define DRILLBIF_CLIENT_OPTIMUM_CACHE_H_
 
 #include <list>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
