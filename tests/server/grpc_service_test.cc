@@ -116,6 +116,24 @@ class GrpcServiceTest : public ::testing::Test {
   // Job runs of the engine so far (the server's counter).
   static int64_t EngineRuns() { return server_->engine_runs(); }
 
+  // Submits the optimum job, waits for it, and expects it to have reused the curves and the
+  // region an earlier job left (the worker pool's client::OptimumCache), with the answer of the
+  // job runner from scratch.
+  void ExpectOptimumReusesCurvesAndRegion(const v1::SubmitOptimumRequest& submit) {
+    Operation op;
+    auto context = Context();
+    ASSERT_TRUE(jobs_->SubmitOptimum(context.get(), submit, &op).ok());
+    op = WaitDone(op.name());
+    EXPECT_FALSE(MetadataOf(op).cache_hit());  // a job of its own, not a stored answer
+    const auto served = ResponseOf<v1::OptimumResult>(op);
+    EXPECT_TRUE(served.curves_reused());
+    EXPECT_TRUE(served.region_reused());
+    StatusOr<v1::OptimumResult> direct = client::RunOptimum(submit.request());
+    ASSERT_TRUE(direct.ok());
+    EXPECT_FALSE(direct->curves_reused());
+    drillbif::testing::ExpectSameResult(served, *direct);
+  }
+
   static TempDir* dir_;
   static Server* server_;
   static std::shared_ptr<grpc::Channel>* channel_;
@@ -317,18 +335,7 @@ TEST_F(GrpcServiceTest, AnotherMarginReusesTheCurvesAndRegionOfAnEarlierOptimum)
   ASSERT_EQ(MetadataOf(first).state(), v1::SUCCEEDED);
 
   submit.mutable_request()->set_margin(0, 0.01);
-  Operation second;
-  auto second_context = Context();
-  ASSERT_TRUE(jobs_->SubmitOptimum(second_context.get(), submit, &second).ok());
-  second = WaitDone(second.name());
-  EXPECT_FALSE(MetadataOf(second).cache_hit());  // a new job: another answer
-  const auto served = ResponseOf<v1::OptimumResult>(second);
-  EXPECT_TRUE(served.curves_reused());
-  EXPECT_TRUE(served.region_reused());
-  StatusOr<v1::OptimumResult> direct = client::RunOptimum(submit.request());
-  ASSERT_TRUE(direct.ok());
-  EXPECT_FALSE(direct->curves_reused());
-  ExpectSameResult(served, *direct);
+  ExpectOptimumReusesCurvesAndRegion(submit);
 }
 
 // A trace job (the map, with its region) leaves its curves and region for an optimum job over the
@@ -351,16 +358,7 @@ TEST_F(GrpcServiceTest, AnOptimumAfterATraceOfItsBoxReusesTheTrace) {
   submit.mutable_request()->add_grid(23);
   submit.mutable_request()->add_grid(23);
   submit.mutable_request()->add_margin(0.005);
-  Operation op;
-  auto optimum_context = Context();
-  ASSERT_TRUE(jobs_->SubmitOptimum(optimum_context.get(), submit, &op).ok());
-  op = WaitDone(op.name());
-  const auto served = ResponseOf<v1::OptimumResult>(op);
-  EXPECT_TRUE(served.curves_reused());
-  EXPECT_TRUE(served.region_reused());
-  StatusOr<v1::OptimumResult> direct = client::RunOptimum(submit.request());
-  ASSERT_TRUE(direct.ok());
-  ExpectSameResult(served, *direct);
+  ExpectOptimumReusesCurvesAndRegion(submit);
 }
 
 TEST_F(GrpcServiceTest, IdenticalRequestIsACacheHitWithoutEngineRun) {
