@@ -42,10 +42,6 @@ StateVector ToEngineState(bool has_state, const v1::State& s) {
   return x;
 }
 
-Status FailedPrecondition(std::string message) {
-  return Status(StatusCode::kFailedPrecondition, std::move(message));
-}
-
 v1::ModelParams ToProtoParams(const Params& p) {
   v1::ModelParams out;
   out.set_a(p[Osc::kA]);

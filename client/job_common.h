@@ -34,8 +34,6 @@ Params ToEngineParams(const v1::ModelParams& m);
 StateVector ToEngineState(bool has_state, const v1::State& s);
 v1::ModelParams ToProtoParams(const Params& p);
 
-Status FailedPrecondition(std::string message);
-
 // The start orbit: simulation from x0, a period read off the Poincare returns, then Newton.
 // FAILED_PRECONDITION when there is none to be found from x0.
 StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,

@@ -24,7 +24,6 @@
 namespace drillbif::client {
 namespace {
 
-using internal::FailedPrecondition;
 using internal::Model;
 using internal::Num;
 using internal::Osc;

@@ -23,21 +23,6 @@
 namespace drillbif::server {
 namespace {
 
-// Early returns for Status and StatusOr (file-local; undefined at the end of the file).
-#define DBIF_CONCAT_INNER(a, b) a##b
-#define DBIF_CONCAT(a, b) DBIF_CONCAT_INNER(a, b)
-#define DBIF_RETURN_IF_ERROR(expr)             \
-  do {                                         \
-    ::drillbif::Status dbif_status = (expr);   \
-    if (!dbif_status.ok()) return dbif_status; \
-  } while (false)
-#define DBIF_ASSIGN_OR_RETURN_IMPL(tmp, lhs, expr) \
-  auto tmp = (expr);                               \
-  if (!tmp.ok()) return tmp.status();              \
-  lhs = std::move(tmp).value()
-#define DBIF_ASSIGN_OR_RETURN(lhs, expr) \
-  DBIF_ASSIGN_OR_RETURN_IMPL(DBIF_CONCAT(dbif_statusor_, __LINE__), lhs, expr)
-
 // ---------------------------------------------------------------------------------------------
 // Schema migrations, in order. Migration i brings the file from user_version i to i + 1; Open
 // applies the missing ones in one transaction. Never edit a migration once released: append one.
@@ -115,12 +100,7 @@ Status SqliteError(sqlite3* db, int rc, std::string_view what) {
   return Internal(std::move(message));
 }
 
-Status FailedPrecondition(std::string message) {
-  return Status(StatusCode::kFailedPrecondition, std::move(message));
-}
-Status NotFound(std::string_view id) {
-  return Status(StatusCode::kNotFound, "no job '" + std::string(id) + "'");
-}
+Status NoJob(std::string_view id) { return NotFound("no job '" + std::string(id) + "'"); }
 
 // ---------------------------------------------------------------------------------------------
 // Thin RAII layer over the C API.
@@ -272,7 +252,7 @@ class Connection {
 class Transaction {
  public:
   static StatusOr<Transaction> Begin(Connection& connection, bool write) {
-    DBIF_RETURN_IF_ERROR(connection.Exec(write ? "BEGIN IMMEDIATE" : "BEGIN"));
+    DRILLBIF_RETURN_IF_ERROR(connection.Exec(write ? "BEGIN IMMEDIATE" : "BEGIN"));
     return Transaction(connection);
   }
   Transaction(Transaction&& other) noexcept
@@ -283,12 +263,14 @@ class Transaction {
   ~Transaction() {
     // Some errors (I/O, disk full) already rolled the transaction back; ROLLBACK would fail then.
     if (open_ && sqlite3_get_autocommit(connection_->db()) == 0) {
-      connection_->Exec("ROLLBACK");
+      // Best effort: the error being returned is the caller's; a failed rollback leaves nothing
+      // committed either way.
+      connection_->Exec("ROLLBACK").IgnoreError();
     }
   }
 
   Status Commit() {
-    DBIF_RETURN_IF_ERROR(connection_->Exec("COMMIT"));
+    DRILLBIF_RETURN_IF_ERROR(connection_->Exec("COMMIT"));
     open_ = false;
     return Status::Ok();
   }
@@ -427,17 +409,17 @@ class SqliteStoreImpl final : public JobStore {
 };
 
 Status SqliteStoreImpl::Migrate() {
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   int64_t application_id = 0;
   int64_t version = 0;
   {
-    DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA application_id"));
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA application_id"));
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) application_id = q.Int(0);
   }
   {
-    DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA user_version"));
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA user_version"));
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) version = q.Int(0);
   }
   if (application_id != 0 && application_id != SqliteJobStore::kApplicationId) {
@@ -465,7 +447,7 @@ Status SqliteStoreImpl::Migrate() {
   const std::string set_ids =
       "PRAGMA application_id = " + std::to_string(SqliteJobStore::kApplicationId) +
       "; PRAGMA user_version = " + std::to_string(SqliteJobStore::kSchemaVersion);
-  DBIF_RETURN_IF_ERROR(connection_.Exec(set_ids.c_str()));
+  DRILLBIF_RETURN_IF_ERROR(connection_.Exec(set_ids.c_str()));
   return tx.Commit();
 }
 
@@ -479,12 +461,12 @@ std::string SqliteStoreImpl::NewId() {
 }
 
 StatusOr<JobHead> SqliteStoreImpl::Head(std::string_view id) {
-  DBIF_ASSIGN_OR_RETURN(
+  DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("SELECT state, shares IS NOT NULL, cancel_requested, attempts, "
                                    "result_key FROM jobs WHERE id = ?1"));
   q.Bind(1, id);
-  DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-  if (!row) return NotFound(id);
+  DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+  if (!row) return NoJob(id);
   JobHead head;
   head.state = static_cast<int>(q.Int(0));
   head.shares = q.Int(1) != 0;
@@ -495,7 +477,7 @@ StatusOr<JobHead> SqliteStoreImpl::Head(std::string_view id) {
 }
 
 StatusOr<JobHead> SqliteStoreImpl::RunningHead(std::string_view id, const char* action) {
-  DBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
+  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
   if (head.state != kRunning) {
     return FailedPrecondition(std::string("cannot ") + action + " job '" + std::string(id) +
                               "': it is " + JobStateName(static_cast<JobState>(head.state)) +
@@ -510,10 +492,10 @@ StatusOr<JobHead> SqliteStoreImpl::RunningHead(std::string_view id, const char* 
 
 Status SqliteStoreImpl::UpdateRunning(const std::string& update, std::string_view id,
                                       const std::function<void(Query&)>& bind) {
-  DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(update));
+  DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(update));
   q.Bind(1, id);
   bind(q);
-  DBIF_RETURN_IF_ERROR(q.Run());
+  DRILLBIF_RETURN_IF_ERROR(q.Run());
   if (connection_.Changes() != 1) {
     return FailedPrecondition("job '" + std::string(id) + "' is no longer RUNNING");
   }
@@ -523,22 +505,22 @@ Status SqliteStoreImpl::UpdateRunning(const std::string& update, std::string_vie
 Status SqliteStoreImpl::PromoteFollower(std::string_view id) {
   std::string next;
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("SELECT id FROM jobs WHERE shares = ?1 AND state IN (0, 1) "
                                      "ORDER BY seq LIMIT 1"));
     q.Bind(1, id);
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (!row) return Status::Ok();
     next = q.Text(0);
   }
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("UPDATE jobs SET shares = NULL, state = 0, started_ms = 0, "
                                      "progress = 0, current_value = NULL, points = 0 "
                                      "WHERE id = ?1"));
-    DBIF_RETURN_IF_ERROR(q.Bind(1, next).Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, next).Run());
   }
-  DBIF_ASSIGN_OR_RETURN(
+  DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("UPDATE jobs SET shares = ?2, state = 0, started_ms = 0, "
                                    "progress = 0, current_value = NULL, points = 0 "
                                    "WHERE shares = ?1 AND state IN (0, 1)"));
@@ -546,11 +528,11 @@ Status SqliteStoreImpl::PromoteFollower(std::string_view id) {
 }
 
 Status SqliteStoreImpl::RequeueWithFollowers(std::string_view id, bool count_attempt) {
-  DBIF_RETURN_IF_ERROR(UpdateRunning(
+  DRILLBIF_RETURN_IF_ERROR(UpdateRunning(
       "UPDATE jobs SET state = 0, started_ms = 0, progress = 0, current_value = NULL, "
       "points = 0, worker_id = '', attempts = attempts - ?2 WHERE id = ?1 AND state = 1",
       id, [&](Query& q) { q.Bind(2, count_attempt ? 0 : 1); }));
-  DBIF_ASSIGN_OR_RETURN(
+  DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("UPDATE jobs SET state = 0, started_ms = 0, progress = 0, "
                                    "current_value = NULL, points = 0 "
                                    "WHERE shares = ?1 AND state IN (0, 1)"));
@@ -560,11 +542,11 @@ Status SqliteStoreImpl::RequeueWithFollowers(std::string_view id, bool count_att
 Status SqliteStoreImpl::FailWithFollowers(std::string_view id, StatusCode code,
                                           std::string_view message) {
   const int64_t now = NowMs();
-  DBIF_RETURN_IF_ERROR(UpdateRunning(
+  DRILLBIF_RETURN_IF_ERROR(UpdateRunning(
       "UPDATE jobs SET state = 3, error_code = ?2, error_message = ?3, finished_ms = ?4 "
       "WHERE id = ?1 AND state = 1",
       id, [&](Query& q) { q.Bind(2, static_cast<int>(code)).Bind(3, message).Bind(4, now); }));
-  DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET state = 3, error_code = ?2, "
+  DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET state = 3, error_code = ?2, "
                                                      "error_message = ?3, finished_ms = ?4 "
                                                      "WHERE shares = ?1 AND state IN (0, 1)"));
   return q.Bind(1, id).Bind(2, static_cast<int>(code)).Bind(3, message).Bind(4, now).Run();
@@ -572,7 +554,7 @@ Status SqliteStoreImpl::FailWithFollowers(std::string_view id, StatusCode code,
 
 Status SqliteStoreImpl::CancelRunning(std::string_view id) {
   const int64_t now = NowMs();
-  DBIF_RETURN_IF_ERROR(
+  DRILLBIF_RETURN_IF_ERROR(
       UpdateRunning("UPDATE jobs SET state = 4, finished_ms = ?2 WHERE id = ?1 AND state = 1", id,
                     [&](Query& q) { q.Bind(2, now); }));
   return PromoteFollower(id);
@@ -581,15 +563,15 @@ Status SqliteStoreImpl::CancelRunning(std::string_view id) {
 StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   if (request.kind.empty()) return InvalidArgument("kind: must not be empty");
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
 
   SubmitResult result;
   if (!request.request_id.empty()) {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("SELECT id, kind, request, cache_hit, shares FROM jobs "
                                      "WHERE request_id = ?1"));
     q.Bind(1, request.request_id);
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) {
       if (q.Text(1) != request.kind || q.Blob(2) != request.request) {
         return FailedPrecondition("request_id '" + request.request_id +
@@ -617,10 +599,10 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   int64_t started_ms = 0;
   int64_t finished_ms = 0;
   if (!request.cache_key.empty()) {
-    DBIF_ASSIGN_OR_RETURN(Query q,
+    DRILLBIF_ASSIGN_OR_RETURN(Query q,
                           connection_.Prepare("SELECT points FROM results WHERE result_key = ?1"));
     q.Bind(1, result_key);
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) {
       result.cache_hit = true;
       state = kSucceeded;
@@ -632,13 +614,13 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   }
   if (!request.cache_key.empty() && !result.cache_hit) {
     // A job being cancelled is not shared: it would end without a result.
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare(
                      "SELECT id, state, started_ms, progress, current_value, points FROM jobs "
                      "WHERE cache_key = ?1 AND shares IS NULL AND state IN (0, 1) "
                      "AND cancel_requested = 0 ORDER BY seq LIMIT 1"));
     q.Bind(1, request.cache_key);
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) {
       shares = q.Text(0);
       state = static_cast<int>(q.Int(1));
@@ -650,7 +632,7 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
     }
   }
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare(
                      "INSERT INTO jobs (id, kind, state, request, cache_key, request_id, shares, "
                      "result_key, progress, current_value, points, created_ms, started_ms, "
@@ -671,54 +653,54 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
         .Bind(13, started_ms)
         .Bind(14, finished_ms)
         .Bind(15, result.cache_hit ? 1 : 0);
-    DBIF_RETURN_IF_ERROR(q.Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Run());
   }
   if (result.cache_hit) {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
         connection_.Prepare("UPDATE counters SET value = value + 1 WHERE name = 'cache_hits'"));
-    DBIF_RETURN_IF_ERROR(q.Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Run());
   }
-  DBIF_RETURN_IF_ERROR(tx.Commit());
+  DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   result.id = id;
   return result;
 }
 
 StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view worker_id) {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   std::string id;
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("SELECT id FROM jobs WHERE state = 0 AND shares IS NULL "
                                      "ORDER BY seq LIMIT 1"));
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (!row) return std::optional<JobRecord>();
     id = q.Text(0);
   }
   const int64_t now = NowMs();
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
         connection_.Prepare("UPDATE jobs SET state = 1, started_ms = ?2, attempts = attempts + 1, "
                             "worker_id = ?3, progress = 0, current_value = NULL, points = 0 "
                             "WHERE id = ?1 AND state = 0"));
-    DBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Bind(3, worker_id).Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Bind(3, worker_id).Run());
   }
   {
-    DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET state = 1, started_ms = ?2 "
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET state = 1, started_ms = ?2 "
                                                        "WHERE shares = ?1 AND state = 0"));
-    DBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Run());
   }
   JobRecord job;
   {
-    DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(SelectJobs("request", "WHERE id = ?1")));
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(SelectJobs("request", "WHERE id = ?1")));
     q.Bind(1, id);
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (!row) return Internal("claimed job '" + id + "' vanished");
     job = ReadJob(q);
   }
-  DBIF_RETURN_IF_ERROR(tx.Commit());
+  DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return std::optional<JobRecord>(std::move(job));
 }
 
@@ -733,13 +715,13 @@ Status SqliteStoreImpl::UpdateProgress(std::string_view id, double fraction,
   }
   if (points < 0) return InvalidArgument("points must be >= 0");
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DBIF_RETURN_IF_ERROR(RunningHead(id, "update progress of").status());
-  DBIF_ASSIGN_OR_RETURN(
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "update progress of").status());
+  DRILLBIF_ASSIGN_OR_RETURN(
       Query q,
       connection_.Prepare("UPDATE jobs SET progress = ?2, current_value = ?3, points = ?4 "
                           "WHERE state = 1 AND ((id = ?1 AND shares IS NULL) OR shares = ?1)"));
-  DBIF_RETURN_IF_ERROR(
+  DRILLBIF_RETURN_IF_ERROR(
       q.Bind(1, id).Bind(2, fraction).Bind(3, current_value).Bind(4, points).Run());
   return tx.Commit();
 }
@@ -747,38 +729,38 @@ Status SqliteStoreImpl::UpdateProgress(std::string_view id, double fraction,
 Status SqliteStoreImpl::Complete(std::string_view id, std::string_view result, int64_t points) {
   if (points < 0) return InvalidArgument("points must be >= 0");
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "complete"));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "complete"));
   const int64_t now = NowMs();
   {
     // A result for this cache key can exist already (a job whose cancel was requested, and so
     // was not shared, completed anyway): identical requests give identical results, keep the
     // first.
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("INSERT INTO results (result_key, data, points, created_ms) "
                                      "VALUES (?1, ?2, ?3, ?4) "
                                      "ON CONFLICT (result_key) DO NOTHING"));
-    DBIF_RETURN_IF_ERROR(
+    DRILLBIF_RETURN_IF_ERROR(
         q.Bind(1, head.result_key).BindBlob(2, result).Bind(3, points).Bind(4, now).Run());
   }
-  DBIF_RETURN_IF_ERROR(
+  DRILLBIF_RETURN_IF_ERROR(
       UpdateRunning("UPDATE jobs SET state = 2, progress = 1, points = ?2, finished_ms = ?3 "
                     "WHERE id = ?1 AND state = 1",
                     id, [&](Query& q) { q.Bind(2, points).Bind(3, now); }));
   int followers = 0;
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare(
                      "UPDATE jobs SET state = 2, progress = 1, points = ?2, finished_ms = ?3, "
                      "cache_hit = 1 WHERE shares = ?1 AND state IN (0, 1)"));
-    DBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, points).Bind(3, now).Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, points).Bind(3, now).Run());
     followers = connection_.Changes();
   }
   if (followers > 0) {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
         connection_.Prepare("UPDATE counters SET value = value + ?1 WHERE name = 'cache_hits'"));
-    DBIF_RETURN_IF_ERROR(q.Bind(1, followers).Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, followers).Run());
   }
   return tx.Commit();
 }
@@ -786,16 +768,16 @@ Status SqliteStoreImpl::Complete(std::string_view id, std::string_view result, i
 Status SqliteStoreImpl::Fail(std::string_view id, StatusCode code, std::string_view message) {
   if (code == StatusCode::kOk) return InvalidArgument("a failed job needs an error code, not OK");
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DBIF_RETURN_IF_ERROR(RunningHead(id, "fail").status());
-  DBIF_RETURN_IF_ERROR(FailWithFollowers(id, code, message));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "fail").status());
+  DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(id, code, message));
   return tx.Commit();
 }
 
 StatusOr<JobState> SqliteStoreImpl::Cancel(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
   const auto state = static_cast<JobState>(head.state);
   const int64_t now = NowMs();
   JobState after = state;
@@ -810,77 +792,77 @@ StatusOr<JobState> SqliteStoreImpl::Cancel(std::string_view id) {
     case JobState::kRunning:
       if (state == JobState::kRunning && !head.shares) {
         // Its worker stops it: only the worker knows when the engine has let go.
-        DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET cancel_requested = 1 "
+        DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET cancel_requested = 1 "
                                                            "WHERE id = ?1 AND state = 1"));
-        DBIF_RETURN_IF_ERROR(q.Bind(1, id).Run());
+        DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Run());
         after = JobState::kRunning;
       } else {
         // Nothing runs for it (queued, or following another job): cancelled at once.
         {
-          DBIF_ASSIGN_OR_RETURN(Query q,
+          DRILLBIF_ASSIGN_OR_RETURN(Query q,
                                 connection_.Prepare("UPDATE jobs SET state = 4, finished_ms = ?2 "
                                                     "WHERE id = ?1 AND state IN (0, 1)"));
-          DBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Run());
+          DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Run());
         }
-        if (!head.shares) DBIF_RETURN_IF_ERROR(PromoteFollower(id));
+        if (!head.shares) DRILLBIF_RETURN_IF_ERROR(PromoteFollower(id));
         after = JobState::kCancelled;
       }
       break;
   }
-  DBIF_RETURN_IF_ERROR(tx.Commit());
+  DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return after;
 }
 
 StatusOr<bool> SqliteStoreImpl::IsCancelRequested(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Query q,
+  DRILLBIF_ASSIGN_OR_RETURN(Query q,
                         connection_.Prepare("SELECT cancel_requested FROM jobs WHERE id = ?1"));
   q.Bind(1, id);
-  DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-  if (!row) return NotFound(id);
+  DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+  if (!row) return NoJob(id);
   return q.Int(0) != 0;
 }
 
 Status SqliteStoreImpl::MarkCancelled(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DBIF_RETURN_IF_ERROR(RunningHead(id, "mark cancelled").status());
-  DBIF_RETURN_IF_ERROR(CancelRunning(id));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "mark cancelled").status());
+  DRILLBIF_RETURN_IF_ERROR(CancelRunning(id));
   return tx.Commit();
 }
 
 Status SqliteStoreImpl::Requeue(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "requeue"));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "requeue"));
   // A cancel asked before the stop wins: the client does not want the job run again.
   if (head.cancel_requested) {
-    DBIF_RETURN_IF_ERROR(CancelRunning(id));
+    DRILLBIF_RETURN_IF_ERROR(CancelRunning(id));
   } else {
-    DBIF_RETURN_IF_ERROR(RequeueWithFollowers(id, /*count_attempt=*/false));
+    DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(id, /*count_attempt=*/false));
   }
   return tx.Commit();
 }
 
 StatusOr<JobRecord> SqliteStoreImpl::Get(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(SelectJobs("request", "WHERE id = ?1")));
+  DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(SelectJobs("request", "WHERE id = ?1")));
   q.Bind(1, id);
-  DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-  if (!row) return NotFound(id);
+  DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+  if (!row) return NoJob(id);
   return ReadJob(q);
 }
 
 StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   if (request.page_size < 0) return InvalidArgument("page_size: must be >= 0");
-  DBIF_ASSIGN_OR_RETURN(const int64_t after_seq, ParsePageToken(request.page_token));
+  DRILLBIF_ASSIGN_OR_RETURN(const int64_t after_seq, ParsePageToken(request.page_token));
   const int page_size = request.page_size == 0
                             ? options_.default_page_size
                             : std::min(request.page_size, options_.max_page_size);
   std::lock_guard<std::mutex> lock(mu_);
   // Keyset pagination on seq: a page starts after the last seq seen, so jobs submitted or
   // deleted meanwhile never shift the pages (an offset would skip or repeat jobs).
-  DBIF_ASSIGN_OR_RETURN(
+  DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare(SelectJobs(
                    "CASE WHEN ?4 THEN request ELSE x'' END",
                    "WHERE seq > ?1 AND (?2 IS NULL OR state = ?2) AND (?3 = '' OR kind = ?3) "
@@ -895,7 +877,7 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   ListResult result;
   int64_t last_seq = 0;
   for (;;) {
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (!row) break;
     if (static_cast<int>(result.jobs.size()) == page_size) {
       // One row more than the page: there is a next page.
@@ -910,24 +892,24 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
 
 Status SqliteStoreImpl::Delete(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
   const auto state = static_cast<JobState>(head.state);
   if (!IsFinished(state)) {
     return FailedPrecondition("job '" + std::string(id) + "' is " + JobStateName(state) +
                               ": cancel it and wait until it is finished before deleting it");
   }
   {
-    DBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("DELETE FROM jobs WHERE id = ?1"));
-    DBIF_RETURN_IF_ERROR(q.Bind(1, id).Run());
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("DELETE FROM jobs WHERE id = ?1"));
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Run());
   }
   {
     // The result goes with its last job (a cached result serves later requests only while some
     // job holds it).
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("DELETE FROM results WHERE result_key = ?1 AND NOT EXISTS "
                                      "(SELECT 1 FROM jobs WHERE result_key = ?1)"));
-    DBIF_RETURN_IF_ERROR(q.Bind(1, head.result_key).Run());
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, head.result_key).Run());
   }
   return tx.Commit();
 }
@@ -935,13 +917,13 @@ Status SqliteStoreImpl::Delete(std::string_view id) {
 StatusOr<std::string> SqliteStoreImpl::GetResult(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
   // One statement, one snapshot: the state and the bytes cannot disagree.
-  DBIF_ASSIGN_OR_RETURN(
+  DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("SELECT j.state, r.data IS NOT NULL, r.data FROM jobs j "
                                    "LEFT JOIN results r ON r.result_key = j.result_key "
                                    "WHERE j.id = ?1"));
   q.Bind(1, id);
-  DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-  if (!row) return NotFound(id);
+  DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+  if (!row) return NoJob(id);
   const auto state = static_cast<JobState>(q.Int(0));
   if (state != JobState::kSucceeded) {
     return FailedPrecondition("job '" + std::string(id) + "' has no result: it is " +
@@ -954,7 +936,7 @@ StatusOr<std::string> SqliteStoreImpl::GetResult(std::string_view id) {
 
 StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
   std::lock_guard<std::mutex> lock(mu_);
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   struct Interrupted {
     std::string id;
     int attempts;
@@ -962,11 +944,11 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
   };
   std::vector<Interrupted> interrupted;
   {
-    DBIF_ASSIGN_OR_RETURN(Query q,
+    DRILLBIF_ASSIGN_OR_RETURN(Query q,
                           connection_.Prepare("SELECT id, attempts, cancel_requested FROM jobs "
                                               "WHERE state = 1 AND shares IS NULL ORDER BY seq"));
     for (;;) {
-      DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+      DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
       if (!row) break;
       interrupted.push_back({q.Text(0), static_cast<int>(q.Int(1)), q.Int(2) != 0});
     }
@@ -974,52 +956,52 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
   RecoveryReport report;
   for (const Interrupted& job : interrupted) {
     if (job.cancel_requested) {
-      DBIF_RETURN_IF_ERROR(CancelRunning(job.id));
+      DRILLBIF_RETURN_IF_ERROR(CancelRunning(job.id));
       ++report.cancelled;
     } else if (job.attempts >= options_.max_attempts) {
-      DBIF_RETURN_IF_ERROR(FailWithFollowers(
+      DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(
           job.id, StatusCode::kInternal,
           "the server stopped while this job ran, " + std::to_string(job.attempts) +
               " times; not retried (max_attempts " + std::to_string(options_.max_attempts) + ")"));
       ++report.failed;
     } else {
-      DBIF_RETURN_IF_ERROR(RequeueWithFollowers(job.id, /*count_attempt=*/true));
+      DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(job.id, /*count_attempt=*/true));
       ++report.requeued;
     }
   }
-  DBIF_RETURN_IF_ERROR(tx.Commit());
+  DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return report;
 }
 
 StatusOr<StoreStats> SqliteStoreImpl::Stats() {
   std::lock_guard<std::mutex> lock(mu_);
   // A read transaction: the three counts come from one snapshot.
-  DBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/false));
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/false));
   StoreStats stats;
   {
-    DBIF_ASSIGN_OR_RETURN(Query q,
+    DRILLBIF_ASSIGN_OR_RETURN(Query q,
                           connection_.Prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state"));
     for (;;) {
-      DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+      DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
       if (!row) break;
       const int64_t state = q.Int(0);
       if (state >= 0 && state < kJobStateCount) stats.jobs_by_state[state] = q.Int(1);
     }
   }
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
         connection_.Prepare("SELECT COUNT(*) FROM jobs WHERE state = 0 AND shares IS NULL"));
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) stats.queue_depth = q.Int(0);
   }
   {
-    DBIF_ASSIGN_OR_RETURN(
+    DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("SELECT value FROM counters WHERE name = 'cache_hits'"));
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) stats.cache_hits_total = q.Int(0);
   }
-  DBIF_RETURN_IF_ERROR(tx.Commit());
+  DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return stats;
 }
 
@@ -1037,7 +1019,7 @@ Status SqliteJobStoreOptions::Validate() const {
 
 StatusOr<std::unique_ptr<JobStore>> SqliteJobStore::Open(const std::string& path,
                                                          const SqliteJobStoreOptions& options) {
-  DBIF_RETURN_IF_ERROR(options.Validate());
+  DRILLBIF_RETURN_IF_ERROR(options.Validate());
   if (path.empty()) return InvalidArgument("path: must not be empty");
   sqlite3* db = nullptr;
   // NOMUTEX: the store's own mutex serializes every use of the connection.
@@ -1053,25 +1035,19 @@ StatusOr<std::unique_ptr<JobStore>> SqliteJobStore::Open(const std::string& path
   sqlite3_extended_result_codes(db, 1);
   sqlite3_busy_timeout(db, options.busy_timeout_ms);
   {
-    DBIF_ASSIGN_OR_RETURN(Query q, connection.Prepare("PRAGMA journal_mode = WAL"));
-    DBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection.Prepare("PRAGMA journal_mode = WAL"));
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     const std::string mode = row ? q.Text(0) : std::string();
     if (mode != "wal") {
       return FailedPrecondition("cannot use WAL journal mode for '" + path + "' (got '" + mode +
                                 "')");
     }
   }
-  DBIF_RETURN_IF_ERROR(connection.Exec(options.full_sync ? "PRAGMA synchronous = FULL"
+  DRILLBIF_RETURN_IF_ERROR(connection.Exec(options.full_sync ? "PRAGMA synchronous = FULL"
                                                          : "PRAGMA synchronous = NORMAL"));
-  DBIF_RETURN_IF_ERROR(connection.Exec("PRAGMA foreign_keys = ON"));
-  DBIF_RETURN_IF_ERROR(store->Migrate());
+  DRILLBIF_RETURN_IF_ERROR(connection.Exec("PRAGMA foreign_keys = ON"));
+  DRILLBIF_RETURN_IF_ERROR(store->Migrate());
   return std::unique_ptr<JobStore>(std::move(store));
 }
-
-#undef DBIF_ASSIGN_OR_RETURN
-#undef DBIF_ASSIGN_OR_RETURN_IMPL
-#undef DBIF_RETURN_IF_ERROR
-#undef DBIF_CONCAT
-#undef DBIF_CONCAT_INNER
 
 }  // namespace drillbif::server
