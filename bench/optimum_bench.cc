@@ -1,16 +1,16 @@
-// The optimum job end to end (client::RunOptimum, what the server's workers run) over issue 4's
+// The optimum job end to end (jobs::RunOptimum, what the server's workers run) over issue 4's
 // box, omega in [0.05, 2], a in [0.01, 8] at b = 0.15, grid 196 x 800 (drillctl optimum's default
 // for --margin 0.02), once the curves are known: each timed request asks another margin (0.02,
 // 0.03, 0.04 in turn) over the curves and region an earlier request left in the cache
-// (client/optimum_cache.h), so it runs the query and the coexistence check at the answer (8
+// (jobs/optimum_cache.h), so it runs the query and the coexistence check at the answer (8
 // simulations of 500 forcing periods). The first request, untimed, traces the curves (~25 s) and
 // fills the region (~2.4 s). Run:
 //   build/bench/optimum_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // Counters: reused (1 when both the curves and the region were reused), query_ms, check_ms.
 #include <benchmark/benchmark.h>
 
-#include "client/optimum_cache.h"
-#include "client/optimum_runner.h"
+#include "jobs/optimum_cache.h"
+#include "jobs/optimum_runner.h"
 
 namespace drillbif {
 namespace {
@@ -30,22 +30,22 @@ v1::OptimumRequest Issue4Request(double margin) {
   return r;
 }
 
-client::OptimumCache& WarmCache() {
-  static client::OptimumCache* cache = [] {
-    auto* c = new client::OptimumCache;
-    (void)client::RunOptimum(Issue4Request(0.02), {}, c);
+jobs::OptimumCache& WarmCache() {
+  static jobs::OptimumCache* cache = [] {
+    auto* c = new jobs::OptimumCache;
+    (void)jobs::RunOptimum(Issue4Request(0.02), {}, c);
     return c;
   }();
   return *cache;
 }
 
 void BM_OptimumOverKnownCurves(benchmark::State& state) {
-  client::OptimumCache& cache = WarmCache();
+  jobs::OptimumCache& cache = WarmCache();
   const double margins[] = {0.02, 0.03, 0.04};
   int i = 0;
   v1::OptimumResult last;
   for (auto _ : state) {
-    StatusOr<v1::OptimumResult> r = client::RunOptimum(Issue4Request(margins[i++ % 3]), {}, &cache);
+    StatusOr<v1::OptimumResult> r = jobs::RunOptimum(Issue4Request(margins[i++ % 3]), {}, &cache);
     if (!r.ok()) {
       state.SkipWithError(r.status().ToString().c_str());
       return;

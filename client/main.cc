@@ -23,14 +23,11 @@
 #include <string>
 #include <variant>
 
-#include "client/job_runner.h"
 #include "client/jobs_command.h"
-#include "client/optimum_runner.h"
 #include "client/output.h"
 #include "client/plot.h"
 #include "client/progress_bar.h"
 #include "client/remote.h"
-#include "client/trace_runner.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/model/drifting_oscillator.h"
@@ -38,6 +35,9 @@
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/simulate/sweep.h"
 #include "drillbif/version.h"
+#include "jobs/job_runner.h"
+#include "jobs/optimum_runner.h"
+#include "jobs/trace_runner.h"
 
 namespace drillbif::client {
 namespace {
@@ -331,14 +331,16 @@ int RunSimulateCommand(const GlobalFlags& global, RemoteClient* remote, const Mo
 
   SimulateTable table = SimulateTable::kNone;
   if (global.format == "csv") {
-    StatusOr<SimulateTable> t = CsvTableFor(EffectiveOutputs(request));
+    StatusOr<SimulateTable> t = CsvTableFor(jobs::EffectiveOutputs(request));
     if (!t.ok()) return Error(t.status().message(), kExitUsage);
     table = *t;
   }
 
   return RunJob<v1::SimulateResult>(
       global, remote, request,
-      [](const v1::SimulateRequest& r, const ProgressCallback& p) { return RunSimulate(r, p); },
+      [](const v1::SimulateRequest& r, const ProgressCallback& p) {
+        return jobs::RunSimulate(r, p);
+      },
       [table](const v1::SimulateResult& r) { return SimulateResultToCsv(r, table); });
 }
 
@@ -360,7 +362,7 @@ int RunSweepCommand(const GlobalFlags& global, RemoteClient* remote, const Model
 
   return RunJob<v1::SweepResult>(
       global, remote, request,
-      [](const v1::SweepRequest& r, const ProgressCallback& p) { return RunSweep(r, p); },
+      [](const v1::SweepRequest& r, const ProgressCallback& p) { return jobs::RunSweep(r, p); },
       [](const v1::SweepResult& r) { return SweepResultToCsv(r); });
 }
 
@@ -397,7 +399,9 @@ int RunContinueCommand(const GlobalFlags& global, RemoteClient* remote, const Mo
 
   return RunJob<v1::ContinueResult>(
       global, remote, request,
-      [](const v1::ContinueRequest& r, const ProgressCallback& p) { return RunContinue(r, p); },
+      [](const v1::ContinueRequest& r, const ProgressCallback& p) {
+        return jobs::RunContinue(r, p);
+      },
       [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
 }
 
@@ -428,7 +432,7 @@ int RunTraceCommand(const GlobalFlags& global, RemoteClient* remote, const Model
   }
   return RunJob<v1::TraceResult>(
       global, remote, request,
-      [](const v1::TraceRequest& r, const ProgressCallback& p) { return RunTrace(r, p); },
+      [](const v1::TraceRequest& r, const ProgressCallback& p) { return jobs::RunTrace(r, p); },
       [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
 }
 
@@ -441,7 +445,7 @@ int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const Mod
   for (int n : t.grid) request.add_grid(n);
   return RunJob<v1::OptimumResult>(
       global, remote, request,
-      [](const v1::OptimumRequest& r, const ProgressCallback& p) { return RunOptimum(r, p); },
+      [](const v1::OptimumRequest& r, const ProgressCallback& p) { return jobs::RunOptimum(r, p); },
       [](const v1::OptimumResult& r) { return OptimumResultToCsv(r); });
 }
 
@@ -733,7 +737,7 @@ int Main(int argc, char** argv) {
       ->capture_default_str()
       ->group(c);
   cont->add_option("--max-steps", co.max_steps, "Accepted steps per direction")
-      ->check(CLI::Range(1, kMaxContinuationSteps))
+      ->check(CLI::Range(1, jobs::kMaxContinuationSteps))
       ->capture_default_str()
       ->group(c);
   cont->add_option("--target-iterations", co.target_iterations,

@@ -21,7 +21,7 @@
 #include <utility>
 #include <vector>
 
-#include "client/job_common.h"
+#include "jobs/job_common.h"
 
 extern char** environ;
 
@@ -32,7 +32,7 @@ constexpr std::array<const char*, 6> kParamNames = {"a", "b", "omega", "xi", "g"
 
 // Shortest text that reads back to the same double.
 // Non-finite values become gnuplot's missing-data "NaN".
-std::string Num(double v) { return std::isfinite(v) ? internal::Num(v) : std::string("NaN"); }
+std::string Num(double v) { return std::isfinite(v) ? jobs::internal::Num(v) : std::string("NaN"); }
 
 // Four significant digits, for titles and labels.
 std::string Short(double v) {

@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-#include "server/job_kinds.h"
+#include "jobs/job_kinds.h"
 
 namespace drillbif::server {
 namespace {
@@ -99,7 +99,7 @@ StatusOr<Operation> OperationOf(JobStore& store, const JobRecord& record, bool i
     StatusOr<std::string> bytes = store.GetResult(record.id);
     if (!bytes.ok()) return bytes.status();
     google::protobuf::Any* any = op.mutable_response();
-    any->set_type_url("type.googleapis.com/" + ResultTypeName(KindOf(record.kind)));
+    any->set_type_url("type.googleapis.com/" + jobs::ResultTypeName(jobs::KindOf(record.kind)));
     any->set_value(std::move(bytes).value());
   }
   return op;
@@ -138,11 +138,11 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
     return Error(grpc::StatusCode::INVALID_ARGUMENT,
                  "request_id: at most 128 bytes, got " + std::to_string(request_id.size()));
   }
-  if (Status s = ValidateAtSubmit(kind, request); !s.ok()) return ToGrpc(s);
+  if (Status s = jobs::ValidateAtSubmit(kind, request); !s.ok()) return ToGrpc(s);
   SubmitRequest submit;
-  submit.kind = KindName(kind);
-  submit.request = DeterministicBytes(request);
-  submit.cache_key = CacheKey(kind, submit.request);
+  submit.kind = jobs::KindName(kind);
+  submit.request = jobs::DeterministicBytes(request);
+  submit.cache_key = jobs::CacheKey(kind, submit.request);
   submit.request_id = request_id;
   StatusOr<StoreStats> stats = state.store->Stats();
   if (!stats.ok()) return ToGrpc(stats.status());
@@ -344,7 +344,7 @@ Status ParseFilter(const std::string& filter, ListRequest* list) {
       }
       list->state = static_cast<JobState>(static_cast<int>(state) - 1);
     } else if (key == "kind") {
-      if (KindOf(value) == v1::JOB_KIND_UNSPECIFIED) {
+      if (jobs::KindOf(value) == v1::JOB_KIND_UNSPECIFIED) {
         return InvalidArgument("filter: unknown kind '" + value + "'");
       }
       list->kind = value;
@@ -407,7 +407,7 @@ std::string OperationName(const std::string& id) { return std::string(kOperation
 v1::JobMetadata MetadataOf(const JobRecord& record) {
   v1::JobMetadata m;
   m.set_name(OperationName(record.id));
-  m.set_kind(KindOf(record.kind));
+  m.set_kind(jobs::KindOf(record.kind));
   m.set_state(StateOf(record.state));
   m.set_progress(record.progress);
   if (record.current_value) m.set_current_value(*record.current_value);
@@ -453,7 +453,7 @@ void OptimumIndex::SetResult(const std::string& key,
 Status OptimumIndex::Load(JobStore& store) {
   ListRequest list;
   list.state = JobState::kSucceeded;
-  list.kind = KindName(v1::OPTIMUM);
+  list.kind = jobs::KindName(v1::OPTIMUM);
   list.page_size = 1000;
   do {
     StatusOr<ListResult> page = store.List(list);
@@ -522,8 +522,8 @@ grpc::ServerUnaryReactor* JobsService::GetResult(grpc::CallbackServerContext* co
     StatusOr<std::string> bytes = state_->store->GetResult(*id);
     if (!bytes.ok()) return ToGrpc(bytes.status());
     response->set_name(request->name());
-    return ToGrpc(PageResult(KindOf(record->kind), *bytes, request->page_size(),
-                             request->page_token(), response));
+    return ToGrpc(jobs::PageResult(jobs::KindOf(record->kind), *bytes, request->page_size(),
+                                   request->page_token(), response));
   });
 }
 
@@ -533,10 +533,10 @@ grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext*
   if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
     return FinishNow(context, auth);
   }
-  if (Status s = ValidateAtSubmit(v1::OPTIMUM, request->request()); !s.ok()) {
+  if (Status s = jobs::ValidateAtSubmit(v1::OPTIMUM, request->request()); !s.ok()) {
     return FinishNow(context, ToGrpc(s));
   }
-  const std::string key = CacheKey(v1::OPTIMUM, DeterministicBytes(request->request()));
+  const std::string key = jobs::CacheKey(v1::OPTIMUM, jobs::DeterministicBytes(request->request()));
   std::string id;
   std::shared_ptr<const v1::OptimumResult> cached;
   const bool known = state_->optimum_index.Find(key, &id, &cached);

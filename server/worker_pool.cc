@@ -8,7 +8,7 @@
 #include <optional>
 #include <utility>
 
-#include "server/job_kinds.h"
+#include "jobs/job_kinds.h"
 
 namespace drillbif::server {
 
@@ -100,8 +100,8 @@ void WorkerPool::RunOne(const JobRecord& job) {
     running_[job.id] = running;
   }
   hub_->Notify();  // QUEUED -> RUNNING
-  const v1::JobKind kind = KindOf(job.kind);
-  const int64_t expected_points = ExpectedPoints(kind, job.request);
+  const v1::JobKind kind = jobs::KindOf(job.kind);
+  const int64_t expected_points = jobs::ExpectedPoints(kind, job.request);
   const auto interval = std::chrono::milliseconds(options_.progress_interval_ms);
   Clock::time_point last_write = Clock::now();
   const auto started = last_write;
@@ -132,7 +132,8 @@ void WorkerPool::RunOne(const JobRecord& job) {
 
   spdlog::info("job {} ({}) started, attempt {}", job.id, job.kind, job.attempts);
   engine_runs_.fetch_add(1);
-  StatusOr<JobOutput> output = RunJob(kind, job.request, progress, value, &optimum_cache_);
+  StatusOr<jobs::JobOutput> output =
+      jobs::RunJob(kind, job.request, progress, value, &optimum_cache_);
   const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
 
   // How the run ended, decided before anything is recorded: run_done_ (the duration histogram)

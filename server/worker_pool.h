@@ -24,8 +24,8 @@
 #include <thread>
 #include <vector>
 
-#include "client/optimum_cache.h"
 #include "drillbif/common/status.h"
+#include "jobs/optimum_cache.h"
 #include "server/store/job_store.h"
 #include "server/watch_hub.h"
 
@@ -106,7 +106,7 @@ class WorkerPool {
   const JobRunCallback run_done_;
   std::atomic<int64_t> engine_runs_{0};
   // Curves and regions of optimum jobs, for later optimum jobs over the same curves.
-  client::OptimumCache optimum_cache_;
+  jobs::OptimumCache optimum_cache_;
 
   std::mutex mutex_;
   std::condition_variable cv_;

@@ -16,10 +16,10 @@
 #include <string>
 #include <vector>
 
-#include "client/job_runner.h"
-#include "client/optimum_runner.h"
 #include "client/output.h"
-#include "client/trace_runner.h"
+#include "jobs/job_runner.h"
+#include "jobs/optimum_runner.h"
+#include "jobs/trace_runner.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
@@ -39,7 +39,7 @@ const v1::ContinueResult& ReferenceContinuation() {
     request.set_param(std::string("b"));
     request.set_min(0.0);
     request.set_max(0.2);
-    StatusOr<v1::ContinueResult> r = RunContinue(request);
+    StatusOr<v1::ContinueResult> r = jobs::RunContinue(request);
     EXPECT_TRUE(r.ok()) << r.status().ToString();
     return r.ok() ? *r : v1::ContinueResult();
   }();
@@ -105,7 +105,7 @@ TEST(BuildPlotScript, SweepDrawsUpAndDownAsDotsInTwoColours) {
   request.set_direction(v1::SweepRequest::BOTH);
   request.set_sample_periods(10);
   request.set_transient_periods(100);
-  StatusOr<v1::SweepResult> r = RunSweep(request);
+  StatusOr<v1::SweepResult> r = jobs::RunSweep(request);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   PlotOptions options;
   options.param = "b";
@@ -126,7 +126,7 @@ TEST(BuildPlotScript, TraceShadesTheRegionAndMarksCodim2PointsAndTheOptimum) {
   v1::TraceRequest request = testing::SmallBoxTrace();
   request.mutable_region()->add_grid(21);
   request.mutable_region()->add_grid(21);
-  StatusOr<v1::TraceResult> trace = RunTrace(request);
+  StatusOr<v1::TraceResult> trace = jobs::RunTrace(request);
   ASSERT_TRUE(trace.ok()) << trace.status().ToString();
   ASSERT_GT(trace->region().polygons_size(), 0);
   v1::OptimumRequest opt_request;
@@ -135,7 +135,7 @@ TEST(BuildPlotScript, TraceShadesTheRegionAndMarksCodim2PointsAndTheOptimum) {
   opt_request.add_margin(0.02);
   opt_request.add_grid(21);
   opt_request.add_grid(21);
-  StatusOr<v1::OptimumResult> optimum = RunOptimum(opt_request);
+  StatusOr<v1::OptimumResult> optimum = jobs::RunOptimum(opt_request);
   ASSERT_TRUE(optimum.ok()) << optimum.status().ToString();
 
   PlotOptions options;
@@ -169,7 +169,7 @@ TEST(BuildPlotScript, SimulatePhasePortraitColouredByMode) {
   request.set_sample_periods(2);
   request.mutable_outputs()->set_poincare(true);
   request.mutable_outputs()->set_trajectory_dt(0.5);
-  StatusOr<v1::SimulateResult> r = RunSimulate(request);
+  StatusOr<v1::SimulateResult> r = jobs::RunSimulate(request);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   const std::string s = Script(*r);
   EXPECT_THAT(s, HasSubstr("Phase portrait: trajectory"));

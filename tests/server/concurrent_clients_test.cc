@@ -17,9 +17,9 @@
 #include <thread>
 #include <vector>
 
-#include "client/job_runner.h"
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
+#include "jobs/job_runner.h"
 #include "server/server.h"
 #include "support/temp_dir.h"
 
@@ -96,7 +96,7 @@ TEST(ConcurrentClients, FiftyClientsFiveHundredJobsAllCompleteWithTheRunnersResu
   for (const auto& [k, ops] : names) {
     ASSERT_EQ(ops.size(), 2u);
     EXPECT_NE(ops[0], ops[1]);  // one operation per submit, even when they share a result
-    StatusOr<v1::SimulateResult> run = client::RunSimulate(Request(k));
+    StatusOr<v1::SimulateResult> run = jobs::RunSimulate(Request(k));
     ASSERT_TRUE(run.ok());
     v1::SimulateResult direct = *run;
     direct.clear_wall_seconds();

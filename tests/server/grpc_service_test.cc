@@ -23,11 +23,11 @@
 #include <thread>
 #include <vector>
 
-#include "client/job_runner.h"
-#include "client/optimum_runner.h"
-#include "client/trace_runner.h"
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
+#include "jobs/job_runner.h"
+#include "jobs/optimum_runner.h"
+#include "jobs/trace_runner.h"
 #include "server/server.h"
 #include "support/operations.h"
 #include "support/same_result.h"
@@ -117,7 +117,7 @@ class GrpcServiceTest : public ::testing::Test {
   static int64_t EngineRuns() { return server_->engine_runs(); }
 
   // Submits the optimum job, waits for it, and expects it to have reused the curves and the
-  // region an earlier job left (the worker pool's client::OptimumCache), with the answer of the
+  // region an earlier job left (the worker pool's jobs::OptimumCache), with the answer of the
   // job runner from scratch.
   void ExpectOptimumReusesCurvesAndRegion(const v1::SubmitOptimumRequest& submit) {
     Operation op;
@@ -128,7 +128,7 @@ class GrpcServiceTest : public ::testing::Test {
     const auto served = ResponseOf<v1::OptimumResult>(op);
     EXPECT_TRUE(served.curves_reused());
     EXPECT_TRUE(served.region_reused());
-    StatusOr<v1::OptimumResult> direct = client::RunOptimum(submit.request());
+    StatusOr<v1::OptimumResult> direct = jobs::RunOptimum(submit.request());
     ASSERT_TRUE(direct.ok());
     EXPECT_FALSE(direct->curves_reused());
     drillbif::testing::ExpectSameResult(served, *direct);
@@ -157,7 +157,7 @@ TEST_F(GrpcServiceTest, SimulateGivesTheRunnersResult) {
   EXPECT_THAT(op.name(), ::testing::StartsWith("operations/"));
   op = WaitDone(op.name());
   EXPECT_EQ(MetadataOf(op).state(), v1::SUCCEEDED);
-  StatusOr<v1::SimulateResult> direct = client::RunSimulate(request.request());
+  StatusOr<v1::SimulateResult> direct = jobs::RunSimulate(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::SimulateResult>(op), *direct);
   EXPECT_EQ(MetadataOf(op).points(), 20);
@@ -171,7 +171,7 @@ TEST_F(GrpcServiceTest, SweepGivesTheRunnersResultWholeAndInPages) {
   auto context = Context();
   ASSERT_TRUE(jobs_->SubmitSweep(context.get(), request, &op).ok());
   op = WaitDone(op.name());
-  StatusOr<v1::SweepResult> direct = client::RunSweep(request.request());
+  StatusOr<v1::SweepResult> direct = jobs::RunSweep(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::SweepResult>(op), *direct);
   // The current value: a grid value of the sweep (the last one finished as of the last record).
@@ -231,7 +231,7 @@ TEST_F(GrpcServiceTest, ContinueGivesTheRunnersResult) {
   auto context = Context();
   ASSERT_TRUE(jobs_->SubmitContinue(context.get(), request, &op).ok());
   op = WaitDone(op.name());
-  StatusOr<v1::ContinueResult> direct = client::RunContinue(request.request());
+  StatusOr<v1::ContinueResult> direct = jobs::RunContinue(request.request());
   ASSERT_TRUE(direct.ok());
   const auto served = ResponseOf<v1::ContinueResult>(op);
   ExpectSameResult(served, *direct);
@@ -269,7 +269,7 @@ TEST_F(GrpcServiceTest, TraceGivesTheRunnersResult) {
   auto context = Context();
   ASSERT_TRUE(jobs_->SubmitTrace(context.get(), request, &op).ok());
   op = WaitDone(op.name());
-  StatusOr<v1::TraceResult> direct = client::RunTrace(request.request());
+  StatusOr<v1::TraceResult> direct = jobs::RunTrace(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::TraceResult>(op), *direct);
   EXPECT_GT(direct->curves_size(), 0);
@@ -294,7 +294,7 @@ TEST_F(GrpcServiceTest, OptimumComputedOnDemandThenStored) {
   ASSERT_TRUE(s.ok()) << s.error_message();
   EXPECT_FALSE(response.stored());
   ASSERT_TRUE(response.has_optimum());
-  StatusOr<v1::OptimumResult> direct = client::RunOptimum(query.request());
+  StatusOr<v1::OptimumResult> direct = jobs::RunOptimum(query.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(response.optimum(), *direct);
   EXPECT_EQ(direct->status(), "COMPLETED");
@@ -321,7 +321,7 @@ TEST_F(GrpcServiceTest, OptimumComputedOnDemandThenStored) {
 
 // An optimum job with another margin over the curves and grid of an earlier one: a new job (its
 // answer differs), run without tracing or filling the region again (the worker pool's
-// client::OptimumCache), and its answer is the runner's from scratch.
+// jobs::OptimumCache), and its answer is the runner's from scratch.
 TEST_F(GrpcServiceTest, AnotherMarginReusesTheCurvesAndRegionOfAnEarlierOptimum) {
   v1::SubmitOptimumRequest submit;
   *submit.mutable_request()->mutable_trace() = SmallBoxTrace();

@@ -25,11 +25,11 @@
 #include <thread>
 #include <vector>
 
-#include "client/job_runner.h"
-#include "client/optimum_runner.h"
-#include "client/trace_runner.h"
 #include "drillbif/v1/service.pb.h"
 #include "google/longrunning/operations.pb.h"
+#include "jobs/job_runner.h"
+#include "jobs/optimum_runner.h"
+#include "jobs/trace_runner.h"
 #include "server/server.h"
 #include "support/operations.h"
 #include "support/same_result.h"
@@ -247,7 +247,7 @@ TEST_F(RestGatewayTest, SimulateGivesTheRunnersResult) {
   EXPECT_THAT(op.name(), ::testing::StartsWith("operations/"));
   op = WaitDone(op.name());
   EXPECT_EQ(MetadataOf(op).state(), v1::SUCCEEDED);
-  StatusOr<v1::SimulateResult> direct = client::RunSimulate(request.request());
+  StatusOr<v1::SimulateResult> direct = jobs::RunSimulate(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::SimulateResult>(op), *direct);
 }
@@ -256,7 +256,7 @@ TEST_F(RestGatewayTest, SweepGivesTheRunnersResultWholeAndInPages) {
   v1::SubmitSweepRequest request;
   *request.mutable_request() = SmallSweep(0.1, 20);
   Operation op = WaitDone(Submit("/v1/jobs:sweep", request).name());
-  StatusOr<v1::SweepResult> direct = client::RunSweep(request.request());
+  StatusOr<v1::SweepResult> direct = jobs::RunSweep(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::SweepResult>(op), *direct);
 
@@ -293,7 +293,7 @@ TEST_F(RestGatewayTest, ContinueGivesTheRunnersResult) {
   request.mutable_request()->set_min(0.14);
   request.mutable_request()->set_max(0.16);
   Operation op = WaitDone(Submit("/v1/jobs:continue", request).name());
-  StatusOr<v1::ContinueResult> direct = client::RunContinue(request.request());
+  StatusOr<v1::ContinueResult> direct = jobs::RunContinue(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::ContinueResult>(op), *direct);
   EXPECT_GT(direct->points_size(), 2);
@@ -303,7 +303,7 @@ TEST_F(RestGatewayTest, TraceGivesTheRunnersResult) {
   v1::SubmitTraceRequest request;
   *request.mutable_request() = SmallBoxTrace();
   Operation op = WaitDone(Submit("/v1/jobs:trace", request).name());
-  StatusOr<v1::TraceResult> direct = client::RunTrace(request.request());
+  StatusOr<v1::TraceResult> direct = jobs::RunTrace(request.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(ResponseOf<v1::TraceResult>(op), *direct);
   EXPECT_GT(direct->curves_size(), 0);
@@ -324,7 +324,7 @@ TEST_F(RestGatewayTest, OptimumQueriedThenSubmittedGivesTheRunnersResult) {
   ASSERT_EQ(result->status, 200) << result->body;
   const auto response = Parse<v1::QueryOptimumResponse>(result->body);
   ASSERT_TRUE(response.has_optimum());
-  StatusOr<v1::OptimumResult> direct = client::RunOptimum(query.request());
+  StatusOr<v1::OptimumResult> direct = jobs::RunOptimum(query.request());
   ASSERT_TRUE(direct.ok());
   ExpectSameResult(response.optimum(), *direct);
 

@@ -20,9 +20,9 @@
 #include <thread>
 #include <vector>
 
-#include "client/job_runner.h"
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
+#include "jobs/job_runner.h"
 #include "server/store/sqlite_job_store.h"
 #include "support/operations.h"
 #include "support/small_requests.h"
@@ -171,7 +171,7 @@ void ExpectAllCompleteOnce(ServerProcess& server, const std::vector<v1::SweepReq
     EXPECT_EQ(m.attempts(), i == 0 ? expected_first_attempts : 1) << names[i];
     v1::SweepResult served;
     ASSERT_TRUE(op.response().UnpackTo(&served));
-    StatusOr<v1::SweepResult> direct = client::RunSweep(requests[i]);
+    StatusOr<v1::SweepResult> direct = jobs::RunSweep(requests[i]);
     ASSERT_TRUE(direct.ok());
     served.clear_wall_seconds();
     direct.value().clear_wall_seconds();

@@ -1,4 +1,4 @@
-#include "client/job_runner.h"
+#include "jobs/job_runner.h"
 
 #include <algorithm>
 #include <charconv>
@@ -11,7 +11,6 @@
 #include <string>
 #include <utility>
 
-#include "client/job_common.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/flow/cvode_propagator.h"
 #include "drillbif/flow/exact_propagator.h"
@@ -20,8 +19,9 @@
 #include "drillbif/orbit/signature.h"
 #include "drillbif/simulate/sweep.h"
 #include "drillbif/version.h"
+#include "jobs/job_common.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 namespace {
 
 using internal::Model;
@@ -551,4 +551,4 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
   }
 }
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs

@@ -2,8 +2,8 @@
 // is checked, keyed and run (through the client library's job runners, the one boundary between
 // protos and the engine), and how its result is counted and paged. The gRPC layer and the worker
 // pool both go through here, so that a kind is defined in one place.
-#ifndef DRILLBIF_SERVER_JOB_KINDS_H_
-#define DRILLBIF_SERVER_JOB_KINDS_H_
+#ifndef DRILLBIF_JOBS_JOB_KINDS_H_
+#define DRILLBIF_JOBS_JOB_KINDS_H_
 
 #include <google/protobuf/message.h>
 
@@ -13,12 +13,12 @@
 #include <string>
 #include <string_view>
 
-#include "client/optimum_cache.h"
 #include "drillbif/common/status.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/service.pb.h"
+#include "jobs/optimum_cache.h"
 
-namespace drillbif::server {
+namespace drillbif::jobs {
 
 // The store's kind strings ("simulate", "sweep", "continue", "trace", "optimum").
 const char* KindName(v1::JobKind kind);
@@ -68,7 +68,7 @@ struct JobOutput {
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
                            const ProgressCallback& progress,
                            const std::function<void(double)>& value = {},
-                           client::OptimumCache* optimum_cache = nullptr);
+                           jobs::OptimumCache* optimum_cache = nullptr);
 
 // The number of points a request of `kind` will produce, when known before the run (sweep:
 // steps times directions), else 0. Used to estimate JobMetadata.points from the progress.
@@ -83,6 +83,6 @@ Status PageResult(v1::JobKind kind, std::string_view result_bytes, int page_size
 // Largest GetResultRequest.page_size.
 inline constexpr int kMaxResultPageSize = 100000;
 
-}  // namespace drillbif::server
+}  // namespace drillbif::jobs
 
-#endif  // DRILLBIF_SERVER_JOB_KINDS_H_
+#endif  // DRILLBIF_JOBS_JOB_KINDS_H_

@@ -1,8 +1,8 @@
 // What every job runner needs, in one place: the shared model instance, the conversions between
 // the API's model parameters and state and the engine's, the start orbit of a continuation, and
 // small helpers for messages. Internal to the client library.
-#ifndef DRILLBIF_CLIENT_JOB_COMMON_H_
-#define DRILLBIF_CLIENT_JOB_COMMON_H_
+#ifndef DRILLBIF_JOBS_JOB_COMMON_H_
+#define DRILLBIF_JOBS_JOB_COMMON_H_
 
 #include <chrono>
 #include <initializer_list>
@@ -15,7 +15,7 @@
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/model.pb.h"
 
-namespace drillbif::client::internal {
+namespace drillbif::jobs::internal {
 
 using Osc = DriftingOscillator;
 
@@ -68,6 +68,6 @@ StatusOr<StartSearch> StartSearchOf(const Request& request, const Params& params
   return out;
 }
 
-}  // namespace drillbif::client::internal
+}  // namespace drillbif::jobs::internal
 
-#endif  // DRILLBIF_CLIENT_JOB_COMMON_H_
+#endif  // DRILLBIF_JOBS_JOB_COMMON_H_

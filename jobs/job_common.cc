@@ -1,4 +1,4 @@
-#include "client/job_common.h"
+#include "jobs/job_common.h"
 
 #include <charconv>
 #include <chrono>
@@ -7,7 +7,7 @@
 
 #include "drillbif/orbit/signature.h"
 
-namespace drillbif::client::internal {
+namespace drillbif::jobs::internal {
 
 const Osc& Model() {
   static const Osc model;
@@ -89,4 +89,4 @@ Status CheckParamValues(const Params& params, int index,
   return Status::Ok();
 }
 
-}  // namespace drillbif::client::internal
+}  // namespace drillbif::jobs::internal

@@ -1,4 +1,4 @@
-#include "client/trace_runner.h"
+#include "jobs/trace_runner.h"
 
 #include <chrono>
 #include <cmath>
@@ -7,16 +7,16 @@
 #include <new>
 #include <string>
 
-#include "client/job_common.h"
-#include "client/optimum_cache.h"
-#include "client/region_output.h"
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/orbit/periodic_orbit.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/version.h"
+#include "jobs/job_common.h"
+#include "jobs/optimum_cache.h"
+#include "jobs/region_output.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 namespace {
 
 using internal::Model;
@@ -178,7 +178,7 @@ StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressC
         internal::RegionOptionsFor(trace->options, grid.first, grid.second), region_progress));
     if (!region->summary.status.ok()) return region->summary.status;
     if (region->summary.cancelled) out.set_status("CANCELLED");
-    client::ToProto(model, *region, out.mutable_region());
+    jobs::ToProto(model, *region, out.mutable_region());
     if (for_optimum && !region->summary.cancelled) {
       cache->PutRegion(key, grid.first, grid.second, std::move(region));
     }
@@ -248,4 +248,4 @@ StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
   }
 }
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs

@@ -9,8 +9,8 @@
 // FAILED_PRECONDITION status (there is nothing to continue). A run that starts and then fails or is
 // cancelled is not an error: it is a result with status "FAILED" or "CANCELLED", a message and
 // whatever was computed before it stopped.
-#ifndef DRILLBIF_CLIENT_JOB_RUNNER_H_
-#define DRILLBIF_CLIENT_JOB_RUNNER_H_
+#ifndef DRILLBIF_JOBS_JOB_RUNNER_H_
+#define DRILLBIF_JOBS_JOB_RUNNER_H_
 
 #include <functional>
 
@@ -20,7 +20,7 @@
 #include "drillbif/v1/simulate.pb.h"
 #include "drillbif/v1/sweep.pb.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 
 // Limits on what one request may make the engine hold in memory (see the proto comments).
 inline constexpr long long kMaxSamplePeriods = 10'000'000;     // SimulateRequest.sample_periods
@@ -62,6 +62,6 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
                                          const ProgressCallback& progress = {},
                                          const ValueCallback& on_value = {});
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs
 
-#endif  // DRILLBIF_CLIENT_JOB_RUNNER_H_
+#endif  // DRILLBIF_JOBS_JOB_RUNNER_H_

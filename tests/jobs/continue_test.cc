@@ -1,6 +1,6 @@
 // The continue job (ContinueRequest -> start orbit -> continuation -> ContinueResult): the
 // published fold and ROP maximum of MODEL.md's continuation in b, the branch points' contents,
-// the JSON and CSV forms, invalid requests as INVALID_ARGUMENT naming the field, a chaotic start
+// invalid requests as INVALID_ARGUMENT naming the field, a chaotic start
 // as FAILED_PRECONDITION, direction, step budget, signature switching off, and cancellation.
 #include <gmock/gmock.h>
 #include <google/protobuf/util/json_util.h>
@@ -11,10 +11,9 @@
 #include <numeric>
 #include <string>
 
-#include "client/job_runner.h"
-#include "client/output.h"
+#include "jobs/job_runner.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 namespace {
 
 using ::testing::HasSubstr;
@@ -138,38 +137,6 @@ TEST(RunContinue, BranchPointsCarryTheOrbitAndItsStability) {
   EXPECT_GT(r.newton_iterations(), 0);
   EXPECT_GT(r.wall_seconds(), 0.0);
   EXPECT_FALSE(r.engine_version().empty());
-}
-
-TEST(RunContinue, JsonHasTheDocumentedNamesAndReadsBack) {
-  const v1::ContinueResult& r = FoldResult();
-  const StatusOr<std::string> json = ToJson(r, false);
-  ASSERT_TRUE(json.ok()) << json.status().ToString();
-  for (const char* key :
-       {"\"points\":[", "\"specialPoints\":[", "\"kind\":\"FOLD\"", "\"kind\":\"ROP_MAX\"",
-        "\"rop\":", "\"power\":", "\"period\":", "\"multipliers\":[",
-        "\"stable\":", "\"signature\":[\"NO_CONTACT\"", "\"signatureText\":\"NC>Pi CwoP>l1",
-        "\"params\":{\"a\":0.3", "\"structuralZeros\":2", "\"newtonIterations\":"}) {
-    EXPECT_THAT(*json, HasSubstr(key));
-  }
-  // '>' printed as itself rather than \u003e, and still the same message when read back.
-  v1::ContinueResult back;
-  ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(*json, &back).ok());
-  EXPECT_EQ(back.SerializeAsString(), r.SerializeAsString());
-}
-
-TEST(RunContinue, CsvHasOneRowPerPointThenTheSpecialPoints) {
-  const v1::ContinueResult& r = FoldResult();
-  const std::string csv = ContinueResultToCsv(r);
-  std::vector<std::string> lines;
-  for (size_t at = 0, end; at < csv.size(); at = end + 1) {
-    end = csv.find('\n', at);
-    lines.push_back(csv.substr(at, end - at));
-  }
-  ASSERT_EQ(lines.size(), 1u + r.points_size() + r.special_points_size());
-  EXPECT_EQ(lines[0], "value,rop,power,period,stable,signature_text,mu_abs_max");
-  EXPECT_THAT(lines[1], HasSubstr(std::string(",") + kReferenceSignature + ","));
-  EXPECT_THAT(csv, HasSubstr("\n# FOLD value=0.16715"));
-  EXPECT_THAT(csv, HasSubstr("\n# ROP_MAX value=0.16381"));
 }
 
 TEST(RunContinue, UnknownParameterIsInvalidArgumentNamingIt) {
@@ -349,4 +316,4 @@ TEST(RunContinue, FollowsThePeriodDoubledBranch) {
 }
 
 }  // namespace
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs

@@ -1,7 +1,7 @@
 // The trace job: every fold, period-doubling and grazing curve through a start orbit's branches in
 // a box of two parameters, with their codimension-2 points (proto/drillbif/v1/trace.proto).
-#ifndef DRILLBIF_CLIENT_TRACE_RUNNER_H_
-#define DRILLBIF_CLIENT_TRACE_RUNNER_H_
+#ifndef DRILLBIF_JOBS_TRACE_RUNNER_H_
+#define DRILLBIF_JOBS_TRACE_RUNNER_H_
 
 #include <chrono>
 
@@ -11,7 +11,7 @@
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/trace.pb.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 
 class OptimumCache;
 
@@ -23,7 +23,7 @@ class OptimumCache;
 // when the start state leads to no periodic orbit. `progress` (optional) is called from the calling
 // thread with the fraction done and returns false to cancel (the result is then CANCELLED, with the
 // curves traced so far). With a `cache`, the curves of a trace of period-1 curves (and its region)
-// are put there for later optimum jobs (client/optimum_cache.h) unless cancelled.
+// are put there for later optimum jobs (jobs/optimum_cache.h) unless cancelled.
 StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
                                    const ProgressCallback& progress = {},
                                    OptimumCache* cache = nullptr);
@@ -52,6 +52,6 @@ RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2);
 
 }  // namespace internal
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs
 
-#endif  // DRILLBIF_CLIENT_TRACE_RUNNER_H_
+#endif  // DRILLBIF_JOBS_TRACE_RUNNER_H_

@@ -1,14 +1,14 @@
 // The optimum job: the robust ROP optimum over the stability region of period-1 motion
 // (proto/drillbif/v1/optimum.proto): the curves, the region on a grid, then the query.
-#ifndef DRILLBIF_CLIENT_OPTIMUM_RUNNER_H_
-#define DRILLBIF_CLIENT_OPTIMUM_RUNNER_H_
+#ifndef DRILLBIF_JOBS_OPTIMUM_RUNNER_H_
+#define DRILLBIF_JOBS_OPTIMUM_RUNNER_H_
 
-#include "client/optimum_cache.h"
 #include "drillbif/common/status.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/optimum.pb.h"
+#include "jobs/optimum_cache.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 
 // Errors: INVALID_ARGUMENT naming the field (margin, scaled, grid, trace.region, and every trace
 // error of RunTrace under trace.); FAILED_PRECONDITION when the start orbit is not a stable
@@ -20,6 +20,6 @@ StatusOr<v1::OptimumResult> RunOptimum(const v1::OptimumRequest& request,
                                        const ProgressCallback& progress = {},
                                        OptimumCache* cache = nullptr);
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs
 
-#endif  // DRILLBIF_CLIENT_OPTIMUM_RUNNER_H_
+#endif  // DRILLBIF_JOBS_OPTIMUM_RUNNER_H_

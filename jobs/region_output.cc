@@ -1,8 +1,8 @@
-#include "client/region_output.h"
+#include "jobs/region_output.h"
 
 #include "drillbif/orbit/signature.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 
 void ToProto(const HybridModel& model, const StabilityRegion& region, v1::StabilityRegion* out) {
   out->add_params(region.param1);
@@ -34,4 +34,4 @@ void ToProto(const HybridModel& model, const StabilityRegion& region, v1::Stabil
   out->set_message(region.summary.message);
 }
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs

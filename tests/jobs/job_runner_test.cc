@@ -1,7 +1,7 @@
-// The job runner (request proto -> engine -> result proto) and the output formats: the reference
-// run of MODEL.md through the API, outputs on demand, invalid requests as INVALID_ARGUMENT naming
-// the field, sweeps, cancellation, and the JSON and CSV forms of the results.
-#include "client/job_runner.h"
+// The job runner (request proto -> engine -> result proto): the reference run of MODEL.md through
+// the API, outputs on demand, invalid requests as INVALID_ARGUMENT naming the field, sweeps and
+// cancellation. (What drillctl prints of the results: tests/client/output_test.cc.)
+#include "jobs/job_runner.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -10,10 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "client/output.h"
 #include "problems/drifting_reference.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 namespace {
 
 using ::testing::HasSubstr;
@@ -222,70 +221,5 @@ TEST(RunSweep, TooManySamplesIsRejectedBeforeRunning) {
   EXPECT_EQ(result.status().code(), StatusCode::kInvalidArgument);
 }
 
-TEST(Output, SimulateJsonHasCamelCaseMeasuresAndPoincareObjects) {
-  v1::SimulateRequest request;
-  request.set_sample_periods(2);
-  const StatusOr<v1::SimulateResult> result = RunSimulate(request);
-  ASSERT_TRUE(result.ok()) << result.status().ToString();
-  const StatusOr<std::string> json = ToJson(*result, /*pretty=*/false);
-  ASSERT_TRUE(json.ok()) << json.status().ToString();
-  for (const char* key : {"\"rop\":", "\"power\":", "\"poincare\":[{",
-                          "\"p\":", "\"y\":", "\"q\":", "\"mode\":\"NO_CONTACT\"",
-                          "\"status\":\"COMPLETED\"", "\"eventsTotal\":", "\"wallSeconds\":"}) {
-    EXPECT_THAT(*json, HasSubstr(key));
-  }
-}
-
-TEST(Output, JsonPrintsZeroMeasuresAndDefaultFields) {
-  v1::SimulateResult result;
-  result.set_status("COMPLETED");
-  result.set_rop(0.0);
-  result.set_power(0.0);
-  result.set_segments(0);
-  const StatusOr<std::string> json = ToJson(result, /*pretty=*/false);
-  ASSERT_TRUE(json.ok());
-  EXPECT_THAT(*json, HasSubstr("\"rop\":0"));
-  EXPECT_THAT(*json, HasSubstr("\"power\":0"));
-  EXPECT_THAT(*json, HasSubstr("\"message\":\"\""));
-  EXPECT_THAT(*json, HasSubstr("\"poincare\":[]"));
-}
-
-TEST(Output, SimulateCsvHasMeasureCommentsThenOneRowPerSample) {
-  v1::SimulateRequest request;
-  request.set_sample_periods(3);
-  const StatusOr<v1::SimulateResult> result = RunSimulate(request);
-  ASSERT_TRUE(result.ok()) << result.status().ToString();
-  const StatusOr<SimulateTable> table = CsvTableFor(EffectiveOutputs(request));
-  ASSERT_TRUE(table.ok());
-  EXPECT_EQ(*table, SimulateTable::kPoincare);
-  const std::vector<std::string> lines = Lines(SimulateResultToCsv(*result, *table));
-  ASSERT_EQ(lines.size(), 2u + 1u + 3u);
-  EXPECT_THAT(lines[0], StartsWith("# rop=0.49887658"));
-  EXPECT_THAT(lines[1], StartsWith("# power=0.0084749"));
-  EXPECT_EQ(lines[2], "period,mode,p,y,q");
-  EXPECT_THAT(lines[3], StartsWith("501,NO_CONTACT,-60.184375"));
-}
-
-TEST(Output, CsvRefusesTwoTables) {
-  v1::SimulateRequest::Outputs outputs;
-  outputs.set_poincare(true);
-  outputs.set_events(true);
-  EXPECT_FALSE(CsvTableFor(outputs).ok());
-  outputs.set_poincare(false);
-  const StatusOr<SimulateTable> events = CsvTableFor(outputs);
-  ASSERT_TRUE(events.ok());
-  EXPECT_EQ(*events, SimulateTable::kEvents);
-}
-
-TEST(Output, SweepCsvHasOneRowPerSample) {
-  const StatusOr<v1::SweepResult> result = RunSweep(SmallSweep());
-  ASSERT_TRUE(result.ok()) << result.status().ToString();
-  const std::vector<std::string> lines = Lines(SweepResultToCsv(*result));
-  ASSERT_EQ(lines.size(), 1u + 5u * 5u);
-  EXPECT_EQ(lines[0], "direction,value,period,p,y,q");
-  EXPECT_THAT(lines[1], StartsWith("up,0.145,"));
-  EXPECT_THAT(lines.back(), StartsWith("up,0.15"));  // 0.155 up to rounding
-}
-
 }  // namespace
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs

@@ -1,13 +1,13 @@
-#include "client/optimum_cache.h"
+#include "jobs/optimum_cache.h"
 
 #include <google/protobuf/io/coded_stream.h>
 #include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 
 #include <algorithm>
 
-#include "client/trace_runner.h"
+#include "jobs/trace_runner.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 
 OptimumCache::OptimumCache(size_t capacity, size_t regions_per_curves)
     : capacity_(std::max<size_t>(capacity, 1)),
@@ -87,4 +87,4 @@ void OptimumCache::PutRegion(const std::string& key, int n1, int n2,
   if (regions.size() > regions_per_curves_) regions.pop_back();
 }
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs

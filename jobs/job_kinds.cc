@@ -1,4 +1,4 @@
-#include "server/job_kinds.h"
+#include "jobs/job_kinds.h"
 
 #include <google/protobuf/io/coded_stream.h>
 #include <google/protobuf/io/zero_copy_stream_impl_lite.h>
@@ -11,13 +11,13 @@
 #include <cstdio>
 #include <string>
 
-#include "client/job_common.h"
-#include "client/job_runner.h"
-#include "client/optimum_runner.h"
-#include "client/trace_runner.h"
 #include "drillbif/version.h"
+#include "jobs/job_common.h"
+#include "jobs/job_runner.h"
+#include "jobs/optimum_runner.h"
+#include "jobs/trace_runner.h"
 
-namespace drillbif::server {
+namespace drillbif::jobs {
 namespace {
 
 using google::protobuf::FieldDescriptor;
@@ -66,8 +66,8 @@ std::string NonFiniteField(const Message& message, const std::string& prefix) {
 
 // INVALID_ARGUMENT "field: message" unless the model parameters are valid.
 Status CheckParams(const v1::ModelParams& params, const std::string& field) {
-  const Params engine = client::internal::ToEngineParams(params);
-  Status s = client::internal::Model().ValidateParams(engine);
+  const Params engine = internal::ToEngineParams(params);
+  Status s = internal::Model().ValidateParams(engine);
   if (s.ok()) return s;
   return InvalidArgument(field + ": " + s.message());
 }
@@ -252,33 +252,33 @@ Status ValidateAtSubmit(v1::JobKind kind, const google::protobuf::Message& reque
 StatusOr<JobOutput> RunJob(v1::JobKind kind, std::string_view request_bytes,
                            const ProgressCallback& progress,
                            const std::function<void(double)>& value,
-                           client::OptimumCache* optimum_cache) {
+                           jobs::OptimumCache* optimum_cache) {
   switch (kind) {
     case v1::SIMULATE:
       return Run<v1::SimulateRequest, v1::SimulateResult>(request_bytes, progress,
-                                                          client::RunSimulate);
+                                                          jobs::RunSimulate);
     case v1::SWEEP:
       return Run<v1::SweepRequest, v1::SweepResult>(
           request_bytes, progress, [&value](const v1::SweepRequest& r, const ProgressCallback& p) {
-            return client::RunSweep(r, p, value);
+            return jobs::RunSweep(r, p, value);
           });
     case v1::CONTINUE:
       return Run<v1::ContinueRequest, v1::ContinueResult>(
           request_bytes, progress,
           [&value](const v1::ContinueRequest& r, const ProgressCallback& p) {
-            return client::RunContinue(r, p, value);
+            return jobs::RunContinue(r, p, value);
           });
     case v1::TRACE:
       return Run<v1::TraceRequest, v1::TraceResult>(
           request_bytes, progress,
           [optimum_cache](const v1::TraceRequest& r, const ProgressCallback& p) {
-            return client::RunTrace(r, p, optimum_cache);
+            return jobs::RunTrace(r, p, optimum_cache);
           });
     case v1::OPTIMUM:
       return Run<v1::OptimumRequest, v1::OptimumResult>(
           request_bytes, progress,
           [optimum_cache](const v1::OptimumRequest& r, const ProgressCallback& p) {
-            return client::RunOptimum(r, p, optimum_cache);
+            return jobs::RunOptimum(r, p, optimum_cache);
           });
     default:
       return InvalidArgument("unknown job kind");
@@ -362,4 +362,4 @@ Status PageResult(v1::JobKind kind, std::string_view result_bytes, int page_size
   }
 }
 
-}  // namespace drillbif::server
+}  // namespace drillbif::jobs

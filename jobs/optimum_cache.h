@@ -6,8 +6,8 @@
 // Trace jobs of period-1 curves put theirs here too (and their region), for an optimum asked
 // after the map was drawn. The server's worker pool owns one; `drillctl --local` runs one job per
 // process and has none.
-#ifndef DRILLBIF_CLIENT_OPTIMUM_CACHE_H_
-#define DRILLBIF_CLIENT_OPTIMUM_CACHE_H_
+#ifndef DRILLBIF_JOBS_OPTIMUM_CACHE_H_
+#define DRILLBIF_JOBS_OPTIMUM_CACHE_H_
 
 #include <list>
 #include <memory>
@@ -20,7 +20,7 @@
 #include "drillbif/region/stability_region.h"
 #include "drillbif/v1/trace.pb.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 
 // A trace as the optimum uses it: the start orbit, the box, the curves' polylines and kinds.
 struct OptimumCurves {
@@ -71,6 +71,6 @@ class OptimumCache {
   std::list<Entry> entries_;  // most recently used first
 };
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs
 
-#endif  // DRILLBIF_CLIENT_OPTIMUM_CACHE_H_
+#endif  // DRILLBIF_JOBS_OPTIMUM_CACHE_H_

@@ -1,4 +1,4 @@
-#include "client/optimum_runner.h"
+#include "jobs/optimum_runner.h"
 
 #include <algorithm>
 #include <chrono>
@@ -10,16 +10,16 @@
 #include <utility>
 #include <vector>
 
-#include "client/job_common.h"
-#include "client/optimum_cache.h"
-#include "client/trace_runner.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/orbit/attractors.h"
 #include "drillbif/orbit/signature.h"
 #include "drillbif/region/robust_optimum.h"
 #include "drillbif/version.h"
+#include "jobs/job_common.h"
+#include "jobs/optimum_cache.h"
+#include "jobs/trace_runner.h"
 
-namespace drillbif::client {
+namespace drillbif::jobs {
 namespace {
 
 using internal::Model;
@@ -252,4 +252,4 @@ StatusOr<v1::OptimumResult> RunOptimum(const v1::OptimumRequest& request,
   }
 }
 
-}  // namespace drillbif::client
+}  // namespace drillbif::jobs
