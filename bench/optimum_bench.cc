@@ -10,7 +10,7 @@
 #include <benchmark/benchmark.h>
 
 #include "jobs/optimum_cache.h"
-#include "jobs/optimum_runner.h"
+#include "jobs/optimum_job.h"
 
 namespace drillbif {
 namespace {
@@ -33,7 +33,7 @@ v1::OptimumRequest Issue4Request(double margin) {
 jobs::OptimumCache& WarmCache() {
   static jobs::OptimumCache* cache = [] {
     auto* c = new jobs::OptimumCache;
-    (void)jobs::RunOptimum(Issue4Request(0.02), {}, c);
+    (void)jobs::RunOptimum(Issue4Request(0.02), {.optimum_cache = c});
     return c;
   }();
   return *cache;
@@ -45,7 +45,8 @@ void BM_OptimumOverKnownCurves(benchmark::State& state) {
   int i = 0;
   v1::OptimumResult last;
   for (auto _ : state) {
-    StatusOr<v1::OptimumResult> r = jobs::RunOptimum(Issue4Request(margins[i++ % 3]), {}, &cache);
+    StatusOr<v1::OptimumResult> r =
+        jobs::RunOptimum(Issue4Request(margins[i++ % 3]), {.optimum_cache = &cache});
     if (!r.ok()) {
       state.SkipWithError(r.status().ToString().c_str());
       return;

@@ -35,9 +35,9 @@
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/simulate/sweep.h"
 #include "drillbif/version.h"
-#include "jobs/job_runner.h"
-#include "jobs/optimum_runner.h"
-#include "jobs/trace_runner.h"
+#include "jobs/continue_job.h"
+#include "jobs/registry.h"
+#include "jobs/simulate_job.h"
 
 namespace drillbif::client {
 namespace {
@@ -286,15 +286,24 @@ int RunAndPrint(const GlobalFlags& global, const Run& run, const ToCsv& to_csv) 
   return Finish(result->status(), result->message());
 }
 
-// Runs a job in this process (`remote` null: the job runner `local`) or on the server: submitted,
-// followed with the progress bar, and printed as RunAndPrint prints a local run; with --detach
-// only submitted, and its operation name printed.
-template <typename Result, typename Request, typename Local, typename ToCsv>
+// Runs a job in this process (`remote` null: through its kind's entry in the job registry, as the
+// server's workers run it) or on the server: submitted, followed with the progress bar, and
+// printed as RunAndPrint prints a local run; with --detach only submitted, and its operation name
+// printed.
+template <typename Result, typename Request, typename ToCsv>
 int RunJob(const GlobalFlags& global, RemoteClient* remote, const Request& request,
-           const Local& local, const ToCsv& to_csv) {
+           const ToCsv& to_csv) {
   if (remote == nullptr) {
     return RunAndPrint(
-        global, [&](const ProgressCallback& progress) { return local(request, progress); }, to_csv);
+        global,
+        [&](const ProgressCallback& progress) -> StatusOr<Result> {
+          const jobs::JobKindSpec* spec = jobs::FindKind(Request::descriptor());
+          DRILLBIF_RETURN_IF_ERROR(jobs::CheckRequest(*spec, request));
+          DRILLBIF_ASSIGN_OR_RETURN(std::unique_ptr<google::protobuf::Message> result,
+                                    spec->run(request, {.progress = progress}));
+          return std::move(static_cast<Result&>(*result));
+        },
+        to_csv);
   }
   if (global.detach) {
     StatusOr<google::longrunning::Operation> op = remote->Submit(request);
@@ -336,12 +345,9 @@ int RunSimulateCommand(const GlobalFlags& global, RemoteClient* remote, const Mo
     table = *t;
   }
 
-  return RunJob<v1::SimulateResult>(
-      global, remote, request,
-      [](const v1::SimulateRequest& r, const ProgressCallback& p) {
-        return jobs::RunSimulate(r, p);
-      },
-      [table](const v1::SimulateResult& r) { return SimulateResultToCsv(r, table); });
+  return RunJob<v1::SimulateResult>(global, remote, request, [table](const v1::SimulateResult& r) {
+    return SimulateResultToCsv(r, table);
+  });
 }
 
 int RunSweepCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
@@ -360,10 +366,8 @@ int RunSweepCommand(const GlobalFlags& global, RemoteClient* remote, const Model
                                                 : v1::SweepRequest::UP);
   request.set_threads(f.threads);
 
-  return RunJob<v1::SweepResult>(
-      global, remote, request,
-      [](const v1::SweepRequest& r, const ProgressCallback& p) { return jobs::RunSweep(r, p); },
-      [](const v1::SweepResult& r) { return SweepResultToCsv(r); });
+  return RunJob<v1::SweepResult>(global, remote, request,
+                                 [](const v1::SweepResult& r) { return SweepResultToCsv(r); });
 }
 
 int RunContinueCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
@@ -398,11 +402,7 @@ int RunContinueCommand(const GlobalFlags& global, RemoteClient* remote, const Mo
   request.set_transient_periods(m.transient);
 
   return RunJob<v1::ContinueResult>(
-      global, remote, request,
-      [](const v1::ContinueRequest& r, const ProgressCallback& p) {
-        return jobs::RunContinue(r, p);
-      },
-      [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
+      global, remote, request, [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
 }
 
 // The start orbit, plane and box of trace and optimum.
@@ -430,10 +430,8 @@ int RunTraceCommand(const GlobalFlags& global, RemoteClient* remote, const Model
     v1::RegionRequest* region = request.mutable_region();
     for (int n : f.grid) region->add_grid(n);
   }
-  return RunJob<v1::TraceResult>(
-      global, remote, request,
-      [](const v1::TraceRequest& r, const ProgressCallback& p) { return jobs::RunTrace(r, p); },
-      [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
+  return RunJob<v1::TraceResult>(global, remote, request,
+                                 [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
 }
 
 int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
@@ -444,9 +442,7 @@ int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const Mod
   request.set_scaled(f.scaled);
   for (int n : t.grid) request.add_grid(n);
   return RunJob<v1::OptimumResult>(
-      global, remote, request,
-      [](const v1::OptimumRequest& r, const ProgressCallback& p) { return jobs::RunOptimum(r, p); },
-      [](const v1::OptimumResult& r) { return OptimumResultToCsv(r); });
+      global, remote, request, [](const v1::OptimumResult& r) { return OptimumResultToCsv(r); });
 }
 
 // --grid n1,n2 of trace --region and optimum.

@@ -89,4 +89,24 @@ Status CheckParamValues(const Params& params, int index,
   return Status::Ok();
 }
 
+v1::Mode ToProtoMode(int mode) {
+  switch (mode) {
+    case Osc::kNoContact:
+      return v1::NO_CONTACT;
+    case Osc::kContact:
+      return v1::CONTACT;
+    case Osc::kProgression:
+      return v1::PROGRESSION;
+  }
+  return v1::MODE_UNSPECIFIED;
+}
+
+void ToProto(const PoincareSample& in, v1::PoincarePoint* out) {
+  out->set_period(in.period);
+  out->set_mode(ToProtoMode(in.mode));
+  out->set_p(in.x[Osc::kP]);
+  out->set_y(in.x[Osc::kY]);
+  out->set_q(in.x[Osc::kQ]);
+}
+
 }  // namespace drillbif::jobs::internal

@@ -14,6 +14,7 @@
 #include "drillbif/orbit/periodic_orbit.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/v1/model.pb.h"
+#include "drillbif/v1/simulate.pb.h"
 
 namespace drillbif::jobs::internal {
 
@@ -67,6 +68,11 @@ StatusOr<StartSearch> StartSearchOf(const Request& request, const Params& params
   }
   return out;
 }
+
+// The API's mode of an engine mode index.
+v1::Mode ToProtoMode(int mode);
+// A Poincare sample as the API's point.
+void ToProto(const PoincareSample& in, v1::PoincarePoint* out);
 
 }  // namespace drillbif::jobs::internal
 

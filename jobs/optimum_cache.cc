@@ -5,7 +5,7 @@
 
 #include <algorithm>
 
-#include "jobs/trace_runner.h"
+#include "jobs/trace_job.h"
 
 namespace drillbif::jobs {
 

@@ -11,7 +11,9 @@
 #include <utility>
 #include <vector>
 
-#include "jobs/job_kinds.h"
+#include "jobs/registry.h"
+#include "jobs/request_bytes.h"
+#include "jobs/result_pages.h"
 
 namespace drillbif::server {
 namespace {
@@ -99,7 +101,9 @@ StatusOr<Operation> OperationOf(JobStore& store, const JobRecord& record, bool i
     StatusOr<std::string> bytes = store.GetResult(record.id);
     if (!bytes.ok()) return bytes.status();
     google::protobuf::Any* any = op.mutable_response();
-    any->set_type_url("type.googleapis.com/" + jobs::ResultTypeName(jobs::KindOf(record.kind)));
+    const jobs::JobKindSpec* kind = jobs::FindKind(record.kind);
+    if (kind == nullptr) return Internal("job " + record.id + " has an unknown kind");
+    any->set_type_url("type.googleapis.com/" + kind->result_type->full_name());
     any->set_value(std::move(bytes).value());
   }
   return op;
@@ -138,11 +142,14 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
     return Error(grpc::StatusCode::INVALID_ARGUMENT,
                  "request_id: at most 128 bytes, got " + std::to_string(request_id.size()));
   }
-  if (Status s = jobs::ValidateAtSubmit(kind, request); !s.ok()) return ToGrpc(s);
+  const jobs::JobKindSpec& spec = *jobs::FindKind(kind);
+  if (StatusOr<jobs::JobCost> cost = jobs::CheckRequest(spec, request); !cost.ok()) {
+    return ToGrpc(cost.status());
+  }
   SubmitRequest submit;
-  submit.kind = jobs::KindName(kind);
+  submit.kind = spec.name;
   submit.request = jobs::DeterministicBytes(request);
-  submit.cache_key = jobs::CacheKey(kind, submit.request);
+  submit.cache_key = jobs::CacheKey(spec.name, submit.request);
   submit.request_id = request_id;
   StatusOr<StoreStats> stats = state.store->Stats();
   if (!stats.ok()) return ToGrpc(stats.status());
@@ -344,7 +351,7 @@ Status ParseFilter(const std::string& filter, ListRequest* list) {
       }
       list->state = static_cast<JobState>(static_cast<int>(state) - 1);
     } else if (key == "kind") {
-      if (jobs::KindOf(value) == v1::JOB_KIND_UNSPECIFIED) {
+      if (jobs::FindKind(value) == nullptr) {
         return InvalidArgument("filter: unknown kind '" + value + "'");
       }
       list->kind = value;
@@ -407,7 +414,8 @@ std::string OperationName(const std::string& id) { return std::string(kOperation
 v1::JobMetadata MetadataOf(const JobRecord& record) {
   v1::JobMetadata m;
   m.set_name(OperationName(record.id));
-  m.set_kind(jobs::KindOf(record.kind));
+  const jobs::JobKindSpec* kind = jobs::FindKind(record.kind);
+  m.set_kind(kind != nullptr ? kind->kind : v1::JOB_KIND_UNSPECIFIED);
   m.set_state(StateOf(record.state));
   m.set_progress(record.progress);
   if (record.current_value) m.set_current_value(*record.current_value);
@@ -453,7 +461,7 @@ void OptimumIndex::SetResult(const std::string& key,
 Status OptimumIndex::Load(JobStore& store) {
   ListRequest list;
   list.state = JobState::kSucceeded;
-  list.kind = jobs::KindName(v1::OPTIMUM);
+  list.kind = jobs::FindKind(v1::OPTIMUM)->name;
   list.page_size = 1000;
   do {
     StatusOr<ListResult> page = store.List(list);
@@ -522,8 +530,10 @@ grpc::ServerUnaryReactor* JobsService::GetResult(grpc::CallbackServerContext* co
     StatusOr<std::string> bytes = state_->store->GetResult(*id);
     if (!bytes.ok()) return ToGrpc(bytes.status());
     response->set_name(request->name());
-    return ToGrpc(jobs::PageResult(jobs::KindOf(record->kind), *bytes, request->page_size(),
-                                   request->page_token(), response));
+    const jobs::JobKindSpec* kind = jobs::FindKind(record->kind);
+    if (kind == nullptr) return ToGrpc(Internal("job " + *id + " has an unknown kind"));
+    return ToGrpc(
+        jobs::PageResult(*kind, *bytes, request->page_size(), request->page_token(), response));
   });
 }
 
@@ -533,10 +543,12 @@ grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext*
   if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
     return FinishNow(context, auth);
   }
-  if (Status s = jobs::ValidateAtSubmit(v1::OPTIMUM, request->request()); !s.ok()) {
-    return FinishNow(context, ToGrpc(s));
+  const jobs::JobKindSpec& optimum = *jobs::FindKind(v1::OPTIMUM);
+  if (StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request->request()); !cost.ok()) {
+    return FinishNow(context, ToGrpc(cost.status()));
   }
-  const std::string key = jobs::CacheKey(v1::OPTIMUM, jobs::DeterministicBytes(request->request()));
+  const std::string key =
+      jobs::CacheKey(optimum.name, jobs::DeterministicBytes(request->request()));
   std::string id;
   std::shared_ptr<const v1::OptimumResult> cached;
   const bool known = state_->optimum_index.Find(key, &id, &cached);

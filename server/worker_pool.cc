@@ -8,7 +8,7 @@
 #include <optional>
 #include <utility>
 
-#include "jobs/job_kinds.h"
+#include "jobs/registry.h"
 
 namespace drillbif::server {
 
@@ -100,8 +100,7 @@ void WorkerPool::RunOne(const JobRecord& job) {
     running_[job.id] = running;
   }
   hub_->Notify();  // QUEUED -> RUNNING
-  const v1::JobKind kind = jobs::KindOf(job.kind);
-  const int64_t expected_points = jobs::ExpectedPoints(kind, job.request);
+  const jobs::JobKindSpec* kind = jobs::FindKind(job.kind);
   const auto interval = std::chrono::milliseconds(options_.progress_interval_ms);
   Clock::time_point last_write = Clock::now();
   const auto started = last_write;
@@ -118,9 +117,8 @@ void WorkerPool::RunOne(const JobRecord& job) {
     if (now - last_write < interval) return true;
     last_write = now;
     const double f = std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0;
-    const auto points = static_cast<int64_t>(std::floor(f * static_cast<double>(expected_points)));
     recorded_current = current;
-    if (Status s = store_->UpdateProgress(job.id, f, current, points); !s.ok()) {
+    if (Status s = store_->UpdateProgress(job.id, f, current, 0); !s.ok()) {
       spdlog::warn("job {}: progress not recorded: {}", job.id, s.ToString());
     }
     // A cancel recorded in the store by someone other than this process's CancelOperation.
@@ -133,18 +131,22 @@ void WorkerPool::RunOne(const JobRecord& job) {
   spdlog::info("job {} ({}) started, attempt {}", job.id, job.kind, job.attempts);
   engine_runs_.fetch_add(1);
   StatusOr<jobs::JobOutput> output =
-      jobs::RunJob(kind, job.request, progress, value, &optimum_cache_);
+      kind == nullptr
+          ? StatusOr<jobs::JobOutput>(Internal("unknown job kind '" + job.kind + "'"))
+          : jobs::RunJob(
+                *kind, job.request,
+                {.progress = progress, .on_value = value, .optimum_cache = &optimum_cache_});
   const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
 
   // How the run ended, decided before anything is recorded: run_done_ (the duration histogram)
   // sees the run before the store makes its outcome visible, so a client that sees the job done
   // also sees it in the metrics.
-  const bool shutdown_requeue =
-      output.ok() && output->cancelled && running->shutdown.load() && !running->cancel.load();
-  const char* outcome_label = !output.ok()        ? "failed"  // one word per way a run ends
-                              : shutdown_requeue  ? "requeued"
-                              : output->cancelled ? "cancelled"
-                                                  : "succeeded";
+  const bool cancelled = output.ok() && output->status == "CANCELLED";
+  const bool shutdown_requeue = cancelled && running->shutdown.load() && !running->cancel.load();
+  const char* outcome_label = !output.ok()       ? "failed"  // one word per way a run ends
+                              : shutdown_requeue ? "requeued"
+                              : cancelled        ? "cancelled"
+                                                 : "succeeded";
   if (run_done_) run_done_(job, outcome_label, seconds);
 
   Status recorded;
@@ -155,19 +157,21 @@ void WorkerPool::RunOne(const JobRecord& job) {
   } else if (shutdown_requeue) {
     recorded = store_->Requeue(job.id);
     outcome = "interrupted by shutdown, requeued";
-  } else if (output->cancelled) {
+  } else if (cancelled) {
     recorded = store_->MarkCancelled(job.id);
     outcome = "cancelled";
   } else {
     // The last value reached, when no progress record carried it (a short run): one more write.
     if (current && current != recorded_current) {
-      if (Status s = store_->UpdateProgress(job.id, 1.0, current, output->points); !s.ok()) {
+      if (Status s = store_->UpdateProgress(job.id, 1.0, current, output->items); !s.ok()) {
         spdlog::warn("job {}: final value not recorded: {}", job.id, s.ToString());
       }
     }
-    recorded = store_->Complete(job.id, output->result, output->points);
+    recorded = store_->Complete(job.id, output->result, output->items);
     outcome = "succeeded";
-    if (recorded.ok() && kind == v1::OPTIMUM && optimum_done_) optimum_done_(job.id, job.cache_key);
+    if (recorded.ok() && kind->kind == v1::OPTIMUM && optimum_done_) {
+      optimum_done_(job.id, job.cache_key);
+    }
   }
   if (recorded.ok()) {
     spdlog::info("job {} ({}) {} in {:.3f} s", job.id, job.kind, outcome, seconds);

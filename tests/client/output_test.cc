@@ -12,7 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "jobs/job_runner.h"
+#include "jobs/continue_job.h"
+#include "jobs/simulate_job.h"
+#include "jobs/sweep_job.h"
 
 namespace drillbif::client {
 namespace {

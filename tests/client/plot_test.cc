@@ -17,9 +17,11 @@
 #include <vector>
 
 #include "client/output.h"
-#include "jobs/job_runner.h"
-#include "jobs/optimum_runner.h"
-#include "jobs/trace_runner.h"
+#include "jobs/continue_job.h"
+#include "jobs/simulate_job.h"
+#include "jobs/sweep_job.h"
+#include "jobs/optimum_job.h"
+#include "jobs/trace_job.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 

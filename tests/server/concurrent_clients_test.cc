@@ -19,7 +19,9 @@
 
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
-#include "jobs/job_runner.h"
+#include "jobs/continue_job.h"
+#include "jobs/simulate_job.h"
+#include "jobs/sweep_job.h"
 #include "server/server.h"
 #include "support/temp_dir.h"
 

@@ -25,9 +25,11 @@
 
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
-#include "jobs/job_runner.h"
-#include "jobs/optimum_runner.h"
-#include "jobs/trace_runner.h"
+#include "jobs/continue_job.h"
+#include "jobs/optimum_job.h"
+#include "jobs/simulate_job.h"
+#include "jobs/sweep_job.h"
+#include "jobs/trace_job.h"
 #include "server/server.h"
 #include "support/operations.h"
 #include "support/same_result.h"
@@ -556,17 +558,16 @@ TEST_F(GrpcServiceTest, BadInputGivesClearCodesAndTheServerKeepsServing) {
     EXPECT_THAT(s.error_message(), HasSubstr("xi"));
   }
   {
-    // Checks only the runner makes (here an unknown parameter name) fail the operation.
+    // Every check of the request is made at submit (here an unknown parameter name): nothing is
+    // queued for a request that cannot run.
     v1::SubmitSweepRequest request;
     request.mutable_request()->set_param("zeta");
     request.mutable_request()->set_min(0);
     request.mutable_request()->set_max(1);
     auto context = Context();
-    ASSERT_TRUE(jobs_->SubmitSweep(context.get(), request, &op).ok());
-    op = WaitDone(op.name());
-    EXPECT_EQ(MetadataOf(op).state(), v1::FAILED);
-    EXPECT_EQ(op.error().code(), static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT));
-    EXPECT_THAT(op.error().message(), HasSubstr("zeta"));
+    const grpc::Status s = jobs_->SubmitSweep(context.get(), request, &op);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_THAT(s.error_message(), HasSubstr("param: unknown parameter 'zeta'"));
   }
   {
     // Larger than max_request_bytes: refused by gRPC before it is parsed.

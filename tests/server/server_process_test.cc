@@ -22,7 +22,9 @@
 
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
-#include "jobs/job_runner.h"
+#include "jobs/continue_job.h"
+#include "jobs/simulate_job.h"
+#include "jobs/sweep_job.h"
 #include "server/store/sqlite_job_store.h"
 #include "support/operations.h"
 #include "support/small_requests.h"

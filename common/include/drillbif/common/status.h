@@ -151,7 +151,8 @@ class [[nodiscard]] StatusOr {
   } while (false)
 
 // `lhs = value of expr` when `expr` (a StatusOr) holds a value; else returns its Status from the
-// enclosing function. `lhs` may declare a variable: DRILLBIF_ASSIGN_OR_RETURN(auto x, F()).
+// enclosing function. `lhs` may declare a variable: DRILLBIF_ASSIGN_OR_RETURN(auto x, F()). It is
+// several statements: never the unbraced body of an if or a loop.
 #define DRILLBIF_ASSIGN_OR_RETURN(lhs, expr) \
   DRILLBIF_ASSIGN_OR_RETURN_IMPL_(DRILLBIF_STATUS_CONCAT_(drillbif_statusor_, __LINE__), lhs, expr)
 

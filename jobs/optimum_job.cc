@@ -1,4 +1,4 @@
-#include "jobs/optimum_runner.h"
+#include "jobs/optimum_job.h"
 
 #include <algorithm>
 #include <chrono>
@@ -17,7 +17,6 @@
 #include "drillbif/version.h"
 #include "jobs/job_common.h"
 #include "jobs/optimum_cache.h"
-#include "jobs/trace_runner.h"
 
 namespace drillbif::jobs {
 namespace {
@@ -34,8 +33,10 @@ StatusOr<OptimumOptions> ToOptimumOptions(const v1::OptimumRequest& request) {
   o.scaled = request.scaled();
   if (Status s = o.Validate(); !s.ok()) return s;
   if (request.grid_size() != 0 &&
-      (request.grid_size() != 2 || request.grid(0) < 3 || request.grid(1) < 3)) {
-    return InvalidArgument("grid: give two node counts >= 3 (one per trace parameter)");
+      (request.grid_size() != 2 || request.grid(0) < 3 || request.grid(1) < 3 ||
+       request.grid(0) > kMaxRegionNodes || request.grid(1) > kMaxRegionNodes)) {
+    return InvalidArgument("grid: give two node counts in [3, " + std::to_string(kMaxRegionNodes) +
+                           "] (one per trace parameter)");
   }
   if (request.trace().has_region()) {
     return InvalidArgument("trace.region: the optimum computes its own region; set grid instead");
@@ -112,7 +113,7 @@ std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propag
 
 // The curves of the request's trace: `cache`'s (*reused set), else traced and put there unless
 // cancelled (*cancelled set: the curves traced until then).
-StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const v1::TraceRequest& request,
+StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const TracePlan& plan,
                                                          const std::string& key,
                                                          const ProgressCallback& progress,
                                                          OptimumCache* cache, bool* reused,
@@ -124,22 +125,19 @@ StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const v1::TraceRequest&
       return held;
     }
   }
-  StatusOr<internal::EngineTrace> trace = internal::TraceRequestCurves(request, progress);
-  if (!trace.ok()) {
-    const Status& s = trace.status();
-    return s.code() == StatusCode::kInvalidArgument ? InvalidArgument("trace." + s.message()) : s;
-  }
-  *cancelled = trace->result.summary.cancelled;
+  DRILLBIF_ASSIGN_OR_RETURN(const internal::EngineTrace trace,
+                            internal::TraceCurvesOf(plan, progress));
+  *cancelled = trace.result.summary.cancelled;
   std::shared_ptr<const OptimumCurves> curves =
-      OptimumCurvesOf(trace->start, trace->options, trace->result);
+      OptimumCurvesOf(trace.start, trace.options, trace.result);
   if (cache != nullptr && !*cancelled) cache->PutCurves(key, curves);
   return curves;
 }
 
-StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
-                                    const ProgressCallback& progress, OptimumCache* cache) {
-  StatusOr<OptimumOptions> options = ToOptimumOptions(request);
-  if (!options.ok()) return options.status();
+StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const RunContext& context) {
+  DRILLBIF_ASSIGN_OR_RETURN(const OptimumPlan plan, PlanOptimum(request));
+  const ProgressCallback& progress = context.progress;
+  OptimumCache* const cache = context.optimum_cache;
   // The curves take most of the time: 85% of the progress bar.
   constexpr double kShare = 0.85;
   ProgressCallback curves_progress;
@@ -148,7 +146,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   const auto trace_start = std::chrono::steady_clock::now();
   bool reused = false, cancelled = false;
   StatusOr<std::shared_ptr<const OptimumCurves>> found =
-      CurvesFor(request.trace(), key, curves_progress, cache, &reused, &cancelled);
+      CurvesFor(plan.trace, key, curves_progress, cache, &reused, &cancelled);
   if (!found.ok()) return found.status();
   v1::OptimumResult out;
   out.set_engine_version(EngineVersion());
@@ -163,7 +161,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   }
 
   const auto region_start = std::chrono::steady_clock::now();
-  const auto [n1, n2] = GridFor(request, *options, curves.options);
+  const auto [n1, n2] = plan.grid;
   const auto& model = Model();
   ExactPropagator propagator(model);
   std::shared_ptr<const StabilityRegion> held =
@@ -195,7 +193,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
   }
 
   const auto query_start = std::chrono::steady_clock::now();
-  const RobustOptimum best = FindRobustOptimum(region, *options);
+  const RobustOptimum best = FindRobustOptimum(region, plan.options);
   out.set_query_seconds(Seconds(query_start));
   out.set_candidates(best.candidates);
   if (!best.status.ok()) {
@@ -241,10 +239,38 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request,
 
 }  // namespace
 
+StatusOr<OptimumPlan> PlanOptimum(const v1::OptimumRequest& request) {
+  OptimumPlan plan;
+  DRILLBIF_ASSIGN_OR_RETURN(plan.options, ToOptimumOptions(request));
+  StatusOr<TracePlan> trace = PlanTrace(request.trace());
+  if (!trace.ok()) {
+    const Status& s = trace.status();
+    return s.code() == StatusCode::kInvalidArgument ? InvalidArgument("trace." + s.message()) : s;
+  }
+  plan.trace = std::move(trace).value();
+  plan.grid = GridFor(request, plan.options, plan.trace.options);
+  return plan;
+}
+
+JobCost OptimumCost(const OptimumPlan& plan) {
+  JobCost cost = TraceCost(plan.trace);
+  const JobCost region = RegionCost(plan.grid.first, plan.grid.second);
+  // The coexistence check: 8 simulations of ~600 periods, ~50 ms; the query milliseconds.
+  cost.seconds.amount += region.seconds.amount + 0.1;
+  cost.memory_bytes.amount += region.memory_bytes.amount;
+  // The result is one point and the attractors found there: a few kB.
+  cost.result_bytes = {1e4, "the optimum"};
+  if (region.seconds.amount > cost.seconds.amount / 2) cost.seconds.driver = region.seconds.driver;
+  if (region.memory_bytes.amount > cost.memory_bytes.amount / 2) {
+    cost.memory_bytes.driver = region.memory_bytes.driver + " (request.grid, or the margin)";
+  }
+  return cost;
+}
+
 StatusOr<v1::OptimumResult> RunOptimum(const v1::OptimumRequest& request,
-                                       const ProgressCallback& progress, OptimumCache* cache) {
+                                       const RunContext& context) {
   try {
-    return Optimum(request, progress, cache);
+    return Optimum(request, context);
   } catch (const std::bad_alloc&) {
     return Internal("out of memory while computing the optimum");
   } catch (const std::exception& e) {

@@ -1,6 +1,6 @@
 // The trace job: request validation naming the field, and a small box whose one period-doubling
 // curve ends at a flip-grazing inside it and leaves it after a Poincare-section crossing.
-#include "jobs/trace_runner.h"
+#include "jobs/trace_job.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -248,12 +248,12 @@ TEST(RunTrace, CancelStopsBeforeTheNextCurveAndKeepsWhatWasTraced) {
   double last = -1.0;
   bool monotone = true;
   // Cancel at the first report after the branches (fraction > 0.1: before the second curve).
-  const StatusOr<v1::TraceResult> r = RunTrace(SmallBox(), [&](double f) {
-    ++calls;
-    monotone = monotone && f >= last && f <= 1.0;
-    last = f;
-    return f <= 0.1;
-  });
+  const StatusOr<v1::TraceResult> r = RunTrace(SmallBox(), {.progress = [&](double f) {
+                                                 ++calls;
+                                                 monotone = monotone && f >= last && f <= 1.0;
+                                                 last = f;
+                                                 return f <= 0.1;
+                                               }});
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->status(), "CANCELLED");
   EXPECT_TRUE(monotone);

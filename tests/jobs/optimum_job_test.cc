@@ -1,7 +1,7 @@
 // The optimum job and the trace job's region: validation naming the field, and a small box
 // (omega in [0.05, 0.15], a in [0.25, 0.6]) where the margin decides the optimum
 // (tests/region/stability_region_test.cc checks the engine against brute force there).
-#include "jobs/optimum_runner.h"
+#include "jobs/optimum_job.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -11,7 +11,7 @@
 #include <string>
 
 #include "jobs/optimum_cache.h"
-#include "jobs/trace_runner.h"
+#include "jobs/trace_job.h"
 #include "support/same_result.h"
 #include "support/small_requests.h"
 
@@ -117,7 +117,7 @@ TEST(RunOptimum, DefaultGridFollowsTheMargin) {
 // Runs `request` with `cache`, expects the reuse flags given, and the answer of a run from
 // scratch (every field but the times and the reuse flags, bitwise).
 void ExpectReuse(const v1::OptimumRequest& request, OptimumCache* cache, bool curves, bool region) {
-  const StatusOr<v1::OptimumResult> r = RunOptimum(request, {}, cache);
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request, {.optimum_cache = cache});
   const StatusOr<v1::OptimumResult> fresh = RunOptimum(request);
   ASSERT_TRUE(r.ok() && fresh.ok());
   EXPECT_EQ(r->curves_reused(), curves);
@@ -156,13 +156,13 @@ TEST(RunOptimum, ATraceOfTheSameBoxLeavesItsCurvesAndRegion) {
   v1::TraceRequest period2 = testing::SmallBoxTrace();
   period2.set_period2(true);
   period2.set_max(0, 0.12);  // keeps the run short
-  ASSERT_TRUE(RunTrace(period2, {}, &cache).ok());
+  ASSERT_TRUE(RunTrace(period2, {.optimum_cache = &cache}).ok());
   EXPECT_EQ(cache.FindCurves(OptimumCache::KeyOf(period2)), nullptr);
 
   v1::TraceRequest map = testing::SmallBoxTrace();
   map.mutable_region()->add_grid(41);
   map.mutable_region()->add_grid(41);
-  const StatusOr<v1::TraceResult> traced = RunTrace(map, {}, &cache);
+  const StatusOr<v1::TraceResult> traced = RunTrace(map, {.optimum_cache = &cache});
   ASSERT_TRUE(traced.ok()) << traced.status().ToString();
   v1::OptimumRequest request = Request();
   request.add_grid(41);
@@ -177,12 +177,12 @@ TEST(RunOptimum, ACancelledRunIsNotReused) {
   v1::OptimumRequest request = Request();
   request.add_grid(41);
   request.add_grid(41);
-  const StatusOr<v1::OptimumResult> cancelled = RunOptimum(
-      request, [](double) { return false; }, &cache);
+  const StatusOr<v1::OptimumResult> cancelled =
+      RunOptimum(request, {.progress = [](double) { return false; }, .optimum_cache = &cache});
   ASSERT_TRUE(cancelled.ok()) << cancelled.status().ToString();
   EXPECT_EQ(cancelled->status(), "CANCELLED");
   EXPECT_EQ(cache.FindCurves(OptimumCache::KeyOf(request.trace())), nullptr);
-  const StatusOr<v1::OptimumResult> r = RunOptimum(request, {}, &cache);
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request, {.optimum_cache = &cache});
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_FALSE(r->curves_reused());
   EXPECT_EQ(r->status(), "COMPLETED") << r->message();

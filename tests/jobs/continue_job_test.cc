@@ -2,6 +2,8 @@
 // published fold and ROP maximum of MODEL.md's continuation in b, the branch points' contents,
 // invalid requests as INVALID_ARGUMENT naming the field, a chaotic start
 // as FAILED_PRECONDITION, direction, step budget, signature switching off, and cancellation.
+#include "jobs/continue_job.h"
+
 #include <gmock/gmock.h>
 #include <google/protobuf/util/json_util.h>
 #include <gtest/gtest.h>
@@ -11,7 +13,8 @@
 #include <numeric>
 #include <string>
 
-#include "jobs/job_runner.h"
+#include "jobs/simulate_job.h"
+#include "jobs/sweep_job.h"
 
 namespace drillbif::jobs {
 namespace {
@@ -264,10 +267,11 @@ TEST(RunContinue, WithoutSwitchingStopsAtTheL1Grazing) {
 TEST(RunContinue, CancelledFromTheProgressCallback) {
   int calls = 0;
   std::vector<double> fractions;
-  const StatusOr<v1::ContinueResult> r = RunContinue(FoldRequest(), [&](double fraction) {
-    fractions.push_back(fraction);
-    return ++calls < 4;
-  });
+  const StatusOr<v1::ContinueResult> r =
+      RunContinue(FoldRequest(), {.progress = [&](double fraction) {
+                    fractions.push_back(fraction);
+                    return ++calls < 4;
+                  }});
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->status(), "CANCELLED");
   EXPECT_EQ(calls, 4);
@@ -280,7 +284,8 @@ TEST(RunContinue, CancelledFromTheProgressCallback) {
 }
 
 TEST(RunContinue, CancelledBeforeTheFirstStep) {
-  const StatusOr<v1::ContinueResult> r = RunContinue(FoldRequest(), [](double) { return false; });
+  const StatusOr<v1::ContinueResult> r =
+      RunContinue(FoldRequest(), {.progress = [](double) { return false; }});
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->status(), "CANCELLED");
   EXPECT_EQ(r->points_size(), 0);

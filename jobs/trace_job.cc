@@ -1,5 +1,6 @@
-#include "jobs/trace_runner.h"
+#include "jobs/trace_job.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <exception>
@@ -7,6 +8,7 @@
 #include <new>
 #include <string>
 
+#include "drillbif/common/checked.h"
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/orbit/periodic_orbit.h"
@@ -137,29 +139,53 @@ v1::TraceResult ToProto(const TraceResult& r) {
   return out;
 }
 
-// The region's grid from the request: two values >= 3 (the engine checks the total), or 201 each.
+// The region's grid from the request: two values in [3, kMaxRegionNodes], or 201 each.
 StatusOr<std::pair<int, int>> GridSizeOf(const v1::RegionRequest& request) {
   if (request.grid_size() == 0) return std::pair<int, int>(201, 201);
-  if (request.grid_size() != 2 || request.grid(0) < 3 || request.grid(1) < 3) {
-    return InvalidArgument("region.grid: give two node counts >= 3 (one per trace parameter)");
+  if (request.grid_size() != 2 || request.grid(0) < 3 || request.grid(1) < 3 ||
+      request.grid(0) > kMaxRegionNodes || request.grid(1) > kMaxRegionNodes) {
+    return InvalidArgument("region.grid: give two node counts in [3, " +
+                           std::to_string(kMaxRegionNodes) + "] (one per trace parameter)");
   }
   return std::pair<int, int>(request.grid(0), request.grid(1));
 }
 
-StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressCallback& progress,
-                                OptimumCache* cache) {
-  std::pair<int, int> grid;
-  if (request.has_region()) {
-    StatusOr<std::pair<int, int>> g = GridSizeOf(request.region());
-    if (!g.ok()) return g.status();
-    grid = *g;
-  }
+// Cost model (docs/performance.md, "Admission control"). The period-1 map of the (omega, a) box
+// [0.05, 2] x [0.01, 8] (most of where the model is of interest: the reference span) takes 26 s
+// and its period-2 map 8.5 min at ~1.6 GB; a small box takes ~1.5 s (start orbit, branches,
+// edge branches). The time grows with the box's area in units of the reference spans and about
+// 20-fold per period. Curve results are ~100 bytes a vertex.
+constexpr double kTraceBaseSeconds = 5;
+constexpr double kTraceReferenceSeconds = 30;
+constexpr double kPeriodFactor = 20;
+constexpr double kTraceBytesPerSecond = 2e5;
+constexpr double kTraceMemoryPerSecond = 3e6;
+// A region node: ~15 us to classify (157000 nodes in 2.35 s), ~200 bytes held.
+constexpr double kRegionSecondsPerNode = 1.5e-5;
+constexpr double kRegionBytesPerNode = 200;
+
+// The span of values of a parameter the reference box covers (omega in [0.05, 2], a in
+// [0.01, 8]), and for the others the range their studies use (MODEL.md).
+double ReferenceSpan(const std::string& param) {
+  if (param == "omega") return 2.0;
+  if (param == "a") return 8.0;
+  if (param == "b") return 0.2;
+  if (param == "xi") return 0.5;
+  if (param == "g") return 0.1;
+  return kTwoPi;  // phi0
+}
+
+StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const RunContext& context) {
+  DRILLBIF_ASSIGN_OR_RETURN(const TracePlan plan, PlanTrace(request));
+  const ProgressCallback& progress = context.progress;
+  OptimumCache* const cache = context.optimum_cache;
   // With a region, the curves take the first 90% of the progress bar.
   const double share = request.has_region() ? 0.9 : 1.0;
   ProgressCallback curves_progress;
   if (progress) curves_progress = [&](double f) { return progress(share * f); };
-  StatusOr<internal::EngineTrace> trace = internal::TraceRequestCurves(request, curves_progress);
+  StatusOr<internal::EngineTrace> trace = internal::TraceCurvesOf(plan, curves_progress);
   if (!trace.ok()) return trace.status();
+  const std::pair<int, int> grid = plan.region_grid.value_or(std::pair<int, int>(0, 0));
   v1::TraceResult out = ToProto(trace->result);
   // Curves an optimum can use (period 1 only, as its are) go to the cache for later optimum jobs.
   const bool for_optimum = cache != nullptr && !trace->result.summary.cancelled &&
@@ -190,24 +216,64 @@ StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const ProgressC
 
 }  // namespace
 
+StatusOr<TracePlan> PlanTrace(const v1::TraceRequest& request) {
+  TracePlan plan;
+  plan.params = internal::ToEngineParams(request.params());
+  DRILLBIF_RETURN_IF_ERROR(Model().ValidateParams(plan.params));
+  DRILLBIF_ASSIGN_OR_RETURN(plan.options, ToTraceOptions(request, plan.params));
+  DRILLBIF_ASSIGN_OR_RETURN(plan.search, internal::StartSearchOf(request, plan.params));
+  plan.options.seed_state = plan.search.x0;
+  if (request.has_region()) {
+    DRILLBIF_ASSIGN_OR_RETURN(plan.region_grid, GridSizeOf(request.region()));
+  }
+  return plan;
+}
+
+JobCost TraceCost(const TracePlan& plan) {
+  const TraceOptions& o = plan.options;
+  const double area =
+      (o.max1 - o.min1) / ReferenceSpan(o.param1) * ((o.max2 - o.min2) / ReferenceSpan(o.param2));
+  const double periods = std::pow(kPeriodFactor, std::max(0, o.max_period - 1));
+  const std::string box = "the box " + o.param1 + " in [" + Num(o.min1) + ", " + Num(o.max1) +
+                          "], " + o.param2 + " in [" + Num(o.min2) + ", " + Num(o.max2) + "]";
+  const std::string driver = box + " (request.min, request.max) with orbits of period up to " +
+                             std::to_string(o.max_period) +
+                             " (request.period2, request.max_period)";
+  JobCost cost;
+  const double seconds = kTraceBaseSeconds + kTraceReferenceSeconds * area * periods;
+  cost.seconds = {seconds, driver};
+  cost.result_bytes = {seconds * kTraceBytesPerSecond, driver};
+  cost.memory_bytes = {seconds * kTraceMemoryPerSecond, driver};
+  if (plan.region_grid) {
+    const JobCost region = RegionCost(plan.region_grid->first, plan.region_grid->second);
+    cost.seconds.amount += region.seconds.amount;
+    cost.result_bytes.amount += region.result_bytes.amount;
+    cost.memory_bytes.amount += region.memory_bytes.amount;
+  }
+  return cost;
+}
+
+JobCost RegionCost(int n1, int n2) {
+  const double nodes = CountOrInfinity(CheckedMul(int64_t{n1}, int64_t{n2}));
+  const std::string driver =
+      "a region grid of " + std::to_string(n1) + " x " + std::to_string(n2) + " nodes";
+  JobCost cost;
+  cost.seconds = {nodes * kRegionSecondsPerNode, driver};
+  cost.result_bytes = {nodes * 8, driver};  // labels and polygons, well under a word a node
+  cost.memory_bytes = {nodes * kRegionBytesPerNode, driver};
+  return cost;
+}
+
 namespace internal {
 
-StatusOr<EngineTrace> TraceRequestCurves(const v1::TraceRequest& request,
-                                         const ProgressCallback& progress) {
+StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallback& progress) {
   EngineTrace out;
   out.started = std::chrono::steady_clock::now();
   const Osc& model = Model();
-  const Params params = ToEngineParams(request.params());
-  if (Status s = model.ValidateParams(params); !s.ok()) return s;
-  StatusOr<TraceOptions> options = ToTraceOptions(request, params);
-  if (!options.ok()) return options.status();
-  const StatusOr<StartSearch> search = StartSearchOf(request, params);
-  if (!search.ok()) return search.status();
-  out.options = *options;
-  out.options.seed_state = search->x0;
+  out.options = plan.options;
   ExactPropagator propagator(model);
   StatusOr<PeriodicOrbit> orbit =
-      StartOrbit(propagator, params, search->x0, search->transient_periods);
+      StartOrbit(propagator, plan.params, plan.search.x0, plan.search.transient_periods);
   if (!orbit.ok()) return orbit.status();
   out.start = *orbit;
   out.result = TraceCurves(model, propagator, out.start, out.options, progress);
@@ -237,10 +303,9 @@ RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2) {
 
 }  // namespace internal
 
-StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request,
-                                   const ProgressCallback& progress, OptimumCache* cache) {
+StatusOr<v1::TraceResult> RunTrace(const v1::TraceRequest& request, const RunContext& context) {
   try {
-    return Trace(request, progress, cache);
+    return Trace(request, context);
   } catch (const std::bad_alloc&) {
     return Internal("out of memory while tracing");
   } catch (const std::exception& e) {

@@ -1,0 +1,156 @@
+#include "jobs/sweep_job.h"
+
+#include <chrono>
+#include <exception>
+#include <memory>
+#include <new>
+#include <string>
+
+#include "drillbif/common/checked.h"
+#include "drillbif/flow/exact_propagator.h"
+#include "drillbif/version.h"
+#include "jobs/job_common.h"
+
+namespace drillbif::jobs {
+namespace {
+
+using internal::Model;
+using internal::Num;
+using internal::Seconds;
+
+// Cost model (docs/performance.md, "Admission control"): as a simulation with the exact
+// propagator, 1e-5 s per forcing period, and 40 bytes per Poincare sample in the result.
+constexpr double kSecondsPerPeriod = 1e-5;
+constexpr double kSampleBytes = 40;
+constexpr double kValueBytes = 30;  // a grid value's own fields (value, status)
+
+StatusOr<SweepOptions> ToSweepOptions(const v1::SweepRequest& request) {
+  SweepOptions options;
+  options.param = request.param();
+  options.min = request.min();
+  options.max = request.max();
+  if (request.has_steps()) options.steps = request.steps();
+  switch (request.direction()) {
+    case v1::SweepRequest::DIRECTION_UNSPECIFIED:
+    case v1::SweepRequest::UP:
+      options.direction = SweepDirection::kUp;
+      break;
+    case v1::SweepRequest::DOWN:
+      options.direction = SweepDirection::kDown;
+      break;
+    case v1::SweepRequest::BOTH:
+      options.direction = SweepDirection::kBoth;
+      break;
+    default:
+      return InvalidArgument("direction: unknown value " + std::to_string(request.direction()));
+  }
+  if (request.has_transient_periods()) options.transient_periods = request.transient_periods();
+  if (request.has_sample_periods()) options.sample_periods = request.sample_periods();
+  options.threads = request.threads();
+  DRILLBIF_RETURN_IF_ERROR(options.Validate());
+  if (options.threads > kMaxSweepThreads) {
+    return InvalidArgument("threads must be <= " + std::to_string(kMaxSweepThreads) + ", got " +
+                           std::to_string(options.threads));
+  }
+  const int64_t directions = options.direction == SweepDirection::kBoth ? 2 : 1;
+  const std::optional<int64_t> samples =
+      CheckedMul(CheckedMul(int64_t{options.steps}, int64_t{options.sample_periods}), directions);
+  if (!samples || *samples > kMaxSweepSamples) {
+    return InvalidArgument("steps * sample_periods * directions = " +
+                           (samples ? std::to_string(*samples) : std::string("(overflow)")) +
+                           " Poincare samples, more than the " + std::to_string(kMaxSweepSamples) +
+                           " one sweep may record");
+  }
+  return options;
+}
+
+void ToProto(const SweepPoint& in, bool sweep_cancelled, v1::SweepPoint* out) {
+  out->set_value(in.value);
+  // A grid value the workers never reached keeps the engine's initial kFailed with no message.
+  if (sweep_cancelled && in.termination == Termination::kFailed && in.message.empty()) {
+    out->set_status(TerminationName(Termination::kCancelled));
+    out->set_message("not reached before the sweep was cancelled");
+    return;
+  }
+  out->set_status(TerminationName(in.termination));
+  out->set_message(in.message);
+  out->mutable_samples()->Reserve(static_cast<int>(in.samples.size()));
+  for (const PoincareSample& smp : in.samples) internal::ToProto(smp, out->add_samples());
+}
+
+}  // namespace
+
+StatusOr<SweepPlan> PlanSweep(const v1::SweepRequest& request) {
+  SweepPlan plan;
+  DRILLBIF_ASSIGN_OR_RETURN(plan.options, ToSweepOptions(request));
+  plan.params = internal::ToEngineParams(request.params());
+  StatusOr<int> index = Model().ParamIndex(plan.options.param);
+  if (!index.ok()) return InvalidArgument("param: " + index.status().message());
+  DRILLBIF_RETURN_IF_ERROR(internal::CheckParamValues(
+      plan.params, *index, {{"min", plan.options.min}, {"max", plan.options.max}}));
+  plan.x0 = internal::ToEngineState(request.has_initial_state(), request.initial_state());
+  DRILLBIF_RETURN_IF_ERROR(
+      Model().ValidateState(plan.x0, plan.params, SimulationOptions().state_tolerance));
+  return plan;
+}
+
+JobCost SweepCost(const SweepPlan& plan) {
+  const SweepOptions& o = plan.options;
+  const int64_t directions = o.direction == SweepDirection::kBoth ? 2 : 1;
+  const std::optional<int64_t> values = CheckedMul(int64_t{o.steps}, directions);
+  // Each value runs its transient and its window; a chunk's first value a longer transient.
+  const double periods =
+      CountOrInfinity(
+          CheckedMul(values, CheckedAdd(int64_t{o.transient_periods}, int64_t{o.sample_periods}))) +
+      CountOrInfinity(CheckedMul(
+          CheckedMul(int64_t{o.chunk_start_transient_factor}, int64_t{o.transient_periods}),
+          int64_t{kMaxSweepThreads}));
+  JobCost cost;
+  cost.seconds.amount = periods * kSecondsPerPeriod;
+  cost.seconds.driver =
+      "request.steps * directions * (request.transient_periods + "
+      "request.sample_periods) = " +
+      Num(periods) + " forcing periods";
+  const double samples = CountOrInfinity(CheckedMul(values, int64_t{o.sample_periods}));
+  cost.result_bytes.amount = samples * kSampleBytes + CountOrInfinity(values) * kValueBytes;
+  cost.result_bytes.driver =
+      "request.steps * directions * request.sample_periods = " + Num(samples) + " Poincare samples";
+  // Values finished out of order wait for their predecessors; the engine holds the rest.
+  cost.memory_bytes = {cost.result_bytes.amount * 4, cost.result_bytes.driver};
+  return cost;
+}
+
+StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request, const RunContext& context) {
+  const auto start = std::chrono::steady_clock::now();
+  DRILLBIF_ASSIGN_OR_RETURN(const SweepPlan plan, PlanSweep(request));
+  const auto& model = Model();
+  const PropagatorFactory make_propagator = [&model] {
+    return std::unique_ptr<Propagator>(std::make_unique<ExactPropagator>(model));
+  };
+  try {
+    const SweepResult r = Sweep(model, make_propagator, plan.params, plan.x0, plan.options,
+                                context.progress, context.on_value);
+    // Sweep validates everything (parameter name, range ends, initial state) before it starts;
+    // once started it always completes or is cancelled, single values failing on their own.
+    if (r.termination == Termination::kFailed) {
+      return r.status.ok() ? Internal("sweep failed without a reason") : r.status;
+    }
+    const bool cancelled = r.termination == Termination::kCancelled;
+    v1::SweepResult out;
+    out.set_status(TerminationName(r.termination));
+    if (!r.status.ok()) out.set_message(r.status.message());
+    for (const SweepPoint& pt : r.up) ToProto(pt, cancelled, out.add_up());
+    for (const SweepPoint& pt : r.down) ToProto(pt, cancelled, out.add_down());
+    out.set_periods_total(r.periods_total);
+    out.set_events_total(r.events_total);
+    out.set_engine_version(EngineVersion());
+    out.set_wall_seconds(Seconds(start));
+    return out;
+  } catch (const std::bad_alloc&) {
+    return Internal("out of memory while sweeping");
+  } catch (const std::exception& e) {
+    return Internal(std::string("sweep failed: ") + e.what());
+  }
+}
+
+}  // namespace drillbif::jobs
