@@ -46,20 +46,33 @@ JobKindSpec Entry(v1::JobKind kind, std::string name, std::string submit_method,
   return spec;
 }
 
+// Default limits (docs/service.md, "Admission control"). Results up to 256 MB (a million Poincare
+// samples with events, or a period-2 map); memory up to 1 GB per job. Times: a simulation or a
+// continuation that runs longer than minutes is a request error more often than a need; a trace
+// or an optimum of a whole box takes ~30 s at period 1 and ~9 min at period 2.
+constexpr int64_t kResultBytes = 256'000'000;
+constexpr int64_t kMemoryBytes = 1'000'000'000;
+KindLimits Limits(double seconds) { return {seconds, kResultBytes, kMemoryBytes}; }
+
 std::vector<JobKindSpec> BuildKinds() {
   std::vector<JobKindSpec> kinds;
   kinds.push_back(Entry(v1::SIMULATE, "simulate", "SubmitSimulate",
                         {"poincare", "events", "period_modes", "trajectory"}, PlanSimulate,
                         SimulateCost, RunSimulate));
+  kinds.back().default_limits = Limits(300);
   kinds.push_back(
       Entry(v1::SWEEP, "sweep", "SubmitSweep", {"up", "down"}, PlanSweep, SweepCost, RunSweep));
+  kinds.back().default_limits = Limits(1800);
   kinds.push_back(Entry(v1::CONTINUE, "continue", "SubmitContinue", {"points"}, PlanContinue,
                         ContinueCost, RunContinue));
   kinds.back().first_page_fields = {"period_doubled_branch"};
+  kinds.back().default_limits = Limits(600);
   kinds.push_back(
       Entry(v1::TRACE, "trace", "SubmitTrace", {"curves"}, PlanTrace, TraceCost, RunTrace));
+  kinds.back().default_limits = Limits(1800);
   kinds.push_back(
       Entry(v1::OPTIMUM, "optimum", "SubmitOptimum", {}, PlanOptimum, OptimumCost, RunOptimum));
+  kinds.back().default_limits = Limits(1800);
   return kinds;
 }
 

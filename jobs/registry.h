@@ -43,6 +43,9 @@ struct JobKindSpec {
   // The result's repeated message fields whose items a run streams (RunContext::sink) and
   // GetResult pages, in the order of the page unit (GetResultRequest.page_size counts them).
   std::vector<std::string> paged_fields;
+  // The limits a server applies to the kind unless configured otherwise (job_cost.h): sized so
+  // that no accepted job of the kind takes more than ~1 GB on a 2-core machine.
+  KindLimits default_limits;
   // Fields of the result's summary sent with the first page only (a nested result that can be
   // as large as the whole: the continuation's period-doubled branch).
   std::vector<std::string> first_page_fields;

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "server/json_log.h"
 #include "server/server.h"
@@ -43,6 +44,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-queued-jobs", options.max_queued_jobs,
                  "Submits are refused while this many jobs wait")
       ->capture_default_str();
+  std::vector<std::string> job_limits;
+  app.add_option("--job-limit", job_limits,
+                 "A job kind's limit, KIND.NAME=VALUE (repeatable): NAME seconds, result-bytes or "
+                 "memory-bytes, e.g. --job-limit trace.seconds=3600 (docs/service.md lists the "
+                 "defaults)");
   app.add_option("--port-file", port_file,
                  "Write the ports chosen to this file once serving: the gRPC port on the first "
                  "line, the HTTP port on the second (for port 0)");
@@ -55,6 +61,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
+  for (const std::string& limit : job_limits) {
+    if (drillbif::Status s = options.SetJobLimit(limit); !s.ok()) {
+      std::fprintf(stderr, "invalid options: %s\n", s.message().c_str());
+      return 2;
+    }
+  }
   spdlog::set_level(spdlog::level::from_str(log_level));
   if (log_format == "json") spdlog::set_formatter(drillbif::server::JsonLogFormatter());
   if (drillbif::Status s = options.Validate(); !s.ok()) {

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <mutex>
 #include <string_view>
 #include <thread>
@@ -53,6 +54,56 @@ Status ServerOptions::Validate() const {
                            std::to_string(http_threads));
   }
   if (Status s = metrics.Validate(); !s.ok()) return InvalidArgument("metrics." + s.message());
+  for (const auto& [name, limits] : job_limits) {
+    if (jobs::FindKind(name) == nullptr) {
+      return InvalidArgument("job_limits: unknown job kind '" + name + "'");
+    }
+    if (Status s = limits.Validate(); !s.ok()) {
+      return InvalidArgument("job_limits." + name + "." + s.message());
+    }
+  }
+  return Status::Ok();
+}
+
+jobs::KindLimits ServerOptions::LimitsOf(const jobs::JobKindSpec& kind) const {
+  auto it = job_limits.find(kind.name);
+  return it != job_limits.end() ? it->second : kind.default_limits;
+}
+
+Status ServerOptions::SetJobLimit(std::string_view spec) {
+  const size_t dot = spec.find('.');
+  const size_t eq = spec.find('=');
+  if (dot == std::string_view::npos || eq == std::string_view::npos || eq < dot) {
+    return InvalidArgument("job limit '" + std::string(spec) +
+                           "': expected KIND.NAME=VALUE, e.g. trace.seconds=3600");
+  }
+  const std::string kind_name(spec.substr(0, dot));
+  const std::string name(spec.substr(dot + 1, eq - dot - 1));
+  const std::string value_text(spec.substr(eq + 1));
+  const jobs::JobKindSpec* kind = jobs::FindKind(kind_name);
+  if (kind == nullptr) {
+    return InvalidArgument("job limit '" + std::string(spec) + "': unknown job kind '" + kind_name +
+                           "'");
+  }
+  char* end = nullptr;
+  const double value = std::strtod(value_text.c_str(), &end);
+  // Bytes up to 2^62: far above any machine, and the conversion to int64_t cannot overflow.
+  if (value_text.empty() || *end != '\0' || !(value >= 0) || !(value <= 4.6e18)) {
+    return InvalidArgument("job limit '" + std::string(spec) +
+                           "': the value must be a number in [0, 4.6e18]");
+  }
+  jobs::KindLimits limits = LimitsOf(*kind);
+  if (name == "seconds") {
+    limits.max_seconds = value;
+  } else if (name == "result-bytes") {
+    limits.max_result_bytes = static_cast<int64_t>(value);
+  } else if (name == "memory-bytes") {
+    limits.max_memory_bytes = static_cast<int64_t>(value);
+  } else {
+    return InvalidArgument("job limit '" + std::string(spec) + "': unknown limit '" + name +
+                           "' (seconds, result-bytes, memory-bytes)");
+  }
+  job_limits[kind_name] = limits;
   return Status::Ok();
 }
 

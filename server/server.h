@@ -12,10 +12,14 @@
 #define DRILLBIF_SERVER_SERVER_H_
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "drillbif/common/status.h"
+#include "jobs/job_cost.h"
+#include "jobs/registry.h"
 #include "server/executor.h"
 #include "server/metrics.h"
 #include "server/store/job_store.h"
@@ -49,6 +53,12 @@ struct ServerOptions {
   // (the bound of the job queue; jobs are persistent, so the bound protects the disk and the
   // latency of the jobs already waiting).
   int max_queued_jobs = 10000;
+  // Limits of each job kind by name (jobs/job_cost.h): a request estimated above one is refused
+  // at submit with RESOURCE_EXHAUSTED naming the field, its value and the limit; a run that
+  // reaches its time limit fails with DEADLINE_EXCEEDED, one whose result reaches its size limit
+  // with RESOURCE_EXHAUSTED. Kinds not here keep their registry defaults
+  // (JobKindSpec::default_limits); SetJobLimit changes one value.
+  std::map<std::string, jobs::KindLimits> job_limits;
   // The executor that runs the RPCs' store work (its queue bound gives RESOURCE_EXHAUSTED).
   ExecutorOptions executor;
   // Shortest time between two progress writes of one job (and store cancel polls).
@@ -65,6 +75,14 @@ struct ServerOptions {
 
   // INVALID_ARGUMENT naming the field when a value is out of range.
   Status Validate() const;
+
+  // The limits that apply to `kind`.
+  jobs::KindLimits LimitsOf(const jobs::JobKindSpec& kind) const;
+
+  // Sets one limit from "KIND.NAME=VALUE": KIND a job kind (simulate, sweep, continue, trace,
+  // optimum), NAME seconds, result-bytes or memory-bytes, VALUE a number >= 0 (0: no limit;
+  // "1e9" accepted). INVALID_ARGUMENT saying what is wrong otherwise.
+  Status SetJobLimit(std::string_view spec);
 };
 
 // A running server. Thread-safe.

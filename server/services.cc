@@ -143,8 +143,10 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
                  "request_id: at most 128 bytes, got " + std::to_string(request_id.size()));
   }
   const jobs::JobKindSpec& spec = *jobs::FindKind(kind);
-  if (StatusOr<jobs::JobCost> cost = jobs::CheckRequest(spec, request); !cost.ok()) {
-    return ToGrpc(cost.status());
+  StatusOr<jobs::JobCost> cost = jobs::CheckRequest(spec, request);
+  if (!cost.ok()) return ToGrpc(cost.status());
+  if (Status s = jobs::CheckCost(*cost, state.options.LimitsOf(spec), spec.name.c_str()); !s.ok()) {
+    return ToGrpc(s);
   }
   SubmitRequest submit;
   submit.kind = spec.name;
@@ -544,9 +546,8 @@ grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext*
     return FinishNow(context, auth);
   }
   const jobs::JobKindSpec& optimum = *jobs::FindKind(v1::OPTIMUM);
-  if (StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request->request()); !cost.ok()) {
-    return FinishNow(context, ToGrpc(cost.status()));
-  }
+  StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request->request());
+  if (!cost.ok()) return FinishNow(context, ToGrpc(cost.status()));
   const std::string key =
       jobs::CacheKey(optimum.name, jobs::DeterministicBytes(request->request()));
   std::string id;
@@ -562,6 +563,11 @@ grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext*
   if (!known && !request->compute()) {
     return FinishNow(context, Error(grpc::StatusCode::NOT_FOUND,
                                     "no stored optimum for this request; set compute to run it"));
+  }
+  // Computing it is a submit: the same limits apply (a stored answer is served whatever its cost).
+  if (Status s = jobs::CheckCost(*cost, state_->options.LimitsOf(optimum), "optimum");
+      !known && !s.ok()) {
+    return FinishNow(context, ToGrpc(s));
   }
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const Clock::time_point deadline = WaitDeadline(context, &request->timeout());

@@ -314,7 +314,7 @@ TEST_F(DrillctlServer, JobsListGetAndCancel) {
 
   // A long sweep cancelled with `jobs cancel`: CANCELLED, and `jobs result` says it has none.
   const Outcome long_sweep = Remote({"--detach", "sweep", "--param", "b", "--min", "0", "--max",
-                                     "0.2", "--steps", "100000", "--threads", "1"});
+                                     "0.2", "--steps", "100000", "--samples", "1", "--threads", "1"});
   ASSERT_EQ(long_sweep.exit_code, 0) << long_sweep.err;
   const std::string sweep = NameOf(long_sweep);
   const Outcome cancelled = Remote({"jobs", "cancel", sweep, "--format", "csv"});

@@ -49,6 +49,7 @@ constexpr char kToken[] = "test-token";
 // Requests larger than this are refused by the test server (ServerOptions::max_request_bytes).
 constexpr int kMaxRequestBytes = 64 * 1024;
 
+using drillbif::testing::LongSweep;
 using drillbif::testing::SmallBoxTrace;
 using drillbif::testing::SmallSweep;
 using drillbif::testing::TempDir;
@@ -413,7 +414,7 @@ TEST_F(GrpcServiceTest, IdenticalRequestIsACacheHitWithoutEngineRun) {
 // for (it would run for minutes); the value measured is printed.
 TEST_F(GrpcServiceTest, CancelOfARunningSweepReachesCancelled) {
   v1::SubmitSweepRequest request;
-  *request.mutable_request() = SmallSweep(0.0, 100000);
+  *request.mutable_request() = LongSweep();
   Operation op;
   auto context = Context();
   ASSERT_TRUE(jobs_->SubmitSweep(context.get(), request, &op).ok());
@@ -589,6 +590,25 @@ TEST_F(GrpcServiceTest, BadInputGivesClearCodesAndTheServerKeepsServing) {
   request.mutable_request()->set_sample_periods(2);
   auto context = Context();
   EXPECT_TRUE(jobs_->SubmitSimulate(context.get(), request, &op).ok());
+}
+
+// Admission control: a request whose estimated cost is over its kind's limit is refused at submit
+// with RESOURCE_EXHAUSTED naming the fields, their value and the limit; nothing is queued.
+TEST_F(GrpcServiceTest, RequestsOverTheirKindsLimitsAreRefusedAtSubmit) {
+  const StatusOr<StoreStats> before = server_->store().Stats();
+  ASSERT_TRUE(before.ok());
+  v1::SubmitSimulateRequest request;
+  request.mutable_request()->set_transient_periods(2147483647);
+  Operation op;
+  auto context = Context();
+  const grpc::Status s = jobs_->SubmitSimulate(context.get(), request, &op);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(s.error_message(), HasSubstr("request.transient_periods + request.sample_periods = "
+                                           "2147483747 forcing periods"));
+  EXPECT_THAT(s.error_message(), HasSubstr("max_seconds of simulate jobs"));
+  const StatusOr<StoreStats> after = server_->store().Stats();
+  ASSERT_TRUE(after.ok());
+  EXPECT_EQ(after->jobs_by_state, before->jobs_by_state);  // nothing was stored
 }
 
 TEST_F(GrpcServiceTest, MissingOrWrongTokenIsUnauthenticated) {

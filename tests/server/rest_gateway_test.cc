@@ -28,9 +28,9 @@
 #include "drillbif/v1/service.pb.h"
 #include "google/longrunning/operations.pb.h"
 #include "jobs/continue_job.h"
+#include "jobs/optimum_job.h"
 #include "jobs/simulate_job.h"
 #include "jobs/sweep_job.h"
-#include "jobs/optimum_job.h"
 #include "jobs/trace_job.h"
 #include "server/server.h"
 #include "support/operations.h"
@@ -52,6 +52,7 @@ using google::protobuf::Message;
 using google::protobuf::util::MessageDifferencer;
 using ::testing::HasSubstr;
 
+using drillbif::testing::LongSweep;
 using drillbif::testing::SmallBoxTrace;
 using drillbif::testing::SmallSweep;
 using drillbif::testing::TempDir;
@@ -506,7 +507,7 @@ TEST_F(RestGatewayTest, ListGetCancelAndDeleteOperations) {
 // the sweep ignores until it ends).
 TEST_F(RestGatewayTest, CancelOfARunningSweepReachesCancelled) {
   v1::SubmitSweepRequest request;
-  *request.mutable_request() = SmallSweep(0.0, 100000);
+  *request.mutable_request() = LongSweep();
   request.mutable_request()->set_max(0.199);  // Not the gRPC test's request.
   const Operation op = Submit("/v1/jobs:sweep", request);
   const std::string id = op.name().substr(std::string("operations/").size());
@@ -632,7 +633,7 @@ TEST(RestGatewayShutdown, OpenEventStreamEndsWithAnErrorEvent) {
   client.set_read_timeout(std::chrono::seconds(30));
 
   v1::SubmitSweepRequest request;
-  *request.mutable_request() = SmallSweep(0.0, 100000);
+  *request.mutable_request() = LongSweep();
   httplib::Result submitted = client.Post("/v1/jobs:sweep", Json(request), "application/json");
   ASSERT_TRUE(submitted);
   ASSERT_EQ(submitted->status, 200) << submitted->body;

@@ -34,6 +34,15 @@ inline v1::SweepRequest SmallSweep(double min, int steps) {
   return sweep;
 }
 
+// A sweep of b over [0, 0.2] that runs for minutes (100000 values of 501 forcing periods on one
+// thread) but records little (one sample a value): a job to cancel or interrupt while it runs,
+// well inside every default limit.
+inline v1::SweepRequest LongSweep() {
+  v1::SweepRequest sweep = SmallSweep(0.0, 100000);
+  sweep.set_sample_periods(1);
+  return sweep;
+}
+
 }  // namespace drillbif::testing
 
 #endif  // DRILLBIF_TESTS_SUPPORT_SMALL_REQUESTS_H_
