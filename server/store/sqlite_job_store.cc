@@ -591,21 +591,35 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
   std::string id;
   {
     // Fair across clients: each client's oldest claimable job of the allowed lanes (heads),
-    // ordered by how many jobs that client has RUNNING in those lanes, then by age.
+    // ordered by how many jobs that client has RUNNING in those lanes, then by age. The clients
+    // are walked as a skip scan of jobs_claimable (one index seek per client) and each head is
+    // one seek per (client, lane): a claim costs O(clients x lanes x log n), not O(queued jobs).
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
-        connection_.Prepare("WITH heads AS ("
-                            "  SELECT client, MIN(seq) AS seq FROM jobs INDEXED BY jobs_claimable"
-                            "  WHERE state = 0 AND shares IS NULL AND ((?1 >> lane) & 1) = 1"
-                            "  GROUP BY client),"
-                            " running AS ("
-                            "  SELECT client, COUNT(*) AS n FROM jobs INDEXED BY jobs_running"
-                            "  WHERE state = 1 AND shares IS NULL AND ((?1 >> lane) & 1) = 1"
-                            "  GROUP BY client)"
-                            " SELECT j.id FROM heads h JOIN jobs j ON j.seq = h.seq"
-                            " LEFT JOIN running r ON r.client = h.client"
-                            " ORDER BY COALESCE(r.n, 0), h.seq LIMIT 1"));
-    q.Bind(1, LaneMask(options));
+        connection_.Prepare(
+            "WITH RECURSIVE clients(client) AS ("
+            "  SELECT (SELECT MIN(client) FROM jobs INDEXED BY jobs_claimable"
+            "          WHERE state = 0 AND shares IS NULL)"
+            "  UNION ALL"
+            "  SELECT (SELECT MIN(client) FROM jobs INDEXED BY jobs_claimable"
+            "          WHERE state = 0 AND shares IS NULL AND client > c.client)"
+            "  FROM clients c WHERE c.client IS NOT NULL),"
+            " lanes(lane) AS (SELECT 0 UNION ALL SELECT lane + 1 FROM lanes WHERE lane + 1 < ?2),"
+            " heads AS ("
+            "  SELECT c.client AS client, MIN((SELECT seq FROM jobs INDEXED BY jobs_claimable"
+            "    WHERE state = 0 AND shares IS NULL AND client = c.client AND lane = l.lane"
+            "    ORDER BY seq LIMIT 1)) AS seq"
+            "  FROM clients c JOIN lanes l"
+            "  WHERE c.client IS NOT NULL AND ((?1 >> l.lane) & 1) = 1"
+            "  GROUP BY c.client),"
+            " running AS ("
+            "  SELECT client, COUNT(*) AS n FROM jobs INDEXED BY jobs_running"
+            "  WHERE state = 1 AND shares IS NULL AND ((?1 >> lane) & 1) = 1"
+            "  GROUP BY client)"
+            " SELECT j.id FROM heads h JOIN jobs j ON j.seq = h.seq"
+            " LEFT JOIN running r ON r.client = h.client"
+            " ORDER BY COALESCE(r.n, 0), h.seq LIMIT 1"));
+    q.Bind(1, LaneMask(options)).Bind(2, kLaneCount);
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (!row) return std::optional<JobRecord>();
     id = q.Text(0);

@@ -137,9 +137,12 @@ class SqliteStoreImpl final : public JobStore {
   StatusOr<int64_t> UsedBytes();
   // The database file plus its WAL, in bytes (0 for missing files).
   int64_t DiskBytes() const;
-  // Eviction steps (each takes mu_ per batch).
-  Status EvictByAge(int64_t cutoff_ms, EvictionReport* report);
-  Status EvictBySize(int64_t max_bytes, EvictionReport* report);
+  // Eviction steps; each takes mu_ per transaction, not for its whole duration.
+  // Deletes evictable jobs finished before `finished_before`, oldest first, until none is left
+  // or (max_used_bytes > 0) the used size is at most max_used_bytes.
+  Status EvictOldest(int64_t finished_before, int64_t max_used_bytes, EvictionReport* report);
+  // Incremental vacuum in bounded steps (files with auto_vacuum = INCREMENTAL), then a WAL
+  // checkpoint with TRUNCATE.
   Status FreeSpace();
   std::string NewId();
   // Checks that a blob is within SQLite's length limit (INVALID_ARGUMENT naming `field`).
