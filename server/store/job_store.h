@@ -305,11 +305,17 @@ class JobStore {
     return ClaimNext(worker_id, ClaimOptions{});
   }
 
-  // Records progress of a RUNNING job (and of the jobs sharing it). fraction must be in [0, 1],
-  // current_value finite when given, points >= 0 (INVALID_ARGUMENT otherwise). NOT_FOUND for an
-  // unknown id, FAILED_PRECONDITION when the job is not RUNNING (e.g. requeued meanwhile).
-  virtual Status UpdateProgress(std::string_view id, double fraction,
+  // Records progress of run `run` of a RUNNING job (and of the jobs sharing it). fraction must
+  // be in [0, 1], current_value finite when given, points >= 0 (INVALID_ARGUMENT otherwise).
+  // NOT_FOUND for an unknown id, FAILED_PRECONDITION when the job is not RUNNING (e.g. requeued
+  // meanwhile) or the run is stale.
+  virtual Status UpdateProgress(std::string_view id, int64_t run, double fraction,
                                 std::optional<double> current_value, int64_t points) = 0;
+  // UpdateProgress without a run fence.
+  Status UpdateProgress(std::string_view id, double fraction, std::optional<double> current_value,
+                        int64_t points) {
+    return UpdateProgress(id, kAnyRun, fraction, current_value, points);
+  }
 
   // Appends a chunk of the result of run `run` of a RUNNING job that runs itself: the serialized
   // bytes of `item_count` (>= 1) items starting at item `first_item`, which must equal the

@@ -268,6 +268,7 @@ Status NoJob(std::string_view id) { return NotFound("no job '" + std::string(id)
 Status SqliteStoreImpl::Configure() {
   sqlite3_extended_result_codes(connection_.db(), 1);
   sqlite3_busy_timeout(connection_.db(), options_.busy_timeout_ms);
+  max_value_bytes_ = sqlite3_limit(connection_.db(), SQLITE_LIMIT_LENGTH, -1);
   // Refuse another program's file, or a newer schema, before changing anything (Migrate checks
   // again inside its transaction).
   DRILLBIF_ASSIGN_OR_RETURN(const int64_t application_id,
@@ -653,7 +654,7 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
   return std::optional<JobRecord>(std::move(job));
 }
 
-Status SqliteStoreImpl::UpdateProgress(std::string_view id, double fraction,
+Status SqliteStoreImpl::UpdateProgress(std::string_view id, int64_t run, double fraction,
                                        std::optional<double> current_value, int64_t points) {
   if (!(fraction >= 0.0 && fraction <= 1.0)) {
     return InvalidArgument("progress fraction must be in [0, 1] (got " + std::to_string(fraction) +
@@ -665,7 +666,7 @@ Status SqliteStoreImpl::UpdateProgress(std::string_view id, double fraction,
   if (points < 0) return InvalidArgument("points must be >= 0");
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "update progress of", kAnyRun).status());
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "update progress of", run).status());
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q,
       connection_.Prepare("UPDATE jobs SET progress = ?2, current_value = ?3, points = ?4 "

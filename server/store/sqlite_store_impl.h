@@ -65,12 +65,13 @@ class SqliteStoreImpl final : public JobStore {
   using JobStore::Fail;
   using JobStore::MarkCancelled;
   using JobStore::Requeue;
+  using JobStore::UpdateProgress;
 
   StatusOr<SubmitResult> Submit(const SubmitRequest& request) override;
   StatusOr<std::optional<JobRecord>> ClaimNext(std::string_view worker_id,
                                                const ClaimOptions& options) override;
-  Status UpdateProgress(std::string_view id, double fraction, std::optional<double> current_value,
-                        int64_t points) override;
+  Status UpdateProgress(std::string_view id, int64_t run, double fraction,
+                        std::optional<double> current_value, int64_t points) override;
   Status AppendResultChunk(std::string_view id, int64_t run, int64_t first_item, int64_t item_count,
                            std::string_view bytes) override;
   Status Complete(std::string_view id, int64_t run, std::string_view summary,
@@ -147,6 +148,9 @@ class SqliteStoreImpl final : public JobStore {
   std::string NewId();
   // Checks that a blob is within SQLite's length limit (INVALID_ARGUMENT naming `field`).
   Status CheckSize(const char* field, size_t size) const;
+  // SQLite's limit on one string or BLOB (SQLITE_MAX_LENGTH, 10^9 bytes by default), read once
+  // by Configure (reading it later would race with the connection's use by another thread).
+  int64_t max_value_bytes_ = 0;
 
   std::mutex mu_;
   sqlite::Connection connection_;

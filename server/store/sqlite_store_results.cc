@@ -25,12 +25,10 @@ using sqlite::Query;
 using sqlite::Transaction;
 
 Status SqliteStoreImpl::CheckSize(const char* field, size_t size) const {
-  // SQLite's limit on one string or BLOB (SQLITE_MAX_LENGTH, 10^9 bytes by default).
-  const int limit = sqlite3_limit(connection_.db(), SQLITE_LIMIT_LENGTH, -1);
-  if (size > static_cast<size_t>(limit)) {
+  if (size > static_cast<uint64_t>(max_value_bytes_)) {
     return InvalidArgument(std::string(field) + ": " + std::to_string(size) +
-                           " bytes, more than the job store accepts (" + std::to_string(limit) +
-                           ")");
+                           " bytes, more than the job store accepts (" +
+                           std::to_string(max_value_bytes_) + ")");
   }
   return Status::Ok();
 }
@@ -194,7 +192,11 @@ StatusOr<std::string> SqliteStoreImpl::GetResult(std::string_view id) {
   DRILLBIF_ASSIGN_OR_RETURN(ResultRow row, ReadResultRow(id, /*with_summary=*/true));
   std::string bytes = std::move(row.info.summary);
   if (row.items > 0) {
-    bytes.reserve(static_cast<size_t>(row.info.total_bytes));
+    // The stored total is trusted only within SQLite's own size limit (a damaged value must not
+    // make the reservation throw).
+    if (row.info.total_bytes > 0 && row.info.total_bytes <= max_value_bytes_) {
+      bytes.reserve(static_cast<size_t>(row.info.total_bytes));
+    }
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare(
                      "SELECT data FROM result_chunks WHERE run_id = ?1 ORDER BY first_item"));

@@ -200,6 +200,10 @@ TEST_F(StoreResultsTest, AppendAndFinishAreFencedByStateAndRun) {
   EXPECT_EQ(store_->Fail(id, 1, StatusCode::kInternal, "stale").code(),
             StatusCode::kFailedPrecondition);
   EXPECT_EQ(store_->MarkCancelled(id, 1).code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->UpdateProgress(id, 1, 0.5, std::nullopt, 1).code(),
+            StatusCode::kFailedPrecondition);
+  ASSERT_TRUE(store_->UpdateProgress(id, 2, 0.25, std::nullopt, 1).ok());
+  EXPECT_EQ(Must(store_->Get(id)).progress, 0.25);
   EXPECT_EQ(store_->Requeue(id, 1).code(), StatusCode::kFailedPrecondition);
   EXPECT_EQ(Must(store_->Get(id)).state, JobState::kRunning);  // None of them touched it.
 
