@@ -36,25 +36,33 @@ constexpr int kVacuumStepPages = 1024;
 
 Status DataLoss(std::string message) { return Status(StatusCode::kDataLoss, std::move(message)); }
 
-// "; "-joined lines: quick_check reports problems over several lines.
-std::string OneLine(std::string text) {
-  for (char& c : text) {
-    if (c == '\n') c = ';';
+// "; "-joined lines: quick_check reports a problem over several lines.
+std::string OneLine(const std::string& text) {
+  std::string line;
+  for (const char c : text) {
+    if (c == '\n') {
+      line += "; ";
+    } else {
+      line += c;
+    }
   }
-  return text;
+  return line;
 }
 
-// The first problem `PRAGMA quick_check(1)` finds through `connection`, or OK.
+// The first problem `PRAGMA quick_check(1)` finds through `connection`, or OK. A file too
+// damaged to run the check at all (no schema, not a database) reports SQLite's name for the
+// error as its problem.
 Status QuickCheck(sqlite::Connection& connection) {
-  DRILLBIF_ASSIGN_OR_RETURN(Query q, connection.Prepare("PRAGMA quick_check(1)"));
-  StatusOr<bool> row = q.Step();
-  if (!row.ok()) {
-    if (row.status().code() == StatusCode::kDataLoss) {
-      return DataLoss("the job store failed its integrity check: " + row.status().message());
-    }
-    return row.status();
-  }
-  const std::string verdict = *row ? q.Text(0) : std::string("no answer");
+  const auto check_failed = [&](const Status& status) {
+    if (status.code() != StatusCode::kDataLoss) return status;
+    return DataLoss(std::string("the job store failed its integrity check: ") +
+                    sqlite3_errstr(sqlite3_extended_errcode(connection.db())));
+  };
+  StatusOr<Query> q = connection.Prepare("PRAGMA quick_check(1)");
+  if (!q.ok()) return check_failed(q.status());
+  StatusOr<bool> row = q->Step();
+  if (!row.ok()) return check_failed(row.status());
+  const std::string verdict = *row ? q->Text(0) : std::string("no answer");
   if (verdict != "ok") {
     return DataLoss("the job store failed its integrity check: " + OneLine(verdict));
   }

@@ -232,6 +232,7 @@ TEST_F(SqliteJobStoreTest, RefusesAFileThatIsNotSqlite) {
   std::ofstream(path) << std::string(4096, 'z');
   StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(path);
   EXPECT_EQ(store.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(store.status().message(), HasSubstr("failed its integrity check"));
   EXPECT_THAT(store.status().message(), HasSubstr("not a database"));
   // Without the integrity check the first read finds it.
   SqliteJobStoreOptions unchecked;
