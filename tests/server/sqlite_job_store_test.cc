@@ -358,13 +358,17 @@ TEST_F(SqliteJobStoreTest, Kill9LosesNoFinishedResultAndCompletesNothingTwice) {
     if (log < 0) _exit(3);
     StatusOr<std::optional<JobRecord>> held = store.ClaimNext("child-held");
     if (!held.ok() || !held->has_value()) _exit(4);
-    for (;;) {
+    for (int completed = 0;; ++completed) {
       StatusOr<std::optional<JobRecord>> job = store.ClaimNext("child");
       if (!job.ok()) _exit(5);
       if (!job->has_value()) _exit(6);  // Ran out of jobs: the parent did not kill in time.
       const JobRecord& record = **job;
       if (!store.UpdateProgress(record.id, 0.5, std::nullopt, 1).ok()) _exit(7);
-      usleep(1000);  // "Computing": most kills land while a job is RUNNING.
+      // "Computing": most kills land while a job is RUNNING. Once the parent may kill (15 jobs
+      // done), 20 ms per job: the remaining 44 jobs then take at least 0.88 s, time enough for a
+      // parent descheduled on a loaded machine to see the count and kill before the child runs
+      // out of jobs.
+      usleep(completed < 15 ? 1000 : 20000);
       if (!store.Complete(record.id, ResultFor("child", record.request), 1).ok()) _exit(8);
       const std::string line = record.id + "\n";
       if (write(log, line.data(), line.size()) != static_cast<ssize_t>(line.size())) _exit(9);
