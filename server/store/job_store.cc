@@ -1,5 +1,7 @@
 #include "server/store/job_store.h"
 
+#include <string>
+
 namespace drillbif::server {
 
 const char* JobStateName(JobState state) {
@@ -16,6 +18,33 @@ const char* JobStateName(JobState state) {
       return "CANCELLED";
   }
   return "UNKNOWN";
+}
+
+const char* LaneName(int lane) {
+  switch (lane) {
+    case kLaneShort:
+      return "short";
+    case kLaneLong:
+      return "long";
+    default:
+      return "unknown";
+  }
+}
+
+Status ClaimOptions::Validate() const {
+  for (const int lane : lanes) {
+    if (lane < 0 || lane >= kLaneCount) {
+      return InvalidArgument("lanes: " + std::to_string(lane) +
+                             " is not a lane (0 = short, 1 = long)");
+    }
+  }
+  return Status::Ok();
+}
+
+Status RetentionOptions::Validate() const {
+  if (max_age_ms < 0) return InvalidArgument("max_age_ms: must be >= 0 (0 = no age limit)");
+  if (max_db_bytes < 0) return InvalidArgument("max_db_bytes: must be >= 0 (0 = no size limit)");
+  return Status::Ok();
 }
 
 }  // namespace drillbif::server

@@ -23,10 +23,19 @@
 //   a cache hit that never runs; a submit while an identical job is queued or running follows
 //   that job ("shares" it) and finishes with it.
 // - Submits with the same non-empty request_id return the same job (idempotent retries).
+// - Results are streamed: a running job appends chunks of its result items
+//   (AppendResultChunk); Complete makes them the job's result together with a summary, and a
+//   run that does not complete leaves nothing behind. Readers page through the chunks
+//   (ReadResultChunks) without loading the whole result.
+// - Runs are fenced: every claim starts a new run (JobRecord::run); a worker passes its run to
+//   the calls that append to or finish it, and a call from a stale run is refused.
+// - Store faults (full disk, I/O errors, corruption) are reported with client-readable messages
+//   and without SQL; Health() says whether the store can currently write.
 #ifndef DRILLBIF_SERVER_STORE_JOB_STORE_H_
 #define DRILLBIF_SERVER_STORE_JOB_STORE_H_
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -57,6 +66,23 @@ inline bool IsFinished(JobState state) {
   return state == JobState::kSucceeded || state == JobState::kFailed ||
          state == JobState::kCancelled;
 }
+
+// Cost lanes: how long a job is expected to take. Workers can be dedicated to a lane so that short
+// jobs are never stuck behind long ones (ClaimOptions). Stored as integers: never renumber.
+inline constexpr int kLaneShort = 0;
+inline constexpr int kLaneLong = 1;
+// Number of lanes (for arrays indexed by lane).
+inline constexpr int kLaneCount = 2;
+
+// "short", "long" ("unknown" for a value outside [0, kLaneCount)).
+const char* LaneName(int lane);
+
+// Longest client identity Submit accepts, in bytes (it is stored with every job and named in
+// error messages).
+inline constexpr size_t kMaxClientBytes = 1024;
+
+// Passed as `run` to the finishing calls by callers that do not fence (any current run).
+inline constexpr int64_t kAnyRun = 0;
 
 // One job as stored. Timestamps are Unix time in milliseconds, 0 when the event has not happened.
 struct JobRecord {
@@ -97,6 +123,15 @@ struct JobRecord {
   bool cancel_requested = false;
   // The worker that claimed it last (empty if never claimed).
   std::string worker_id;
+  // Who submitted it ("" = anonymous): claims are fair across clients.
+  std::string client;
+  // Its cost lane (kLaneShort or kLaneLong).
+  int lane = kLaneShort;
+  // Number of the current (or last) run: every claim increments it, nothing decrements it (unlike
+  // attempts, which Requeue gives back). A worker passes it to AppendResultChunk and to the
+  // finishing calls, so that a call from a stale run (the job was requeued and claimed again)
+  // is refused. 0 before the first claim.
+  int64_t run = 0;
 };
 
 // What to submit.
@@ -107,8 +142,30 @@ struct SubmitRequest {
   std::string request;
   // Content address of the result; empty: no cache lookup and no sharing.
   std::string cache_key;
-  // Client idempotency key; empty: none. Kept until the job is deleted.
+  // Client idempotency key; empty: none. Kept until the job is deleted (or evicted).
   std::string request_id;
+  // Who submits ("" = anonymous; all anonymous jobs count as one client). At most
+  // kMaxClientBytes bytes. (Brace-initialized like the fields below, so that callers may
+  // aggregate-initialize only the first fields without -Wmissing-field-initializers.)
+  std::string client{};
+  // Cost lane: kLaneShort or kLaneLong (INVALID_ARGUMENT otherwise).
+  int lane = kLaneShort;
+  // Refuse the job (RESOURCE_EXHAUSTED) when this many QUEUED jobs that run themselves are
+  // waiting already, over all clients and lanes; 0 = no limit. Checked in Submit's transaction,
+  // so concurrent submits cannot overshoot it. Cache hits, followers and repeated request_ids
+  // are never refused: they add no work.
+  int64_t max_queued = 0;
+  // The same limit for this request's client alone; 0 = no limit.
+  int64_t max_queued_per_client = 0;
+};
+
+// Which jobs a worker may claim.
+struct ClaimOptions {
+  // Lanes the worker takes (kLaneShort, kLaneLong); empty = any lane.
+  std::vector<int> lanes;
+
+  // INVALID_ARGUMENT naming the lane when one is out of range.
+  Status Validate() const;
 };
 
 // What Submit did.
@@ -152,9 +209,62 @@ struct StoreStats {
   std::array<int64_t, kJobStateCount> jobs_by_state{};
   // QUEUED jobs that a worker can claim (jobs waiting on a shared job are not counted).
   int64_t queue_depth = 0;
+  // queue_depth split by lane, indexed by lane.
+  std::array<int64_t, kLaneCount> queue_depth_by_lane{};
   // Jobs that ever succeeded without running (cache hits and shared runs). Monotonic: deleting
   // jobs does not decrease it, so it can back a Prometheus counter.
   int64_t cache_hits_total = 0;
+  // Bytes of the store's data (for the SQLite store: pages in use times the page size, the size
+  // RetentionOptions::max_db_bytes limits).
+  int64_t used_bytes = 0;
+};
+
+// The stored result of a job, without its streamed items.
+struct ResultInfo {
+  // The summary bytes given to Complete (the result message without its streamed items).
+  std::string summary;
+  // Items in the result's chunks (0 when nothing was streamed).
+  int64_t total_items = 0;
+  // Bytes of the summary plus all chunks: the size of GetResult's answer.
+  int64_t total_bytes = 0;
+  // The points count given to Complete.
+  int64_t points = 0;
+};
+
+// One chunk of a result: the serialized bytes of `item_count` consecutive result items starting
+// at item `first_item` (the store does not interpret the bytes).
+struct ResultChunk {
+  int64_t first_item = 0;
+  int64_t item_count = 0;
+  std::string bytes;
+};
+
+// Limits for Evict. Only finished jobs (SUCCEEDED, FAILED, CANCELLED) are ever evicted.
+struct RetentionOptions {
+  // Finished jobs older than this (by finished_ms) are deleted; 0 = no age limit.
+  int64_t max_age_ms = 0;
+  // While the store's data (StoreStats::used_bytes) is larger than this, the oldest finished jobs
+  // are deleted; 0 = no size limit.
+  int64_t max_db_bytes = 0;
+
+  // INVALID_ARGUMENT naming the field when a value is negative.
+  Status Validate() const;
+};
+
+// What Evict did.
+struct EvictionReport {
+  // Jobs deleted (by age and by size together), and the result rows that went with them.
+  int64_t jobs_deleted = 0;
+  int64_t results_deleted = 0;
+  // StoreStats::used_bytes before and after.
+  int64_t used_bytes_before = 0;
+  int64_t used_bytes_after = 0;
+  // What the store occupies on disk (for SQLite: the file plus its WAL) before and after.
+  int64_t disk_bytes_before = 0;
+  int64_t disk_bytes_after = 0;
+  // False when max_db_bytes was set and could not be reached (what remains is queued, running,
+  // followed, or the store's fixed overhead).
+  bool size_limit_met = true;
 };
 
 // What RecoverAfterRestart did, counting the jobs that ran (not the jobs sharing them).
@@ -182,26 +292,66 @@ class JobStore {
   // INVALID_ARGUMENT when kind is empty.
   virtual StatusOr<SubmitResult> Submit(const SubmitRequest& request) = 0;
 
-  // Atomically takes the oldest claimable QUEUED job, makes it RUNNING (with the jobs sharing
-  // it), counts the attempt and records worker_id. Returns std::nullopt when no job is waiting.
-  // The record includes the request bytes.
-  virtual StatusOr<std::optional<JobRecord>> ClaimNext(std::string_view worker_id) = 0;
+  // Atomically takes a claimable QUEUED job of the allowed lanes, makes it RUNNING (with the jobs
+  // sharing it), counts the attempt, starts a new run (JobRecord::run + 1) and records
+  // worker_id. Fair across clients: the job comes from the client with the fewest RUNNING jobs
+  // in those lanes, ties going to the oldest waiting job (so with one client it is FIFO).
+  // Returns std::nullopt when no job is waiting. The record includes the request bytes.
+  // INVALID_ARGUMENT for a bad lane.
+  virtual StatusOr<std::optional<JobRecord>> ClaimNext(std::string_view worker_id,
+                                                       const ClaimOptions& options) = 0;
+  // ClaimNext of any lane.
+  StatusOr<std::optional<JobRecord>> ClaimNext(std::string_view worker_id) {
+    return ClaimNext(worker_id, ClaimOptions{});
+  }
 
-  // Records progress of a RUNNING job (and of the jobs sharing it). fraction must be in [0, 1],
-  // current_value finite when given, points >= 0 (INVALID_ARGUMENT otherwise). NOT_FOUND for an
-  // unknown id, FAILED_PRECONDITION when the job is not RUNNING (e.g. requeued meanwhile).
-  virtual Status UpdateProgress(std::string_view id, double fraction,
+  // Records progress of run `run` of a RUNNING job (and of the jobs sharing it). fraction must
+  // be in [0, 1], current_value finite when given, points >= 0 (INVALID_ARGUMENT otherwise).
+  // NOT_FOUND for an unknown id, FAILED_PRECONDITION when the job is not RUNNING (e.g. requeued
+  // meanwhile) or the run is stale.
+  virtual Status UpdateProgress(std::string_view id, int64_t run, double fraction,
                                 std::optional<double> current_value, int64_t points) = 0;
+  // UpdateProgress without a run fence.
+  Status UpdateProgress(std::string_view id, double fraction, std::optional<double> current_value,
+                        int64_t points) {
+    return UpdateProgress(id, kAnyRun, fraction, current_value, points);
+  }
 
-  // RUNNING -> SUCCEEDED with its result, in one transaction; the jobs sharing it succeed with
-  // the same result; with a cache_key, the result fills the cache. FAILED_PRECONDITION when the
-  // job is not RUNNING (this is what makes a second completion impossible), NOT_FOUND for an
-  // unknown id.
-  virtual Status Complete(std::string_view id, std::string_view result, int64_t points) = 0;
+  // Appends a chunk of the result of run `run` of a RUNNING job that runs itself: the serialized
+  // bytes of `item_count` (>= 1) items starting at item `first_item`, which must equal the
+  // number of items this run appended so far (chunks are contiguous and in order). The chunks
+  // become the job's result only when the run completes; Requeue, Fail, MarkCancelled and
+  // RecoverAfterRestart drop them. Errors: INVALID_ARGUMENT (bad counts, a gap or overlap,
+  // bytes larger than the store accepts), NOT_FOUND, FAILED_PRECONDITION (not RUNNING, a
+  // follower, or `run` is not the job's current run: a stale worker), RESOURCE_EXHAUSTED (disk
+  // full: the chunk is not stored, nothing else changed).
+  virtual Status AppendResultChunk(std::string_view id, int64_t run, int64_t first_item,
+                                   int64_t item_count, std::string_view bytes) = 0;
 
-  // RUNNING -> FAILED with an error (code must not be kOk); the jobs sharing it fail with it.
-  // Errors as for Complete.
-  virtual Status Fail(std::string_view id, StatusCode code, std::string_view message) = 0;
+  // RUNNING -> SUCCEEDED, in one transaction: `summary` (the result message without its streamed
+  // items; the whole result when nothing was streamed) and the chunks this run appended become
+  // the job's result; the jobs sharing it succeed with the same result; with a cache_key, the
+  // result fills the cache (if that key has a result already, the first is kept and this run's
+  // chunks are dropped). `run` fences a stale worker (kAnyRun: no fence). FAILED_PRECONDITION
+  // when the job is not RUNNING (this is what makes a second completion impossible) or the run
+  // is stale, NOT_FOUND for an unknown id.
+  virtual Status Complete(std::string_view id, int64_t run, std::string_view summary,
+                          int64_t points) = 0;
+  // Complete without a run fence.
+  Status Complete(std::string_view id, std::string_view summary, int64_t points) {
+    return Complete(id, kAnyRun, summary, points);
+  }
+
+  // RUNNING -> FAILED with an error (code must not be kOk); the jobs sharing it fail with it, and
+  // the run's chunks are dropped. Errors as for Complete. After a RESOURCE_EXHAUSTED append or
+  // Complete, this small write usually fits; if it fails too, retry once Probe() succeeds
+  // (docs/store.md, faults).
+  virtual Status Fail(std::string_view id, int64_t run, StatusCode code,
+                      std::string_view message) = 0;
+  // Fail without a run fence.
+  Status Fail(std::string_view id, StatusCode code, std::string_view message) {
+    return Fail(id, kAnyRun, code, message);
+  }
 
   // Cancels a job. QUEUED: CANCELLED at once. RUNNING: sets cancel_requested (the worker polls
   // IsCancelRequested, stops and calls MarkCancelled); for a job that shares another, CANCELLED
@@ -212,13 +362,19 @@ class JobStore {
   // Whether Cancel was called on this RUNNING job. NOT_FOUND for an unknown id.
   virtual StatusOr<bool> IsCancelRequested(std::string_view id) = 0;
 
-  // RUNNING -> CANCELLED, called by the worker once it stopped. The jobs sharing it are not
-  // cancelled: the oldest becomes QUEUED and runs for the others. Errors as for Complete.
-  virtual Status MarkCancelled(std::string_view id) = 0;
+  // RUNNING -> CANCELLED, called by the worker once it stopped; the run's chunks are dropped. The
+  // jobs sharing it are not cancelled: the oldest becomes QUEUED and runs for the others. Errors
+  // as for Complete.
+  virtual Status MarkCancelled(std::string_view id, int64_t run) = 0;
+  // MarkCancelled without a run fence.
+  Status MarkCancelled(std::string_view id) { return MarkCancelled(id, kAnyRun); }
 
   // RUNNING -> QUEUED for a run that was stopped without a result and should run again (graceful
-  // shutdown); the interrupted attempt is not counted. Errors as for Complete.
-  virtual Status Requeue(std::string_view id) = 0;
+  // shutdown); the interrupted attempt is not counted and its chunks are dropped. Errors as for
+  // Complete.
+  virtual Status Requeue(std::string_view id, int64_t run) = 0;
+  // Requeue without a run fence.
+  Status Requeue(std::string_view id) { return Requeue(id, kAnyRun); }
 
   // One job, with its request bytes. NOT_FOUND for an unknown id.
   virtual StatusOr<JobRecord> Get(std::string_view id) = 0;
@@ -228,14 +384,29 @@ class JobStore {
   // meanwhile. INVALID_ARGUMENT for a negative page_size or a malformed page_token.
   virtual StatusOr<ListResult> List(const ListRequest& request) = 0;
 
-  // Deletes a finished job (and its result when no other job uses it). FAILED_PRECONDITION for a
-  // QUEUED or RUNNING job, NOT_FOUND for an unknown id.
+  // Deletes a finished job (and its result and chunks when no other job uses them).
+  // FAILED_PRECONDITION for a QUEUED or RUNNING job, NOT_FOUND for an unknown id.
   virtual Status Delete(std::string_view id) = 0;
 
-  // The result bytes of a SUCCEEDED job, wherever they are stored (a cache hit or shared job
-  // reads the result computed for the other job). NOT_FOUND for an unknown id,
-  // FAILED_PRECONDITION when the job has not succeeded.
+  // The whole result of a SUCCEEDED job: the summary followed by every chunk's bytes, in order
+  // (for protobuf results whose chunks hold serialized item fields, the complete message). It is
+  // held in memory whole: use it for small results (check GetResultInfo's total_bytes) and page
+  // through large ones with ReadResultChunks. A cache hit or shared job reads the result
+  // computed for the other job. NOT_FOUND for an unknown id, FAILED_PRECONDITION when the job
+  // has not succeeded.
   virtual StatusOr<std::string> GetResult(std::string_view id) = 0;
+
+  // The summary and sizes of a SUCCEEDED job's result, without its chunks. Errors as GetResult.
+  virtual StatusOr<ResultInfo> GetResultInfo(std::string_view id) = 0;
+
+  // A page of a SUCCEEDED job's result chunks, in order: the chunk containing item `first_item`
+  // (>= 0) and the ones after it, stopping once their bytes reach `max_bytes` (>= 1); at least
+  // one chunk while any remains, none when first_item >= total_items. Reads only those chunks.
+  // The caller skips the items of the first chunk before first_item. INVALID_ARGUMENT for a
+  // negative first_item or max_bytes < 1; otherwise errors as GetResult.
+  virtual StatusOr<std::vector<ResultChunk>> ReadResultChunks(std::string_view id,
+                                                              int64_t first_item,
+                                                              int64_t max_bytes) = 0;
 
   // Run once at startup, before any worker claims a job: every RUNNING job was interrupted by
   // the end of the previous process. Such a job goes back to QUEUED (with the jobs sharing it),
@@ -247,6 +418,25 @@ class JobStore {
 
   // Counts for metrics.
   virtual StatusOr<StoreStats> Stats() = 0;
+
+  // OK while the store is usable; otherwise the fault that makes it unusable: a write failed for
+  // lack of space (RESOURCE_EXHAUSTED) or an I/O error (UNAVAILABLE), or a read or write found
+  // the data corrupt (DATA_LOSS). The fault stays until Probe() succeeds. Cheap (no I/O): the
+  // health service can call it on every check.
+  virtual Status Health() = 0;
+
+  // Tries a small write transaction and a read; when both succeed, clears the fault Health()
+  // reports and returns OK. After a DATA_LOSS fault the read is a full integrity check (it
+  // reads the whole store). Returns the error otherwise (the fault stays).
+  virtual Status Probe() = 0;
+
+  // Deletes finished jobs by the retention limits (docs/store.md has the order and guarantees):
+  // first those finished more than max_age_ms before now_ms, oldest first; then, while the
+  // store's data exceeds max_db_bytes, the oldest finished jobs. QUEUED and RUNNING jobs, and
+  // jobs that a QUEUED or RUNNING job follows, are never deleted. A result goes with the last job
+  // that holds it; request_ids of deleted jobs are forgotten. Then frees the space on disk where
+  // the implementation can. INVALID_ARGUMENT for bad options.
+  virtual StatusOr<EvictionReport> Evict(const RetentionOptions& options, int64_t now_ms) = 0;
 };
 
 }  // namespace drillbif::server

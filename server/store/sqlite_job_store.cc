@@ -1,4 +1,6 @@
-// The SQLite JobStore. Schema and semantics: docs/store.md.
+// The SQLite JobStore: opening and migrations, the job life cycle, listing and stats. Results
+// are in sqlite_store_results.cc, health and retention in sqlite_store_maintenance.cc. Schema
+// and semantics: docs/store.md.
 #include "server/store/sqlite_job_store.h"
 
 #include <sqlite3.h>
@@ -13,15 +15,20 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <random>
 #include <string>
 #include <string_view>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 
+#include "drillbif/common/checked.h"
+#include "server/store/sqlite_connection.h"
+#include "server/store/sqlite_store_impl.h"
+
 namespace drillbif::server {
 namespace {
+
+using sqlite::Query;
+using sqlite::Transaction;
 
 // ---------------------------------------------------------------------------------------------
 // Schema migrations, in order. Migration i brings the file from user_version i to i + 1; Open
@@ -76,219 +83,50 @@ CREATE TABLE counters (
 );
 INSERT INTO counters(name, value) VALUES ('cache_hits', 0);
 )sql",
+    // 1 -> 2: clients and lanes, run fencing, streamed result chunks, retention.
+    //
+    // jobs.client / jobs.lane: who submitted and the cost lane (fair claims, queue limits).
+    // jobs.run: claims ever made (never decremented, unlike attempts): fences stale workers.
+    // jobs.streamed_items / streamed_bytes: what the current run appended so far.
+    // result_chunks: the chunks of a run, keyed by the id of the job that ran (run_id). They
+    // are never moved: Complete points results.run_id at them, so completing a large result
+    // rewrites no chunk, and two runs of one cache key (the rare double completion) cannot mix.
+    // results.items / bytes: totals (GetResultInfo without reading the chunks). Existing results
+    // hold their whole message in data, with no chunks.
+    // Indexes: claimable jobs by client (fair claims, queue limits), running jobs by client,
+    // finished jobs by age (eviction), chunks by (run_id, first_item) (page reads).
+    R"sql(
+ALTER TABLE jobs ADD COLUMN client TEXT NOT NULL DEFAULT '';
+ALTER TABLE jobs ADD COLUMN lane INTEGER NOT NULL DEFAULT 0 CHECK (lane >= 0);
+ALTER TABLE jobs ADD COLUMN run INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN streamed_items INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN streamed_bytes INTEGER NOT NULL DEFAULT 0;
+UPDATE jobs SET run = attempts;
+CREATE INDEX jobs_claimable ON jobs(client, lane, seq) WHERE state = 0 AND shares IS NULL;
+CREATE INDEX jobs_running ON jobs(client, lane) WHERE state = 1 AND shares IS NULL;
+CREATE INDEX jobs_finished ON jobs(finished_ms, seq) WHERE state IN (2, 3, 4);
+ALTER TABLE results ADD COLUMN run_id TEXT NOT NULL DEFAULT '';
+ALTER TABLE results ADD COLUMN items INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE results ADD COLUMN bytes INTEGER NOT NULL DEFAULT 0;
+UPDATE results SET bytes = length(data);
+CREATE TABLE result_chunks (
+  run_id TEXT NOT NULL,
+  first_item INTEGER NOT NULL CHECK (first_item >= 0),
+  item_count INTEGER NOT NULL CHECK (item_count >= 1),
+  data BLOB NOT NULL
+);
+CREATE UNIQUE INDEX result_chunks_by_run ON result_chunks(run_id, first_item);
+INSERT INTO counters(name, value) VALUES ('probes', 0);
+)sql",
 };
 static_assert(std::size(kMigrations) == SqliteJobStore::kSchemaVersion,
               "one migration per schema version");
-
-constexpr int kQueued = static_cast<int>(JobState::kQueued);
-constexpr int kRunning = static_cast<int>(JobState::kRunning);
-constexpr int kSucceeded = static_cast<int>(JobState::kSucceeded);
-constexpr int kFailed = static_cast<int>(JobState::kFailed);
-constexpr int kCancelled = static_cast<int>(JobState::kCancelled);
-
-int64_t NowMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
-Status SqliteError(sqlite3* db, int rc, std::string_view what) {
-  std::string message = "sqlite: ";
-  message += what;
-  message += ": ";
-  message += db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
-  return Internal(std::move(message));
-}
-
-Status NoJob(std::string_view id) { return NotFound("no job '" + std::string(id) + "'"); }
-
-// ---------------------------------------------------------------------------------------------
-// Thin RAII layer over the C API.
-
-struct StatementDeleter {
-  void operator()(sqlite3_stmt* statement) const { sqlite3_finalize(statement); }
-};
-using StatementPtr = std::unique_ptr<sqlite3_stmt, StatementDeleter>;
-
-// A cached prepared statement in use: binds parameters (1-based, as in SQL's ?N), steps, reads
-// columns, and resets the statement when it goes out of scope so the cache can hand it out again
-// (a statement left mid-step would also keep a read transaction open).
-class Query {
- public:
-  Query(sqlite3* db, sqlite3_stmt* statement) : db_(db), statement_(statement) {}
-  Query(Query&& other) noexcept
-      : db_(other.db_), statement_(std::exchange(other.statement_, nullptr)), rc_(other.rc_) {}
-  Query(const Query&) = delete;
-  Query& operator=(const Query&) = delete;
-  Query& operator=(Query&&) = delete;
-  ~Query() {
-    if (statement_ != nullptr) {
-      sqlite3_reset(statement_);
-      sqlite3_clear_bindings(statement_);
-    }
-  }
-
-  Query& Bind(int index, int64_t value) {
-    Check(sqlite3_bind_int64(statement_, index, value));
-    return *this;
-  }
-  Query& Bind(int index, int value) { return Bind(index, static_cast<int64_t>(value)); }
-  Query& Bind(int index, double value) {
-    Check(sqlite3_bind_double(statement_, index, value));
-    return *this;
-  }
-  Query& Bind(int index, std::optional<double> value) {
-    Check(value ? sqlite3_bind_double(statement_, index, *value)
-                : sqlite3_bind_null(statement_, index));
-    return *this;
-  }
-  // Text; a null data pointer (empty string_view) would bind NULL, so bind "" explicitly.
-  Query& Bind(int index, std::string_view text) {
-    Check(sqlite3_bind_text(statement_, index, text.empty() ? "" : text.data(),
-                            static_cast<int>(text.size()), SQLITE_TRANSIENT));
-    return *this;
-  }
-  Query& Bind(int index, const char* text) { return Bind(index, std::string_view(text)); }
-  Query& Bind(int index, const std::string& text) { return Bind(index, std::string_view(text)); }
-  Query& BindNull(int index) {
-    Check(sqlite3_bind_null(statement_, index));
-    return *this;
-  }
-  // Text, or NULL when empty.
-  Query& BindOrNull(int index, std::string_view text) {
-    return text.empty() ? BindNull(index) : Bind(index, text);
-  }
-  Query& BindBlob(int index, std::string_view bytes) {
-    Check(bytes.empty() ? sqlite3_bind_zeroblob(statement_, index, 0)
-                        : sqlite3_bind_blob(statement_, index, bytes.data(),
-                                            static_cast<int>(bytes.size()), SQLITE_TRANSIENT));
-    return *this;
-  }
-
-  // Steps once: true with a row to read, false when done.
-  StatusOr<bool> Step() {
-    if (rc_ != SQLITE_OK) return SqliteError(db_, rc_, "bind");
-    const int rc = sqlite3_step(statement_);
-    if (rc == SQLITE_ROW) return true;
-    if (rc == SQLITE_DONE) return false;
-    return SqliteError(db_, rc, sqlite3_sql(statement_));
-  }
-  // Runs a statement that returns no rows (or whose rows are not needed).
-  Status Run() {
-    StatusOr<bool> row = Step();
-    return row.status();
-  }
-
-  int64_t Int(int column) const { return sqlite3_column_int64(statement_, column); }
-  double Double(int column) const { return sqlite3_column_double(statement_, column); }
-  bool IsNull(int column) const { return sqlite3_column_type(statement_, column) == SQLITE_NULL; }
-  std::string Text(int column) const {
-    const unsigned char* text = sqlite3_column_text(statement_, column);
-    if (text == nullptr) return std::string();
-    return std::string(reinterpret_cast<const char*>(text),
-                       static_cast<size_t>(sqlite3_column_bytes(statement_, column)));
-  }
-  std::string Blob(int column) const {
-    const void* data = sqlite3_column_blob(statement_, column);
-    if (data == nullptr) return std::string();
-    return std::string(static_cast<const char*>(data),
-                       static_cast<size_t>(sqlite3_column_bytes(statement_, column)));
-  }
-
- private:
-  // Keeps the first bind error; Step reports it.
-  void Check(int rc) {
-    if (rc_ == SQLITE_OK) rc_ = rc;
-  }
-
-  sqlite3* db_;
-  sqlite3_stmt* statement_;
-  int rc_ = SQLITE_OK;
-};
-
-// One connection with a cache of prepared statements, keyed by their SQL text.
-class Connection {
- public:
-  explicit Connection(sqlite3* db) : db_(db) {}
-  Connection(const Connection&) = delete;
-  Connection& operator=(const Connection&) = delete;
-  ~Connection() {
-    statements_.clear();  // Finalize before closing, or sqlite3_close fails with SQLITE_BUSY.
-    sqlite3_close(db_);
-  }
-
-  sqlite3* db() const { return db_; }
-
-  StatusOr<Query> Prepare(const std::string& sql) {
-    auto it = statements_.find(sql);
-    if (it == statements_.end()) {
-      sqlite3_stmt* statement = nullptr;
-      const int rc = sqlite3_prepare_v3(db_, sql.c_str(), static_cast<int>(sql.size() + 1),
-                                        SQLITE_PREPARE_PERSISTENT, &statement, nullptr);
-      if (rc != SQLITE_OK) return SqliteError(db_, rc, "prepare");
-      it = statements_.emplace(sql, StatementPtr(statement)).first;
-    }
-    return Query(db_, it->second.get());
-  }
-
-  // Runs SQL text without parameters (pragmas, migrations; may hold several statements).
-  Status Exec(const char* sql) {
-    const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, nullptr);
-    if (rc != SQLITE_OK) return SqliteError(db_, rc, sql);
-    return Status::Ok();
-  }
-
-  // Rows changed by the last INSERT/UPDATE/DELETE.
-  int Changes() const { return sqlite3_changes(db_); }
-
- private:
-  sqlite3* db_;
-  std::unordered_map<std::string, StatementPtr> statements_;
-};
-
-// A transaction: BEGIN IMMEDIATE for writers (take the write lock before reading, so the checks
-// and the writes that depend on them are atomic across connections), plain BEGIN for readers
-// that need one snapshot across statements. Rolled back unless committed.
-class Transaction {
- public:
-  static StatusOr<Transaction> Begin(Connection& connection, bool write) {
-    DRILLBIF_RETURN_IF_ERROR(connection.Exec(write ? "BEGIN IMMEDIATE" : "BEGIN"));
-    return Transaction(connection);
-  }
-  Transaction(Transaction&& other) noexcept
-      : connection_(other.connection_), open_(std::exchange(other.open_, false)) {}
-  Transaction(const Transaction&) = delete;
-  Transaction& operator=(const Transaction&) = delete;
-  Transaction& operator=(Transaction&&) = delete;
-  ~Transaction() {
-    // Some errors (I/O, disk full) already rolled the transaction back; ROLLBACK would fail then.
-    if (open_ && sqlite3_get_autocommit(connection_->db()) == 0) {
-      // Best effort: the error being returned is the caller's; a failed rollback leaves nothing
-      // committed either way.
-      connection_->Exec("ROLLBACK").IgnoreError();
-    }
-  }
-
-  Status Commit() {
-    DRILLBIF_RETURN_IF_ERROR(connection_->Exec("COMMIT"));
-    open_ = false;
-    return Status::Ok();
-  }
-
- private:
-  explicit Transaction(Connection& connection) : connection_(&connection) {}
-
-  Connection* connection_;
-  bool open_ = true;
-};
-
-// ---------------------------------------------------------------------------------------------
 
 // Columns of a JobRecord, in the order ReadJob expects; %s is the request expression.
 constexpr const char* kJobColumns =
     "seq, id, kind, state, %s, cache_key, request_id, shares, progress, current_value, points, "
     "error_code, error_message, created_ms, started_ms, finished_ms, cache_hit, attempts, "
-    "cancel_requested, worker_id";
+    "cancel_requested, worker_id, client, lane, run";
 
 std::string SelectJobs(const char* request_expression, const char* rest) {
   char columns[512];
@@ -317,6 +155,9 @@ JobRecord ReadJob(const Query& q) {
   job.attempts = static_cast<int>(q.Int(17));
   job.cancel_requested = q.Int(18) != 0;
   job.worker_id = q.Text(19);
+  job.client = q.Text(20);
+  job.lane = static_cast<int>(q.Int(21));
+  job.run = q.Int(22);
   return job;
 }
 
@@ -327,11 +168,17 @@ std::string PageToken(int64_t seq) {
   return buffer;
 }
 
+// The seq in a page token; INVALID_ARGUMENT for anything but "p" + 1 to 16 lowercase hex digits
+// whose value fits an int64 (checked arithmetic: a token never wraps to a small or negative seq).
 StatusOr<int64_t> ParsePageToken(const std::string& token) {
   if (token.empty()) return int64_t{0};
-  const auto bad = [&] { return InvalidArgument("page_token: malformed '" + token + "'"); };
+  const auto bad = [&] {
+    // Echo at most 40 bytes of a hostile token.
+    return InvalidArgument("page_token: malformed '" + token.substr(0, 40) +
+                           (token.size() > 40 ? "...'" : "'"));
+  };
   if (token.size() < 2 || token.size() > 17 || token[0] != 'p') return bad();
-  uint64_t seq = 0;
+  std::optional<int64_t> seq = 0;
   for (size_t i = 1; i < token.size(); ++i) {
     const char c = token[i];
     int digit;
@@ -342,83 +189,33 @@ StatusOr<int64_t> ParsePageToken(const std::string& token) {
     } else {
       return bad();
     }
-    seq = seq * 16 + static_cast<uint64_t>(digit);
+    seq = CheckedAdd(CheckedMul(seq, int64_t{16}), int64_t{digit});
+    if (!seq) return bad();
   }
-  if (seq > static_cast<uint64_t>(INT64_MAX)) return bad();
-  return static_cast<int64_t>(seq);
+  return *seq;
 }
 
-// The part of a job the state checks need.
-struct JobHead {
-  int state = 0;
-  bool shares = false;  // It follows another job.
-  bool cancel_requested = false;
-  int attempts = 0;
-  std::string result_key;
-};
+// Bit mask of the lanes a claim may take (every bit for "any lane").
+int64_t LaneMask(const ClaimOptions& options) {
+  if (options.lanes.empty()) return INT64_MAX;
+  int64_t mask = 0;
+  for (const int lane : options.lanes) mask |= int64_t{1} << lane;
+  return mask;
+}
 
-class SqliteStoreImpl final : public JobStore {
- public:
-  SqliteStoreImpl(sqlite3* db, const SqliteJobStoreOptions& options)
-      : connection_(db), options_(options) {}
-
-  StatusOr<SubmitResult> Submit(const SubmitRequest& request) override;
-  StatusOr<std::optional<JobRecord>> ClaimNext(std::string_view worker_id) override;
-  Status UpdateProgress(std::string_view id, double fraction, std::optional<double> current_value,
-                        int64_t points) override;
-  Status Complete(std::string_view id, std::string_view result, int64_t points) override;
-  Status Fail(std::string_view id, StatusCode code, std::string_view message) override;
-  StatusOr<JobState> Cancel(std::string_view id) override;
-  StatusOr<bool> IsCancelRequested(std::string_view id) override;
-  Status MarkCancelled(std::string_view id) override;
-  Status Requeue(std::string_view id) override;
-  StatusOr<JobRecord> Get(std::string_view id) override;
-  StatusOr<ListResult> List(const ListRequest& request) override;
-  Status Delete(std::string_view id) override;
-  StatusOr<std::string> GetResult(std::string_view id) override;
-  StatusOr<RecoveryReport> RecoverAfterRestart() override;
-  StatusOr<StoreStats> Stats() override;
-
-  // Migrates the schema (Open calls it once, before the store is shared).
-  Status Migrate();
-  Connection& connection() { return connection_; }
-
- private:
-  // All helpers below run inside a transaction the caller holds, with mu_ locked.
-  StatusOr<JobHead> Head(std::string_view id);
-  // The job must be RUNNING and run itself (not share another): only its worker acts on it.
-  StatusOr<JobHead> RunningHead(std::string_view id, const char* action);
-  // Changes `id` from RUNNING by `update` (its ?1 is the id); FAILED_PRECONDITION unless exactly
-  // one row changed. The state check sits in the UPDATE's WHERE, so even a bug in the checks
-  // before it cannot finish a job twice.
-  Status UpdateRunning(const std::string& update, std::string_view id,
-                       const std::function<void(Query&)>& bind);
-  // The jobs following `id` are no longer served by it (it was cancelled): the oldest becomes a
-  // QUEUED job of its own and the others follow it.
-  Status PromoteFollower(std::string_view id);
-  // The jobs following `id` go back to QUEUED with it.
-  Status RequeueWithFollowers(std::string_view id, bool count_attempt);
-  Status FailWithFollowers(std::string_view id, StatusCode code, std::string_view message);
-  Status CancelRunning(std::string_view id);
-  std::string NewId();
-
-  std::mutex mu_;
-  Connection connection_;
-  const SqliteJobStoreOptions options_;
-  std::random_device random_;
-};
-
-Status SqliteStoreImpl::Migrate() {
-  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+// Applies the migrations from `version` to kSchemaVersion and sets the ids, in one transaction
+// (re-checking the version inside it: another process may have migrated meanwhile).
+Status Migrate(sqlite::Connection& connection) {
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection, /*write=*/true));
   int64_t application_id = 0;
   int64_t version = 0;
   {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA application_id"));
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection.Prepare("PRAGMA application_id"));
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) application_id = q.Int(0);
   }
   {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA user_version"));
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection.Prepare("PRAGMA user_version"));
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) version = q.Int(0);
   }
@@ -437,18 +234,79 @@ Status SqliteStoreImpl::Migrate() {
                               " is invalid");
   }
   for (int64_t v = version; v < SqliteJobStore::kSchemaVersion; ++v) {
-    Status status = connection_.Exec(kMigrations[v]);
+    Status status = connection.Exec(kMigrations[v]);
     if (!status.ok()) {
-      return Internal("migrating the job store from schema version " + std::to_string(v) + ": " +
-                      status.message());
+      return Status(status.code(), "migrating the job store from schema version " +
+                                       std::to_string(v) + ": " + status.message());
     }
   }
   // Pragmas take no parameters; both values are integers formatted here.
   const std::string set_ids =
       "PRAGMA application_id = " + std::to_string(SqliteJobStore::kApplicationId) +
       "; PRAGMA user_version = " + std::to_string(SqliteJobStore::kSchemaVersion);
-  DRILLBIF_RETURN_IF_ERROR(connection_.Exec(set_ids.c_str()));
+  DRILLBIF_RETURN_IF_ERROR(connection.Exec(set_ids.c_str()));
   return tx.Commit();
+}
+
+// The first integer of `sql`'s first row (0 when no row).
+StatusOr<int64_t> QueryInt(sqlite::Connection& connection, const char* sql) {
+  DRILLBIF_ASSIGN_OR_RETURN(Query q, connection.Prepare(sql));
+  DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+  return row ? q.Int(0) : int64_t{0};
+}
+
+}  // namespace
+
+int64_t NowMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+Status NoJob(std::string_view id) { return NotFound("no job '" + std::string(id) + "'"); }
+
+Status SqliteStoreImpl::Configure() {
+  sqlite3_extended_result_codes(connection_.db(), 1);
+  sqlite3_busy_timeout(connection_.db(), options_.busy_timeout_ms);
+  max_value_bytes_ = sqlite3_limit(connection_.db(), SQLITE_LIMIT_LENGTH, -1);
+  // Refuse another program's file, or a newer schema, before changing anything (Migrate checks
+  // again inside its transaction).
+  DRILLBIF_ASSIGN_OR_RETURN(const int64_t application_id,
+                            QueryInt(connection_, "PRAGMA application_id"));
+  DRILLBIF_ASSIGN_OR_RETURN(const int64_t version, QueryInt(connection_, "PRAGMA user_version"));
+  if (application_id != 0 && application_id != SqliteJobStore::kApplicationId) {
+    return FailedPrecondition("not a drillbif job store (SQLite application_id " +
+                              std::to_string(application_id) + ")");
+  }
+  if (version > SqliteJobStore::kSchemaVersion) {
+    return FailedPrecondition("job store schema version " + std::to_string(version) +
+                              " is newer than this build supports (" +
+                              std::to_string(SqliteJobStore::kSchemaVersion) +
+                              "); use a newer drillbif-server");
+  }
+  // auto_vacuum can only be chosen before the first table: new files get INCREMENTAL, so Evict
+  // can give freed pages back to the disk (PRAGMA incremental_vacuum). Older files keep NONE:
+  // freed pages are reused, the file does not shrink (docs/store.md).
+  DRILLBIF_ASSIGN_OR_RETURN(const int64_t tables,
+                            QueryInt(connection_, "SELECT COUNT(*) FROM sqlite_master"));
+  if (tables == 0) {
+    DRILLBIF_RETURN_IF_ERROR(connection_.Exec("PRAGMA auto_vacuum = INCREMENTAL"));
+  }
+  {
+    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA journal_mode = WAL"));
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    const std::string mode = row ? q.Text(0) : std::string();
+    if (mode != "wal") {
+      return FailedPrecondition("cannot use WAL journal mode (got '" + mode + "')");
+    }
+  }
+  DRILLBIF_RETURN_IF_ERROR(connection_.Exec(options_.full_sync ? "PRAGMA synchronous = FULL"
+                                                               : "PRAGMA synchronous = NORMAL"));
+  DRILLBIF_RETURN_IF_ERROR(connection_.Exec("PRAGMA foreign_keys = ON"));
+  const std::string size_limit =
+      "PRAGMA journal_size_limit = " + std::to_string(options_.wal_size_limit_bytes);
+  DRILLBIF_RETURN_IF_ERROR(connection_.Exec(size_limit.c_str()));
+  return Migrate(connection_);
 }
 
 std::string SqliteStoreImpl::NewId() {
@@ -463,7 +321,8 @@ std::string SqliteStoreImpl::NewId() {
 StatusOr<JobHead> SqliteStoreImpl::Head(std::string_view id) {
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("SELECT state, shares IS NOT NULL, cancel_requested, attempts, "
-                                   "result_key FROM jobs WHERE id = ?1"));
+                                   "result_key, run, streamed_items, streamed_bytes "
+                                   "FROM jobs WHERE id = ?1"));
   q.Bind(1, id);
   DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
   if (!row) return NoJob(id);
@@ -473,19 +332,27 @@ StatusOr<JobHead> SqliteStoreImpl::Head(std::string_view id) {
   head.cancel_requested = q.Int(2) != 0;
   head.attempts = static_cast<int>(q.Int(3));
   head.result_key = q.Text(4);
+  head.run = q.Int(5);
+  head.streamed_items = q.Int(6);
+  head.streamed_bytes = q.Int(7);
   return head;
 }
 
-StatusOr<JobHead> SqliteStoreImpl::RunningHead(std::string_view id, const char* action) {
+StatusOr<JobHead> SqliteStoreImpl::RunningHead(std::string_view id, const char* action,
+                                               int64_t run) {
   DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
+  const std::string what = std::string("cannot ") + action + " job '" + std::string(id) + "': ";
   if (head.state != kRunning) {
-    return FailedPrecondition(std::string("cannot ") + action + " job '" + std::string(id) +
-                              "': it is " + JobStateName(static_cast<JobState>(head.state)) +
+    return FailedPrecondition(what + "it is " + JobStateName(static_cast<JobState>(head.state)) +
                               ", not RUNNING");
   }
   if (head.shares) {
-    return FailedPrecondition(std::string("cannot ") + action + " job '" + std::string(id) +
-                              "': it shares another job's run and is not run by a worker");
+    return FailedPrecondition(what + "it shares another job's run and is not run by a worker");
+  }
+  if (run != kAnyRun && run != head.run) {
+    return FailedPrecondition(what + "this is run " + std::to_string(run) +
+                              " but the job is at run " + std::to_string(head.run) +
+                              " (it was requeued and claimed again: this run is stale)");
   }
   return head;
 }
@@ -532,6 +399,7 @@ Status SqliteStoreImpl::RequeueWithFollowers(std::string_view id, bool count_att
       "UPDATE jobs SET state = 0, started_ms = 0, progress = 0, current_value = NULL, "
       "points = 0, worker_id = '', attempts = attempts - ?2 WHERE id = ?1 AND state = 1",
       id, [&](Query& q) { q.Bind(2, count_attempt ? 0 : 1); }));
+  DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("UPDATE jobs SET state = 0, started_ms = 0, progress = 0, "
                                    "current_value = NULL, points = 0 "
@@ -546,9 +414,11 @@ Status SqliteStoreImpl::FailWithFollowers(std::string_view id, StatusCode code,
       "UPDATE jobs SET state = 3, error_code = ?2, error_message = ?3, finished_ms = ?4 "
       "WHERE id = ?1 AND state = 1",
       id, [&](Query& q) { q.Bind(2, static_cast<int>(code)).Bind(3, message).Bind(4, now); }));
-  DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET state = 3, error_code = ?2, "
-                                                     "error_message = ?3, finished_ms = ?4 "
-                                                     "WHERE shares = ?1 AND state IN (0, 1)"));
+  DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
+  DRILLBIF_ASSIGN_OR_RETURN(Query q,
+                            connection_.Prepare("UPDATE jobs SET state = 3, error_code = ?2, "
+                                                "error_message = ?3, finished_ms = ?4 "
+                                                "WHERE shares = ?1 AND state IN (0, 1)"));
   return q.Bind(1, id).Bind(2, static_cast<int>(code)).Bind(3, message).Bind(4, now).Run();
 }
 
@@ -557,11 +427,54 @@ Status SqliteStoreImpl::CancelRunning(std::string_view id) {
   DRILLBIF_RETURN_IF_ERROR(
       UpdateRunning("UPDATE jobs SET state = 4, finished_ms = ?2 WHERE id = ?1 AND state = 1", id,
                     [&](Query& q) { q.Bind(2, now); }));
+  DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
   return PromoteFollower(id);
+}
+
+Status SqliteStoreImpl::CheckQueueLimits(const SubmitRequest& request) {
+  if (request.max_queued_per_client > 0) {
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT COUNT(*) FROM jobs INDEXED BY jobs_claimable "
+                                     "WHERE state = 0 AND shares IS NULL AND client = ?1"));
+    q.Bind(1, request.client);
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    const int64_t waiting = row ? q.Int(0) : 0;
+    if (waiting >= request.max_queued_per_client) {
+      const std::string who = request.client.empty() ? std::string("anonymous clients have ")
+                                                     : "client '" + request.client + "' has ";
+      return ResourceExhausted(who + std::to_string(waiting) + " jobs waiting (limit " +
+                               std::to_string(request.max_queued_per_client) + "); retry later");
+    }
+  }
+  if (request.max_queued > 0) {
+    DRILLBIF_ASSIGN_OR_RETURN(const int64_t waiting,
+                              QueryInt(connection_,
+                                       "SELECT COUNT(*) FROM jobs INDEXED BY jobs_claimable "
+                                       "WHERE state = 0 AND shares IS NULL"));
+    if (waiting >= request.max_queued) {
+      return ResourceExhausted("the job queue is full: " + std::to_string(waiting) +
+                               " jobs waiting (limit " + std::to_string(request.max_queued) +
+                               "); retry later");
+    }
+  }
+  return Status::Ok();
 }
 
 StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   if (request.kind.empty()) return InvalidArgument("kind: must not be empty");
+  if (request.lane < 0 || request.lane >= kLaneCount) {
+    return InvalidArgument("lane: must be 0 (short) or 1 (long), got " +
+                           std::to_string(request.lane));
+  }
+  if (request.client.size() > kMaxClientBytes) {
+    return InvalidArgument("client: " + std::to_string(request.client.size()) + " bytes, at most " +
+                           std::to_string(kMaxClientBytes));
+  }
+  if (request.max_queued < 0) return InvalidArgument("max_queued: must be >= 0 (0 = no limit)");
+  if (request.max_queued_per_client < 0) {
+    return InvalidArgument("max_queued_per_client: must be >= 0 (0 = no limit)");
+  }
+  DRILLBIF_RETURN_IF_ERROR(CheckSize("request", request.request.size()));
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
 
@@ -599,8 +512,8 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   int64_t started_ms = 0;
   int64_t finished_ms = 0;
   if (!request.cache_key.empty()) {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q,
-                          connection_.Prepare("SELECT points FROM results WHERE result_key = ?1"));
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT points FROM results WHERE result_key = ?1"));
     q.Bind(1, result_key);
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) {
@@ -631,13 +544,16 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
       result.shared_with = shares;
     }
   }
+  // Only a job that will run adds work: cache hits and followers are never refused.
+  if (state == kQueued && shares.empty()) DRILLBIF_RETURN_IF_ERROR(CheckQueueLimits(request));
   {
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare(
-                     "INSERT INTO jobs (id, kind, state, request, cache_key, request_id, shares, "
-                     "result_key, progress, current_value, points, created_ms, started_ms, "
-                     "finished_ms, cache_hit) "
-                     "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)"));
+        Query q,
+        connection_.Prepare(
+            "INSERT INTO jobs (id, kind, state, request, cache_key, request_id, shares, "
+            "result_key, progress, current_value, points, created_ms, started_ms, "
+            "finished_ms, cache_hit, client, lane) "
+            "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)"));
     q.Bind(1, id)
         .Bind(2, request.kind)
         .Bind(3, state)
@@ -652,7 +568,9 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
         .Bind(12, now)
         .Bind(13, started_ms)
         .Bind(14, finished_ms)
-        .Bind(15, result.cache_hit ? 1 : 0);
+        .Bind(15, result.cache_hit ? 1 : 0)
+        .Bind(16, request.client)
+        .Bind(17, request.lane);
     DRILLBIF_RETURN_IF_ERROR(q.Run());
   }
   if (result.cache_hit) {
@@ -666,14 +584,43 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   return result;
 }
 
-StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view worker_id) {
+StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view worker_id,
+                                                              const ClaimOptions& options) {
+  DRILLBIF_RETURN_IF_ERROR(options.Validate());
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   std::string id;
   {
+    // Fair across clients: each client's oldest claimable job of the allowed lanes (heads),
+    // ordered by how many jobs that client has RUNNING in those lanes, then by age. The clients
+    // are walked as a skip scan of jobs_claimable (one index seek per client) and each head is
+    // one seek per (client, lane): a claim costs O(clients x lanes x log n), not O(queued jobs).
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("SELECT id FROM jobs WHERE state = 0 AND shares IS NULL "
-                                     "ORDER BY seq LIMIT 1"));
+        Query q,
+        connection_.Prepare(
+            "WITH RECURSIVE clients(client) AS ("
+            "  SELECT (SELECT MIN(client) FROM jobs INDEXED BY jobs_claimable"
+            "          WHERE state = 0 AND shares IS NULL)"
+            "  UNION ALL"
+            "  SELECT (SELECT MIN(client) FROM jobs INDEXED BY jobs_claimable"
+            "          WHERE state = 0 AND shares IS NULL AND client > c.client)"
+            "  FROM clients c WHERE c.client IS NOT NULL),"
+            " lanes(lane) AS (SELECT 0 UNION ALL SELECT lane + 1 FROM lanes WHERE lane + 1 < ?2),"
+            " heads AS ("
+            "  SELECT c.client AS client, MIN((SELECT seq FROM jobs INDEXED BY jobs_claimable"
+            "    WHERE state = 0 AND shares IS NULL AND client = c.client AND lane = l.lane"
+            "    ORDER BY seq LIMIT 1)) AS seq"
+            "  FROM clients c JOIN lanes l"
+            "  WHERE c.client IS NOT NULL AND ((?1 >> l.lane) & 1) = 1"
+            "  GROUP BY c.client),"
+            " running AS ("
+            "  SELECT client, COUNT(*) AS n FROM jobs INDEXED BY jobs_running"
+            "  WHERE state = 1 AND shares IS NULL AND ((?1 >> lane) & 1) = 1"
+            "  GROUP BY client)"
+            " SELECT j.id FROM heads h JOIN jobs j ON j.seq = h.seq"
+            " LEFT JOIN running r ON r.client = h.client"
+            " ORDER BY COALESCE(r.n, 0), h.seq LIMIT 1"));
+    q.Bind(1, LaneMask(options)).Bind(2, kLaneCount);
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (!row) return std::optional<JobRecord>();
     id = q.Text(0);
@@ -683,13 +630,16 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
         connection_.Prepare("UPDATE jobs SET state = 1, started_ms = ?2, attempts = attempts + 1, "
-                            "worker_id = ?3, progress = 0, current_value = NULL, points = 0 "
-                            "WHERE id = ?1 AND state = 0"));
+                            "run = run + 1, worker_id = ?3, progress = 0, current_value = NULL, "
+                            "points = 0 WHERE id = ?1 AND state = 0"));
     DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Bind(3, worker_id).Run());
   }
+  // A new run starts from nothing (there is nothing to drop unless a bug left chunks behind).
+  DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
   {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET state = 1, started_ms = ?2 "
-                                                       "WHERE shares = ?1 AND state = 0"));
+    DRILLBIF_ASSIGN_OR_RETURN(Query q,
+                              connection_.Prepare("UPDATE jobs SET state = 1, started_ms = ?2 "
+                                                  "WHERE shares = ?1 AND state = 0"));
     DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Run());
   }
   JobRecord job;
@@ -704,7 +654,7 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
   return std::optional<JobRecord>(std::move(job));
 }
 
-Status SqliteStoreImpl::UpdateProgress(std::string_view id, double fraction,
+Status SqliteStoreImpl::UpdateProgress(std::string_view id, int64_t run, double fraction,
                                        std::optional<double> current_value, int64_t points) {
   if (!(fraction >= 0.0 && fraction <= 1.0)) {
     return InvalidArgument("progress fraction must be in [0, 1] (got " + std::to_string(fraction) +
@@ -716,7 +666,7 @@ Status SqliteStoreImpl::UpdateProgress(std::string_view id, double fraction,
   if (points < 0) return InvalidArgument("points must be >= 0");
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "update progress of").status());
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "update progress of", run).status());
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q,
       connection_.Prepare("UPDATE jobs SET progress = ?2, current_value = ?3, points = ?4 "
@@ -726,50 +676,12 @@ Status SqliteStoreImpl::UpdateProgress(std::string_view id, double fraction,
   return tx.Commit();
 }
 
-Status SqliteStoreImpl::Complete(std::string_view id, std::string_view result, int64_t points) {
-  if (points < 0) return InvalidArgument("points must be >= 0");
-  std::lock_guard<std::mutex> lock(mu_);
-  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "complete"));
-  const int64_t now = NowMs();
-  {
-    // A result for this cache key can exist already (a job whose cancel was requested, and so
-    // was not shared, completed anyway): identical requests give identical results, keep the
-    // first.
-    DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("INSERT INTO results (result_key, data, points, created_ms) "
-                                     "VALUES (?1, ?2, ?3, ?4) "
-                                     "ON CONFLICT (result_key) DO NOTHING"));
-    DRILLBIF_RETURN_IF_ERROR(
-        q.Bind(1, head.result_key).BindBlob(2, result).Bind(3, points).Bind(4, now).Run());
-  }
-  DRILLBIF_RETURN_IF_ERROR(
-      UpdateRunning("UPDATE jobs SET state = 2, progress = 1, points = ?2, finished_ms = ?3 "
-                    "WHERE id = ?1 AND state = 1",
-                    id, [&](Query& q) { q.Bind(2, points).Bind(3, now); }));
-  int followers = 0;
-  {
-    DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare(
-                     "UPDATE jobs SET state = 2, progress = 1, points = ?2, finished_ms = ?3, "
-                     "cache_hit = 1 WHERE shares = ?1 AND state IN (0, 1)"));
-    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, points).Bind(3, now).Run());
-    followers = connection_.Changes();
-  }
-  if (followers > 0) {
-    DRILLBIF_ASSIGN_OR_RETURN(
-        Query q,
-        connection_.Prepare("UPDATE counters SET value = value + ?1 WHERE name = 'cache_hits'"));
-    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, followers).Run());
-  }
-  return tx.Commit();
-}
-
-Status SqliteStoreImpl::Fail(std::string_view id, StatusCode code, std::string_view message) {
+Status SqliteStoreImpl::Fail(std::string_view id, int64_t run, StatusCode code,
+                             std::string_view message) {
   if (code == StatusCode::kOk) return InvalidArgument("a failed job needs an error code, not OK");
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "fail").status());
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "fail", run).status());
   DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(id, code, message));
   return tx.Commit();
 }
@@ -792,16 +704,17 @@ StatusOr<JobState> SqliteStoreImpl::Cancel(std::string_view id) {
     case JobState::kRunning:
       if (state == JobState::kRunning && !head.shares) {
         // Its worker stops it: only the worker knows when the engine has let go.
-        DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("UPDATE jobs SET cancel_requested = 1 "
-                                                           "WHERE id = ?1 AND state = 1"));
+        DRILLBIF_ASSIGN_OR_RETURN(Query q,
+                                  connection_.Prepare("UPDATE jobs SET cancel_requested = 1 "
+                                                      "WHERE id = ?1 AND state = 1"));
         DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Run());
         after = JobState::kRunning;
       } else {
         // Nothing runs for it (queued, or following another job): cancelled at once.
         {
-          DRILLBIF_ASSIGN_OR_RETURN(Query q,
-                                connection_.Prepare("UPDATE jobs SET state = 4, finished_ms = ?2 "
-                                                    "WHERE id = ?1 AND state IN (0, 1)"));
+          DRILLBIF_ASSIGN_OR_RETURN(
+              Query q, connection_.Prepare("UPDATE jobs SET state = 4, finished_ms = ?2 "
+                                           "WHERE id = ?1 AND state IN (0, 1)"));
           DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Run());
         }
         if (!head.shares) DRILLBIF_RETURN_IF_ERROR(PromoteFollower(id));
@@ -816,25 +729,25 @@ StatusOr<JobState> SqliteStoreImpl::Cancel(std::string_view id) {
 StatusOr<bool> SqliteStoreImpl::IsCancelRequested(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Query q,
-                        connection_.Prepare("SELECT cancel_requested FROM jobs WHERE id = ?1"));
+                            connection_.Prepare("SELECT cancel_requested FROM jobs WHERE id = ?1"));
   q.Bind(1, id);
   DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
   if (!row) return NoJob(id);
   return q.Int(0) != 0;
 }
 
-Status SqliteStoreImpl::MarkCancelled(std::string_view id) {
+Status SqliteStoreImpl::MarkCancelled(std::string_view id, int64_t run) {
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "mark cancelled").status());
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "mark cancelled", run).status());
   DRILLBIF_RETURN_IF_ERROR(CancelRunning(id));
   return tx.Commit();
 }
 
-Status SqliteStoreImpl::Requeue(std::string_view id) {
+Status SqliteStoreImpl::Requeue(std::string_view id, int64_t run) {
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "requeue"));
+  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "requeue", run));
   // A cancel asked before the stop wins: the client does not want the job run again.
   if (head.cancel_requested) {
     DRILLBIF_RETURN_IF_ERROR(CancelRunning(id));
@@ -873,7 +786,10 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   } else {
     q.BindNull(2);
   }
-  q.Bind(3, request.kind).Bind(4, request.include_request ? 1 : 0).Bind(5, page_size + 1);
+  // page_size <= max_page_size (an int), so page_size + 1 is computed in 64 bits.
+  q.Bind(3, request.kind)
+      .Bind(4, request.include_request ? 1 : 0)
+      .Bind(5, static_cast<int64_t>(page_size) + 1);
   ListResult result;
   int64_t last_seq = 0;
   for (;;) {
@@ -890,50 +806,6 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   return result;
 }
 
-Status SqliteStoreImpl::Delete(std::string_view id) {
-  std::lock_guard<std::mutex> lock(mu_);
-  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
-  DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
-  const auto state = static_cast<JobState>(head.state);
-  if (!IsFinished(state)) {
-    return FailedPrecondition("job '" + std::string(id) + "' is " + JobStateName(state) +
-                              ": cancel it and wait until it is finished before deleting it");
-  }
-  {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("DELETE FROM jobs WHERE id = ?1"));
-    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Run());
-  }
-  {
-    // The result goes with its last job (a cached result serves later requests only while some
-    // job holds it).
-    DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("DELETE FROM results WHERE result_key = ?1 AND NOT EXISTS "
-                                     "(SELECT 1 FROM jobs WHERE result_key = ?1)"));
-    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, head.result_key).Run());
-  }
-  return tx.Commit();
-}
-
-StatusOr<std::string> SqliteStoreImpl::GetResult(std::string_view id) {
-  std::lock_guard<std::mutex> lock(mu_);
-  // One statement, one snapshot: the state and the bytes cannot disagree.
-  DRILLBIF_ASSIGN_OR_RETURN(
-      Query q, connection_.Prepare("SELECT j.state, r.data IS NOT NULL, r.data FROM jobs j "
-                                   "LEFT JOIN results r ON r.result_key = j.result_key "
-                                   "WHERE j.id = ?1"));
-  q.Bind(1, id);
-  DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-  if (!row) return NoJob(id);
-  const auto state = static_cast<JobState>(q.Int(0));
-  if (state != JobState::kSucceeded) {
-    return FailedPrecondition("job '" + std::string(id) + "' has no result: it is " +
-                              JobStateName(state));
-  }
-  if (q.Int(1) == 0)
-    return Internal("job '" + std::string(id) + "' succeeded but its result is missing");
-  return q.Blob(2);
-}
-
 StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
@@ -944,9 +816,9 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
   };
   std::vector<Interrupted> interrupted;
   {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q,
-                          connection_.Prepare("SELECT id, attempts, cancel_requested FROM jobs "
-                                              "WHERE state = 1 AND shares IS NULL ORDER BY seq"));
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT id, attempts, cancel_requested FROM jobs "
+                                     "WHERE state = 1 AND shares IS NULL ORDER BY seq"));
     for (;;) {
       DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
       if (!row) break;
@@ -975,12 +847,12 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
 
 StatusOr<StoreStats> SqliteStoreImpl::Stats() {
   std::lock_guard<std::mutex> lock(mu_);
-  // A read transaction: the three counts come from one snapshot.
+  // A read transaction: the counts come from one snapshot.
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/false));
   StoreStats stats;
   {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q,
-                          connection_.Prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state"));
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state"));
     for (;;) {
       DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
       if (!row) break;
@@ -990,22 +862,23 @@ StatusOr<StoreStats> SqliteStoreImpl::Stats() {
   }
   {
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q,
-        connection_.Prepare("SELECT COUNT(*) FROM jobs WHERE state = 0 AND shares IS NULL"));
-    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-    if (row) stats.queue_depth = q.Int(0);
+        Query q, connection_.Prepare("SELECT lane, COUNT(*) FROM jobs INDEXED BY jobs_claimable "
+                                     "WHERE state = 0 AND shares IS NULL GROUP BY lane"));
+    for (;;) {
+      DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+      if (!row) break;
+      const int64_t lane = q.Int(0);
+      if (lane >= 0 && lane < kLaneCount) stats.queue_depth_by_lane[lane] = q.Int(1);
+      stats.queue_depth += q.Int(1);
+    }
   }
-  {
-    DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("SELECT value FROM counters WHERE name = 'cache_hits'"));
-    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-    if (row) stats.cache_hits_total = q.Int(0);
-  }
+  DRILLBIF_ASSIGN_OR_RETURN(
+      stats.cache_hits_total,
+      QueryInt(connection_, "SELECT value FROM counters WHERE name = 'cache_hits'"));
+  DRILLBIF_ASSIGN_OR_RETURN(stats.used_bytes, UsedBytes());
   DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return stats;
 }
-
-}  // namespace
 
 Status SqliteJobStoreOptions::Validate() const {
   if (busy_timeout_ms < 0) return InvalidArgument("busy_timeout_ms: must be >= 0");
@@ -1014,6 +887,7 @@ Status SqliteJobStoreOptions::Validate() const {
   if (default_page_size < 1 || default_page_size > max_page_size) {
     return InvalidArgument("default_page_size: must be in [1, max_page_size]");
   }
+  if (wal_size_limit_bytes < 0) return InvalidArgument("wal_size_limit_bytes: must be >= 0");
   return Status::Ok();
 }
 
@@ -1021,32 +895,24 @@ StatusOr<std::unique_ptr<JobStore>> SqliteJobStore::Open(const std::string& path
                                                          const SqliteJobStoreOptions& options) {
   DRILLBIF_RETURN_IF_ERROR(options.Validate());
   if (path.empty()) return InvalidArgument("path: must not be empty");
+  // Errors name the file (the operator's business), never SQL.
+  const auto in_file = [&](const Status& status) {
+    return Status(status.code(), status.message() + " (file '" + path + "')");
+  };
+  if (options.integrity_check_at_open) {
+    if (Status s = CheckIntegrity(path, options.log); !s.ok()) return in_file(s);
+  }
   sqlite3* db = nullptr;
   // NOMUTEX: the store's own mutex serializes every use of the connection.
   const int rc = sqlite3_open_v2(
       path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
-    Status status = SqliteError(db, rc, "open '" + path + "'");
-    sqlite3_close(db);
-    return status;
+    // The handle (if any) is closed by the connection, which also logs the details.
+    sqlite::Connection failed(db, options.log);
+    return in_file(failed.Error(rc, "open"));
   }
-  auto store = std::make_unique<SqliteStoreImpl>(db, options);
-  Connection& connection = store->connection();
-  sqlite3_extended_result_codes(db, 1);
-  sqlite3_busy_timeout(db, options.busy_timeout_ms);
-  {
-    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection.Prepare("PRAGMA journal_mode = WAL"));
-    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-    const std::string mode = row ? q.Text(0) : std::string();
-    if (mode != "wal") {
-      return FailedPrecondition("cannot use WAL journal mode for '" + path + "' (got '" + mode +
-                                "')");
-    }
-  }
-  DRILLBIF_RETURN_IF_ERROR(connection.Exec(options.full_sync ? "PRAGMA synchronous = FULL"
-                                                         : "PRAGMA synchronous = NORMAL"));
-  DRILLBIF_RETURN_IF_ERROR(connection.Exec("PRAGMA foreign_keys = ON"));
-  DRILLBIF_RETURN_IF_ERROR(store->Migrate());
+  auto store = std::make_unique<SqliteStoreImpl>(db, path, options);
+  if (Status s = store->Configure(); !s.ok()) return in_file(s);
   return std::unique_ptr<JobStore>(std::move(store));
 }
 

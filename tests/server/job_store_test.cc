@@ -497,11 +497,28 @@ TEST_F(JobStoreTest, ListRejectsBadPageArguments) {
   ListRequest negative;
   negative.page_size = -1;
   EXPECT_EQ(store_->List(negative).status().code(), StatusCode::kInvalidArgument);
-  for (const char* token : {"garbage", "p", "pXYZ", "p12345678901234567"}) {
+  // The last two are 2^63 and 2^64 - 1: beyond INT64, they must not wrap to a small or negative
+  // seq (which would restart the listing or skip it).
+  for (const char* token : {"garbage", "p", "pXYZ", "p12345678901234567", "pFF", "p-1",
+                            "p8000000000000000", "pffffffffffffffff"}) {
     ListRequest bad;
     bad.page_token = token;
     EXPECT_EQ(store_->List(bad).status().code(), StatusCode::kInvalidArgument) << token;
   }
+  // A hostile token is echoed only in part.
+  ListRequest huge;
+  huge.page_token = "p" + std::string(100000, 'z');
+  StatusOr<ListResult> refused = store_->List(huge);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_LT(refused.status().message().size(), 100u);
+  // The largest seq is a valid token: the page after it is empty.
+  SubmitOk("simulate", "r");
+  ListRequest last;
+  last.page_token = "p7fffffffffffffff";
+  StatusOr<ListResult> page = store_->List(last);
+  ASSERT_TRUE(page.ok()) << page.status().ToString();
+  EXPECT_TRUE(page->jobs.empty());
+  EXPECT_TRUE(page->next_page_token.empty());
 }
 
 TEST_F(JobStoreTest, StatsCountJobsByState) {
@@ -578,8 +595,13 @@ TEST(SqliteJobStoreOpenTest, RejectsBadOptionsAndPaths) {
             StatusCode::kInvalidArgument);
   StatusOr<std::unique_ptr<JobStore>> no_dir =
       SqliteJobStore::Open("/nonexistent-dir-for-drillbif/jobs.db");
-  EXPECT_EQ(no_dir.status().code(), StatusCode::kInternal);
+  EXPECT_EQ(no_dir.status().code(), StatusCode::kUnavailable);
+  EXPECT_THAT(no_dir.status().message(), HasSubstr("cannot read or write its file"));
   EXPECT_THAT(no_dir.status().message(), HasSubstr("/nonexistent-dir-for-drillbif/jobs.db"));
+  options = SqliteJobStoreOptions();
+  options.wal_size_limit_bytes = -1;
+  EXPECT_EQ(SqliteJobStore::Open(::testing::TempDir() + "unused.db", options).status().code(),
+            StatusCode::kInvalidArgument);
 }
 
 TEST(JobStateNameTest, NamesEveryState) {

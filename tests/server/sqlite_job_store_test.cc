@@ -109,14 +109,103 @@ TEST_F(SqliteJobStoreTest, MigratesAVersionZeroFile) {
   ASSERT_EQ(SqlInt(path, "PRAGMA user_version"), 0);
   std::unique_ptr<JobStore> store = OpenOrDie(path);
   ASSERT_NE(store, nullptr);
-  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), 1);
+  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
   EXPECT_EQ(SqlInt(path,
                    "SELECT COUNT(*) FROM sqlite_master WHERE name IN "
-                   "('jobs', 'results', 'counters')"),
-            3);
+                   "('jobs', 'results', 'counters', 'result_chunks')"),
+            4);
   EXPECT_EQ(SqlInt(path, "SELECT COUNT(*) FROM unrelated_notes"), 1);  // Left alone.
   StatusOr<SubmitResult> job = store->Submit({"simulate", "r", "k", ""});
   EXPECT_TRUE(job.ok()) << job.status().ToString();
+}
+
+// The schema of version 1 as released (migration 0 -> 1), to build a file as that version left it.
+constexpr const char* kSchemaVersion1 = R"sql(
+CREATE TABLE jobs (
+  seq INTEGER PRIMARY KEY AUTOINCREMENT,
+  id TEXT NOT NULL UNIQUE,
+  kind TEXT NOT NULL CHECK (kind <> ''),
+  state INTEGER NOT NULL CHECK (state BETWEEN 0 AND 4),
+  request BLOB NOT NULL,
+  cache_key TEXT NOT NULL,
+  request_id TEXT,
+  shares TEXT REFERENCES jobs(id) ON DELETE SET NULL,
+  result_key TEXT NOT NULL,
+  progress REAL NOT NULL DEFAULT 0,
+  current_value REAL,
+  points INTEGER NOT NULL DEFAULT 0,
+  error_code INTEGER NOT NULL DEFAULT 0,
+  error_message TEXT NOT NULL DEFAULT '',
+  created_ms INTEGER NOT NULL,
+  started_ms INTEGER NOT NULL DEFAULT 0,
+  finished_ms INTEGER NOT NULL DEFAULT 0,
+  cache_hit INTEGER NOT NULL DEFAULT 0,
+  attempts INTEGER NOT NULL DEFAULT 0,
+  cancel_requested INTEGER NOT NULL DEFAULT 0,
+  worker_id TEXT NOT NULL DEFAULT ''
+);
+CREATE UNIQUE INDEX jobs_by_request_id ON jobs(request_id) WHERE request_id IS NOT NULL;
+CREATE INDEX jobs_by_state ON jobs(state, seq);
+CREATE INDEX jobs_by_cache_key ON jobs(cache_key, seq) WHERE cache_key <> '';
+CREATE INDEX jobs_by_shares ON jobs(shares) WHERE shares IS NOT NULL;
+CREATE INDEX jobs_by_result_key ON jobs(result_key);
+CREATE TABLE results (
+  result_key TEXT PRIMARY KEY,
+  data BLOB NOT NULL,
+  points INTEGER NOT NULL,
+  created_ms INTEGER NOT NULL
+);
+CREATE TABLE counters (
+  name TEXT PRIMARY KEY,
+  value INTEGER NOT NULL
+);
+INSERT INTO counters(name, value) VALUES ('cache_hits', 0);
+)sql";
+
+TEST_F(SqliteJobStoreTest, MigratesAVersionOneFileKeepingItsJobsAndResults) {
+  const std::string path = Path("v1.db");
+  SqlExec(path, std::string("PRAGMA journal_mode = WAL;") + kSchemaVersion1 +
+                    "PRAGMA application_id = 1145203046; PRAGMA user_version = 1;"
+                    // A finished job with its result, a job that ran twice, a queued job.
+                    "INSERT INTO jobs (id, kind, state, request, cache_key, result_key, "
+                    "  points, created_ms, finished_ms, attempts) VALUES "
+                    "  ('done', 'simulate', 2, x'01', 'K', 'c:K', 3, 1, 2, 1),"
+                    "  ('running', 'sweep', 1, x'02', '', 'j:running', 0, 1, 0, 2),"
+                    "  ('queued', 'sweep', 0, x'03', '', 'j:queued', 0, 1, 0, 0);"
+                    "INSERT INTO results VALUES ('c:K', x'0a0b0c', 3, 2);");
+  ASSERT_EQ(SqlInt(path, "PRAGMA user_version"), 1);
+  std::unique_ptr<JobStore> store = OpenOrDie(path);
+  ASSERT_NE(store, nullptr);
+  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), 2);
+  // Existing jobs: anonymous, short lane, run = attempts (the claims they had).
+  const JobRecord running = Must(store->Get("running"));
+  EXPECT_EQ(running.client, "");
+  EXPECT_EQ(running.lane, kLaneShort);
+  EXPECT_EQ(running.attempts, 2);
+  EXPECT_EQ(running.run, 2);
+  // An existing result is all summary, no chunks.
+  EXPECT_EQ(Must(store->GetResult("done")), "\x0a\x0b\x0c");
+  const ResultInfo info = Must(store->GetResultInfo("done"));
+  EXPECT_EQ(info.summary, "\x0a\x0b\x0c");
+  EXPECT_EQ(info.total_items, 0);
+  EXPECT_EQ(info.total_bytes, 3);
+  EXPECT_EQ(info.points, 3);
+  EXPECT_TRUE(Must(store->ReadResultChunks("done", 0, 100)).empty());
+  // A cache hit on the old result, and the old jobs run on.
+  EXPECT_TRUE(Must(store->Submit({"simulate", "x", "K", ""})).cache_hit);
+  ASSERT_EQ(Must(store->RecoverAfterRestart()).requeued, 1);
+  std::optional<JobRecord> again = Must(store->ClaimNext("w"));
+  ASSERT_TRUE(again.has_value());
+  EXPECT_EQ(again->id, "running");  // Requeued, oldest.
+  EXPECT_EQ(again->run, 3);
+  ASSERT_TRUE(store->AppendResultChunk("running", 3, 0, 1, "item").ok());
+  ASSERT_TRUE(store->Complete("running", 3, "sum", 1).ok());
+  EXPECT_EQ(Must(store->GetResult("running")), "sumitem");
+  // An old file keeps auto_vacuum NONE (it cannot change without a VACUUM); a new one is
+  // INCREMENTAL.
+  EXPECT_EQ(SqlInt(path, "PRAGMA auto_vacuum"), 0);
+  ASSERT_NE(OpenOrDie(Path("new.db")), nullptr);
+  EXPECT_EQ(SqlInt(Path("new.db"), "PRAGMA auto_vacuum"), 2);
 }
 
 TEST_F(SqliteJobStoreTest, RefusesAFileFromANewerSchema) {
@@ -142,7 +231,14 @@ TEST_F(SqliteJobStoreTest, RefusesAFileThatIsNotSqlite) {
   const std::string path = Path("garbage.db");
   std::ofstream(path) << std::string(4096, 'z');
   StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(path);
-  EXPECT_FALSE(store.ok());
+  EXPECT_EQ(store.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(store.status().message(), HasSubstr("failed its integrity check"));
+  EXPECT_THAT(store.status().message(), HasSubstr("not a database"));
+  // Without the integrity check the first read finds it.
+  SqliteJobStoreOptions unchecked;
+  unchecked.integrity_check_at_open = false;
+  store = SqliteJobStore::Open(path, unchecked);
+  EXPECT_EQ(store.status().code(), StatusCode::kDataLoss);
   EXPECT_THAT(store.status().message(), HasSubstr("not a database"));
 }
 
@@ -262,13 +358,17 @@ TEST_F(SqliteJobStoreTest, Kill9LosesNoFinishedResultAndCompletesNothingTwice) {
     if (log < 0) _exit(3);
     StatusOr<std::optional<JobRecord>> held = store.ClaimNext("child-held");
     if (!held.ok() || !held->has_value()) _exit(4);
-    for (;;) {
+    for (int completed = 0;; ++completed) {
       StatusOr<std::optional<JobRecord>> job = store.ClaimNext("child");
       if (!job.ok()) _exit(5);
       if (!job->has_value()) _exit(6);  // Ran out of jobs: the parent did not kill in time.
       const JobRecord& record = **job;
       if (!store.UpdateProgress(record.id, 0.5, std::nullopt, 1).ok()) _exit(7);
-      usleep(1000);  // "Computing": most kills land while a job is RUNNING.
+      // "Computing": most kills land while a job is RUNNING. Once the parent may kill (15 jobs
+      // done), 20 ms per job: the remaining 44 jobs then take at least 0.88 s, time enough for a
+      // parent descheduled on a loaded machine to see the count and kill before the child runs
+      // out of jobs.
+      usleep(completed < 15 ? 1000 : 20000);
       if (!store.Complete(record.id, ResultFor("child", record.request), 1).ok()) _exit(8);
       const std::string line = record.id + "\n";
       if (write(log, line.data(), line.size()) != static_cast<ssize_t>(line.size())) _exit(9);
