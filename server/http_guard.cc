@@ -121,9 +121,9 @@ int ConnectionGuard::ExpireLocked(Clock::time_point now) {
     if (entry.deadline <= now) {
       // The descriptor is still MHD's (Remove comes before its close): a shutdown only makes
       // MHD's next read or write fail, and MHD closes the connection.
+      deadlines_expired_.fetch_add(1);  // Counted first: the peer may look at once.
       shutdown(entry.fd, SHUT_RDWR);
       entry.deadline = Clock::time_point::max();
-      deadlines_expired_.fetch_add(1);
     } else {
       next = std::min(next, entry.deadline);
     }

@@ -27,7 +27,6 @@ namespace drillbif::server {
 namespace {
 
 using google::longrunning::Operation;
-using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
 using google::protobuf::util::JsonParseOptions;
 using google::protobuf::util::JsonPrintOptions;
@@ -148,35 +147,10 @@ StatusOr<std::string> ToJson(const Message& message) {
   return out;
 }
 
-// The path of the first string field of `message` (recursively) that is not valid UTF-8
-// ("request.request_id", "curves[2].kind"), or nullopt. Protobuf's JSON parser lets through a
-// \u escape of a lone surrogate, which the services could then not receive.
-std::optional<std::string> InvalidUtf8Field(const Message& message) {
-  const auto* reflection = message.GetReflection();
-  std::vector<const FieldDescriptor*> fields;
-  reflection->ListFields(message, &fields);
-  for (const FieldDescriptor* field : fields) {
-    const bool repeated = field->is_repeated();
-    const int count = repeated ? reflection->FieldSize(message, field) : 1;
-    for (int i = 0; i < count; ++i) {
-      const std::string at =
-          field->name() + (repeated ? "[" + std::to_string(i) + "]" : std::string());
-      if (field->type() == FieldDescriptor::TYPE_STRING) {
-        const std::string value = repeated ? reflection->GetRepeatedString(message, field, i)
-                                           : reflection->GetString(message, field);
-        if (FindInvalidUtf8(value) != std::string_view::npos) return at;
-      } else if (field->cpp_type() == FieldDescriptor::CPPTYPE_MESSAGE) {
-        const Message& sub = repeated ? reflection->GetRepeatedMessage(message, field, i)
-                                      : reflection->GetMessage(message, field);
-        if (std::optional<std::string> inner = InvalidUtf8Field(sub)) return at + "." + *inner;
-      }
-    }
-  }
-  return std::nullopt;
-}
-
 // Parses JSON into `message`, refusing unknown fields (a misspelt field must not be silently
-// ignored: the request would run with a default instead) and text that is not UTF-8.
+// ignored: the request would run with a default instead) and text that is not UTF-8 (RFC 8259
+// 8.1). Strings parsed are then valid UTF-8: protobuf's parser refuses \u escapes of lone
+// surrogates ("Missing low surrogate", "Invalid unicode code point").
 grpc::Status FromJson(std::string_view json, Message* message, const char* what) {
   if (const size_t bad = FindInvalidUtf8(json); bad != std::string_view::npos) {
     return grpc::Status(
@@ -191,11 +165,6 @@ grpc::Status FromJson(std::string_view json, Message* message, const char* what)
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                         std::string(what) + ": not a valid " + message->GetTypeName() +
                             " in JSON: " + ValidUtf8(std::string(status.message())));
-  }
-  if (std::optional<std::string> field = InvalidUtf8Field(*message)) {
-    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                        std::string(what) + ": field " + *field +
-                            " is not valid UTF-8 (a \\u escape of a lone surrogate?)");
   }
   return grpc::Status::OK;
 }

@@ -67,10 +67,11 @@ struct RestOptions {
   int threads = 2;
 
   // --- Limits (each crossing is answered with a JSON error unless said otherwise) ------------
-  // Concurrent connections, open event streams included; beyond it new connections are closed
-  // at once. 1024: far above the expected dashboards and clients, and each costs only a socket
-  // and at most connection_memory_bytes. Lowered at start to RLIMIT_NOFILE minus 256 (gRPC,
-  // SQLite and log descriptors) when the process may not open that many files.
+  // Concurrent connections, open event streams included; at the limit the server stops
+  // accepting, and new connections wait in the listen queue until one closes. 1024: far above the
+  // expected dashboards and clients, and each costs only a socket and at most
+  // connection_memory_bytes. Lowered at start to RLIMIT_NOFILE minus 256 (gRPC, SQLite and log
+  // descriptors) when the process may not open that many files.
   int connection_limit = 1024;
   // The kernel's queue of connections not yet accepted (listen(2) backlog, capped by
   // net.core.somaxconn). 1024: a burst of clients connecting at once is queued instead of having
