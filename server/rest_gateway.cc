@@ -235,7 +235,9 @@ grpc::Status DeadlineOf(const HttpExchange& exchange, int default_ms,
   if (const std::string* text = exchange.header("X-Server-Timeout")) {
     char* end = nullptr;
     const double value = std::strtod(text->c_str(), &end);
-    if (text->empty() || end == nullptr || *end != '\0' || !std::isfinite(value) || value <= 0) {
+    // The whole value must be the number (a NUL byte inside would end strtod's string early).
+    if (text->empty() || end != text->c_str() + text->size() || !std::isfinite(value) ||
+        value <= 0) {
       return grpc::Status(
           grpc::StatusCode::INVALID_ARGUMENT,
           "header X-Server-Timeout: expected seconds > 0, got '" + Sanitize(*text) + "'");

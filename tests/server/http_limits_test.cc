@@ -308,8 +308,8 @@ TEST_F(HttpLimitsTest, HeaderFloodIs431AndCostsBoundedMemory) {
 
 // Header limits the gateway answers itself, in JSON: 150 small headers (152 with Host and
 // Authorization: over max_header_count = 100, within the connection's memory) and one 20 KB
-// header (over max_header_bytes = 16 KiB). 1000 small headers do not fit in 64 KiB at all (libmicrohttpd keeps
-// a record per header): 431 from libmicrohttpd, connection closed.
+// header (over max_header_bytes = 16 KiB). 1000 small headers do not fit in 64 KiB at all
+// (libmicrohttpd keeps a record per header): 431 from libmicrohttpd, connection closed.
 TEST_F(HttpLimitsTest, TooManyOrTooLargeHeadersAre431) {
   std::string many = "GET /v1/operations HTTP/1.1\r\nHost: x\r\n" + Auth();
   for (int i = 0; i < 150; ++i) many += "X-H" + std::to_string(i) + ": v\r\n";
@@ -631,6 +631,94 @@ TEST(HttpRequestDeadline, SlowlorisIsCutAtTheRequestDeadline) {
   RawConnection quick((*server)->http_port());
   ASSERT_TRUE(quick.Send("GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n"));
   EXPECT_EQ(StatusOf(quick.ReadResponse(milliseconds(10000))), 200);
+}
+
+// A connection that sends nothing, before its first request or after an answer, is closed at the
+// idle timeout (here 1 s; libmicrohttpd counts whole seconds).
+TEST(HttpIdleTimeout, IdleConnectionsAreClosed) {
+  TempDir dir("drillbif_http_idle");
+  ServerOptions options = TestServerOptions(dir.path());
+  options.http.idle_timeout_ms = 1000;
+  StatusOr<std::unique_ptr<Server>> server = Server::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  RawConnection silent((*server)->http_port());
+  auto start = Clock::now();
+  EXPECT_TRUE(silent.ClosedWithin(milliseconds(10000)));
+  const double silent_ms = MsSince(start);
+  RawConnection kept((*server)->http_port());
+  ASSERT_TRUE(kept.Send("GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n"));
+  EXPECT_EQ(StatusOf(kept.ReadResponse(milliseconds(10000))), 200);
+  start = Clock::now();
+  EXPECT_TRUE(kept.ClosedWithin(milliseconds(10000)));
+  const double kept_ms = MsSince(start);
+  std::printf("idle connection closed after %.0f ms, kept-alive one after %.0f ms\n", silent_ms,
+              kept_ms);
+  // Not before the timeout; the upper bound allows libmicrohttpd's whole-second rounding and a
+  // loaded machine.
+  for (double ms : {silent_ms, kept_ms}) {
+    EXPECT_GE(ms, 900.0);
+    EXPECT_LT(ms, 5000.0);
+  }
+}
+
+// A client that stops reading a large answer is cut at the write deadline (here 1 s) although
+// the idle timeout (30 s) has not passed: it asked for a ~9 MB result with a 4 KiB receive buffer
+// and reads nothing for 3 s, then finds the connection closed before the answer's end.
+TEST(HttpWriteDeadline, ClientThatStopsReadingIsCut) {
+  TempDir dir("drillbif_http_write");
+  ServerOptions options = TestServerOptions(dir.path());
+  options.http.write_timeout_ms = 1000;
+  StatusOr<std::unique_ptr<Server>> server = Server::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  httplib::Client client("127.0.0.1", (*server)->http_port());
+  client.set_read_timeout(std::chrono::seconds(30));
+  client.set_default_headers({{"Authorization", std::string("Bearer ") + kToken}});
+  v1::SubmitSimulateRequest request;
+  request.mutable_request()->set_sample_periods(80000);
+  httplib::Result submitted = client.Post("/v1/jobs:simulate", Json(request), "application/json");
+  ASSERT_TRUE(submitted && submitted->status == 200);
+  Operation op;
+  ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(submitted->body, &op).ok());
+  for (int i = 0; i < 3000 && !op.done(); ++i) {
+    std::this_thread::sleep_for(milliseconds(10));
+    httplib::Result got = client.Get(("/v1/" + op.name()).c_str());
+    ASSERT_TRUE(got);
+    ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(got->body, &op).ok());
+  }
+  ASSERT_TRUE(op.done());
+  const size_t whole = client.Get(("/v1/" + op.name()).c_str())->body.size();
+  ASSERT_GT(whole, 1u << 20) << "the answer must exceed what the sockets buffer";
+
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  const int small = 4096;
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof(small));
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>((*server)->http_port()));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
+  const std::string get = "GET /v1/" + op.name() + " HTTP/1.1\r\nHost: x\r\n" +
+                          "Authorization: Bearer " + kToken + "\r\n\r\n";
+  ASSERT_EQ(send(fd, get.data(), get.size(), MSG_NOSIGNAL), static_cast<ssize_t>(get.size()));
+  std::this_thread::sleep_for(milliseconds(3000));
+  size_t received = 0;
+  bool eof = false;
+  char buffer[65536];
+  const auto end = Clock::now() + milliseconds(10000);
+  while (Clock::now() < end) {
+    pollfd p{fd, POLLIN, 0};
+    if (poll(&p, 1, 100) <= 0) continue;
+    const ssize_t n = recv(fd, buffer, sizeof(buffer), 0);
+    if (n <= 0) {
+      eof = true;
+      break;
+    }
+    received += static_cast<size_t>(n);
+  }
+  close(fd);
+  std::printf("answer of %zu bytes: %zu received before the cut\n", whole, received);
+  EXPECT_TRUE(eof);
+  EXPECT_LT(received, whole);
 }
 
 // --tls-cert / --tls-key: HTTPS on the HTTP port (verified against the certificate as CA) and
