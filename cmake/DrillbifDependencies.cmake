@@ -12,8 +12,10 @@
 #   SQLite::SQLite3        store                                             (service, later)
 #   OpenSSL::Crypto        SHA-256 of the service's cache keys               (server/)
 #   drillbif::grpc_reflection  gRPC server reflection (grpc++_reflection)    (server/)
-#   drillbif::httplib      cpp-httplib: the REST gateway and /metrics, and the HTTP client of
-#                          the REST tests                                    (server/, tests/)
+#   drillbif::microhttpd   GNU libmicrohttpd: the REST gateway's HTTP server  (server/)
+#   utf8cpp                UTF-8 validation of what the gateway passes on    (server/)
+#   drillbif::httplib      cpp-httplib: the HTTP client of the REST tests and of
+#                          bench/http_bench                                  (tests/, bench/)
 # The engine links only Eigen and SUNDIALS (see /work/shared/ARCHITECTURE.md).
 
 # --- Eigen -------------------------------------------------------------------------------------
@@ -100,6 +102,17 @@ else()
   target_link_libraries(drillbif::grpc_reflection INTERFACE "${DRILLBIF_GRPCPP_REFLECTION_LIBRARY}"
                         drillbif::grpc)
 endif()
+
+# GNU libmicrohttpd (libmicrohttpd-dev, 0.9.75; runtime package libmicrohttpd12): the REST
+# gateway's HTTP/1.1 server, event-driven (epoll threads, suspend/resume), with GnuTLS for HTTPS.
+# Debian ships a pkg-config file, no CMake config.
+pkg_check_modules(DRILLBIF_MICROHTTPD REQUIRED IMPORTED_TARGET libmicrohttpd>=0.9.71)
+add_library(drillbif::microhttpd INTERFACE IMPORTED GLOBAL)
+target_link_libraries(drillbif::microhttpd INTERFACE PkgConfig::DRILLBIF_MICROHTTPD)
+message(STATUS "drillbif: libmicrohttpd ${DRILLBIF_MICROHTTPD_VERSION} via pkg-config")
+
+# utf8cpp (libutfcpp-dev, header-only): UTF-8 validation and repair of request text.
+find_package(utf8cpp REQUIRED CONFIG)
 
 # cpp-httplib (libcpp-httplib-dev, 0.11): Debian builds it as a shared library with OpenSSL,
 # zlib and Brotli support, and the header's class layouts depend on those switches, so its

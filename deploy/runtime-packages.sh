@@ -10,6 +10,16 @@ if [ $# -eq 0 ]; then
   exit 2
 fi
 
+# What drillbif-server needs at run time, named as well as found by ldd below: its HTTP port
+# (libmicrohttpd, which brings GnuTLS for HTTPS).
+server_packages=(libmicrohttpd12)
+
+{
+for binary in "$@"; do
+  if [ "$(basename "$binary")" = drillbif-server ]; then
+    printf '%s\n' "${server_packages[@]}"
+  fi
+done
 for binary in "$@"; do
   ldd "$binary" | awk '/=> \// { print $3 }'
 done | sort -u | while read -r lib; do
@@ -28,4 +38,5 @@ done | sort -u | while read -r lib; do
     exit 1
   fi
   echo "$package"
-done | sort -u
+done
+} | sort -u

@@ -31,8 +31,38 @@ int main(int argc, char** argv) {
                  "HTTP port: REST (JSON, Server-Sent Events) and /metrics; 0 picks a free port")
       ->capture_default_str();
   app.add_option("--http-threads", options.http_threads,
-                 "HTTP threads (each open event stream holds one)")
+                 "HTTP event-loop threads (no waiting request or event stream holds one)")
       ->capture_default_str();
+  // HTTP limits (RestOptions documents each default and its reason).
+  drillbif::server::RestOptions& http = options.http;
+  app.add_option("--http-connection-limit", http.connection_limit,
+                 "Concurrent HTTP connections (lowered to fit RLIMIT_NOFILE)")
+      ->capture_default_str();
+  app.add_option("--http-listen-backlog", http.listen_backlog, "HTTP listen(2) backlog")
+      ->capture_default_str();
+  app.add_option("--http-connection-memory-bytes", http.connection_memory_bytes,
+                 "Memory of one HTTP connection (request line, headers, buffers)")
+      ->capture_default_str();
+  app.add_option("--http-max-uri-bytes", http.max_uri_bytes, "Longest request target (else 414)")
+      ->capture_default_str();
+  app.add_option("--http-max-header-bytes", http.max_header_bytes,
+                 "Longest request line and headers (else 431)")
+      ->capture_default_str();
+  app.add_option("--http-max-header-count", http.max_header_count,
+                 "Most header fields in a request (else 431)")
+      ->capture_default_str();
+  app.add_option("--http-idle-timeout-ms", http.idle_timeout_ms,
+                 "Close an HTTP connection with no byte read or written for this long")
+      ->capture_default_str();
+  app.add_option("--http-request-timeout-ms", http.request_timeout_ms,
+                 "A whole HTTP request must arrive within this time")
+      ->capture_default_str();
+  app.add_option("--http-write-timeout-ms", http.write_timeout_ms,
+                 "An HTTP answer must be taken by the socket within this time")
+      ->capture_default_str();
+  app.add_option("--tls-cert", options.tls_cert_file,
+                 "PEM certificate (chain): both ports use TLS (with --tls-key)");
+  app.add_option("--tls-key", options.tls_key_file, "PEM private key of --tls-cert");
   app.add_option("--db", options.db_path, "SQLite file of the job store")->capture_default_str();
   app.add_option("--workers", options.workers, "Worker threads; 0: one per core")
       ->capture_default_str();

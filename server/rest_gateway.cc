@@ -5,27 +5,23 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstdlib>
+#include <map>
 #include <mutex>
 #include <optional>
-#include <regex>
-#include <set>
-#include <thread>
 #include <utility>
 #include <vector>
 
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "google/rpc/status.pb.h"
+#include "server/executor.h"
+#include "server/http_server.h"
+#include "server/http_text.h"
 #include "server/services.h"
-
-// Last: httplib.h includes <resolv.h>, whose macro _res breaks Eigen's headers (a parameter name)
-// when they come after it.
-#include <httplib.h>
 
 namespace drillbif::server {
 namespace {
@@ -38,36 +34,104 @@ using google::protobuf::util::JsonPrintOptions;
 constexpr char kJson[] = "application/json";
 // Longest deadline a request may ask for with X-Server-Timeout (the services' longest wait).
 constexpr double kMaxServerTimeoutSeconds = 600;
+// /metrics renders wait beyond the one running; more are refused (429): scrapers come every few
+// seconds, so only a flood fills this.
+constexpr int kMaxQueuedMetricsRenders = 16;
 
 // What binds the fields of a route's request message (google.api.http): the path's {name=...}
 // variable, and either the body ("*": every other field) or the query parameters (GET, DELETE).
 enum class Binding { kBody, kQuery };
 
-// A route: its method, its path pattern as a regex (group 1: the {name} variable, if any) and
-// its template as written in the annotation (the metrics label).
+// A route: its method and its path template as written in the annotation (also the metrics
+// label). A template has at most one variable, {name=operations} (that text), {name=operations/*}
+// (one non-empty segment after "operations/") or {name=operations/**} (anything non-empty after
+// it, '/' included).
 struct RouteSpec {
   const char* method;
-  const char* regex;
   const char* label;
 };
 
-// Every route, in matching order: a path matched by two patterns goes to the first (so the
+// Every route, in matching order: a path matched by two templates goes to the first (so the
 // ":result", ":watch" and ":cancel" routes precede the catch-all operations/** ones).
 constexpr RouteSpec kRoutes[] = {
-    {"POST", R"(/v1/jobs:simulate)", "/v1/jobs:simulate"},
-    {"POST", R"(/v1/jobs:sweep)", "/v1/jobs:sweep"},
-    {"POST", R"(/v1/jobs:continue)", "/v1/jobs:continue"},
-    {"POST", R"(/v1/jobs:trace)", "/v1/jobs:trace"},
-    {"POST", R"(/v1/jobs:optimum)", "/v1/jobs:optimum"},
-    {"GET", R"(/v1/(operations/[^/]+):result)", "/v1/{name=operations/*}:result"},
-    {"POST", R"(/v1/optimum:query)", "/v1/optimum:query"},
-    {"GET", R"(/v1/(operations/[^/]+):watch)", "/v1/{name=operations/*}:watch"},
-    {"GET", R"(/v1/(operations))", "/v1/{name=operations}"},
-    {"POST", R"(/v1/(operations/.+):cancel)", "/v1/{name=operations/**}:cancel"},
-    {"GET", R"(/v1/(operations/.+))", "/v1/{name=operations/**}"},
-    {"DELETE", R"(/v1/(operations/.+))", "/v1/{name=operations/**}"},
-    {"GET", R"(/metrics)", "/metrics"},
+    {"POST", "/v1/jobs:simulate"},
+    {"POST", "/v1/jobs:sweep"},
+    {"POST", "/v1/jobs:continue"},
+    {"POST", "/v1/jobs:trace"},
+    {"POST", "/v1/jobs:optimum"},
+    {"GET", "/v1/{name=operations/*}:result"},
+    {"POST", "/v1/optimum:query"},
+    {"GET", "/v1/{name=operations/*}:watch"},
+    {"GET", "/v1/{name=operations}"},
+    {"POST", "/v1/{name=operations/**}:cancel"},
+    {"GET", "/v1/{name=operations/**}"},
+    {"DELETE", "/v1/{name=operations/**}"},
+    {"GET", "/metrics"},
 };
+enum RouteIndex {
+  kSubmitSimulate,
+  kSubmitSweep,
+  kSubmitContinue,
+  kSubmitTrace,
+  kSubmitOptimum,
+  kGetResult,
+  kQueryOptimum,
+  kWatch,
+  kListOperations,
+  kCancelOperation,
+  kGetOperation,
+  kDeleteOperation,
+  kMetrics,
+  kRouteCount,
+};
+static_assert(std::size(kRoutes) == kRouteCount, "one index per route");
+
+// Whether `path` matches the template `label`; *name gets the variable's value.
+bool MatchTemplate(std::string_view label, std::string_view path, std::string* name) {
+  const size_t open = label.find('{');
+  if (open == std::string_view::npos) return path == label;
+  const size_t close = label.find('}', open);
+  const std::string_view prefix = label.substr(0, open);
+  const std::string_view suffix = label.substr(close + 1);
+  const std::string_view variable = label.substr(open + 1, close - open - 1);
+  const std::string_view pattern = variable.substr(variable.find('=') + 1);
+  if (path.size() < prefix.size() + suffix.size() || !path.starts_with(prefix) ||
+      !path.ends_with(suffix)) {
+    return false;
+  }
+  const std::string_view value =
+      path.substr(prefix.size(), path.size() - prefix.size() - suffix.size());
+  bool match;
+  if (pattern.ends_with("/**")) {
+    const std::string_view base = pattern.substr(0, pattern.size() - 2);
+    match = value.size() > base.size() && value.starts_with(base);
+  } else if (pattern.ends_with("/*")) {
+    const std::string_view base = pattern.substr(0, pattern.size() - 1);
+    match = value.size() > base.size() && value.starts_with(base) &&
+            value.find('/', base.size()) == std::string_view::npos;
+  } else {
+    match = value == pattern;
+  }
+  if (match) *name = std::string(value);
+  return match;
+}
+
+// The first route serving `method` `path` (-1 if none); `*path_known` tells whether some route
+// serves the path with another method (405 rather than 404).
+int MatchRoute(const std::string& method, const std::string& path, std::string* name,
+               bool* path_known) {
+  *path_known = false;
+  for (int i = 0; i < kRouteCount; ++i) {
+    std::string value;
+    if (!MatchTemplate(kRoutes[i].label, path, &value)) continue;
+    if (method == kRoutes[i].method) {
+      *name = std::move(value);
+      return i;
+    }
+    *path_known = true;
+  }
+  return -1;
+}
 
 // The JSON text of a message (protobuf's JSON mapping, one line, lowerCamelCase names, fields
 // at their default value left out). Any fields (Operation.metadata, .response) resolve their
@@ -84,8 +148,15 @@ StatusOr<std::string> ToJson(const Message& message) {
 }
 
 // Parses JSON into `message`, refusing unknown fields (a misspelt field must not be silently
-// ignored: the request would run with a default instead).
+// ignored: the request would run with a default instead) and text that is not UTF-8 (RFC 8259
+// 8.1). Strings parsed are then valid UTF-8: protobuf's parser refuses \u escapes of lone
+// surrogates ("Missing low surrogate", "Invalid unicode code point").
 grpc::Status FromJson(std::string_view json, Message* message, const char* what) {
+  if (const size_t bad = FindInvalidUtf8(json); bad != std::string_view::npos) {
+    return grpc::Status(
+        grpc::StatusCode::INVALID_ARGUMENT,
+        std::string(what) + ": not valid UTF-8 (at byte " + std::to_string(bad) + ")");
+  }
   JsonParseOptions options;
   options.ignore_unknown_fields = false;
   auto status = google::protobuf::util::JsonStringToMessage(
@@ -93,19 +164,28 @@ grpc::Status FromJson(std::string_view json, Message* message, const char* what)
   if (!status.ok()) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                         std::string(what) + ": not a valid " + message->GetTypeName() +
-                            " in JSON: " + std::string(status.message()));
+                            " in JSON: " + ValidUtf8(std::string(status.message())));
   }
   return grpc::Status::OK;
 }
 
-void SetJson(httplib::Response& res, int status, std::string body) {
-  res.status = status;
-  res.set_content(std::move(body), kJson);
+HttpResponse JsonResponse(int status, std::string body) {
+  HttpResponse response;
+  response.status = status;
+  response.content_type = kJson;
+  response.body = std::move(body);
+  return response;
 }
 
-void SetError(httplib::Response& res, const grpc::Status& status, int http_status = 0) {
-  SetJson(res, http_status != 0 ? http_status : HttpStatusOf(status.error_code()),
-          ErrorJson(status));
+HttpResponse ErrorResponse(const grpc::Status& status, int http_status = 0) {
+  return JsonResponse(http_status != 0 ? http_status : HttpStatusOf(status.error_code()),
+                      ErrorJson(status));
+}
+
+HttpResponse MessageResponse(const Message& message) {
+  StatusOr<std::string> json = ToJson(message);
+  if (!json.ok()) return ErrorResponse(ToGrpc(json.status()));
+  return JsonResponse(200, std::move(json).value());
 }
 
 // Sets the field `name` (a string) of `message` to the path variable, refusing a different value
@@ -119,8 +199,9 @@ grpc::Status BindName(const std::string& name, Message* message) {
   const auto* reflection = message->GetReflection();
   const std::string given = reflection->GetString(*message, field);
   if (!given.empty() && given != name) {
-    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                        "name: '" + given + "' differs from the path's '" + name + "'");
+    return grpc::Status(
+        grpc::StatusCode::INVALID_ARGUMENT,
+        "name: '" + Sanitize(given) + "' differs from the path's '" + Sanitize(name) + "'");
   }
   reflection->SetString(message, field, name);
   return grpc::Status::OK;
@@ -128,14 +209,16 @@ grpc::Status BindName(const std::string& name, Message* message) {
 
 // The query parameters as a JSON object of strings, parsed into `message` by the JSON mapping:
 // names are the fields' (proto or lowerCamelCase), numbers are accepted as strings, and an
-// unknown parameter is refused like an unknown JSON field.
-grpc::Status FromQuery(const httplib::Params& params, Message* message) {
+// unknown parameter is refused like an unknown JSON field. (Names and values are valid UTF-8:
+// ParseRequestTarget checked them.)
+grpc::Status FromQuery(const std::vector<std::pair<std::string, std::string>>& params,
+                       Message* message) {
   google::protobuf::Struct object;
   for (const auto& [key, value] : params) {
     auto* fields = object.mutable_fields();
     if (fields->count(key) != 0) {
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                          "query parameter '" + key + "' is given more than once");
+                          "query parameter '" + Sanitize(key) + "' is given more than once");
     }
     (*fields)[key].set_string_value(value);
   }
@@ -144,24 +227,35 @@ grpc::Status FromQuery(const httplib::Params& params, Message* message) {
   return FromJson(*json, message, "query");
 }
 
-// The deadline of a call made for `req`: X-Server-Timeout seconds when given (bounded), else the
-// default. INVALID_ARGUMENT for a value that is not a positive number.
-grpc::Status DeadlineOf(const httplib::Request& req, int default_ms,
+// The deadline of a call made for `exchange`: X-Server-Timeout seconds when given (bounded),
+// else the default. INVALID_ARGUMENT for a value that is not a positive number.
+grpc::Status DeadlineOf(const HttpExchange& exchange, int default_ms,
                         std::chrono::system_clock::time_point* deadline) {
   double seconds = default_ms / 1000.0;
-  if (req.has_header("X-Server-Timeout")) {
-    const std::string text = req.get_header_value("X-Server-Timeout");
+  if (const std::string* text = exchange.header("X-Server-Timeout")) {
     char* end = nullptr;
-    const double value = std::strtod(text.c_str(), &end);
-    if (text.empty() || end == nullptr || *end != '\0' || !std::isfinite(value) || value <= 0) {
-      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                          "X-Server-Timeout: expected seconds > 0, got '" + text + "'");
+    const double value = std::strtod(text->c_str(), &end);
+    // The whole value must be the number (a NUL byte inside would end strtod's string early).
+    if (text->empty() || end != text->c_str() + text->size() || !std::isfinite(value) ||
+        value <= 0) {
+      return grpc::Status(
+          grpc::StatusCode::INVALID_ARGUMENT,
+          "header X-Server-Timeout: expected seconds > 0, got '" + Sanitize(*text) + "'");
     }
     seconds = std::min(value, kMaxServerTimeoutSeconds);
   }
   *deadline = std::chrono::system_clock::now() +
               std::chrono::microseconds(static_cast<int64_t>(seconds * 1e6));
   return grpc::Status::OK;
+}
+
+HttpResponse StreamHead() {
+  HttpResponse head;
+  head.status = 200;
+  head.content_type = "text/event-stream";
+  head.headers = {{"Cache-Control", "no-cache"},
+                  {"X-Accel-Buffering", "no"}};  // Proxies must not hold events back.
+  return head;
 }
 
 }  // namespace
@@ -173,21 +267,42 @@ Status RestOptions::Validate() const {
   if (port < 0 || port > 65535) {
     return InvalidArgument("port: must be in [0, 65535], got " + std::to_string(port));
   }
-  if (max_body_bytes < 1024) {
-    return InvalidArgument("max_body_bytes: must be >= 1024, got " +
-                           std::to_string(max_body_bytes));
+  if (tls_cert_file.empty() != tls_key_file.empty()) {
+    return InvalidArgument("tls_cert_file, tls_key_file: give both or neither");
   }
-  if (threads < 1 || threads > 1024) {
-    return InvalidArgument("threads: must be in [1, 1024], got " + std::to_string(threads));
+  const auto in_range = [](const char* name, int64_t value, int64_t low, int64_t high) {
+    if (value >= low && value <= high) return Status::Ok();
+    return InvalidArgument(std::string(name) + ": must be in [" + std::to_string(low) + ", " +
+                           std::to_string(high) + "], got " + std::to_string(value));
+  };
+  for (const Status& s : {
+           in_range("threads", threads, 1, 64),
+           in_range("connection_limit", connection_limit, 1, 1 << 20),
+           in_range("listen_backlog", listen_backlog, 1, 1 << 16),
+           in_range("connection_memory_bytes", connection_memory_bytes, 8 << 10, 64 << 20),
+           in_range("max_uri_bytes", max_uri_bytes, 64, 64 << 20),
+           in_range("max_header_bytes", max_header_bytes, 256, 64 << 20),
+           in_range("max_header_count", max_header_count, 4, 1 << 20),
+           in_range("max_body_bytes", max_body_bytes, 1024, 1 << 30),
+           in_range("idle_timeout_ms", idle_timeout_ms, 1, 24 * 3600 * 1000),
+           in_range("request_timeout_ms", request_timeout_ms, 1, 24 * 3600 * 1000),
+           in_range("write_timeout_ms", write_timeout_ms, 1, 24 * 3600 * 1000),
+           in_range("deadline_ms", deadline_ms, 1, 24 * 3600 * 1000),
+           in_range("stop_grace_ms", stop_grace_ms, 0, 3600 * 1000),
+       }) {
+    if (!s.ok()) return s;
   }
-  if (deadline_ms < 1) {
-    return InvalidArgument("deadline_ms: must be >= 1, got " + std::to_string(deadline_ms));
+  // The request line is part of the header bytes, which libmicrohttpd must hold with room to
+  // spare (it also keeps a record per header there); else its own HTML answer comes first.
+  if (max_uri_bytes > max_header_bytes) {
+    return InvalidArgument("max_uri_bytes: must be <= max_header_bytes (" +
+                           std::to_string(max_header_bytes) + "), got " +
+                           std::to_string(max_uri_bytes));
   }
-  if (read_timeout_ms < 1) {
-    return InvalidArgument("read_timeout_ms: must be >= 1, got " + std::to_string(read_timeout_ms));
-  }
-  if (stop_grace_ms < 0) {
-    return InvalidArgument("stop_grace_ms: must be >= 0, got " + std::to_string(stop_grace_ms));
+  if (2 * int64_t{max_header_bytes} > connection_memory_bytes) {
+    return InvalidArgument("max_header_bytes: must be at most half of connection_memory_bytes (" +
+                           std::to_string(connection_memory_bytes) + "), got " +
+                           std::to_string(max_header_bytes));
   }
   return Status::Ok();
 }
@@ -239,382 +354,373 @@ std::string ErrorJson(const grpc::Status& status) {
     }
   }
   return "{\"code\":" + quoted(GrpcCodeName(static_cast<int>(status.error_code()))) +
-         ",\"message\":" + quoted(status.error_message()) + ",\"details\":[" + details + "]}";
+         ",\"message\":" + quoted(ValidUtf8(status.error_message())) + ",\"details\":[" + details +
+         "]}";
 }
 
 // ---------------------------------------------------------------------------------------------
 
-struct RestGateway::Impl {
-  // One open event stream: the Watch call it relays.
-  struct WatchCall {
-    grpc::ClientContext context;
-    std::unique_ptr<grpc::ClientReader<v1::JobMetadata>> reader;
-    std::optional<v1::JobMetadata> first;  // Read before the response started.
-    bool finished = false;                 // reader->Finish() was called.
-  };
+struct RestGateway::Impl final : public HttpHandler {
+  class WatchStream;
 
   RestOptions options;
   Metrics* metrics = nullptr;
   MetricsTextFunction metrics_text;
   std::unique_ptr<v1::Jobs::Stub> jobs;
   std::unique_ptr<google::longrunning::Operations::Stub> operations;
-  httplib::Server http;
-  std::vector<std::regex> route_regexes;  // kRoutes' patterns, compiled once.
-  int port = 0;
-  std::thread listener;
+  std::unique_ptr<BoundedExecutor> renderer;  // /metrics (it reads the store: may block).
+  std::unique_ptr<HttpServer> http;
 
+  // Calls in progress, by a number of their own, with what cancels each (Stop cancels them).
   std::mutex mutex;
-  std::condition_variable watches_changed;
-  bool stopped = false;
-  std::set<WatchCall*> watches;  // Open streams, awaited and then cancelled by Stop.
+  std::condition_variable changed;
+  bool stopping = false;
+  uint64_t next_call = 1;
+  std::map<uint64_t, std::function<void()>> calls;    // Unary calls.
+  std::map<uint64_t, std::function<void()>> streams;  // Watch streams.
 
-  // The template of the route serving `method` `path`, "other" when none.
-  const char* RouteLabel(const std::string& method, const std::string& path) const {
-    for (size_t i = 0; i < std::size(kRoutes); ++i) {
-      if (method == kRoutes[i].method && std::regex_match(path, route_regexes[i])) {
-        return kRoutes[i].label;
-      }
-    }
-    return "other";
+  // Registers a call about to start; 0 when the gateway stops (then answer 503).
+  uint64_t Enter(std::function<void()> cancel, bool stream) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (stopping) return 0;
+    const uint64_t id = next_call++;
+    (stream ? streams : calls).emplace(id, std::move(cancel));
+    return id;
   }
 
-  // Whether some route serves `path` with another method (then 405 rather than 404).
-  bool PathKnown(const std::string& path) const {
-    for (size_t i = 0; i < std::size(kRoutes); ++i) {
-      if (std::regex_match(path, route_regexes[i])) return true;
-    }
-    return false;
+  // The call ended. The last use of the gateway by the call's callbacks: Stop may return as soon
+  // as the lock is released.
+  void Leave(uint64_t id, bool stream) {
+    std::lock_guard<std::mutex> lock(mutex);
+    (stream ? streams : calls).erase(id);
+    changed.notify_all();
   }
 
-  // The token check made before anything is parsed, with the REST wording of the message.
-  grpc::Status Authorize(const httplib::Request& req) const {
-    const bool present = req.has_header("Authorization");
-    grpc::Status s = CheckBearerToken(
-        options.token, present, present ? req.get_header_value("Authorization") : std::string());
-    if (!s.ok() && !present) {
+  static HttpResponse ShuttingDown() {
+    return ErrorResponse(
+        grpc::Status(grpc::StatusCode::UNAVAILABLE, "the server is shutting down"));
+  }
+
+  // The token check made before the body is read, with the REST wording of the message.
+  grpc::Status Authorize(const HttpExchange& exchange) const {
+    const std::string* authorization = exchange.header("Authorization");
+    if (authorization != nullptr && FindInvalidUtf8(*authorization) != std::string_view::npos) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "header Authorization: not valid UTF-8");
+    }
+    grpc::Status s = CheckBearerToken(options.token, authorization != nullptr,
+                                      authorization != nullptr ? *authorization : std::string());
+    if (!s.ok() && authorization == nullptr) {
       return grpc::Status(s.error_code(),
                           "missing bearer token (header \"Authorization: Bearer <token>\")");
     }
     return s;
   }
 
-  // A client context for a call made for `req`: deadline and the token as metadata.
-  grpc::Status PrepareContext(const httplib::Request& req, grpc::ClientContext* context,
+  // A client context for a call made for `exchange`: deadline and the token as metadata.
+  grpc::Status PrepareContext(const HttpExchange& exchange, grpc::ClientContext* context,
                               bool with_deadline) const {
     if (with_deadline) {
       std::chrono::system_clock::time_point deadline;
-      if (grpc::Status s = DeadlineOf(req, options.deadline_ms, &deadline); !s.ok()) return s;
+      if (grpc::Status s = DeadlineOf(exchange, options.deadline_ms, &deadline); !s.ok()) {
+        return s;
+      }
       context->set_deadline(deadline);
     }
-    // Passed on only when it was checked above: a header the gateway accepted is valid metadata.
+    // Passed on only when it was checked: a header the gateway accepted is valid metadata.
     if (!options.token.empty()) {
-      context->AddMetadata("authorization", req.get_header_value("Authorization"));
+      context->AddMetadata("authorization", *exchange.header("Authorization"));
     }
     return grpc::Status::OK;
   }
 
-  // Builds the request message of a route from the path, the body or the query.
-  grpc::Status BuildRequest(const httplib::Request& req, Binding binding, Message* request) const {
-    if (req.body.size() > static_cast<size_t>(options.max_body_bytes)) {
-      // Not reached through httplib, which refuses such a body by its Content-Length (and
-      // chunked bodies before routing); kept so that the limit holds whatever reads the body.
-      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "request body of " + std::to_string(req.body.size()) +
-                              " bytes is larger than the limit of " +
-                              std::to_string(options.max_body_bytes));
-    }
+  // Builds the request message of a route from the path's `name`, the body or the query.
+  grpc::Status BuildRequest(const HttpExchange& exchange, Binding binding, const std::string& name,
+                            Message* request) const {
     if (binding == Binding::kBody) {
-      // req.params would also hold a form-encoded body's fields (curl -d sends that content
-      // type): the target tells whether there is a query string. The body is JSON whatever
-      // the Content-Type says.
-      if (req.target.find('?') != std::string::npos) {
+      if (exchange.target().has_query) {
         return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                             "query parameters: this route takes every field from the body");
       }
-      const bool blank = std::all_of(req.body.begin(), req.body.end(), [](char c) {
+      // The body is JSON whatever the Content-Type says (curl -d sends a form's type).
+      const std::string& body = exchange.body();
+      const bool blank = std::all_of(body.begin(), body.end(), [](char c) {
         return c == ' ' || c == '\n' || c == '\r' || c == '\t';
       });
-      if (grpc::Status s = FromJson(blank ? std::string_view("{}") : req.body, request, "body");
+      if (grpc::Status s = FromJson(blank ? std::string_view("{}") : body, request, "body");
           !s.ok()) {
         return s;
       }
-    } else {
-      if (grpc::Status s = FromQuery(req.params, request); !s.ok()) return s;
+    } else if (grpc::Status s = FromQuery(exchange.target().query, request); !s.ok()) {
+      return s;
     }
-    if (req.matches.size() > 1) return BindName(req.matches[1].str(), request);
+    if (!name.empty()) return BindName(name, request);
     return grpc::Status::OK;
   }
 
-  // The common shape of a unary route: token, request, call, JSON answer or JSON error.
-  template <typename Request, typename Response, typename Call>
-  void Unary(const httplib::Request& req, httplib::Response& res, Binding binding, Call call) {
-    if (grpc::Status s = Authorize(req); !s.ok()) return SetError(res, s);
-    Request request;
-    if (grpc::Status s = BuildRequest(req, binding, &request); !s.ok()) {
-      return SetError(res, s, s.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED ? 413 : 0);
+  // The common shape of a unary route: request, callback call, JSON answer or JSON error. The
+  // connection stays suspended until the callback answers; a client that goes away cancels.
+  template <typename Request, typename Response, typename StartCall>
+  void Unary(const std::shared_ptr<HttpExchange>& exchange, Binding binding,
+             const std::string& name, StartCall start) {
+    struct Call {
+      grpc::ClientContext context;
+      Request request;
+      Response response;
+    };
+    auto call = std::make_shared<Call>();
+    if (grpc::Status s = BuildRequest(*exchange, binding, name, &call->request); !s.ok()) {
+      return exchange->Respond(ErrorResponse(s));
     }
-    grpc::ClientContext context;
-    if (grpc::Status s = PrepareContext(req, &context, /*with_deadline=*/true); !s.ok()) {
-      return SetError(res, s);
+    if (grpc::Status s = PrepareContext(*exchange, &call->context, true); !s.ok()) {
+      return exchange->Respond(ErrorResponse(s));
     }
-    Response response;
-    grpc::Status status = call(&context, request, &response);
-    if (!status.ok()) return SetError(res, status);
-    StatusOr<std::string> json = ToJson(response);
-    if (!json.ok()) return SetError(res, ToGrpc(json.status()));
-    SetJson(res, 200, std::move(json).value());
-  }
-
-  // GET .../operations/{id}:watch: the Watch stream as Server-Sent Events, one
-  // "data: <JobMetadata JSON>\n\n" per message; a stream ending with an error sends
-  // "event: error\ndata: <error JSON>\n\n" last. The first message is read before the response
-  // starts, so that an unknown operation or a missing token is a plain JSON error instead.
-  void Watch(const httplib::Request& req, httplib::Response& res) {
-    if (grpc::Status s = Authorize(req); !s.ok()) return SetError(res, s);
-    v1::WatchRequest request;
-    if (grpc::Status s = BuildRequest(req, Binding::kQuery, &request); !s.ok()) {
-      return SetError(res, s);
-    }
-    auto call = std::make_shared<WatchCall>();
-    // No deadline: the stream lasts as long as the job.
-    if (grpc::Status s = PrepareContext(req, &call->context, /*with_deadline=*/false); !s.ok()) {
-      return SetError(res, s);
-    }
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      if (stopped) {
-        return SetError(res,
-                        grpc::Status(grpc::StatusCode::UNAVAILABLE, "the server is shutting down"));
-      }
-      watches.insert(call.get());
-    }
-    call->reader = jobs->Watch(&call->context, request);
-    v1::JobMetadata first;
-    if (!call->reader->Read(&first)) {
-      grpc::Status s = call->reader->Finish();
-      call->finished = true;
-      Forget(call.get());
-      return SetError(res, s.ok() ? grpc::Status(grpc::StatusCode::INTERNAL,
-                                                 "the watch ended without a message")
-                                  : s);
-    }
-    call->first = std::move(first);
-    res.status = 200;
-    res.set_header("Cache-Control", "no-cache");
-    res.set_header("X-Accel-Buffering", "no");  // Proxies must not hold events back.
-    res.set_chunked_content_provider(
-        "text/event-stream",
-        [call](size_t, httplib::DataSink& sink) {
-          v1::JobMetadata metadata;
-          if (call->first) {
-            metadata = std::move(*call->first);
-            call->first.reset();
-          } else if (!call->reader->Read(&metadata)) {
-            grpc::Status s = call->reader->Finish();
-            call->finished = true;
-            if (!s.ok()) {
-              const std::string event = "event: error\ndata: " + ErrorJson(s) + "\n\n";
-              sink.write(event.data(), event.size());
-            }
-            sink.done();
-            return true;
-          }
-          StatusOr<std::string> json = ToJson(metadata);
-          const std::string event =
-              "data: " + (json.ok() ? *json : ErrorJson(ToGrpc(json.status()))) + "\n\n";
-          // False (the client went away) ends the response; the releaser cancels the call.
-          return sink.write(event.data(), event.size());
-        },
-        [this, call](bool) {
-          if (!call->finished) {
-            call->context.TryCancel();
-            v1::JobMetadata ignored;
-            while (call->reader->Read(&ignored)) {
-            }
-            call->reader->Finish();
-            call->finished = true;
-          }
-          Forget(call.get());
+    const uint64_t id = Enter([call] { call->context.TryCancel(); }, false);
+    if (id == 0) return exchange->Respond(ShuttingDown());
+    exchange->OnClientGone([call] { call->context.TryCancel(); });
+    start(
+        &call->context, &call->request, &call->response,
+        [this, exchange, call, id](grpc::Status status) {
+          // On a gRPC thread: the JSON is printed here, not on an HTTP thread.
+          exchange->Respond(status.ok() ? MessageResponse(call->response) : ErrorResponse(status));
+          Leave(id, false);
         });
   }
 
-  void Forget(WatchCall* call) {
+  void Watch(const std::shared_ptr<HttpExchange>& exchange, const std::string& name);
+
+  void ServeMetrics(const std::shared_ptr<HttpExchange>& exchange) {
+    const bool queued = renderer->TrySubmit([this, exchange] {
+      StatusOr<std::string> text = metrics_text();
+      if (!text.ok()) return exchange->Respond(ErrorResponse(ToGrpc(text.status())));
+      HttpResponse response;
+      response.content_type = kMetricsContentType;
+      response.body = std::move(text).value();
+      exchange->Respond(std::move(response));
+    });
+    if (!queued) {
+      exchange->Respond(ErrorResponse(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                                                   "too many /metrics requests at once")));
+    }
+  }
+
+  // HttpHandler: route, method and token, before the body is read.
+  std::optional<HttpResponse> OnHeaders(HttpExchange& exchange) override {
+    std::string name;
+    bool path_known = false;
+    const int route = MatchRoute(exchange.method(), exchange.target().path, &name, &path_known);
+    if (route < 0 && path_known) {
+      return ErrorResponse(
+          grpc::Status(grpc::StatusCode::UNIMPLEMENTED, "method " + Sanitize(exchange.method()) +
+                                                            " is not served on " +
+                                                            Sanitize(exchange.target().path)),
+          405);
+    }
+    if (route < 0) {
+      return ErrorResponse(grpc::Status(
+          grpc::StatusCode::NOT_FOUND,
+          "no route for " + Sanitize(exchange.method()) + " " + Sanitize(exchange.target().path)));
+    }
+    exchange.set_route_label(kRoutes[route].label);
     {
       std::lock_guard<std::mutex> lock(mutex);
-      watches.erase(call);
+      if (stopping) return ShuttingDown();
     }
-    watches_changed.notify_all();
+    if (route == kMetrics) return std::nullopt;  // Open, like health probes.
+    if (grpc::Status s = Authorize(exchange); !s.ok()) return ErrorResponse(s);
+    return std::nullopt;
   }
 
-  void ServeMetrics(const httplib::Request&, httplib::Response& res) {
-    StatusOr<std::string> text = metrics_text();
-    if (!text.ok()) return SetError(res, ToGrpc(text.status()));
-    res.status = 200;
-    res.set_content(std::move(text).value(), kMetricsContentType);
-  }
-
-  void Register() {
-    for (const RouteSpec& route : kRoutes) route_regexes.emplace_back(route.regex);
+  // HttpHandler: the whole request is in.
+  void OnRequest(std::shared_ptr<HttpExchange> exchange) override {
     using google::longrunning::CancelOperationRequest;
     using google::longrunning::DeleteOperationRequest;
     using google::longrunning::GetOperationRequest;
     using google::longrunning::ListOperationsRequest;
     using google::longrunning::ListOperationsResponse;
     using google::protobuf::Empty;
-    // One handler per kRoutes entry, in its order.
-    const std::vector<httplib::Server::Handler> handlers = {
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<v1::SubmitSimulateRequest, Operation>(req, res, Binding::kBody,
-                                                      [this](auto* c, const auto& r, auto* out) {
-                                                        return jobs->SubmitSimulate(c, r, out);
-                                                      });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<v1::SubmitSweepRequest, Operation>(
-              req, res, Binding::kBody,
-              [this](auto* c, const auto& r, auto* out) { return jobs->SubmitSweep(c, r, out); });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<v1::SubmitContinueRequest, Operation>(req, res, Binding::kBody,
-                                                      [this](auto* c, const auto& r, auto* out) {
-                                                        return jobs->SubmitContinue(c, r, out);
-                                                      });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<v1::SubmitTraceRequest, Operation>(
-              req, res, Binding::kBody,
-              [this](auto* c, const auto& r, auto* out) { return jobs->SubmitTrace(c, r, out); });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<v1::SubmitOptimumRequest, Operation>(
-              req, res, Binding::kBody,
-              [this](auto* c, const auto& r, auto* out) { return jobs->SubmitOptimum(c, r, out); });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<v1::GetResultRequest, v1::GetResultResponse>(
-              req, res, Binding::kQuery,
-              [this](auto* c, const auto& r, auto* out) { return jobs->GetResult(c, r, out); });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<v1::QueryOptimumRequest, v1::QueryOptimumResponse>(
-              req, res, Binding::kBody,
-              [this](auto* c, const auto& r, auto* out) { return jobs->QueryOptimum(c, r, out); });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) { Watch(req, res); },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<ListOperationsRequest, ListOperationsResponse>(
-              req, res, Binding::kQuery, [this](auto* c, const auto& r, auto* out) {
-                return operations->ListOperations(c, r, out);
-              });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<CancelOperationRequest, Empty>(req, res, Binding::kBody,
-                                               [this](auto* c, const auto& r, auto* out) {
-                                                 return operations->CancelOperation(c, r, out);
-                                               });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<GetOperationRequest, Operation>(req, res, Binding::kQuery,
-                                                [this](auto* c, const auto& r, auto* out) {
-                                                  return operations->GetOperation(c, r, out);
-                                                });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) {
-          Unary<DeleteOperationRequest, Empty>(req, res, Binding::kQuery,
-                                               [this](auto* c, const auto& r, auto* out) {
-                                                 return operations->DeleteOperation(c, r, out);
-                                               });
-        },
-        [this](const httplib::Request& req, httplib::Response& res) { ServeMetrics(req, res); },
-    };
-    static_assert(std::size(kRoutes) == 13, "one handler per route");
-    for (size_t i = 0; i < std::size(kRoutes); ++i) {
-      const RouteSpec& route = kRoutes[i];
-      // Each handler counts its answer (the error handler counts httplib's own answers).
-      httplib::Server::Handler counted = [this, route, handler = handlers[i]](
-                                             const httplib::Request& req, httplib::Response& res) {
-        handler(req, res);
-        metrics->CountHttpRequest(req.method, route.label, res.status);
-      };
-      const std::string method = route.method;
-      if (method == "GET") {
-        http.Get(route.regex, counted);
-      } else if (method == "POST") {
-        http.Post(route.regex, counted);
-      } else {
-        http.Delete(route.regex, counted);
-      }
+    std::string name;
+    bool path_known = false;
+    const int route = MatchRoute(exchange->method(), exchange->target().path, &name, &path_known);
+    auto* j = jobs->async();
+    auto* o = operations->async();
+    // Each lambda starts one callback call: (context, request, response, done).
+    switch (route) {
+      case kSubmitSimulate:
+        return Unary<v1::SubmitSimulateRequest, Operation>(
+            exchange, Binding::kBody, name, [j](auto... a) { j->SubmitSimulate(a...); });
+      case kSubmitSweep:
+        return Unary<v1::SubmitSweepRequest, Operation>(exchange, Binding::kBody, name,
+                                                        [j](auto... a) { j->SubmitSweep(a...); });
+      case kSubmitContinue:
+        return Unary<v1::SubmitContinueRequest, Operation>(
+            exchange, Binding::kBody, name, [j](auto... a) { j->SubmitContinue(a...); });
+      case kSubmitTrace:
+        return Unary<v1::SubmitTraceRequest, Operation>(exchange, Binding::kBody, name,
+                                                        [j](auto... a) { j->SubmitTrace(a...); });
+      case kSubmitOptimum:
+        return Unary<v1::SubmitOptimumRequest, Operation>(
+            exchange, Binding::kBody, name, [j](auto... a) { j->SubmitOptimum(a...); });
+      case kGetResult:
+        return Unary<v1::GetResultRequest, v1::GetResultResponse>(
+            exchange, Binding::kQuery, name, [j](auto... a) { j->GetResult(a...); });
+      case kQueryOptimum:
+        return Unary<v1::QueryOptimumRequest, v1::QueryOptimumResponse>(
+            exchange, Binding::kBody, name, [j](auto... a) { j->QueryOptimum(a...); });
+      case kWatch:
+        return Watch(exchange, name);
+      case kListOperations:
+        return Unary<ListOperationsRequest, ListOperationsResponse>(
+            exchange, Binding::kQuery, name, [o](auto... a) { o->ListOperations(a...); });
+      case kCancelOperation:
+        return Unary<CancelOperationRequest, Empty>(exchange, Binding::kBody, name,
+                                                    [o](auto... a) { o->CancelOperation(a...); });
+      case kGetOperation:
+        return Unary<GetOperationRequest, Operation>(exchange, Binding::kQuery, name,
+                                                     [o](auto... a) { o->GetOperation(a...); });
+      case kDeleteOperation:
+        return Unary<DeleteOperationRequest, Empty>(exchange, Binding::kQuery, name,
+                                                    [o](auto... a) { o->DeleteOperation(a...); });
+      case kMetrics:
+        return ServeMetrics(exchange);
+      default:
+        // OnHeaders refused every other path.
+        return exchange->Respond(
+            ErrorResponse(grpc::Status(grpc::StatusCode::INTERNAL, "request reached no route")));
     }
-    // Before any body is read: httplib 0.11 caps a body by its Content-Length only; it reads a
-    // chunked body, or one with no length at all, to its end whatever its size. A request with
-    // neither header has no body (RFC 9112 6.3; curl -X POST sends that): say so to httplib,
-    // which would otherwise wait for the connection to close. Chunked bodies are refused (411).
-    http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-      const bool has_body_method =
-          req.method == "POST" || req.method == "PUT" || req.method == "PATCH";
-      if (!has_body_method || req.has_header("Content-Length")) {
-        return httplib::Server::HandlerResponse::Unhandled;
-      }
-      if (!req.has_header("Transfer-Encoding")) {
-        // The request object is httplib's own, non-const one; the handler only sees it const.
-        const_cast<httplib::Request&>(req).set_header("Content-Length", "0");
-        return httplib::Server::HandlerResponse::Unhandled;
-      }
-      SetError(res,
-               grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                            "Content-Length required: chunked bodies are not accepted (bodies are "
-                            "limited to " +
-                                std::to_string(options.max_body_bytes) + " bytes)"),
-               411);
-      res.set_header("Connection", "close");
-      metrics->CountHttpRequest(req.method, RouteLabel(req.method, req.path), res.status);
-      return httplib::Server::HandlerResponse::Handled;
-    });
-    // Answers httplib makes itself (no route, body too large, unparsable request) get a JSON
-    // body too. Called for every status >= 400; those with a body are the handlers' own.
-    http.set_error_handler(httplib::Server::HandlerWithResponse(
-        [this](const httplib::Request& req, httplib::Response& res) {
-          if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-          grpc::Status status;
-          // httplib answers 404 (400 for PUT, PATCH, ...) when no handler matched.
-          const bool unrouted = (res.status == 404 || res.status == 400) &&
-                                std::string(RouteLabel(req.method, req.path)) == "other";
-          if (unrouted && PathKnown(req.path)) {
-            res.status = 405;
-            status = grpc::Status(grpc::StatusCode::UNIMPLEMENTED,
-                                  "method " + req.method + " is not served on " + req.path);
-          } else if (unrouted) {
-            res.status = 404;
-            status = grpc::Status(grpc::StatusCode::NOT_FOUND,
-                                  "no route for " + req.method + " " + req.path);
-          } else if (res.status == 413) {
-            status = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                                  "request body larger than the limit of " +
-                                      std::to_string(options.max_body_bytes) + " bytes");
-          } else {
-            status = grpc::Status(
-                res.status >= 500 ? grpc::StatusCode::INTERNAL : grpc::StatusCode::INVALID_ARGUMENT,
-                "HTTP " + std::to_string(res.status) + ": malformed request");
-          }
-          res.set_content(ErrorJson(status), kJson);
-          metrics->CountHttpRequest(req.method, RouteLabel(req.method, req.path), res.status);
-          return httplib::Server::HandlerResponse::Handled;
-        }));
-    http.set_exception_handler(
-        [this](const httplib::Request& req, httplib::Response& res, std::exception_ptr e) {
-          std::string what = "unknown exception";
-          try {
-            if (e) std::rethrow_exception(e);
-          } catch (const std::exception& ex) {
-            what = ex.what();
-          } catch (...) {
-          }
-          spdlog::error("REST {} {}: {}", req.method, req.path, what);
-          SetError(res, grpc::Status(grpc::StatusCode::INTERNAL, "internal error: " + what));
-          metrics->CountHttpRequest(req.method, RouteLabel(req.method, req.path), res.status);
-        });
   }
 };
+
+// GET .../operations/{id}:watch: the Watch stream as Server-Sent Events, one
+// "data: <JobMetadata JSON>\n\n" per message; a stream ending with an error sends
+// "event: error\ndata: <error JSON>\n\n" last. The answer starts with the first message, so that
+// an unknown operation or a missing token is a plain JSON error instead. One message is read at
+// a time: the next read starts when the HTTP side has taken the previous event, so a client that
+// reads slowly holds one event, not a queue (Watch sends the newest state; nothing is lost but
+// intermediate progress).
+class RestGateway::Impl::WatchStream final : public grpc::ClientReadReactor<v1::JobMetadata>,
+                                             public HttpStream,
+                                             public std::enable_shared_from_this<WatchStream> {
+ public:
+  WatchStream(Impl* gateway, std::shared_ptr<HttpExchange> exchange)
+      : gateway_(gateway), exchange_(std::move(exchange)) {}
+
+  grpc::ClientContext& context() { return context_; }
+  v1::WatchRequest& request() { return request_; }
+
+  // Starts the call; the stream keeps itself alive until OnDone.
+  void Begin(uint64_t id) {
+    id_ = id;
+    self_ = shared_from_this();
+    gateway_->jobs->async()->Watch(&context_, &request_, this);
+    StartRead(&message_);
+    StartCall();
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) return;  // OnDone follows.
+    StatusOr<std::string> json = ToJson(message_);
+    std::string event = "data: " + (json.ok() ? *json : ErrorJson(ToGrpc(json.status()))) + "\n\n";
+    bool first;
+    std::shared_ptr<HttpExchange> exchange;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      pending_ = std::move(event);
+      first = !started_;
+      started_ = true;
+      exchange = exchange_;
+    }
+    if (exchange == nullptr) return;
+    if (first) {
+      exchange->RespondStream(StreamHead(), shared_from_this());
+    } else {
+      exchange->Wake();
+    }
+  }
+
+  void OnDone(const grpc::Status& status) override {
+    bool started;
+    std::shared_ptr<HttpExchange> exchange;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      done_ = true;
+      status_ = status;
+      started = started_;
+      exchange.swap(exchange_);
+    }
+    if (!started) {
+      exchange->Respond(ErrorResponse(
+          status.ok()
+              ? grpc::Status(grpc::StatusCode::INTERNAL, "the watch ended without a message")
+              : status));
+    } else {
+      exchange->Wake();
+    }
+    Impl* gateway = gateway_;
+    const uint64_t id = id_;
+    std::shared_ptr<WatchStream> self = std::move(self_);  // May be the last reference.
+    gateway->Leave(id, true);
+  }
+
+  // HttpStream (HTTP thread).
+  Pull Next(std::string* out) override {
+    bool read_next = false;
+    Pull pull;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!pending_.empty()) {
+        *out = std::move(pending_);
+        pending_.clear();
+        read_next = !done_;
+        pull = Pull::kData;
+      } else if (!done_) {
+        pull = Pull::kWait;
+      } else if (!status_.ok() && !error_sent_) {
+        error_sent_ = true;
+        *out = "event: error\ndata: " + ErrorJson(status_) + "\n\n";
+        pull = Pull::kData;
+      } else {
+        pull = Pull::kEnd;
+      }
+    }
+    // Outside the lock: gRPC may run OnReadDone inline.
+    if (read_next) StartRead(&message_);
+    return pull;
+  }
+
+ private:
+  Impl* const gateway_;
+  grpc::ClientContext context_;
+  v1::WatchRequest request_;
+  v1::JobMetadata message_;
+  uint64_t id_ = 0;
+  std::shared_ptr<WatchStream> self_;
+
+  std::mutex mutex_;
+  std::shared_ptr<HttpExchange> exchange_;  // Until OnDone.
+  std::string pending_;                     // The event read and not yet taken.
+  bool started_ = false;                    // The answer started (with the first event).
+  bool done_ = false;
+  grpc::Status status_;
+  bool error_sent_ = false;
+};
+
+void RestGateway::Impl::Watch(const std::shared_ptr<HttpExchange>& exchange,
+                              const std::string& name) {
+  auto stream = std::make_shared<WatchStream>(this, exchange);
+  if (grpc::Status s = BuildRequest(*exchange, Binding::kQuery, name, &stream->request());
+      !s.ok()) {
+    return exchange->Respond(ErrorResponse(s));
+  }
+  // No deadline: the stream lasts as long as the job.
+  if (grpc::Status s = PrepareContext(*exchange, &stream->context(), false); !s.ok()) {
+    return exchange->Respond(ErrorResponse(s));
+  }
+  const uint64_t id = Enter([stream] { stream->context().TryCancel(); }, true);
+  if (id == 0) return exchange->Respond(ShuttingDown());
+  exchange->OnClientGone([stream] { stream->context().TryCancel(); });
+  stream->Begin(id);
+}
 
 RestGateway::RestGateway(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
@@ -634,50 +740,52 @@ StatusOr<std::unique_ptr<RestGateway>> RestGateway::Start(const RestOptions& opt
   impl->metrics_text = std::move(metrics_text);
   impl->jobs = v1::Jobs::NewStub(channel);
   impl->operations = google::longrunning::Operations::NewStub(channel);
-  impl->Register();
-
-  httplib::Server& http = impl->http;
-  const int threads = options.threads;
-  http.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
-  http.set_payload_max_length(static_cast<size_t>(options.max_body_bytes));
-  const std::chrono::milliseconds read_timeout(options.read_timeout_ms);
-  http.set_read_timeout(read_timeout);
-  http.set_keep_alive_timeout(std::max<time_t>(1, options.read_timeout_ms / 1000));
-
-  impl->port = options.port == 0
-                   ? http.bind_to_any_port(options.host)
-                   : (http.bind_to_port(options.host, options.port) ? options.port : -1);
-  if (impl->port <= 0) {
-    return Status(StatusCode::kUnavailable, "cannot listen on " + options.host + ":" +
-                                                std::to_string(options.port) + " (HTTP)");
+  ExecutorOptions renderer;
+  renderer.threads = 1;
+  renderer.max_queued = kMaxQueuedMetricsRenders;
+  impl->renderer = std::make_unique<BoundedExecutor>(renderer);
+  StatusOr<std::unique_ptr<HttpServer>> http = HttpServer::Start(options, impl.get(), metrics);
+  if (!http.ok()) {
+    impl->renderer->Stop();
+    return http.status();
   }
-  Impl* raw = impl.get();
-  impl->listener = std::thread([raw] { raw->http.listen_after_bind(); });
-  // httplib's stop() does nothing until the listener runs: wait for it, so that a Stop right
-  // after Start cannot leave the listener running (it sets the flag at once; 5 s is a bound).
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(5);
-  while (!http.is_running() && std::chrono::steady_clock::now() < give_up) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
+  impl->http = std::move(http).value();
   return std::unique_ptr<RestGateway>(new RestGateway(std::move(impl)));
 }
 
-int RestGateway::port() const { return impl_->port; }
+int RestGateway::port() const { return impl_->http->port(); }
 
 void RestGateway::Stop() {
+  Impl& impl = *impl_;
+  const std::chrono::milliseconds grace(impl.options.stop_grace_ms);
+  // Cancels run outside the lock: gRPC may run a call's callback inline, which takes it.
+  const auto cancel_all = [&impl](const std::map<uint64_t, std::function<void()>>& which) {
+    std::vector<std::function<void()>> cancels;
+    {
+      std::lock_guard<std::mutex> lock(impl.mutex);
+      for (const auto& [id, cancel] : which) cancels.push_back(cancel);
+    }
+    for (const auto& cancel : cancels) cancel();
+  };
   {
-    std::unique_lock<std::mutex> lock(impl_->mutex);
-    if (impl_->stopped) return;
-    impl_->stopped = true;
-    // Streams whose Watch ended write their last event and close; httplib's stop() would cut
-    // them short (it ends a response between two writes).
-    impl_->watches_changed.wait_for(lock, std::chrono::milliseconds(impl_->options.stop_grace_ms),
-                                    [this] { return impl_->watches.empty(); });
-    // Streams still waiting for their job's next change end now.
-    for (Impl::WatchCall* call : impl_->watches) call->context.TryCancel();
+    std::unique_lock<std::mutex> lock(impl.mutex);
+    if (impl.stopping) return;
+    impl.stopping = true;
+    // Streams whose Watch ended write their last event and close.
+    impl.changed.wait_for(lock, grace, [&impl] { return impl.streams.empty(); });
   }
-  impl_->http.stop();
-  if (impl_->listener.joinable()) impl_->listener.join();
+  cancel_all(impl.streams);
+  {
+    std::unique_lock<std::mutex> lock(impl.mutex);
+    impl.changed.wait_for(lock, grace, [&impl] { return impl.calls.empty(); });
+  }
+  cancel_all(impl.calls);
+  {
+    std::unique_lock<std::mutex> lock(impl.mutex);
+    impl.changed.wait(lock, [&impl] { return impl.calls.empty() && impl.streams.empty(); });
+  }
+  impl.http->Stop(impl.options.stop_grace_ms);
+  impl.renderer->Stop();
 }
 
 }  // namespace drillbif::server

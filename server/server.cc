@@ -8,7 +8,9 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdlib>
+#include <fstream>
 #include <mutex>
+#include <sstream>
 #include <string_view>
 #include <thread>
 #include <utility>
@@ -21,6 +23,41 @@
 #include "server/worker_pool.h"
 
 namespace drillbif::server {
+namespace {
+
+// The gateway's options: the HTTP limits, and what ServerOptions sets for both ports.
+RestOptions RestOptionsOf(const ServerOptions& o) {
+  RestOptions rest = o.http;
+  rest.host = o.host;
+  rest.port = o.http_port;
+  rest.token = o.token;
+  rest.max_body_bytes = o.max_request_bytes;
+  rest.threads = o.http_threads;
+  rest.tls_cert_file = o.tls_cert_file;
+  rest.tls_key_file = o.tls_key_file;
+  return rest;
+}
+
+// gRPC's credentials: TLS with the PEM files when given.
+StatusOr<std::shared_ptr<grpc::ServerCredentials>> GrpcCredentialsOf(const ServerOptions& o) {
+  if (o.tls_cert_file.empty()) return grpc::InsecureServerCredentials();
+  grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
+  for (auto [path, text] : {std::pair{&o.tls_cert_file, &pair.cert_chain},
+                            std::pair{&o.tls_key_file, &pair.private_key}}) {
+    std::ifstream in(*path, std::ios::binary);
+    std::ostringstream content;
+    content << in.rdbuf();
+    if (!in || content.str().empty()) {
+      return InvalidArgument("TLS: cannot read '" + *path + "'");
+    }
+    *text = content.str();
+  }
+  grpc::SslServerCredentialsOptions ssl;
+  ssl.pem_key_cert_pairs.push_back(std::move(pair));
+  return grpc::SslServerCredentials(ssl);
+}
+
+}  // namespace
 
 Status ServerOptions::Validate() const {
   if (host.empty()) return InvalidArgument("host: must not be empty");
@@ -54,6 +91,9 @@ Status ServerOptions::Validate() const {
                            std::to_string(http_threads));
   }
   if (Status s = metrics.Validate(); !s.ok()) return InvalidArgument("metrics." + s.message());
+  if (Status s = RestOptionsOf(*this).Validate(); !s.ok()) {
+    return InvalidArgument("http." + s.message());
+  }
   for (const auto& [name, limits] : job_limits) {
     if (jobs::FindKind(name) == nullptr) {
       return InvalidArgument("job_limits: unknown job kind '" + name + "'");
@@ -189,7 +229,13 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   const std::string address = o.host + ":" + std::to_string(o.grpc_port);
-  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &impl->port);
+  StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials = GrpcCredentialsOf(o);
+  if (!credentials.ok()) {
+    impl->executor->Stop();
+    impl->hub->Stop();
+    return credentials.status();
+  }
+  builder.AddListeningPort(address, *credentials, &impl->port);
   builder.SetMaxReceiveMessageSize(o.max_request_bytes);
   builder.RegisterService(impl->jobs.get());
   builder.RegisterService(impl->operations.get());
@@ -206,12 +252,7 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   // REST: the same services through an in-process channel (no socket, no second copy of the
   // logic). Results can be larger than gRPC's default 4 MB receive limit; the HTTP client reads
   // them whole anyway.
-  RestOptions rest;
-  rest.host = o.host;
-  rest.port = o.http_port;
-  rest.token = o.token;
-  rest.max_body_bytes = o.max_request_bytes;
-  rest.threads = o.http_threads;
+  const RestOptions rest = RestOptionsOf(o);
   grpc::ChannelArguments channel_args;
   channel_args.SetMaxReceiveMessageSize(-1);
   StatusOr<std::unique_ptr<RestGateway>> gateway =

@@ -22,6 +22,7 @@
 #include "jobs/registry.h"
 #include "server/executor.h"
 #include "server/metrics.h"
+#include "server/rest_gateway.h"
 #include "server/store/job_store.h"
 
 namespace drillbif::server {
@@ -35,9 +36,18 @@ struct ServerOptions {
   // HTTP port of the REST gateway and /metrics; 0 picks a free port (Server::http_port() tells
   // which).
   int http_port = 8080;
-  // HTTP threads (RestOptions::threads): each REST call holds one while it runs, each open event
-  // stream one until its job ends.
-  int http_threads = 8;
+  // HTTP event-loop threads (RestOptions::threads): they move bytes and convert JSON; no REST
+  // call or event stream holds one while it waits.
+  int http_threads = 2;
+  // HTTP limits and timeouts (RestOptions: connections, backlog, header and body sizes, idle,
+  // read and write deadlines). Its host, port, token, max_body_bytes, threads and TLS files are
+  // ignored: the fields of this struct set them.
+  RestOptions http;
+  // PEM files of the server's certificate (chain) and private key, both or neither. Given, both
+  // ports use TLS: gRPC with grpc::SslServerCredentials, HTTP serves HTTPS only.
+  std::string tls_cert_file;
+  // See tls_cert_file.
+  std::string tls_key_file;
   // SQLite file of the job store (created if missing).
   std::string db_path = "drillbif.db";
   // Worker threads running jobs; 0: one per core (std::thread::hardware_concurrency).
