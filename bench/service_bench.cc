@@ -206,6 +206,7 @@ void BM_CancelRunningSweep(benchmark::State& state) {
       sweep->set_min(0.0);
       sweep->set_max(0.2 + 1e-6 * (++round));  // distinct: never a cache hit
       sweep->set_steps(100000);
+      sweep->set_sample_periods(1);  // long, but well inside the result-size limit
       sweep->set_threads(1);
       google::longrunning::Operation op;
       auto context = Context(10);

@@ -237,7 +237,7 @@ class HttpLimitsTest : public ::testing::Test {
   static std::string QueuedJob() {
     auto client = Client();
     v1::SubmitSweepRequest busy;
-    *busy.mutable_request() = drillbif::testing::SmallSweep(0.0, 100000);
+    *busy.mutable_request() = drillbif::testing::LongSweep();
     httplib::Result running = client->Post("/v1/jobs:sweep", Json(busy), "application/json");
     EXPECT_TRUE(running && running->status == 200);
     v1::SubmitSimulateRequest queued;
