@@ -212,12 +212,11 @@ StatusOr<JobOutput> RunJob(const JobKindSpec& kind, std::string_view request_byt
     counter = std::make_unique<CountingSink>(context.sink);
     counted.sink = counter.get();
   }
-  DRILLBIF_ASSIGN_OR_RETURN(std::unique_ptr<Message> result, kind.run(*request, counted));
   JobOutput out;
-  out.items = kind.ItemsOf(*result) + (counter ? counter->items() : 0);
-  const FieldDescriptor* status = result->GetDescriptor()->FindFieldByName("status");
-  if (status != nullptr) out.status = result->GetReflection()->GetString(*result, status);
-  out.result = result->SerializeAsString();
+  DRILLBIF_ASSIGN_OR_RETURN(out.result, kind.run(*request, counted));
+  out.streamed_items = counter ? counter->items() : 0;
+  const FieldDescriptor* status = out.result->GetDescriptor()->FindFieldByName("status");
+  if (status != nullptr) out.status = out.result->GetReflection()->GetString(*out.result, status);
   return out;
 }
 

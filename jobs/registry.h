@@ -82,10 +82,10 @@ StatusOr<JobCost> CheckRequest(const JobKindSpec& kind, const google::protobuf::
 
 // What a run produced.
 struct JobOutput {
-  // The serialized result message (its summary and the items not streamed).
-  std::string result;
-  // Items of the result: streamed plus those in `result`.
-  int64_t items = 0;
+  // The result message (of the kind's result_type): its summary and the items not streamed.
+  std::unique_ptr<google::protobuf::Message> result;
+  // Items streamed to the context's sink.
+  int64_t streamed_items = 0;
   // The result's status: "COMPLETED", "CANCELLED", "FAILED", "NOT_FOUND".
   std::string status;
 };

@@ -9,9 +9,12 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "server/json_log.h"
@@ -67,7 +70,38 @@ int main(int argc, char** argv) {
   app.add_option("--workers", options.workers, "Worker threads; 0: one per core")
       ->capture_default_str();
   app.add_option("--token", options.token,
-                 "Bearer token required on every Jobs and Operations rpc (empty: none)");
+                 "Bearer token required on every Jobs and Operations rpc, as the client "
+                 "'default' (empty: none; prefer --tokens-file: a flag shows in ps)");
+  app.add_option("--tokens-file", options.tokens_file,
+                 "File of 'NAME TOKEN' lines, one client each (fair claims, per-client queue "
+                 "limit); e.g. a Kubernetes Secret mounted as a file");
+  app.add_flag("--allow-unauthenticated", options.allow_unauthenticated,
+               "Allow listening on a non-loopback address without any token");
+  app.add_option("--short-workers", options.short_workers,
+                 "Worker threads that run short jobs only (a short job never waits behind long "
+                 "ones)")
+      ->capture_default_str();
+  app.add_option("--short-job-seconds", options.short_job_seconds,
+                 "Jobs estimated at most this long go to the short lane")
+      ->capture_default_str();
+  app.add_option("--max-queued-per-client", options.max_queued_per_client,
+                 "Submits of one client are refused while this many of its jobs wait (0: none)")
+      ->capture_default_str();
+  app.add_option("--max-inline-result-bytes", options.max_inline_result_bytes,
+                 "Operations carry results up to this size whole, else their summary")
+      ->capture_default_str();
+  app.add_option("--retention-max-age-ms", options.retention.max_age_ms,
+                 "Finished jobs older than this are evicted (0: no age limit)")
+      ->capture_default_str();
+  app.add_option("--retention-max-db-bytes", options.retention.max_db_bytes,
+                 "Finished jobs are evicted, oldest first, while the store's data is larger "
+                 "(0: no size limit)")
+      ->capture_default_str();
+  int shutdown_grace_ms = 10000;
+  app.add_option("--shutdown-grace-ms", shutdown_grace_ms,
+                 "After SIGTERM, exit at the latest after this long even if a job has not "
+                 "stopped (it is requeued at the next start)")
+      ->capture_default_str();
   app.add_option("--max-request-bytes", options.max_request_bytes,
                  "Largest request accepted (gRPC message, REST body)")
       ->capture_default_str();
@@ -129,6 +163,17 @@ int main(int argc, char** argv) {
   int received = 0;
   sigwait(&signals, &received);
   spdlog::info("signal {} received", received);
+  // A watchdog: running jobs stop within milliseconds (their engines check for it), but whatever
+  // happens the process ends within the grace period; the store recovers what was running.
+  std::thread([shutdown_grace_ms] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(shutdown_grace_ms));
+    spdlog::error(
+        "shutdown did not finish within {} ms; exiting now (running jobs are requeued "
+        "at the next start)",
+        shutdown_grace_ms);
+    spdlog::default_logger()->flush();
+    std::_Exit(3);
+  }).detach();
   (*server)->Shutdown();
   return 0;
 }

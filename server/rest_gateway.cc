@@ -408,8 +408,9 @@ struct RestGateway::Impl final : public HttpHandler {
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           "header Authorization: not valid UTF-8");
     }
-    grpc::Status s = CheckBearerToken(options.token, authorization != nullptr,
-                                      authorization != nullptr ? *authorization : std::string());
+    const StatusOr<std::string> client = options.tokens->Authenticate(
+        authorization != nullptr, authorization != nullptr ? *authorization : std::string());
+    const grpc::Status s = ToGrpc(client.status());
     if (!s.ok() && authorization == nullptr) {
       return grpc::Status(s.error_code(),
                           "missing bearer token (header \"Authorization: Bearer <token>\")");
@@ -428,7 +429,7 @@ struct RestGateway::Impl final : public HttpHandler {
       context->set_deadline(deadline);
     }
     // Passed on only when it was checked: a header the gateway accepted is valid metadata.
-    if (!options.token.empty()) {
+    if (!options.tokens->empty()) {
       context->AddMetadata("authorization", *exchange.header("Authorization"));
     }
     return grpc::Status::OK;

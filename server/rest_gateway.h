@@ -40,6 +40,7 @@
 
 #include "drillbif/common/status.h"
 #include "server/metrics.h"
+#include "server/tokens.h"
 
 namespace drillbif::server {
 
@@ -51,11 +52,11 @@ struct RestOptions {
   std::string host = "127.0.0.1";
   // Port; 0 picks a free port (RestGateway::port() tells which).
   int port = 8080;
-  // Bearer token the API routes need ("Authorization: Bearer <token>"); empty: none. Checked
-  // when the headers are in, before the body is read (so a request without it is refused without
-  // reading its body), and again by the services, which receive it as metadata. /metrics is
-  // open, like gRPC health.
-  std::string token;
+  // The bearer tokens the API routes need ("Authorization: Bearer <token>"; server/tokens.h);
+  // empty: none. Checked here first (so a request without one is refused before its body is
+  // read) and again by the services, which receive it as metadata. /metrics is open, like gRPC
+  // health. Never null.
+  std::shared_ptr<const TokenSet> tokens = std::make_shared<TokenSet>();
   // PEM file of the server's certificate (chain). With tls_key_file (both or neither), the port
   // serves HTTPS only (GnuTLS through libmicrohttpd); empty: plain HTTP.
   std::string tls_cert_file;

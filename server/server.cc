@@ -30,7 +30,6 @@ RestOptions RestOptionsOf(const ServerOptions& o) {
   RestOptions rest = o.http;
   rest.host = o.host;
   rest.port = o.http_port;
-  rest.token = o.token;
   rest.max_body_bytes = o.max_request_bytes;
   rest.threads = o.http_threads;
   rest.tls_cert_file = o.tls_cert_file;
@@ -94,6 +93,26 @@ Status ServerOptions::Validate() const {
   if (Status s = RestOptionsOf(*this).Validate(); !s.ok()) {
     return InvalidArgument("http." + s.message());
   }
+  if (short_workers < 0 || short_workers > 1024) {
+    return InvalidArgument("short_workers: must be in [0, 1024], got " +
+                           std::to_string(short_workers));
+  }
+  if (!(short_job_seconds >= 0 && short_job_seconds < 1e9)) {
+    return InvalidArgument("short_job_seconds: must be a number >= 0");
+  }
+  if (max_queued_per_client < 0) {
+    return InvalidArgument("max_queued_per_client: must be >= 0, got " +
+                           std::to_string(max_queued_per_client));
+  }
+  if (max_inline_result_bytes < 1024 || pages.max_page_bytes < 1024 ||
+      pages.max_whole_bytes < 1024) {
+    return InvalidArgument(
+        "max_inline_result_bytes, pages.max_page_bytes, pages.max_whole_bytes: must be >= 1024");
+  }
+  if (Status s = retention.Validate(); !s.ok()) return InvalidArgument("retention." + s.message());
+  if (retention_interval_ms < 1 || store_probe_ms < 1) {
+    return InvalidArgument("retention_interval_ms, store_probe_ms: must be >= 1");
+  }
   for (const auto& [name, limits] : job_limits) {
     if (jobs::FindKind(name) == nullptr) {
       return InvalidArgument("job_limits: unknown job kind '" + name + "'");
@@ -147,6 +166,11 @@ Status ServerOptions::SetJobLimit(std::string_view spec) {
   return Status::Ok();
 }
 
+// Whether `host` is a loopback address (only this machine can connect).
+bool IsLoopback(const std::string& host) {
+  return host == "localhost" || host == "::1" || host == "[::1]" || host.rfind("127.", 0) == 0;
+}
+
 struct Server::Impl {
   explicit Impl(const MetricsOptions& metrics_options) : metrics(metrics_options) {}
 
@@ -161,11 +185,65 @@ struct Server::Impl {
   std::unique_ptr<grpc::Server> grpc_server;
   std::unique_ptr<RestGateway> rest;
   int port = 0;
+  // The maintenance thread: the store's health (probed while it reports a fault; the health
+  // service says NOT_SERVING meanwhile) and retention (evictions).
+  std::thread maintenance;
+  bool serving = true;  // what the health service says now (maintenance thread only)
 
   std::mutex mutex;
   std::condition_variable cv;
   bool shutdown_started = false;
   bool shutdown_done = false;
+
+  void SetServing(bool serving_now) {
+    if (serving_now == serving) return;
+    serving = serving_now;
+    grpc_server->GetHealthCheckService()->SetServingStatus(serving_now);
+  }
+
+  // Runs until Shutdown: every store_probe_ms, the store's health (and a probe while it is
+  // faulty); every retention_interval_ms, an eviction.
+  void Maintain() {
+    const ServerOptions& o = state.options;
+    auto next_eviction = std::chrono::steady_clock::now();
+    std::unique_lock<std::mutex> lock(mutex);
+    while (!shutdown_started) {
+      lock.unlock();
+      Status health = store->Health();
+      if (!health.ok() && store->Probe().ok()) health = store->Health();
+      if (!health.ok() && serving) spdlog::error("job store fault: {}", health.ToString());
+      if (health.ok() && !serving) spdlog::info("job store recovered");
+      if (!state.shutting_down.load()) SetServing(health.ok());
+      if (health.ok() && std::chrono::steady_clock::now() >= next_eviction) {
+        Evict();
+        next_eviction =
+            std::chrono::steady_clock::now() + std::chrono::milliseconds(o.retention_interval_ms);
+      }
+      lock.lock();
+      cv.wait_for(lock, std::chrono::milliseconds(o.store_probe_ms),
+                  [this] { return shutdown_started; });
+    }
+  }
+
+  void Evict() {
+    const int64_t now_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+    StatusOr<EvictionReport> report = store->Evict(state.options.retention, now_ms);
+    if (!report.ok()) {
+      spdlog::warn("retention: eviction failed: {}", report.status().ToString());
+      return;
+    }
+    if (report->jobs_deleted > 0) {
+      spdlog::info("retention: evicted {} jobs and {} results, store {} -> {} bytes",
+                   report->jobs_deleted, report->results_deleted, report->used_bytes_before,
+                   report->used_bytes_after);
+      // Evicted optimum results must not be answered from memory any more.
+      if (Status s = state.optimum_index.Load(*store); !s.ok()) {
+        spdlog::warn("retention: the optimum index was not reloaded: {}", s.ToString());
+      }
+    }
+  }
 
   StatusOr<std::string> RenderMetrics() {
     MetricsSnapshot snapshot;
@@ -190,9 +268,19 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
     impl->state.options.workers = std::max(1u, std::thread::hardware_concurrency());
   }
   const ServerOptions& o = impl->state.options;
+  StatusOr<TokenSet> tokens = TokenSet::Load(o.token, o.tokens_file);
+  if (!tokens.ok()) return tokens.status();
+  impl->state.tokens = std::make_shared<const TokenSet>(std::move(tokens).value());
+  if (impl->state.tokens->empty() && !IsLoopback(o.host) && !o.allow_unauthenticated) {
+    return InvalidArgument("host: listening on " + o.host +
+                           " without a token would let anyone who can reach it run jobs; give "
+                           "--token or --tokens-file (or --allow-unauthenticated)");
+  }
 
   SqliteJobStoreOptions store_options;
   store_options.full_sync = o.full_sync;
+  // SQL and SQLite's own messages go to the log, never to clients.
+  store_options.log = [](std::string_view detail) { spdlog::warn("job store: {}", detail); };
   StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(o.db_path, store_options);
   if (!store.ok()) return store.status();
   impl->store = std::move(store).value();
@@ -206,7 +294,11 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   impl->hub = std::make_unique<WatchHub>(impl->store.get(), o.watch_poll_ms);
   WorkerPoolOptions pool_options;
   pool_options.workers = o.workers;
+  pool_options.short_workers = o.short_workers;
   pool_options.progress_interval_ms = o.progress_interval_ms;
+  for (const jobs::JobKindSpec* kind : jobs::AllKinds()) {
+    pool_options.limits[kind->name] = o.LimitsOf(*kind);
+  }
   Impl* raw = impl.get();
   impl->pool = std::make_unique<WorkerPool>(
       impl->store.get(), impl->hub.get(), pool_options,
@@ -252,7 +344,8 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   // REST: the same services through an in-process channel (no socket, no second copy of the
   // logic). Results can be larger than gRPC's default 4 MB receive limit; the HTTP client reads
   // them whole anyway.
-  const RestOptions rest = RestOptionsOf(o);
+  RestOptions rest = RestOptionsOf(o);
+  rest.tokens = impl->state.tokens;
   grpc::ChannelArguments channel_args;
   channel_args.SetMaxReceiveMessageSize(-1);
   StatusOr<std::unique_ptr<RestGateway>> gateway =
@@ -269,6 +362,7 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
 
   impl->grpc_server->GetHealthCheckService()->SetServingStatus(true);
   impl->pool->Start();
+  impl->maintenance = std::thread([raw] { raw->Maintain(); });
   spdlog::info("drillbif-server: gRPC on {}:{}, HTTP on {}:{} ({} workers, db {})", o.host,
                impl->port, o.host, impl->rest->port(), o.workers, o.db_path);
   return std::unique_ptr<Server>(new Server(std::move(impl)));
@@ -289,6 +383,8 @@ void Server::Shutdown() {
     }
     impl_->shutdown_started = true;
   }
+  impl_->cv.notify_all();  // The maintenance thread ends.
+  if (impl_->maintenance.joinable()) impl_->maintenance.join();
   spdlog::info("drillbif-server: shutting down");
   const auto started = std::chrono::steady_clock::now();
   const auto elapsed_ms = [&started] {

@@ -24,6 +24,7 @@
 #include "server/metrics.h"
 #include "server/rest_gateway.h"
 #include "server/store/job_store.h"
+#include "server/stored_results.h"
 
 namespace drillbif::server {
 
@@ -50,11 +51,25 @@ struct ServerOptions {
   std::string tls_key_file;
   // SQLite file of the job store (created if missing).
   std::string db_path = "drillbif.db";
-  // Worker threads running jobs; 0: one per core (std::thread::hardware_concurrency).
+  // Worker threads running jobs of any cost lane; 0: one per core
+  // (std::thread::hardware_concurrency).
   int workers = 0;
-  // Bearer token every Jobs and Operations rpc must carry ("authorization: Bearer <token>");
-  // empty: no authentication. Health and reflection are always open (probes carry no token).
+  // More worker threads that run short jobs only (WorkerPoolOptions::short_workers), so that a
+  // short job never waits behind long ones.
+  int short_workers = 1;
+  // A job whose estimated time (jobs/job_cost.h) is at most this goes to the short lane.
+  // Seconds. 2: a simulation of ~200000 periods, a small sweep or continuation.
+  double short_job_seconds = 2.0;
+  // Bearer token every Jobs and Operations rpc must carry ("authorization: Bearer <token>"), as
+  // the client "default"; empty: none. Health and reflection are always open (probes carry no
+  // token).
   std::string token;
+  // A file of tokens, one client each ("NAME TOKEN" lines, server/tokens.h), in addition to
+  // `token`: clients are told apart for fair claims and max_queued_per_client.
+  std::string tokens_file;
+  // Listening on an address other than loopback without any token is refused unless this is
+  // set: an open port on a network must not run anyone's jobs by accident.
+  bool allow_unauthenticated = false;
   // Largest request message accepted, in bytes; a larger one fails with RESOURCE_EXHAUSTED
   // before it is parsed (REST: a larger body, 413). 4 MiB (gRPC's default): requests are
   // parameters, not data.
@@ -63,6 +78,22 @@ struct ServerOptions {
   // (the bound of the job queue; jobs are persistent, so the bound protects the disk and the
   // latency of the jobs already waiting).
   int max_queued_jobs = 10000;
+  // Submits of one client are refused with RESOURCE_EXHAUSTED while this many of its jobs wait,
+  // so that one client filling the queue does not refuse everybody else (all callers are one
+  // client without tokens). 0: no per-client limit.
+  int max_queued_per_client = 1000;
+  // Operation.response carries the whole result when it is at most this large, else its
+  // summary (JobMetadata.response_summary_only; GetResult pages through the items). Bytes.
+  int64_t max_inline_result_bytes = 4 << 20;
+  // GetResult's page limits (server/stored_results.h).
+  PageOptions pages;
+  // Finished jobs older than max_age_ms, or beyond max_db_bytes of data, are evicted, oldest
+  // first (JobStore::Evict), every retention_interval_ms. 30 days and 8 GB by default.
+  RetentionOptions retention{30LL * 86400 * 1000, 8'000'000'000};
+  int retention_interval_ms = 60000;
+  // While the store reports a fault, it is probed this often (health turns back to SERVING
+  // once a probe succeeds). Milliseconds.
+  int store_probe_ms = 1000;
   // Limits of each job kind by name (jobs/job_cost.h): a request estimated above one is refused
   // at submit with RESOURCE_EXHAUSTED naming the field, its value and the limit; a run that
   // reaches its time limit fails with DEADLINE_EXCEEDED, one whose result reaches its size limit

@@ -14,6 +14,7 @@
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 #include "jobs/result_pages.h"
+#include "server/stored_results.h"
 
 namespace drillbif::server {
 namespace {
@@ -36,14 +37,14 @@ grpc::Status Error(grpc::StatusCode code, std::string message) {
   return grpc::Status(code, std::move(message));
 }
 
-// UNAUTHENTICATED unless the call carries "authorization: Bearer <token>" (or no token is
-// configured).
-grpc::Status Authorize(const ServiceState& state, const grpc::CallbackServerContext* context) {
+// The client the call's bearer token identifies ("" without tokens); UNAUTHENTICATED unless the
+// call carries "authorization: Bearer <token>" with a known token (or no token is configured).
+StatusOr<std::string> Authorize(const ServiceState& state,
+                                const grpc::CallbackServerContext* context) {
   const auto& metadata = context->client_metadata();
   auto it = metadata.find("authorization");
-  if (it == metadata.end()) return CheckBearerToken(state.options.token, false, {});
-  return CheckBearerToken(state.options.token, true,
-                          std::string_view(it->second.data(), it->second.size()));
+  if (it == metadata.end()) return state.tokens->Authenticate(false, {});
+  return state.tokens->Authenticate(true, std::string_view(it->second.data(), it->second.size()));
 }
 
 // The job id of an operation name; INVALID_ARGUMENT naming the field otherwise.
@@ -84,12 +85,14 @@ v1::JobState StateOf(JobState state) {
   return v1::JOB_STATE_UNSPECIFIED;
 }
 
-// The Operation of a job. With include_response, a SUCCEEDED job's result bytes go into
-// `response` as they are stored (no parse: the Any carries the serialized message).
-StatusOr<Operation> OperationOf(JobStore& store, const JobRecord& record, bool include_response) {
+// The Operation of a job. With include_response, a SUCCEEDED job's result goes into `response` as
+// it is stored (no parse: the Any carries the serialized message): whole when it is at most
+// max_inline_result_bytes, else its summary (JobMetadata.response_summary_only).
+StatusOr<Operation> OperationOf(const ServiceState& state, const JobRecord& record,
+                                bool include_response) {
   Operation op;
   op.set_name(OperationName(record.id));
-  op.mutable_metadata()->PackFrom(MetadataOf(record));
+  v1::JobMetadata metadata = MetadataOf(record);
   op.set_done(IsFinished(record.state));
   if (record.state == JobState::kFailed) {
     op.mutable_error()->set_code(static_cast<int>(record.error_code));
@@ -98,14 +101,18 @@ StatusOr<Operation> OperationOf(JobStore& store, const JobRecord& record, bool i
     op.mutable_error()->set_code(static_cast<int>(StatusCode::kCancelled));
     op.mutable_error()->set_message("the operation was cancelled");
   } else if (record.state == JobState::kSucceeded && include_response) {
-    StatusOr<std::string> bytes = store.GetResult(record.id);
-    if (!bytes.ok()) return bytes.status();
-    google::protobuf::Any* any = op.mutable_response();
     const jobs::JobKindSpec* kind = jobs::FindKind(record.kind);
     if (kind == nullptr) return Internal("job " + record.id + " has an unknown kind");
+    bool summary_only = false;
+    StatusOr<std::string> bytes = ResultForOperation(
+        *state.store, record.id, state.options.max_inline_result_bytes, &summary_only);
+    if (!bytes.ok()) return bytes.status();
+    google::protobuf::Any* any = op.mutable_response();
     any->set_type_url("type.googleapis.com/" + kind->result_type->full_name());
     any->set_value(std::move(bytes).value());
+    metadata.set_response_summary_only(summary_only);
   }
+  op.mutable_metadata()->PackFrom(metadata);
   return op;
 }
 
@@ -116,25 +123,28 @@ grpc::ServerUnaryReactor* FinishNow(grpc::CallbackServerContext* context, grpc::
   return reactor;
 }
 
-// Checks the token, then runs `work` on the executor and finishes the call with its status.
+// Checks the token, then runs `work` (given the caller's client) on the executor and finishes the
+// call with its status.
 grpc::ServerUnaryReactor* Offload(ServiceState* state, grpc::CallbackServerContext* context,
-                                  std::function<grpc::Status()> work) {
+                                  std::function<grpc::Status(const std::string& client)> work) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  if (grpc::Status auth = Authorize(*state, context); !auth.ok()) {
-    reactor->Finish(auth);
+  StatusOr<std::string> client = Authorize(*state, context);
+  if (!client.ok()) {
+    reactor->Finish(ToGrpc(client.status()));
     return reactor;
   }
-  if (!state->executor->TrySubmit(
-          [reactor, work = std::move(work)]() { reactor->Finish(work()); })) {
+  if (!state->executor->TrySubmit([reactor, client = std::move(client).value(),
+                                   work = std::move(work)]() { reactor->Finish(work(client)); })) {
     reactor->Finish(Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
                           "the server is busy: its request queue is full; retry later"));
   }
   return reactor;
 }
 
-// Validates, keys and submits a request of `kind`; fills `op`. Runs on the executor.
+// Validates, keys and submits a request of `kind` for `client`; fills `op`. Runs on the executor.
 grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobuf::Message& request,
-                    const std::string& request_id, Operation* op, std::string* id_out = nullptr) {
+                    const std::string& request_id, const std::string& client, Operation* op,
+                    std::string* id_out = nullptr) {
   if (state.shutting_down.load()) {
     return Error(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
   }
@@ -153,13 +163,10 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
   submit.request = jobs::DeterministicBytes(request);
   submit.cache_key = jobs::CacheKey(spec.name, submit.request);
   submit.request_id = request_id;
-  StatusOr<StoreStats> stats = state.store->Stats();
-  if (!stats.ok()) return ToGrpc(stats.status());
-  if (stats->queue_depth >= state.options.max_queued_jobs) {
-    return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, "the job queue is full (" +
-                                                           std::to_string(stats->queue_depth) +
-                                                           " jobs waiting); retry later");
-  }
+  submit.client = client;
+  submit.lane = cost->seconds.amount <= state.options.short_job_seconds ? kLaneShort : kLaneLong;
+  submit.max_queued = state.options.max_queued_jobs;
+  submit.max_queued_per_client = state.options.max_queued_per_client;
   StatusOr<SubmitResult> submitted = state.store->Submit(submit);
   if (!submitted.ok()) return ToGrpc(submitted.status());
   if (!submitted->cache_hit && !submitted->deduplicated && submitted->shared_with.empty()) {
@@ -168,7 +175,7 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
   state.hub->Notify();
   StatusOr<JobRecord> record = state.store->Get(submitted->id);
   if (!record.ok()) return ToGrpc(record.status());
-  StatusOr<Operation> operation = OperationOf(*state.store, *record, /*include_response=*/true);
+  StatusOr<Operation> operation = OperationOf(state, *record, /*include_response=*/true);
   if (!operation.ok()) return ToGrpc(operation.status());
   *op = std::move(operation).value();
   if (id_out != nullptr) *id_out = submitted->id;
@@ -388,23 +395,6 @@ grpc::Status AnswerFromStore(ServiceState& state, const std::string& key, const 
 
 // ---------------------------------------------------------------------------------------------
 
-grpc::Status CheckBearerToken(const std::string& token, bool present,
-                              std::string_view authorization) {
-  if (token.empty()) return grpc::Status::OK;
-  if (!present) {
-    return Error(grpc::StatusCode::UNAUTHENTICATED,
-                 "missing bearer token (metadata \"authorization: Bearer <token>\")");
-  }
-  const std::string expected = "Bearer " + token;
-  unsigned char diff = authorization.size() == expected.size() ? 0 : 1;
-  for (size_t i = 0; i < expected.size(); ++i) {
-    diff |=
-        static_cast<unsigned char>(expected[i] ^ (i < authorization.size() ? authorization[i] : 0));
-  }
-  if (diff != 0) return Error(grpc::StatusCode::UNAUTHENTICATED, "wrong bearer token");
-  return grpc::Status::OK;
-}
-
 grpc::Status ToGrpc(const Status& status) {
   if (status.ok()) return grpc::Status::OK;
   return grpc::Status(static_cast<grpc::StatusCode>(static_cast<int>(status.code())),
@@ -429,6 +419,7 @@ v1::JobMetadata MetadataOf(const JobRecord& record) {
   if (!record.shared_with.empty()) m.set_shared_with(OperationName(record.shared_with));
   m.set_attempts(record.attempts);
   m.set_request_id(record.request_id);
+  m.set_lane(LaneName(record.lane));
   return m;
 }
 
@@ -461,6 +452,10 @@ void OptimumIndex::SetResult(const std::string& key,
 }
 
 Status OptimumIndex::Load(JobStore& store) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    entries_.clear();
+  }
   ListRequest list;
   list.state = JobState::kSucceeded;
   list.kind = jobs::FindKind(v1::OPTIMUM)->name;
@@ -479,47 +474,50 @@ Status OptimumIndex::Load(JobStore& store) {
 grpc::ServerUnaryReactor* JobsService::SubmitSimulate(grpc::CallbackServerContext* context,
                                                       const v1::SubmitSimulateRequest* request,
                                                       Operation* response) {
-  return Offload(state_, context, [this, request, response] {
-    return Submit(*state_, v1::SIMULATE, request->request(), request->request_id(), response);
+  return Offload(state_, context, [this, request, response](const std::string& client) {
+    return Submit(*state_, v1::SIMULATE, request->request(), request->request_id(), client,
+                  response);
   });
 }
 
 grpc::ServerUnaryReactor* JobsService::SubmitSweep(grpc::CallbackServerContext* context,
                                                    const v1::SubmitSweepRequest* request,
                                                    Operation* response) {
-  return Offload(state_, context, [this, request, response] {
-    return Submit(*state_, v1::SWEEP, request->request(), request->request_id(), response);
+  return Offload(state_, context, [this, request, response](const std::string& client) {
+    return Submit(*state_, v1::SWEEP, request->request(), request->request_id(), client, response);
   });
 }
 
 grpc::ServerUnaryReactor* JobsService::SubmitContinue(grpc::CallbackServerContext* context,
                                                       const v1::SubmitContinueRequest* request,
                                                       Operation* response) {
-  return Offload(state_, context, [this, request, response] {
-    return Submit(*state_, v1::CONTINUE, request->request(), request->request_id(), response);
+  return Offload(state_, context, [this, request, response](const std::string& client) {
+    return Submit(*state_, v1::CONTINUE, request->request(), request->request_id(), client,
+                  response);
   });
 }
 
 grpc::ServerUnaryReactor* JobsService::SubmitTrace(grpc::CallbackServerContext* context,
                                                    const v1::SubmitTraceRequest* request,
                                                    Operation* response) {
-  return Offload(state_, context, [this, request, response] {
-    return Submit(*state_, v1::TRACE, request->request(), request->request_id(), response);
+  return Offload(state_, context, [this, request, response](const std::string& client) {
+    return Submit(*state_, v1::TRACE, request->request(), request->request_id(), client, response);
   });
 }
 
 grpc::ServerUnaryReactor* JobsService::SubmitOptimum(grpc::CallbackServerContext* context,
                                                      const v1::SubmitOptimumRequest* request,
                                                      Operation* response) {
-  return Offload(state_, context, [this, request, response] {
-    return Submit(*state_, v1::OPTIMUM, request->request(), request->request_id(), response);
+  return Offload(state_, context, [this, request, response](const std::string& client) {
+    return Submit(*state_, v1::OPTIMUM, request->request(), request->request_id(), client,
+                  response);
   });
 }
 
 grpc::ServerUnaryReactor* JobsService::GetResult(grpc::CallbackServerContext* context,
                                                  const v1::GetResultRequest* request,
                                                  v1::GetResultResponse* response) {
-  return Offload(state_, context, [this, request, response] {
+  return Offload(state_, context, [this, request, response](const std::string&) {
     StatusOr<std::string> id = IdOf(request->name());
     if (!id.ok()) return ToGrpc(id.status());
     StatusOr<JobRecord> record = state_->store->Get(*id);
@@ -529,22 +527,19 @@ grpc::ServerUnaryReactor* JobsService::GetResult(grpc::CallbackServerContext* co
                    "operation " + request->name() + " is " + JobStateName(record->state) +
                        ", not SUCCEEDED: it has no result (GetOperation shows its error)");
     }
-    StatusOr<std::string> bytes = state_->store->GetResult(*id);
-    if (!bytes.ok()) return ToGrpc(bytes.status());
     response->set_name(request->name());
     const jobs::JobKindSpec* kind = jobs::FindKind(record->kind);
     if (kind == nullptr) return ToGrpc(Internal("job " + *id + " has an unknown kind"));
-    return ToGrpc(
-        jobs::PageResult(*kind, *bytes, request->page_size(), request->page_token(), response));
+    return ToGrpc(ReadResultPage(*state_->store, *kind, *id, request->page_size(),
+                                 request->page_token(), state_->options.pages, response));
   });
 }
 
 grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext* context,
                                                     const v1::QueryOptimumRequest* request,
                                                     v1::QueryOptimumResponse* response) {
-  if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
-    return FinishNow(context, auth);
-  }
+  StatusOr<std::string> client = Authorize(*state_, context);
+  if (!client.ok()) return FinishNow(context, ToGrpc(client.status()));
   const jobs::JobKindSpec& optimum = *jobs::FindKind(v1::OPTIMUM);
   StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request->request());
   if (!cost.ok()) return FinishNow(context, ToGrpc(cost.status()));
@@ -583,7 +578,7 @@ grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext*
     }
     Operation op;
     std::string job_id;
-    if (grpc::Status s = Submit(*state, v1::OPTIMUM, request->request(), "", &op, &job_id);
+    if (grpc::Status s = Submit(*state, v1::OPTIMUM, request->request(), "", *client, &op, &job_id);
         !s.ok()) {
       reactor->Finish(s);
       return;
@@ -614,8 +609,8 @@ grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext*
 grpc::ServerWriteReactor<v1::JobMetadata>* JobsService::Watch(grpc::CallbackServerContext* context,
                                                               const v1::WatchRequest* request) {
   auto* reactor = new WatchReactor();
-  if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
-    reactor->Finish(auth);
+  if (StatusOr<std::string> client = Authorize(*state_, context); !client.ok()) {
+    reactor->Finish(ToGrpc(client.status()));
     return reactor;
   }
   StatusOr<std::string> id = IdOf(request->name());
@@ -633,7 +628,7 @@ grpc::ServerWriteReactor<v1::JobMetadata>* JobsService::Watch(grpc::CallbackServ
 grpc::ServerUnaryReactor* OperationsService::ListOperations(
     grpc::CallbackServerContext* context, const google::longrunning::ListOperationsRequest* request,
     google::longrunning::ListOperationsResponse* response) {
-  return Offload(state_, context, [this, request, response] {
+  return Offload(state_, context, [this, request, response](const std::string&) {
     if (!request->name().empty() && request->name() != "operations") {
       return Error(grpc::StatusCode::INVALID_ARGUMENT,
                    "name: the parent is \"operations\" (or empty), got '" + request->name() + "'");
@@ -646,7 +641,7 @@ grpc::ServerUnaryReactor* OperationsService::ListOperations(
     if (!page.ok()) return ToGrpc(page.status());
     for (const JobRecord& job : page->jobs) {
       // Results are left out of lists (they can be large): GetOperation or GetResult has them.
-      StatusOr<Operation> op = OperationOf(*state_->store, job, /*include_response=*/false);
+      StatusOr<Operation> op = OperationOf(*state_, job, /*include_response=*/false);
       if (!op.ok()) return ToGrpc(op.status());
       *response->add_operations() = std::move(op).value();
     }
@@ -658,12 +653,12 @@ grpc::ServerUnaryReactor* OperationsService::ListOperations(
 grpc::ServerUnaryReactor* OperationsService::GetOperation(
     grpc::CallbackServerContext* context, const google::longrunning::GetOperationRequest* request,
     Operation* response) {
-  return Offload(state_, context, [this, request, response] {
+  return Offload(state_, context, [this, request, response](const std::string&) {
     StatusOr<std::string> id = IdOf(request->name());
     if (!id.ok()) return ToGrpc(id.status());
     StatusOr<JobRecord> record = state_->store->Get(*id);
     if (!record.ok()) return ToGrpc(record.status());
-    StatusOr<Operation> op = OperationOf(*state_->store, *record, /*include_response=*/true);
+    StatusOr<Operation> op = OperationOf(*state_, *record, /*include_response=*/true);
     if (!op.ok()) return ToGrpc(op.status());
     *response = std::move(op).value();
     return grpc::Status::OK;
@@ -673,7 +668,7 @@ grpc::ServerUnaryReactor* OperationsService::GetOperation(
 grpc::ServerUnaryReactor* OperationsService::DeleteOperation(
     grpc::CallbackServerContext* context,
     const google::longrunning::DeleteOperationRequest* request, google::protobuf::Empty*) {
-  return Offload(state_, context, [this, request] {
+  return Offload(state_, context, [this, request](const std::string&) {
     StatusOr<std::string> id = IdOf(request->name());
     if (!id.ok()) return ToGrpc(id.status());
     if (Status s = state_->store->Delete(*id); !s.ok()) return ToGrpc(s);
@@ -686,7 +681,7 @@ grpc::ServerUnaryReactor* OperationsService::DeleteOperation(
 grpc::ServerUnaryReactor* OperationsService::CancelOperation(
     grpc::CallbackServerContext* context,
     const google::longrunning::CancelOperationRequest* request, google::protobuf::Empty*) {
-  return Offload(state_, context, [this, request] {
+  return Offload(state_, context, [this, request](const std::string&) {
     StatusOr<std::string> id = IdOf(request->name());
     if (!id.ok()) return ToGrpc(id.status());
     StatusOr<JobState> after = state_->store->Cancel(*id);
@@ -701,8 +696,8 @@ grpc::ServerUnaryReactor* OperationsService::CancelOperation(
 grpc::ServerUnaryReactor* OperationsService::WaitOperation(
     grpc::CallbackServerContext* context, const google::longrunning::WaitOperationRequest* request,
     Operation* response) {
-  if (grpc::Status auth = Authorize(*state_, context); !auth.ok()) {
-    return FinishNow(context, auth);
+  if (StatusOr<std::string> client = Authorize(*state_, context); !client.ok()) {
+    return FinishNow(context, ToGrpc(client.status()));
   }
   StatusOr<std::string> id = IdOf(request->name());
   if (!id.ok()) return FinishNow(context, ToGrpc(id.status()));
@@ -710,7 +705,7 @@ grpc::ServerUnaryReactor* OperationsService::WaitOperation(
   ServiceState* state = state_;
   auto done = [state, reactor, response](const StatusOr<JobRecord>& record, bool) {
     if (!record.ok()) return reactor->Finish(ToGrpc(record.status()));
-    StatusOr<Operation> op = OperationOf(*state->store, *record, /*include_response=*/true);
+    StatusOr<Operation> op = OperationOf(*state, *record, /*include_response=*/true);
     if (!op.ok()) return reactor->Finish(ToGrpc(op.status()));
     *response = std::move(op).value();
     reactor->Finish(grpc::Status::OK);

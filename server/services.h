@@ -22,6 +22,7 @@
 #include "server/executor.h"
 #include "server/server.h"
 #include "server/store/job_store.h"
+#include "server/tokens.h"
 #include "server/watch_hub.h"
 #include "server/worker_pool.h"
 
@@ -41,7 +42,7 @@ class OptimumIndex {
             std::shared_ptr<const v1::OptimumResult>* result);
   // Keeps the parsed result of `key` for the next queries.
   void SetResult(const std::string& key, std::shared_ptr<const v1::OptimumResult> result);
-  // Loads every SUCCEEDED optimum job of the store.
+  // Forgets everything, then loads every SUCCEEDED optimum job of the store.
   Status Load(JobStore& store);
 
  private:
@@ -56,6 +57,8 @@ class OptimumIndex {
 // What the services share. Owned by the server; outlives the services.
 struct ServiceState {
   ServerOptions options;
+  // The bearer tokens and their clients (never null; empty: no authentication).
+  std::shared_ptr<const TokenSet> tokens = std::make_shared<TokenSet>();
   JobStore* store = nullptr;
   WatchHub* hub = nullptr;
   WorkerPool* pool = nullptr;
@@ -64,13 +67,6 @@ struct ServiceState {
   // Set by Server::Shutdown: submits fail with UNAVAILABLE.
   std::atomic<bool> shutting_down{false};
 };
-
-// OK when `token` is empty or `authorization` is exactly "Bearer <token>" (compared in constant
-// time, so that the token cannot be guessed byte by byte from response times); UNAUTHENTICATED
-// otherwise, saying whether the token was missing or wrong. `present` is false when the request
-// carried no authorization at all. The gRPC services and the REST gateway both check with it.
-grpc::Status CheckBearerToken(const std::string& token, bool present,
-                              std::string_view authorization);
 
 // grpc::Status of a drillbif::Status (same numeric codes).
 grpc::Status ToGrpc(const Status& status);

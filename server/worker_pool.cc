@@ -9,12 +9,30 @@
 #include <utility>
 
 #include "jobs/registry.h"
+#include "jobs/request_bytes.h"
+#include "server/stored_results.h"
 
 namespace drillbif::server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// A store answer that retrying cannot change: the job moved on (another run finished it, it was
+// deleted), or the call itself is wrong.
+bool Final(const Status& s) {
+  return s.ok() || s.code() == StatusCode::kFailedPrecondition ||
+         s.code() == StatusCode::kNotFound || s.code() == StatusCode::kInvalidArgument;
+}
+
+}  // namespace
 
 Status WorkerPoolOptions::Validate() const {
   if (workers < 1 || workers > 1024) {
     return InvalidArgument("workers: must be in [1, 1024], got " + std::to_string(workers));
+  }
+  if (short_workers < 0 || short_workers > 1024) {
+    return InvalidArgument("short_workers: must be in [0, 1024], got " +
+                           std::to_string(short_workers));
   }
   if (progress_interval_ms < 1) {
     return InvalidArgument("progress_interval_ms: must be >= 1, got " +
@@ -22,6 +40,15 @@ Status WorkerPoolOptions::Validate() const {
   }
   if (idle_poll_ms < 1) {
     return InvalidArgument("idle_poll_ms: must be >= 1, got " + std::to_string(idle_poll_ms));
+  }
+  if (chunk_bytes < 1024) {
+    return InvalidArgument("chunk_bytes: must be >= 1024, got " + std::to_string(chunk_bytes));
+  }
+  if (store_retry_ms < 1 || store_retry_max_ms < store_retry_ms) {
+    return InvalidArgument("store_retry_ms: must be >= 1 and <= store_retry_max_ms");
+  }
+  for (const auto& [name, limits] : limits) {
+    if (Status s = limits.Validate(); !s.ok()) return InvalidArgument(name + "." + s.message());
   }
   return Status::Ok();
 }
@@ -39,7 +66,14 @@ WorkerPool::~WorkerPool() { Shutdown(); }
 void WorkerPool::Start() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!threads_.empty() || stopping_) return;
-  for (int i = 0; i < options_.workers; ++i) threads_.emplace_back([this, i] { Loop(i); });
+  for (int i = 0; i < options_.workers; ++i) {
+    const std::string id = options_.worker_prefix + "-" + std::to_string(i);
+    threads_.emplace_back([this, id] { Loop(id, ClaimOptions{}); });
+  }
+  for (int i = 0; i < options_.short_workers; ++i) {
+    const std::string id = options_.worker_prefix + "-short-" + std::to_string(i);
+    threads_.emplace_back([this, id] { Loop(id, ClaimOptions{{kLaneShort}}); });
+  }
 }
 
 void WorkerPool::Wake() {
@@ -47,7 +81,7 @@ void WorkerPool::Wake() {
     std::lock_guard<std::mutex> lock(mutex_);
     ++wakeups_;
   }
-  cv_.notify_one();
+  cv_.notify_all();
 }
 
 void WorkerPool::Cancel(const std::string& id) {
@@ -68,30 +102,214 @@ void WorkerPool::Shutdown() {
   for (std::thread& t : threads) t.join();
 }
 
-void WorkerPool::Loop(int index) {
-  const std::string worker_id = options_.worker_prefix + "-" + std::to_string(index);
+int WorkerPool::running() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return static_cast<int>(running_.size());
+}
+
+bool WorkerPool::Sleep(int ms) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  return !cv_.wait_for(lock, std::chrono::milliseconds(ms), [this] { return stopping_; });
+}
+
+void WorkerPool::Loop(const std::string& worker_id, const ClaimOptions& claim) {
+  int64_t seen = -1;  // the wakeups_ value of the last look at the store
   for (;;) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (stopping_) return;
+      seen = wakeups_;
     }
-    StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext(worker_id);
+    // Nothing is claimed from a store that cannot record what happens to it.
+    StatusOr<std::optional<JobRecord>> claimed =
+        store_->Health().ok() ? store_->ClaimNext(worker_id, claim)
+                              : StatusOr<std::optional<JobRecord>>(std::nullopt);
     if (claimed.ok() && claimed->has_value()) {
       RunOne(**claimed);
       continue;
     }
-    if (!claimed.ok())
+    if (!claimed.ok()) {
       spdlog::error("{}: claim failed: {}", worker_id, claimed.status().ToString());
+    }
     std::unique_lock<std::mutex> lock(mutex_);
-    // Sleep until a submit wakes us (wakeups_ counts the unconsumed ones) or the poll interval.
+    // Sleep until a submit wakes the pool or the poll interval passes.
     cv_.wait_for(lock, std::chrono::milliseconds(options_.idle_poll_ms),
-                 [this] { return stopping_ || wakeups_ > 0; });
-    if (wakeups_ > 0) --wakeups_;
+                 [&] { return stopping_ || wakeups_ != seen; });
   }
 }
 
+Status WorkerPool::Record(const JobRecord& job, const char* what,
+                          const std::function<Status()>& record) {
+  int wait_ms = options_.store_retry_ms;
+  for (;;) {
+    Status s = record();
+    if (Final(s)) return s;
+    spdlog::error("job {}: cannot record {} ({}); retrying in {} ms once the store recovers",
+                  job.id, what, s.ToString(), wait_ms);
+    if (!Sleep(wait_ms)) return s;  // Shutting down: the next start recovers the job.
+    if (Status probe = store_->Probe(); !probe.ok()) {
+      spdlog::warn("job {}: the store is still failing: {}", job.id, probe.ToString());
+    }
+    wait_ms = std::min(2 * wait_ms, options_.store_retry_max_ms);
+  }
+}
+
+// One run of one claimed job.
+class WorkerPool::Run {
+ public:
+  // `announce` is called once with the outcome's label just before the outcome is recorded (so
+  // that metrics see a run before a client can see it finished).
+  Run(WorkerPool* pool, const JobRecord& job, const jobs::JobKindSpec& kind,
+      std::shared_ptr<Running> running, std::function<void(const char*, double)> announce)
+      : pool_(pool),
+        job_(job),
+        kind_(kind),
+        running_(std::move(running)),
+        limits_(LimitsOf(pool->options_, kind)),
+        writer_(pool->store_, job, kind, limits_.max_result_bytes, pool->options_.chunk_bytes),
+        announce_(std::move(announce)),
+        started_(Clock::now()),
+        last_write_(started_) {}
+
+  // Runs the job and records its outcome; returns the outcome's label.
+  const char* Execute() {
+    StatusOr<jobs::JobOutput> output =
+        jobs::RunJob(kind_, job_.request,
+                     {.progress = [this](double f) { return Progress(f); },
+                      .on_value = [this](double v) { OnValue(v); },
+                      .optimum_cache = &pool_->optimum_cache_,
+                      .sink = &writer_});
+    return Finish(output);
+  }
+
+  double seconds() const { return std::chrono::duration<double>(Clock::now() - started_).count(); }
+
+ private:
+  static jobs::KindLimits LimitsOf(const WorkerPoolOptions& options,
+                                   const jobs::JobKindSpec& kind) {
+    auto it = options.limits.find(kind.name);
+    return it != options.limits.end() ? it->second : jobs::KindLimits{};
+  }
+
+  void OnValue(double v) {
+    if (std::isfinite(v)) current_ = v;
+  }
+
+  // Called by the engine on this thread: false stops the run.
+  bool Progress(double fraction) {
+    if (running_->cancel.load() || running_->shutdown.load() || !writer_.error().ok()) return false;
+    const Clock::time_point now = Clock::now();
+    if (limits_.max_seconds > 0 &&
+        now - started_ > std::chrono::duration<double>(limits_.max_seconds)) {
+      deadline_exceeded_ = true;
+      return false;
+    }
+    if (now - last_write_ < std::chrono::milliseconds(pool_->options_.progress_interval_ms)) {
+      return true;
+    }
+    last_write_ = now;
+    const double f = std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0;
+    recorded_current_ = current_;
+    if (Status s = pool_->store_->UpdateProgress(job_.id, job_.run, f, current_, writer_.items());
+        !s.ok()) {
+      spdlog::warn("job {}: progress not recorded: {}", job_.id, s.ToString());
+    }
+    // A cancel recorded in the store by someone other than this process's CancelOperation.
+    StatusOr<bool> requested = pool_->store_->IsCancelRequested(job_.id);
+    if (requested.ok() && *requested) running_->cancel = true;
+    pool_->hub_->Notify();
+    return !running_->cancel.load();
+  }
+
+  void Announce(const char* label) {
+    if (announced_) return;
+    announced_ = true;
+    if (announce_) announce_(label, seconds());
+  }
+
+  // Records how the run ended; returns the outcome's label.
+  const char* Finish(StatusOr<jobs::JobOutput>& output) {
+    if (!writer_.error().ok()) return Failed(writer_.error(), "too_large");
+    if (!output.ok()) return Failed(output.status(), "failed");
+    if (output->status == "CANCELLED") {
+      if (deadline_exceeded_) {
+        return Failed(DeadlineExceeded("the job ran longer than its limit of " +
+                                       jobs::HumanSeconds(limits_.max_seconds) +
+                                       " (max_seconds of " + kind_.name + " jobs)"),
+                      "deadline_exceeded");
+      }
+      if (running_->shutdown.load() && !running_->cancel.load()) {
+        Announce("requeued");
+        (void)Store("the requeue", [&] { return store().Requeue(job_.id, job_.run); });
+        return "requeued";
+      }
+      Announce("cancelled");
+      (void)Store("the cancel", [&] { return store().MarkCancelled(job_.id, job_.run); });
+      return "cancelled";
+    }
+    google::protobuf::Message& result = *output->result;
+    if (Status s = writer_.MoveItemsOf(&result); !s.ok()) return Failed(s, "too_large");
+    if (Status s = writer_.Flush(); !s.ok()) return Failed(s, "failed");
+    // The last value reached, when no progress record carried it (a short run): one more write.
+    if (current_ && current_ != recorded_current_) {
+      if (Status s = store().UpdateProgress(job_.id, job_.run, 1.0, current_, writer_.items());
+          !s.ok()) {
+        spdlog::warn("job {}: final value not recorded: {}", job_.id, s.ToString());
+      }
+    }
+    const std::string summary = jobs::DeterministicBytes(result);
+    Announce("succeeded");
+    Status s = store().Complete(job_.id, job_.run, summary, writer_.items());
+    if (s.code() == StatusCode::kResourceExhausted) {
+      return Failed(
+          ResourceExhausted("the job store's disk is full: the result could not be stored"),
+          "failed");
+    }
+    s = Store(
+        "the result", [&] { return store().Complete(job_.id, job_.run, summary, writer_.items()); },
+        s);
+    if (s.ok() && kind_.kind == v1::OPTIMUM && pool_->optimum_done_) {
+      pool_->optimum_done_(job_.id, job_.cache_key);
+    }
+    return "succeeded";
+  }
+
+  const char* Failed(const Status& status, const char* label) {
+    Announce(label);
+    (void)Store("the failure",
+                [&] { return store().Fail(job_.id, job_.run, status.code(), status.message()); });
+    spdlog::info("job {} ({}) failed: {}", job_.id, job_.kind, status.ToString());
+    return label;
+  }
+
+  // Records with retries (WorkerPool::Record); `first` is the result of a first attempt already
+  // made, if any.
+  Status Store(const char* what, const std::function<Status()>& record,
+               std::optional<Status> first = std::nullopt) {
+    if (first && Final(*first)) return *first;
+    Status s = pool_->Record(job_, what, record);
+    if (!s.ok())
+      spdlog::warn("job {} ({}): {} not recorded: {}", job_.id, job_.kind, what, s.ToString());
+    return s;
+  }
+
+  JobStore& store() { return *pool_->store_; }
+
+  WorkerPool* const pool_;
+  const JobRecord& job_;
+  const jobs::JobKindSpec& kind_;
+  const std::shared_ptr<Running> running_;
+  const jobs::KindLimits limits_;
+  ResultWriter writer_;
+  const std::function<void(const char*, double)> announce_;
+  bool announced_ = false;
+  const Clock::time_point started_;
+  Clock::time_point last_write_;
+  std::optional<double> current_, recorded_current_;
+  bool deadline_exceeded_ = false;
+};
+
 void WorkerPool::RunOne(const JobRecord& job) {
-  using Clock = std::chrono::steady_clock;
   auto running = std::make_shared<Running>();
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -100,87 +318,25 @@ void WorkerPool::RunOne(const JobRecord& job) {
     running_[job.id] = running;
   }
   hub_->Notify();  // QUEUED -> RUNNING
+  spdlog::info("job {} ({}, {} lane) started, attempt {}", job.id, job.kind, LaneName(job.lane),
+               job.attempts);
   const jobs::JobKindSpec* kind = jobs::FindKind(job.kind);
-  const auto interval = std::chrono::milliseconds(options_.progress_interval_ms);
-  Clock::time_point last_write = Clock::now();
-  const auto started = last_write;
-
-  // The current parameter value, where the kind has one (continue), for the job's metadata.
-  std::optional<double> current, recorded_current;
-  const std::function<void(double)> value = [&](double v) {
-    if (std::isfinite(v)) current = v;
-  };
-  // Called by the engine on this thread.
-  const ProgressCallback progress = [&](double fraction) {
-    if (running->cancel.load() || running->shutdown.load()) return false;
-    const Clock::time_point now = Clock::now();
-    if (now - last_write < interval) return true;
-    last_write = now;
-    const double f = std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0;
-    recorded_current = current;
-    if (Status s = store_->UpdateProgress(job.id, f, current, 0); !s.ok()) {
-      spdlog::warn("job {}: progress not recorded: {}", job.id, s.ToString());
-    }
-    // A cancel recorded in the store by someone other than this process's CancelOperation.
-    StatusOr<bool> requested = store_->IsCancelRequested(job.id);
-    if (requested.ok() && *requested) running->cancel = true;
-    hub_->Notify();
-    return !running->cancel.load();
-  };
-
-  spdlog::info("job {} ({}) started, attempt {}", job.id, job.kind, job.attempts);
-  engine_runs_.fetch_add(1);
-  StatusOr<jobs::JobOutput> output =
-      kind == nullptr
-          ? StatusOr<jobs::JobOutput>(Internal("unknown job kind '" + job.kind + "'"))
-          : jobs::RunJob(
-                *kind, job.request,
-                {.progress = progress, .on_value = value, .optimum_cache = &optimum_cache_});
-  const double seconds = std::chrono::duration<double>(Clock::now() - started).count();
-
-  // How the run ended, decided before anything is recorded: run_done_ (the duration histogram)
-  // sees the run before the store makes its outcome visible, so a client that sees the job done
-  // also sees it in the metrics.
-  const bool cancelled = output.ok() && output->status == "CANCELLED";
-  const bool shutdown_requeue = cancelled && running->shutdown.load() && !running->cancel.load();
-  const char* outcome_label = !output.ok()       ? "failed"  // one word per way a run ends
-                              : shutdown_requeue ? "requeued"
-                              : cancelled        ? "cancelled"
-                                                 : "succeeded";
-  if (run_done_) run_done_(job, outcome_label, seconds);
-
-  Status recorded;
-  std::string outcome;
-  if (!output.ok()) {
-    recorded = store_->Fail(job.id, output.status().code(), output.status().message());
-    outcome = "failed: " + output.status().ToString();
-  } else if (shutdown_requeue) {
-    recorded = store_->Requeue(job.id);
-    outcome = "interrupted by shutdown, requeued";
-  } else if (cancelled) {
-    recorded = store_->MarkCancelled(job.id);
-    outcome = "cancelled";
+  const char* outcome = "failed";
+  double seconds = 0;
+  if (kind == nullptr) {
+    (void)Record(job, "the failure", [&] {
+      return store_->Fail(job.id, job.run, StatusCode::kInternal,
+                          "unknown job kind '" + job.kind + "'");
+    });
   } else {
-    // The last value reached, when no progress record carried it (a short run): one more write.
-    if (current && current != recorded_current) {
-      if (Status s = store_->UpdateProgress(job.id, 1.0, current, output->items); !s.ok()) {
-        spdlog::warn("job {}: final value not recorded: {}", job.id, s.ToString());
-      }
-    }
-    recorded = store_->Complete(job.id, output->result, output->items);
-    outcome = "succeeded";
-    if (recorded.ok() && kind->kind == v1::OPTIMUM && optimum_done_) {
-      optimum_done_(job.id, job.cache_key);
-    }
+    engine_runs_.fetch_add(1);
+    Run run(this, job, *kind, running, [&](const char* label, double s) {
+      if (run_done_) run_done_(job, label, s);
+    });
+    outcome = run.Execute();
+    seconds = run.seconds();
   }
-  if (recorded.ok()) {
-    spdlog::info("job {} ({}) {} in {:.3f} s", job.id, job.kind, outcome, seconds);
-  } else {
-    // FAILED_PRECONDITION: the job is no longer RUNNING here (a stale run after a requeue that
-    // another run completed first); the store kept exactly one outcome.
-    spdlog::warn("job {} ({}) {} in {:.3f} s, not recorded: {}", job.id, job.kind, outcome, seconds,
-                 recorded.ToString());
-  }
+  spdlog::info("job {} ({}) {} in {:.3f} s", job.id, job.kind, outcome, seconds);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     running_.erase(job.id);

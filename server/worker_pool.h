@@ -1,14 +1,22 @@
-// WorkerPool: the threads that run jobs. Each worker claims the oldest queued job from the store
-// (the store is the queue: jobs survive restarts there), runs the job runner of its kind, and
-// records progress, the result, the failure or the cancellation in the store.
+// WorkerPool: the threads that run jobs. Each worker claims a job from the store (the store is the
+// queue: jobs survive restarts there; claims are fair across clients), runs it through the job
+// registry (jobs/registry.h), streams its result into the store as it is produced
+// (server/stored_results.h), and records how it ended.
 //
-// Cancellation reaches the engine through the runner's progress callback, which the engine calls
-// often (a sweep every 50 ms, a simulation every 1/200 of its periods, a continuation at every
-// point): it returns false once the job's in-memory stop flag is set, by Cancel (from the
-// CancelOperation rpc, at once) or by a poll of the store's cancel flag (at most every
-// `progress_interval_ms`, for a cancel that did not come through this process). Progress is
-// written to the store at most every `progress_interval_ms` per job, since each write is a
-// committed (fsynced) transaction.
+// Lanes: every job was queued in a cost lane at submit (short or long, by its estimated time).
+// `workers` threads take jobs of any lane; `short_workers` more take short jobs only, so that a
+// short job never waits behind long ones however many long jobs are queued or running.
+//
+// A run stops, through its progress callback (which the engine calls every few milliseconds),
+// when it is cancelled (CancelOperation, at once; or a cancel recorded in the store by another
+// process, polled every `progress_interval_ms`), when the pool shuts down (the job is requeued),
+// when it reaches its kind's time limit (FAILED, DEADLINE_EXCEEDED) or its result reaches its
+// kind's size limit (FAILED, RESOURCE_EXHAUSTED). Progress is written to the store at most every
+// `progress_interval_ms` per job, since each write is a committed (fsynced) transaction.
+//
+// Store faults: a worker whose outcome cannot be recorded (a full disk, an I/O error) fails the
+// job instead where it can, and otherwise retries until the store's Probe succeeds, with a
+// backoff; no worker claims a job while the store reports a fault (JobStore::Health).
 #ifndef DRILLBIF_SERVER_WORKER_POOL_H_
 #define DRILLBIF_SERVER_WORKER_POOL_H_
 
@@ -25,6 +33,7 @@
 #include <vector>
 
 #include "drillbif/common/status.h"
+#include "jobs/job_cost.h"
 #include "jobs/optimum_cache.h"
 #include "server/store/job_store.h"
 #include "server/watch_hub.h"
@@ -33,8 +42,11 @@ namespace drillbif::server {
 
 // How the pool runs.
 struct WorkerPoolOptions {
-  // Worker threads, each running one job at a time. >= 1.
+  // Worker threads taking jobs of any lane, each running one job at a time. >= 1.
   int workers = 1;
+  // Worker threads taking short jobs only. >= 0. 1: a short job starts at once even when every
+  // other worker runs a long one; its run is short, so it competes for a core only briefly.
+  int short_workers = 1;
   // Shortest time between two progress writes of one job, and between two polls of its store
   // cancel flag. Milliseconds. 250: "a few per second", cheap for the store's fsync, while a
   // Watch still sees the progress move.
@@ -42,8 +54,19 @@ struct WorkerPoolOptions {
   // How long an idle worker sleeps before it looks at the store again without being woken (it is
   // woken by Wake() on every submit; the poll catches jobs requeued by other means). Milliseconds.
   int idle_poll_ms = 500;
-  // Prefix of the worker ids recorded in the store ("<prefix>-<n>").
+  // Size of the result chunks written to the store while a job runs. Bytes. 1 MiB: large enough
+  // that a chunk's transaction costs little beside its bytes, small enough that a run holds
+  // little of its result in memory.
+  int64_t chunk_bytes = 1 << 20;
+  // First and longest wait between two attempts to record a job's outcome in a store that
+  // failed (the wait doubles). Milliseconds.
+  int store_retry_ms = 1000;
+  int store_retry_max_ms = 30000;
+  // Prefix of the worker ids recorded in the store ("<prefix>-<n>", short workers
+  // "<prefix>-short-<n>").
   std::string worker_prefix = "worker";
+  // The limits of each kind by name (jobs/job_cost.h); a kind not here runs unlimited.
+  std::map<std::string, jobs::KindLimits> limits;
 
   // INVALID_ARGUMENT naming the field when a value is out of range.
   Status Validate() const;
@@ -54,7 +77,8 @@ struct WorkerPoolOptions {
 using OptimumDoneCallback = std::function<void(const std::string& id, const std::string& key)>;
 
 // Called on the worker's thread after each run of a job, with the job, how the run ended
-// ("succeeded", "failed", "cancelled", "requeued") and its wall time in seconds (for metrics).
+// ("succeeded", "failed", "cancelled", "requeued", "deadline_exceeded", "too_large") and its
+// wall time in seconds (for metrics).
 using JobRunCallback =
     std::function<void(const JobRecord& job, std::string_view outcome, double seconds)>;
 
@@ -73,7 +97,7 @@ class WorkerPool {
   // Starts the workers. Call once, after the store's RecoverAfterRestart.
   void Start();
 
-  // A job was queued: wake an idle worker.
+  // A job was queued: wake the idle workers (one of them may take it).
   void Wake();
 
   // Stops the engine of job `id` if it runs in this pool (the store's Cancel has set its flag;
@@ -89,15 +113,25 @@ class WorkerPool {
   // another never run, so a test can check that a cache hit did not reach the engine.
   int64_t engine_runs() const { return engine_runs_.load(); }
 
+  // Jobs running now.
+  int running() const;
+
  private:
   // A job running on a worker.
   struct Running {
     std::atomic<bool> cancel{false};    // Stop it and record CANCELLED.
     std::atomic<bool> shutdown{false};  // Stop it and requeue it.
   };
+  class Run;
 
-  void Loop(int index);
+  void Loop(const std::string& worker_id, const ClaimOptions& claim);
   void RunOne(const JobRecord& job);
+  // Records an outcome with `record`, retrying while the store is faulty (see the header) until
+  // it succeeds or answers for good (FAILED_PRECONDITION, NOT_FOUND, INVALID_ARGUMENT), or the
+  // pool shuts down.
+  Status Record(const JobRecord& job, const char* what, const std::function<Status()>& record);
+  // Sleeps `ms` unless the pool stops first; false when it stopped.
+  bool Sleep(int ms);
 
   JobStore* const store_;
   WatchHub* const hub_;
@@ -108,10 +142,10 @@ class WorkerPool {
   // Curves and regions of optimum jobs, for later optimum jobs over the same curves.
   jobs::OptimumCache optimum_cache_;
 
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable cv_;
   bool stopping_ = false;
-  int wakeups_ = 0;
+  int64_t wakeups_ = 0;  // submits since start: idle workers look again when it changes
   std::map<std::string, std::shared_ptr<Running>> running_;
   std::vector<std::thread> threads_;
 };

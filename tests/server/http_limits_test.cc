@@ -233,16 +233,18 @@ class HttpLimitsTest : public ::testing::Test {
 
   static std::string Auth() { return std::string("Authorization: Bearer ") + kToken + "\r\n"; }
 
-  // Occupies the worker with a sweep of minutes and returns a job that stays queued behind it.
+  // Occupies the worker with a sweep of minutes and returns a job that stays queued behind it:
+  // another long sweep (a short job would run at once on the worker reserved for short jobs).
   static std::string QueuedJob() {
     auto client = Client();
     v1::SubmitSweepRequest busy;
     *busy.mutable_request() = drillbif::testing::LongSweep();
     httplib::Result running = client->Post("/v1/jobs:sweep", Json(busy), "application/json");
     EXPECT_TRUE(running && running->status == 200);
-    v1::SubmitSimulateRequest queued;
-    queued.mutable_request()->set_sample_periods(7);
-    httplib::Result result = client->Post("/v1/jobs:simulate", Json(queued), "application/json");
+    v1::SubmitSweepRequest queued;
+    *queued.mutable_request() = drillbif::testing::LongSweep();
+    queued.mutable_request()->set_min(0.001);  // not identical: it does not follow the first
+    httplib::Result result = client->Post("/v1/jobs:sweep", Json(queued), "application/json");
     EXPECT_TRUE(result && result->status == 200);
     Operation op;
     if (result) {
