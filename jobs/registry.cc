@@ -69,6 +69,7 @@ std::vector<JobKindSpec> BuildKinds() {
   kinds.back().default_limits = Limits(600);
   kinds.push_back(
       Entry(v1::TRACE, "trace", "SubmitTrace", {"curves"}, PlanTrace, TraceCost, RunTrace));
+  kinds.back().first_page_fields = {"region"};
   kinds.back().default_limits = Limits(1800);
   kinds.push_back(
       Entry(v1::OPTIMUM, "optimum", "SubmitOptimum", {}, PlanOptimum, OptimumCost, RunOptimum));

@@ -46,8 +46,8 @@ struct JobKindSpec {
   // The limits a server applies to the kind unless configured otherwise (job_cost.h): sized so
   // that no accepted job of the kind takes more than ~1 GB on a 2-core machine.
   KindLimits default_limits;
-  // Fields of the result's summary sent with the first page only (a nested result that can be
-  // as large as the whole: the continuation's period-doubled branch).
+  // Fields of the result's summary sent with the first page only (nested results that can be as
+  // large as the whole: the continuation's period-doubled branch, the trace's region).
   std::vector<std::string> first_page_fields;
   // Checks a request without running anything and estimates its cost; INVALID_ARGUMENT naming
   // the field for a bad request. `request` is of request_type.

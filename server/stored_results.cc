@@ -18,17 +18,20 @@ namespace {
 using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
 
-// The one paged field of `kind` that `items` holds items of; null when it holds none, or items
-// of several, or other fields.
-const FieldDescriptor* OnlyPagedField(const jobs::JobKindSpec& kind, const Message& items) {
+// The index in kind.paged_fields of the one field that `items` holds items of; -1 when it holds
+// none, or items of several, or other fields.
+int OnlyPagedField(const jobs::JobKindSpec& kind, const Message& items) {
   std::vector<const FieldDescriptor*> set;
   items.GetReflection()->ListFields(items, &set);
-  if (set.size() != 1) return nullptr;
-  const FieldDescriptor* field = set.front();
-  for (const std::string& name : kind.paged_fields) {
-    if (field->name() == name) return field;
+  if (set.size() != 1) return -1;
+  for (size_t i = 0; i < kind.paged_fields.size(); ++i) {
+    if (set.front()->name() == kind.paged_fields[i]) return static_cast<int>(i);
   }
-  return nullptr;
+  return -1;
+}
+
+const FieldDescriptor* PagedField(const jobs::JobKindSpec& kind, int stream) {
+  return kind.result_type->FindFieldByName(kind.paged_fields[static_cast<size_t>(stream)]);
 }
 
 // Keeps the items [lo, hi) of the one repeated field `field` of `part`.
@@ -48,7 +51,8 @@ ResultWriter::ResultWriter(JobStore* store, const JobRecord& job, const jobs::Jo
       run_(job.run),
       kind_(kind),
       max_result_bytes_(max_result_bytes),
-      chunk_bytes_(chunk_bytes) {}
+      chunk_bytes_(chunk_bytes),
+      streams_(kind.paged_fields.size()) {}
 
 Status ResultWriter::Fail(Status status) {
   if (error_.ok()) error_ = status;
@@ -57,15 +61,16 @@ Status ResultWriter::Fail(Status status) {
 
 Status ResultWriter::Append(const Message& items, int64_t count) {
   if (!error_.ok()) return error_;
-  const FieldDescriptor* field = OnlyPagedField(kind_, items);
-  if (field == nullptr || count < 1 || items.GetReflection()->FieldSize(items, field) != count) {
+  const int stream = OnlyPagedField(kind_, items);
+  if (stream < 0 || count < 1 ||
+      items.GetReflection()->FieldSize(items, PagedField(kind_, stream)) != count) {
     return Fail(Internal("a " + kind_.name + " run streamed items that are not " +
                          std::to_string(count) + " items of one paged field"));
   }
-  return Add(field, items.SerializeAsString(), count);
+  return Add(stream, items.SerializeAsString(), count);
 }
 
-Status ResultWriter::Add(const FieldDescriptor* field, std::string bytes, int64_t count) {
+Status ResultWriter::Add(int stream, std::string bytes, int64_t count) {
   if (!error_.ok()) return error_;
   const int64_t size = static_cast<int64_t>(bytes.size());
   if (max_result_bytes_ > 0 && bytes_ + size > max_result_bytes_) {
@@ -75,33 +80,41 @@ Status ResultWriter::Add(const FieldDescriptor* field, std::string bytes, int64_
         kind_.name + " jobs) after " + std::to_string(items_) +
         " items; ask for less (fewer periods, values, steps or outputs, or a smaller box)"));
   }
-  if (buffered_field_ != field && !buffer_.empty()) DRILLBIF_RETURN_IF_ERROR(Flush());
-  buffered_field_ = field;
-  buffer_ += bytes;
-  buffered_items_ += count;
+  Stream& s = streams_[static_cast<size_t>(stream)];
+  s.buffer += bytes;
+  s.buffered_items += count;
   items_ += count;
   bytes_ += size;
-  if (static_cast<int64_t>(buffer_.size()) >= chunk_bytes_) return Flush();
+  if (static_cast<int64_t>(s.buffer.size()) >= chunk_bytes_) return FlushStream(stream);
+  return Status::Ok();
+}
+
+Status ResultWriter::FlushStream(int stream) {
+  Stream& s = streams_[static_cast<size_t>(stream)];
+  if (s.buffered_items == 0) return Status::Ok();
+  if (Status status =
+          store_->AppendResultChunk(id_, run_, stream, s.written_items, s.buffered_items, s.buffer);
+      !status.ok()) {
+    return Fail(status);
+  }
+  s.written_items += s.buffered_items;
+  s.buffered_items = 0;
+  s.buffer.clear();
   return Status::Ok();
 }
 
 Status ResultWriter::Flush() {
   if (!error_.ok()) return error_;
-  if (buffered_items_ == 0) return Status::Ok();
-  if (Status s = store_->AppendResultChunk(id_, run_, written_items_, buffered_items_, buffer_);
-      !s.ok()) {
-    return Fail(s);
+  for (size_t i = 0; i < streams_.size(); ++i) {
+    DRILLBIF_RETURN_IF_ERROR(FlushStream(static_cast<int>(i)));
   }
-  written_items_ += buffered_items_;
-  buffered_items_ = 0;
-  buffer_.clear();
   return Status::Ok();
 }
 
 Status ResultWriter::MoveItemsOf(Message* result) {
   const auto* reflection = result->GetReflection();
-  for (const std::string& name : kind_.paged_fields) {
-    const FieldDescriptor* field = result->GetDescriptor()->FindFieldByName(name);
+  for (size_t stream = 0; stream < kind_.paged_fields.size(); ++stream) {
+    const FieldDescriptor* field = PagedField(kind_, static_cast<int>(stream));
     const int n = reflection->FieldSize(*result, field);
     std::unique_ptr<Message> part = kind_.NewResult();
     int64_t batch_items = 0, batch_bytes = 0;
@@ -111,7 +124,8 @@ Status ResultWriter::MoveItemsOf(Message* result) {
       ++batch_items;
       batch_bytes += static_cast<int64_t>(item.ByteSizeLong()) + 8;  // + tag and length
       if (batch_bytes >= chunk_bytes_ || i + 1 == n) {
-        DRILLBIF_RETURN_IF_ERROR(Add(field, part->SerializeAsString(), batch_items));
+        DRILLBIF_RETURN_IF_ERROR(
+            Add(static_cast<int>(stream), part->SerializeAsString(), batch_items));
         part->Clear();
         batch_items = batch_bytes = 0;
       }
@@ -155,22 +169,37 @@ Status ReadResultPage(JobStore& store, const jobs::JobKindSpec& kind, const std:
   if (info.total_items == 0) {
     jobs::KeepItems(kind, begin, end, result);
   } else {
-    DRILLBIF_ASSIGN_OR_RETURN(const std::vector<ResultChunk> chunks,
-                              store.ReadResultChunks(id, begin, options.max_page_bytes));
+    // The items of the streams (paged fields) in order: stream s holds [offset, offset + n_s).
+    int64_t budget = options.max_page_bytes;
     int64_t reached = begin;
-    for (const ResultChunk& chunk : chunks) {
-      if (reached >= end) break;
-      std::unique_ptr<Message> part = kind.NewResult();
-      if (!part->ParseFromString(chunk.bytes)) {
-        return Internal("a stored result chunk is not a valid " + part->GetTypeName());
+    int64_t offset = 0;
+    for (size_t stream = 0; stream < info.stream_items.size() && reached < end && budget > 0;
+         ++stream) {
+      const int64_t n = info.stream_items[stream];
+      if (reached >= offset + n) {
+        offset += n;
+        continue;
       }
-      const FieldDescriptor* field = OnlyPagedField(kind, *part);
-      if (field == nullptr) return Internal("a stored result chunk holds no single paged field");
-      const int64_t lo = std::max(begin, chunk.first_item) - chunk.first_item;
-      const int64_t hi = std::min(end, chunk.first_item + chunk.item_count) - chunk.first_item;
-      KeepRange(field, lo, hi, part.get());
-      result->MergeFrom(*part);
-      reached = chunk.first_item + hi;
+      DRILLBIF_ASSIGN_OR_RETURN(
+          const std::vector<ResultChunk> chunks,
+          store.ReadResultChunks(id, static_cast<int>(stream), reached - offset, budget));
+      const FieldDescriptor* field = PagedField(kind, static_cast<int>(stream));
+      for (const ResultChunk& chunk : chunks) {
+        if (reached >= end) break;
+        std::unique_ptr<Message> part = kind.NewResult();
+        if (!part->ParseFromString(chunk.bytes) ||
+            OnlyPagedField(kind, *part) != static_cast<int>(stream)) {
+          return Internal("a stored result chunk is not a valid part of a " + part->GetTypeName());
+        }
+        const int64_t first = offset + chunk.first_item;  // in the page sequence
+        const int64_t lo = std::max(reached, first) - first;
+        const int64_t hi = std::min(end, first + chunk.item_count) - first;
+        KeepRange(field, lo, hi, part.get());
+        result->MergeFrom(*part);
+        reached = first + hi;
+        budget -= static_cast<int64_t>(chunk.bytes.size());
+      }
+      offset += n;
     }
     end = reached;
     if (begin > 0) {

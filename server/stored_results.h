@@ -5,9 +5,12 @@
 // produced them, bounded in items and in bytes (ReadResultPage). Nothing here holds a whole
 // large result.
 //
-// A chunk holds items of one paged field only, serialized as the kind's result message with
-// just them; the store concatenates chunks in order, which protobuf's wire format makes the
-// whole message's items.
+// Each paged field is a stream of the store (its index in the kind's paged_fields), so that a
+// field's items stay together and in order whatever order the run produced them in: a page is a
+// window on the items of the fields in their order (all of a simulation's samples, then all of
+// its events, ...), as a client prints them. A chunk holds items of one field only, serialized as
+// the kind's result message with just them; concatenating a result's summary and its chunks
+// gives the whole message (protobuf's wire format).
 #ifndef DRILLBIF_SERVER_STORED_RESULTS_H_
 #define DRILLBIF_SERVER_STORED_RESULTS_H_
 
@@ -16,6 +19,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "drillbif/common/status.h"
 #include "drillbif/v1/service.pb.h"
@@ -25,8 +29,9 @@
 
 namespace drillbif::server {
 
-// Writes one run's result items to the store as chunks of about `chunk_bytes`, refusing to go
-// beyond `max_result_bytes` (0: no limit). Not thread-safe: the run's thread uses it.
+// Writes one run's result items to the store as chunks of about `chunk_bytes` per field (it holds
+// at most that much per paged field), refusing to go beyond `max_result_bytes` (0: no limit).
+// Not thread-safe: the run's thread uses it.
 class ResultWriter final : public jobs::ResultSink {
  public:
   ResultWriter(JobStore* store, const JobRecord& job, const jobs::JobKindSpec& kind,
@@ -50,7 +55,15 @@ class ResultWriter final : public jobs::ResultSink {
   const Status& error() const { return error_; }
 
  private:
-  Status Add(const google::protobuf::FieldDescriptor* field, std::string bytes, int64_t count);
+  // A paged field's buffer and how much of it went to the store.
+  struct Stream {
+    std::string buffer;
+    int64_t buffered_items = 0;
+    int64_t written_items = 0;  // the next chunk's first item
+  };
+
+  Status Add(int stream, std::string bytes, int64_t count);
+  Status FlushStream(int stream);
   Status Fail(Status status);
 
   JobStore* const store_;
@@ -59,10 +72,7 @@ class ResultWriter final : public jobs::ResultSink {
   const jobs::JobKindSpec& kind_;
   const int64_t max_result_bytes_;
   const int64_t chunk_bytes_;
-  const google::protobuf::FieldDescriptor* buffered_field_ = nullptr;
-  std::string buffer_;
-  int64_t buffered_items_ = 0;
-  int64_t written_items_ = 0;  // the next chunk's first item
+  std::vector<Stream> streams_;  // by index in kind_.paged_fields
   int64_t items_ = 0, bytes_ = 0;
   Status error_;
 };

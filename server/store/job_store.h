@@ -23,10 +23,12 @@
 //   a cache hit that never runs; a submit while an identical job is queued or running follows
 //   that job ("shares" it) and finishes with it.
 // - Submits with the same non-empty request_id return the same job (idempotent retries).
-// - Results are streamed: a running job appends chunks of its result items
-//   (AppendResultChunk); Complete makes them the job's result together with a summary, and a
-//   run that does not complete leaves nothing behind. Readers page through the chunks
-//   (ReadResultChunks) without loading the whole result.
+// - Results are streamed: a running job appends chunks of its result items (AppendResultChunk),
+//   in one or more streams (the caller's: one per repeated field of a result, so that each
+//   field's items stay together whatever order the run produced them in); Complete makes them
+//   the job's result together with a summary, and a run that does not complete leaves nothing
+//   behind. Readers page through a stream's chunks (ReadResultChunks) without loading the whole
+//   result.
 // - Runs are fenced: every claim starts a new run (JobRecord::run); a worker passes its run to
 //   the calls that append to or finish it, and a call from a stale run is refused.
 // - Store faults (full disk, I/O errors, corruption) are reported with client-readable messages
@@ -83,6 +85,9 @@ inline constexpr size_t kMaxClientBytes = 1024;
 
 // Passed as `run` to the finishing calls by callers that do not fence (any current run).
 inline constexpr int64_t kAnyRun = 0;
+
+// Streams of one result (AppendResultChunk): enough for every repeated field of a result.
+inline constexpr int kMaxResultStreams = 64;
 
 // One job as stored. Timestamps are Unix time in milliseconds, 0 when the event has not happened.
 struct JobRecord {
@@ -225,15 +230,18 @@ struct ResultInfo {
   std::string summary;
   // Items in the result's chunks (0 when nothing was streamed).
   int64_t total_items = 0;
+  // Items of each stream, indexed by stream (empty when nothing was streamed).
+  std::vector<int64_t> stream_items;
   // Bytes of the summary plus all chunks: the size of GetResult's answer.
   int64_t total_bytes = 0;
   // The points count given to Complete.
   int64_t points = 0;
 };
 
-// One chunk of a result: the serialized bytes of `item_count` consecutive result items starting
-// at item `first_item` (the store does not interpret the bytes).
+// One chunk of a result: the serialized bytes of `item_count` consecutive items of stream
+// `stream`, starting at the stream's item `first_item` (the store does not interpret the bytes).
 struct ResultChunk {
+  int stream = 0;
   int64_t first_item = 0;
   int64_t item_count = 0;
   std::string bytes;
@@ -317,15 +325,16 @@ class JobStore {
     return UpdateProgress(id, kAnyRun, fraction, current_value, points);
   }
 
-  // Appends a chunk of the result of run `run` of a RUNNING job that runs itself: the serialized
-  // bytes of `item_count` (>= 1) items starting at item `first_item`, which must equal the
-  // number of items this run appended so far (chunks are contiguous and in order). The chunks
-  // become the job's result only when the run completes; Requeue, Fail, MarkCancelled and
-  // RecoverAfterRestart drop them. Errors: INVALID_ARGUMENT (bad counts, a gap or overlap,
-  // bytes larger than the store accepts), NOT_FOUND, FAILED_PRECONDITION (not RUNNING, a
-  // follower, or `run` is not the job's current run: a stale worker), RESOURCE_EXHAUSTED (disk
+  // Appends a chunk to stream `stream` (in [0, kMaxResultStreams)) of the result of run `run` of
+  // a RUNNING job that runs itself: the serialized bytes of `item_count` (>= 1) items starting
+  // at the stream's item `first_item`, which must equal the number of items this run appended
+  // to that stream so far (a stream's chunks are contiguous and in order). The chunks become
+  // the job's result only when the run completes; Requeue, Fail, MarkCancelled and
+  // RecoverAfterRestart drop them. Errors: INVALID_ARGUMENT (bad stream or counts, a gap or
+  // overlap, bytes larger than the store accepts), NOT_FOUND, FAILED_PRECONDITION (not RUNNING,
+  // a follower, or `run` is not the job's current run: a stale worker), RESOURCE_EXHAUSTED (disk
   // full: the chunk is not stored, nothing else changed).
-  virtual Status AppendResultChunk(std::string_view id, int64_t run, int64_t first_item,
+  virtual Status AppendResultChunk(std::string_view id, int64_t run, int stream, int64_t first_item,
                                    int64_t item_count, std::string_view bytes) = 0;
 
   // RUNNING -> SUCCEEDED, in one transaction: `summary` (the result message without its streamed
@@ -399,12 +408,13 @@ class JobStore {
   // The summary and sizes of a SUCCEEDED job's result, without its chunks. Errors as GetResult.
   virtual StatusOr<ResultInfo> GetResultInfo(std::string_view id) = 0;
 
-  // A page of a SUCCEEDED job's result chunks, in order: the chunk containing item `first_item`
-  // (>= 0) and the ones after it, stopping once their bytes reach `max_bytes` (>= 1); at least
-  // one chunk while any remains, none when first_item >= total_items. Reads only those chunks.
-  // The caller skips the items of the first chunk before first_item. INVALID_ARGUMENT for a
-  // negative first_item or max_bytes < 1; otherwise errors as GetResult.
-  virtual StatusOr<std::vector<ResultChunk>> ReadResultChunks(std::string_view id,
+  // A page of a SUCCEEDED job's result chunks of stream `stream`, in order: the chunk containing
+  // the stream's item `first_item` (>= 0) and the ones after it, stopping once their bytes reach
+  // `max_bytes` (>= 1); at least one chunk while any remains, none when first_item is at or past
+  // the stream's end. Reads only those chunks. The caller skips the items of the first chunk
+  // before first_item. INVALID_ARGUMENT for a bad stream, a negative first_item or max_bytes
+  // < 1; otherwise errors as GetResult.
+  virtual StatusOr<std::vector<ResultChunk>> ReadResultChunks(std::string_view id, int stream,
                                                               int64_t first_item,
                                                               int64_t max_bytes) = 0;
 

@@ -88,13 +88,14 @@ INSERT INTO counters(name, value) VALUES ('cache_hits', 0);
     // jobs.client / jobs.lane: who submitted and the cost lane (fair claims, queue limits).
     // jobs.run: claims ever made (never decremented, unlike attempts): fences stale workers.
     // jobs.streamed_items / streamed_bytes: what the current run appended so far.
-    // result_chunks: the chunks of a run, keyed by the id of the job that ran (run_id). They
+    // result_chunks: the chunks of a run, keyed by the id of the job that ran (run_id), in
+    // streams (one per repeated field of the result, numbered by the caller). They
     // are never moved: Complete points results.run_id at them, so completing a large result
     // rewrites no chunk, and two runs of one cache key (the rare double completion) cannot mix.
     // results.items / bytes: totals (GetResultInfo without reading the chunks). Existing results
     // hold their whole message in data, with no chunks.
     // Indexes: claimable jobs by client (fair claims, queue limits), running jobs by client,
-    // finished jobs by age (eviction), chunks by (run_id, first_item) (page reads).
+    // finished jobs by age (eviction), chunks by (run_id, stream, first_item) (page reads).
     R"sql(
 ALTER TABLE jobs ADD COLUMN client TEXT NOT NULL DEFAULT '';
 ALTER TABLE jobs ADD COLUMN lane INTEGER NOT NULL DEFAULT 0 CHECK (lane >= 0);
@@ -111,11 +112,12 @@ ALTER TABLE results ADD COLUMN bytes INTEGER NOT NULL DEFAULT 0;
 UPDATE results SET bytes = length(data);
 CREATE TABLE result_chunks (
   run_id TEXT NOT NULL,
+  stream INTEGER NOT NULL CHECK (stream >= 0),
   first_item INTEGER NOT NULL CHECK (first_item >= 0),
   item_count INTEGER NOT NULL CHECK (item_count >= 1),
   data BLOB NOT NULL
 );
-CREATE UNIQUE INDEX result_chunks_by_run ON result_chunks(run_id, first_item);
+CREATE UNIQUE INDEX result_chunks_by_run ON result_chunks(run_id, stream, first_item);
 INSERT INTO counters(name, value) VALUES ('probes', 0);
 )sql",
 };

@@ -72,8 +72,8 @@ class SqliteStoreImpl final : public JobStore {
                                                const ClaimOptions& options) override;
   Status UpdateProgress(std::string_view id, int64_t run, double fraction,
                         std::optional<double> current_value, int64_t points) override;
-  Status AppendResultChunk(std::string_view id, int64_t run, int64_t first_item, int64_t item_count,
-                           std::string_view bytes) override;
+  Status AppendResultChunk(std::string_view id, int64_t run, int stream, int64_t first_item,
+                           int64_t item_count, std::string_view bytes) override;
   Status Complete(std::string_view id, int64_t run, std::string_view summary,
                   int64_t points) override;
   Status Fail(std::string_view id, int64_t run, StatusCode code, std::string_view message) override;
@@ -86,7 +86,8 @@ class SqliteStoreImpl final : public JobStore {
   Status Delete(std::string_view id) override;
   StatusOr<std::string> GetResult(std::string_view id) override;
   StatusOr<ResultInfo> GetResultInfo(std::string_view id) override;
-  StatusOr<std::vector<ResultChunk>> ReadResultChunks(std::string_view id, int64_t first_item,
+  StatusOr<std::vector<ResultChunk>> ReadResultChunks(std::string_view id, int stream,
+                                                      int64_t first_item,
                                                       int64_t max_bytes) override;
   StatusOr<RecoveryReport> RecoverAfterRestart() override;
   StatusOr<StoreStats> Stats() override;
@@ -130,10 +131,12 @@ class SqliteStoreImpl final : public JobStore {
     ResultInfo info;
   };
   StatusOr<ResultRow> ReadResultRow(std::string_view id, bool with_summary);
-  // Appends the chunks of `run_id` from the one containing `first_item`, until `max_bytes` is
-  // reached (at least one chunk).
-  Status ReadChunks(const std::string& run_id, int64_t first_item, int64_t max_bytes,
+  // Appends the chunks of stream `stream` of `run_id` from the one containing `first_item`, until
+  // `max_bytes` is reached (at least one chunk).
+  Status ReadChunks(const std::string& run_id, int stream, int64_t first_item, int64_t max_bytes,
                     std::vector<ResultChunk>* chunks);
+  // Items of each stream of `run_id`'s chunks.
+  StatusOr<std::vector<int64_t>> StreamItems(const std::string& run_id);
   // (page_count - freelist_count) * page_size.
   StatusOr<int64_t> UsedBytes();
   // The database file plus its WAL, in bytes (0 for missing files).

@@ -1,10 +1,11 @@
 // The SQLite JobStore's results: streamed chunks, completion and reads (docs/store.md, results).
 //
-// A run's chunks are rows of result_chunks keyed by (run_id, first_item), run_id being the id of
-// the job that runs. They stay where they are written: Complete inserts the results row (the
+// A run's chunks are rows of result_chunks keyed by (run_id, stream, first_item), run_id being the
+// id of the job that runs. They stay where they are written: Complete inserts the results row (the
 // summary, the totals and run_id) and never copies or rewrites a chunk, so completing a result
 // of any size is a small transaction. Readers go from the job to its result_key, from the
-// results row to run_id, and through the (run_id, first_item) index to the chunks they need.
+// results row to run_id, and through the (run_id, stream, first_item) index to the chunks they
+// need.
 #include <sqlite3.h>
 
 #include <cstdint>
@@ -45,9 +46,14 @@ Status SqliteStoreImpl::DropRunChunks(std::string_view id) {
   return q.Bind(1, id).Run();
 }
 
-Status SqliteStoreImpl::AppendResultChunk(std::string_view id, int64_t run, int64_t first_item,
-                                          int64_t item_count, std::string_view bytes) {
+Status SqliteStoreImpl::AppendResultChunk(std::string_view id, int64_t run, int stream,
+                                          int64_t first_item, int64_t item_count,
+                                          std::string_view bytes) {
   if (run < 1) return InvalidArgument("run: must be >= 1 (the run from the claimed JobRecord)");
+  if (stream < 0 || stream >= kMaxResultStreams) {
+    return InvalidArgument("stream: must be in [0, " + std::to_string(kMaxResultStreams) +
+                           "), got " + std::to_string(stream));
+  }
   if (first_item < 0) return InvalidArgument("first_item: must be >= 0");
   if (item_count < 1) return InvalidArgument("item_count: must be >= 1");
   const std::optional<int64_t> end = CheckedAdd(first_item, item_count);
@@ -56,24 +62,41 @@ Status SqliteStoreImpl::AppendResultChunk(std::string_view id, int64_t run, int6
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "append a result chunk to", run));
-  if (first_item != head.streamed_items) {
-    return InvalidArgument("chunk starts at item " + std::to_string(first_item) + " but job '" +
-                           std::string(id) + "' has " + std::to_string(head.streamed_items) +
-                           " items so far (chunks are contiguous and in order)");
+  int64_t stream_end = 0;  // the stream's items so far: the end of its last chunk
+  {
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT first_item + item_count FROM result_chunks "
+                                     "WHERE run_id = ?1 AND stream = ?2 "
+                                     "ORDER BY first_item DESC LIMIT 1"));
+    q.Bind(1, id).Bind(2, stream);
+    DRILLBIF_ASSIGN_OR_RETURN(const bool row, q.Step());
+    if (row) stream_end = q.Int(0);
   }
+  if (first_item != stream_end) {
+    return InvalidArgument("chunk starts at item " + std::to_string(first_item) + " of stream " +
+                           std::to_string(stream) + " but job '" + std::string(id) + "' has " +
+                           std::to_string(stream_end) +
+                           " items there so far (a stream's chunks are contiguous and in order)");
+  }
+  const std::optional<int64_t> streamed_items = CheckedAdd(head.streamed_items, item_count);
+  if (!streamed_items) return InvalidArgument("result items: beyond 2^63 - 1");
   const std::optional<int64_t> streamed_bytes =
       CheckedAdd(head.streamed_bytes, static_cast<int64_t>(bytes.size()));
   if (!streamed_bytes) return InvalidArgument("result bytes: beyond 2^63 - 1");
   {
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("INSERT INTO result_chunks (run_id, first_item, item_count, "
-                                     "data) VALUES (?1, ?2, ?3, ?4)"));
-    DRILLBIF_RETURN_IF_ERROR(
-        q.Bind(1, id).Bind(2, first_item).Bind(3, item_count).BindBlob(4, bytes).Run());
+        Query q, connection_.Prepare("INSERT INTO result_chunks (run_id, stream, first_item, "
+                                     "item_count, data) VALUES (?1, ?2, ?3, ?4, ?5)"));
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id)
+                                 .Bind(2, stream)
+                                 .Bind(3, first_item)
+                                 .Bind(4, item_count)
+                                 .BindBlob(5, bytes)
+                                 .Run());
   }
   DRILLBIF_RETURN_IF_ERROR(UpdateRunning(
       "UPDATE jobs SET streamed_items = ?2, streamed_bytes = ?3 WHERE id = ?1 AND state = 1", id,
-      [&](Query& q) { q.Bind(2, *end).Bind(3, *streamed_bytes); }));
+      [&](Query& q) { q.Bind(2, *streamed_items).Bind(3, *streamed_bytes); }));
   return tx.Commit();
 }
 
@@ -156,23 +179,24 @@ StatusOr<SqliteStoreImpl::ResultRow> SqliteStoreImpl::ReadResultRow(std::string_
   return result;
 }
 
-Status SqliteStoreImpl::ReadChunks(const std::string& run_id, int64_t first_item, int64_t max_bytes,
-                                   std::vector<ResultChunk>* chunks) {
+Status SqliteStoreImpl::ReadChunks(const std::string& run_id, int stream, int64_t first_item,
+                                   int64_t max_bytes, std::vector<ResultChunk>* chunks) {
   // From the chunk containing first_item (the last one starting at or before it): two index
   // range reads, whatever the number of chunks.
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q,
       connection_.Prepare("SELECT first_item, item_count, data FROM result_chunks "
-                          "WHERE run_id = ?1 AND first_item >= COALESCE((SELECT first_item "
-                          "  FROM result_chunks WHERE run_id = ?1 AND first_item <= ?2 "
-                          "  ORDER BY first_item DESC LIMIT 1), 0) "
+                          "WHERE run_id = ?1 AND stream = ?3 AND first_item >= COALESCE((SELECT "
+                          "  first_item FROM result_chunks WHERE run_id = ?1 AND stream = ?3 "
+                          "  AND first_item <= ?2 ORDER BY first_item DESC LIMIT 1), 0) "
                           "ORDER BY first_item"));
-  q.Bind(1, run_id).Bind(2, first_item);
+  q.Bind(1, run_id).Bind(2, first_item).Bind(3, stream);
   int64_t bytes = 0;
   for (;;) {
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (!row) break;
     ResultChunk chunk;
+    chunk.stream = stream;
     chunk.first_item = q.Int(0);
     chunk.item_count = q.Int(1);
     chunk.bytes = q.Blob(2);
@@ -198,8 +222,8 @@ StatusOr<std::string> SqliteStoreImpl::GetResult(std::string_view id) {
       bytes.reserve(static_cast<size_t>(row.info.total_bytes));
     }
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare(
-                     "SELECT data FROM result_chunks WHERE run_id = ?1 ORDER BY first_item"));
+        Query q, connection_.Prepare("SELECT data FROM result_chunks WHERE run_id = ?1 "
+                                     "ORDER BY stream, first_item"));
     q.Bind(1, row.run_id);
     for (;;) {
       DRILLBIF_ASSIGN_OR_RETURN(bool more, q.Step());
@@ -211,15 +235,42 @@ StatusOr<std::string> SqliteStoreImpl::GetResult(std::string_view id) {
   return bytes;
 }
 
+StatusOr<std::vector<int64_t>> SqliteStoreImpl::StreamItems(const std::string& run_id) {
+  DRILLBIF_ASSIGN_OR_RETURN(
+      Query q, connection_.Prepare("SELECT stream, SUM(item_count) FROM result_chunks "
+                                   "WHERE run_id = ?1 GROUP BY stream ORDER BY stream"));
+  q.Bind(1, run_id);
+  std::vector<int64_t> items;
+  for (;;) {
+    DRILLBIF_ASSIGN_OR_RETURN(const bool row, q.Step());
+    if (!row) break;
+    const int64_t stream = q.Int(0);
+    if (stream < 0 || stream >= kMaxResultStreams)
+      return Internal("a stored chunk has a bad stream");
+    items.resize(static_cast<size_t>(stream) + 1, 0);
+    items[static_cast<size_t>(stream)] = q.Int(1);
+  }
+  return items;
+}
+
 StatusOr<ResultInfo> SqliteStoreImpl::GetResultInfo(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
+  // One read transaction: the row and its streams come from one snapshot.
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/false));
   DRILLBIF_ASSIGN_OR_RETURN(ResultRow row, ReadResultRow(id, /*with_summary=*/true));
+  if (row.items > 0) {
+    DRILLBIF_ASSIGN_OR_RETURN(row.info.stream_items, StreamItems(row.run_id));
+  }
+  DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return std::move(row.info);
 }
 
 StatusOr<std::vector<ResultChunk>> SqliteStoreImpl::ReadResultChunks(std::string_view id,
-                                                                     int64_t first_item,
+                                                                     int stream, int64_t first_item,
                                                                      int64_t max_bytes) {
+  if (stream < 0 || stream >= kMaxResultStreams) {
+    return InvalidArgument("stream: must be in [0, " + std::to_string(kMaxResultStreams) + ")");
+  }
   if (first_item < 0) return InvalidArgument("first_item: must be >= 0");
   if (max_bytes < 1) return InvalidArgument("max_bytes: must be >= 1");
   std::lock_guard<std::mutex> lock(mu_);
@@ -227,7 +278,7 @@ StatusOr<std::vector<ResultChunk>> SqliteStoreImpl::ReadResultChunks(std::string
   DRILLBIF_ASSIGN_OR_RETURN(ResultRow row, ReadResultRow(id, /*with_summary=*/false));
   std::vector<ResultChunk> chunks;
   if (first_item < row.items) {
-    DRILLBIF_RETURN_IF_ERROR(ReadChunks(row.run_id, first_item, max_bytes, &chunks));
+    DRILLBIF_RETURN_IF_ERROR(ReadChunks(row.run_id, stream, first_item, max_bytes, &chunks));
   }
   DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return chunks;

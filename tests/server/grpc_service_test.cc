@@ -31,6 +31,7 @@
 #include "jobs/sweep_job.h"
 #include "jobs/trace_job.h"
 #include "server/server.h"
+#include "support/generic_call.h"
 #include "support/operations.h"
 #include "support/same_result.h"
 #include "support/small_requests.h"
@@ -637,34 +638,8 @@ TEST_F(GrpcServiceTest, MissingOrWrongTokenIsUnauthenticated) {
   EXPECT_TRUE(operations_->ListOperations(right.get(), list, &page).ok());
 }
 
-// The bytes of one unary call through the generic stub (for services whose protos the test
-// does not compile: health and reflection).
-grpc::Status GenericUnary(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
-                          const std::string& request, std::string* response) {
-  grpc::GenericStub stub(channel);
-  grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
-  grpc::Slice slice(request);
-  grpc::ByteBuffer in(&slice, 1);
-  grpc::ByteBuffer out;
-  std::promise<grpc::Status> done;
-  stub.UnaryCall(&context, method, grpc::StubOptions(), &in, &out,
-                 [&done](grpc::Status s) { done.set_value(std::move(s)); });
-  grpc::Status status = done.get_future().get();
-  std::vector<grpc::Slice> slices;
-  if (status.ok() && out.Dump(&slices).ok()) {
-    for (const grpc::Slice& s : slices) response->append(s.begin(), s.end());
-  }
-  return status;
-}
-
 TEST_F(GrpcServiceTest, HealthReportsServing) {
-  // HealthCheckRequest{service: ""} is empty; HealthCheckResponse{status: SERVING (1)} is the
-  // field 1 varint 1: bytes 08 01.
-  std::string response;
-  grpc::Status s = GenericUnary(*channel_, "/grpc.health.v1.Health/Check", "", &response);
-  ASSERT_TRUE(s.ok()) << s.error_message();
-  EXPECT_EQ(response, std::string("\x08\x01", 2));
+  EXPECT_EQ(drillbif::testing::HealthStatus(*channel_), 1);  // SERVING
 }
 
 // Reflection lists the services. Its messages are built from the descriptors that the

@@ -190,7 +190,7 @@ TEST_F(SqliteJobStoreTest, MigratesAVersionOneFileKeepingItsJobsAndResults) {
   EXPECT_EQ(info.total_items, 0);
   EXPECT_EQ(info.total_bytes, 3);
   EXPECT_EQ(info.points, 3);
-  EXPECT_TRUE(Must(store->ReadResultChunks("done", 0, 100)).empty());
+  EXPECT_TRUE(Must(store->ReadResultChunks("done", 0, 0, 100)).empty());
   // A cache hit on the old result, and the old jobs run on.
   EXPECT_TRUE(Must(store->Submit({"simulate", "x", "K", ""})).cache_hit);
   ASSERT_EQ(Must(store->RecoverAfterRestart()).requeued, 1);
@@ -198,7 +198,7 @@ TEST_F(SqliteJobStoreTest, MigratesAVersionOneFileKeepingItsJobsAndResults) {
   ASSERT_TRUE(again.has_value());
   EXPECT_EQ(again->id, "running");  // Requeued, oldest.
   EXPECT_EQ(again->run, 3);
-  ASSERT_TRUE(store->AppendResultChunk("running", 3, 0, 1, "item").ok());
+  ASSERT_TRUE(store->AppendResultChunk("running", 3, 0, 0, 1, "item").ok());
   ASSERT_TRUE(store->Complete("running", 3, "sum", 1).ok());
   EXPECT_EQ(Must(store->GetResult("running")), "sumitem");
   // An old file keeps auto_vacuum NONE (it cannot change without a VACUUM); a new one is

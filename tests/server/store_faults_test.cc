@@ -26,6 +26,7 @@
 
 #include "server/store/job_store.h"
 #include "server/store/sqlite_job_store.h"
+#include "support/small_tmpfs.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
@@ -207,87 +208,13 @@ TEST(StoreFaultsTest, ABusyStoreIsUnavailableWithoutBecomingUnhealthy) {
 // ---------------------------------------------------------------------------------------------
 // A full disk.
 
-// A small tmpfs mounted at a directory, in a mount namespace private to this test process (so
-// that nothing outside sees it and it vanishes with the process, even if the test crashes).
-class SmallTmpfs {
- public:
-  // Mounts `bytes` of tmpfs at `dir`; error() says why not when it could not.
-  SmallTmpfs(const std::string& dir, int64_t bytes) : dir_(dir) {
-    const std::string options = "size=" + std::to_string(bytes);
-    if (!EnterMountNamespace()) return;
-    if (mount("tmpfs", dir.c_str(), "tmpfs", 0, options.c_str()) != 0) {
-      error_ = std::string("mount tmpfs: ") + std::strerror(errno);
-      return;
-    }
-    mounted_ = true;
-  }
-  ~SmallTmpfs() {
-    if (mounted_) umount2(dir_.c_str(), MNT_DETACH);
-  }
-  SmallTmpfs(const SmallTmpfs&) = delete;
-  SmallTmpfs& operator=(const SmallTmpfs&) = delete;
-
-  const std::string& error() const { return error_; }
-
- private:
-  // As root: a new mount namespace. Otherwise: a user namespace mapping this user to root in it,
-  // with its own mount namespace (what `unshare -Urm` does).
-  bool EnterMountNamespace() {
-    if (unshare(CLONE_NEWNS) != 0) {
-      const uid_t uid = getuid();
-      const gid_t gid = getgid();
-      if (unshare(CLONE_NEWUSER | CLONE_NEWNS) != 0) {
-        error_ = std::string("unshare: ") + std::strerror(errno);
-        return false;
-      }
-      if (!WriteFile("/proc/self/setgroups", "deny") ||
-          !WriteFile("/proc/self/uid_map", "0 " + std::to_string(uid) + " 1") ||
-          !WriteFile("/proc/self/gid_map", "0 " + std::to_string(gid) + " 1")) {
-        error_ = "cannot map the user into its namespace";
-        return false;
-      }
-    }
-    // Mounts made here must not propagate to the parent namespace.
-    if (mount(nullptr, "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0) {
-      error_ = std::string("make / private: ") + std::strerror(errno);
-      return false;
-    }
-    return true;
-  }
-  static bool WriteFile(const char* path, const std::string& text) {
-    std::ofstream out(path);
-    out << text;
-    out.close();
-    return static_cast<bool>(out);
-  }
-
-  std::string dir_;
-  std::string error_;
-  bool mounted_ = false;
-};
-
-// Writes a file until the file system is full; returns the bytes written.
-int64_t FillDisk(const std::string& path) {
-  const int fd = open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  if (fd < 0) return -1;
-  const std::string block(4096, 'f');
-  int64_t written = 0;
-  for (;;) {
-    const ssize_t n = write(fd, block.data(), block.size());
-    if (n <= 0) break;
-    written += n;
-  }
-  close(fd);
-  return written;
-}
-
 TEST(StoreFaultsTest, AFullDiskFailsTheWriteButTheJobCanStillBeFailedAndProbeRecovers) {
   drillbif::testing::TempDir dir("drillbif_faults");
   ASSERT_FALSE(dir.path().empty());
   const std::string mount_dir = dir.path() + "/small";
   ASSERT_TRUE(std::filesystem::create_directory(mount_dir));
   constexpr int64_t kDiskBytes = 2 << 20;
-  SmallTmpfs tmpfs(mount_dir, kDiskBytes);
+  testing::SmallTmpfs tmpfs(mount_dir, kDiskBytes);
   if (!tmpfs.error().empty()) GTEST_SKIP() << "no small file system to fill: " << tmpfs.error();
   const std::string path = mount_dir + "/jobs.db";
   Log log;
@@ -304,10 +231,10 @@ TEST(StoreFaultsTest, AFullDiskFailsTheWriteButTheJobCanStillBeFailedAndProbeRec
   ASSERT_NE(store, nullptr);
   const JobRecord job = Must(store->ClaimNext("w")).value_or(JobRecord());
   ASSERT_EQ(job.id, id);
-  ASSERT_TRUE(store->AppendResultChunk(id, job.run, 0, 1, std::string(1000, 'a')).ok());
+  ASSERT_TRUE(store->AppendResultChunk(id, job.run, 0, 0, 1, std::string(1000, 'a')).ok());
 
   // A chunk larger than the whole disk.
-  Status full = store->AppendResultChunk(id, job.run, 1, 1, std::string(kDiskBytes + 1, 'b'));
+  Status full = store->AppendResultChunk(id, job.run, 0, 1, 1, std::string(kDiskBytes + 1, 'b'));
   EXPECT_EQ(full.code(), StatusCode::kResourceExhausted);
   EXPECT_EQ(full.message(), "the job store's disk is full");
   ExpectNoSql(full.message());
@@ -327,7 +254,7 @@ TEST(StoreFaultsTest, AFullDiskFailsTheWriteButTheJobCanStillBeFailedAndProbeRec
 
   // With the disk filled to the last byte even a probe fails; once space is freed it succeeds.
   const std::string filler = mount_dir + "/filler";
-  ASSERT_GT(FillDisk(filler), 0);
+  ASSERT_GT(testing::FillDisk(filler), 0);
   Status probe = store->Probe();
   EXPECT_EQ(probe.code(), StatusCode::kResourceExhausted);
   EXPECT_EQ(store->Health().code(), StatusCode::kResourceExhausted);
@@ -341,7 +268,7 @@ TEST(StoreFaultsTest, AFullDiskFailsTheWriteButTheJobCanStillBeFailedAndProbeRec
   const std::string next = Must(store->Submit({"sweep", "r2", "", ""})).id;
   const JobRecord again = Must(store->ClaimNext("w")).value_or(JobRecord());
   ASSERT_EQ(again.id, next);
-  ASSERT_TRUE(store->AppendResultChunk(next, again.run, 0, 1, "item").ok());
+  ASSERT_TRUE(store->AppendResultChunk(next, again.run, 0, 0, 1, "item").ok());
   ASSERT_TRUE(store->Complete(next, again.run, "S", 1).ok());
   EXPECT_EQ(Must(store->GetResult(next)), "Sitem");
   store.reset();

@@ -87,7 +87,7 @@ class StoreResultsTest : public ::testing::Test {
   void AppendAll(const std::string& id, int64_t run, const std::vector<Expected>& chunks) {
     for (const Expected& chunk : chunks) {
       Status s =
-          store_->AppendResultChunk(id, run, chunk.first_item, chunk.item_count, chunk.bytes);
+          store_->AppendResultChunk(id, run, 0, chunk.first_item, chunk.item_count, chunk.bytes);
       EXPECT_TRUE(s.ok()) << s.ToString();
     }
   }
@@ -123,7 +123,8 @@ TEST_F(StoreResultsTest, AppendedChunksBecomeTheResultAtCompletion) {
   AppendAll(id, job.run, kThreeChunks);
   // Not a result before completion.
   EXPECT_EQ(store_->GetResultInfo(id).status().code(), StatusCode::kFailedPrecondition);
-  EXPECT_EQ(store_->ReadResultChunks(id, 0, 100).status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->ReadResultChunks(id, 0, 0, 100).status().code(),
+            StatusCode::kFailedPrecondition);
   ASSERT_TRUE(store_->Complete(id, job.run, "SUMMARY", 6).ok());
 
   const ResultInfo info = Must(store_->GetResultInfo(id));
@@ -131,7 +132,7 @@ TEST_F(StoreResultsTest, AppendedChunksBecomeTheResultAtCompletion) {
   EXPECT_EQ(info.total_items, 6);
   EXPECT_EQ(info.total_bytes, 7 + 8 + 9 + 4);
   EXPECT_EQ(info.points, 6);
-  ExpectChunks(Must(store_->ReadResultChunks(id, 0, std::numeric_limits<int64_t>::max())),
+  ExpectChunks(Must(store_->ReadResultChunks(id, 0, 0, std::numeric_limits<int64_t>::max())),
                kThreeChunks);
   // The whole result: the summary, then every chunk in order.
   EXPECT_EQ(Must(store_->GetResult(id)),
@@ -144,14 +145,14 @@ TEST_F(StoreResultsTest, ACompletionWithoutChunksIsAllSummary) {
   const ResultInfo info = Must(store_->GetResultInfo(id));
   EXPECT_EQ(info.total_items, 0);
   EXPECT_EQ(info.total_bytes, 5);
-  EXPECT_TRUE(Must(store_->ReadResultChunks(id, 0, 10)).empty());
+  EXPECT_TRUE(Must(store_->ReadResultChunks(id, 0, 0, 10)).empty());
   EXPECT_EQ(Must(store_->GetResult(id)), "whole");
 }
 
 TEST_F(StoreResultsTest, ChunksMustBeContiguousAndInOrder) {
   const std::string id = SubmitOk("r");
   const int64_t run = ClaimOk().run;
-  ASSERT_TRUE(store_->AppendResultChunk(id, run, 0, 2, "ab").ok());
+  ASSERT_TRUE(store_->AppendResultChunk(id, run, 0, 0, 2, "ab").ok());
   struct Bad {
     int64_t first_item;
     int64_t item_count;
@@ -161,30 +162,45 @@ TEST_F(StoreResultsTest, ChunksMustBeContiguousAndInOrder) {
        {Bad{0, 1, "again"}, Bad{3, 1, "gap"}, Bad{1, 1, "overlap"}, Bad{2, 0, "no items"},
         Bad{2, -1, "negative count"}, Bad{-1, 1, "negative start"},
         Bad{std::numeric_limits<int64_t>::max(), 1, "end beyond INT64"}}) {
-    Status s = store_->AppendResultChunk(id, run, bad.first_item, bad.item_count, "x");
+    Status s = store_->AppendResultChunk(id, run, 0, bad.first_item, bad.item_count, "x");
     EXPECT_EQ(s.code(), StatusCode::kInvalidArgument) << bad.why;
   }
-  Status gap = store_->AppendResultChunk(id, run, 3, 1, "x");
-  EXPECT_THAT(gap.message(), HasSubstr("has 2 items so far"));
-  ASSERT_TRUE(store_->AppendResultChunk(id, run, 2, 1, "c").ok());
-  ASSERT_TRUE(store_->Complete(id, run, "", 3).ok());
-  ExpectChunks(Must(store_->ReadResultChunks(id, 0, 100)), {{0, 2, "ab"}, {2, 1, "c"}});
+  Status gap = store_->AppendResultChunk(id, run, 0, 3, 1, "x");
+  EXPECT_THAT(gap.message(), HasSubstr("has 2 items there so far"));
+  ASSERT_TRUE(store_->AppendResultChunk(id, run, 0, 2, 1, "c").ok());
+  // Streams count their items apart: stream 3 starts at 0 whatever stream 0 holds.
+  EXPECT_EQ(store_->AppendResultChunk(id, run, 3, 1, 1, "z").code(), StatusCode::kInvalidArgument);
+  ASSERT_TRUE(store_->AppendResultChunk(id, run, 3, 0, 2, "yz").ok());
+  for (int stream : {-1, kMaxResultStreams}) {
+    EXPECT_EQ(store_->AppendResultChunk(id, run, stream, 0, 1, "x").code(),
+              StatusCode::kInvalidArgument)
+        << stream;
+  }
+  ASSERT_TRUE(store_->Complete(id, run, "", 5).ok());
+  ExpectChunks(Must(store_->ReadResultChunks(id, 0, 0, 100)), {{0, 2, "ab"}, {2, 1, "c"}});
+  ExpectChunks(Must(store_->ReadResultChunks(id, 3, 0, 100)), {{0, 2, "yz"}});
+  EXPECT_TRUE(Must(store_->ReadResultChunks(id, 1, 0, 100)).empty());
+  const ResultInfo info = Must(store_->GetResultInfo(id));
+  EXPECT_EQ(info.total_items, 5);
+  EXPECT_EQ(info.stream_items, (std::vector<int64_t>{3, 0, 0, 2}));
+  // Whole: streams in order, each stream's chunks in order.
+  EXPECT_EQ(Must(store_->GetResult(id)), "abcyz");
 }
 
 TEST_F(StoreResultsTest, AppendAndFinishAreFencedByStateAndRun) {
   const std::string id = SubmitOk("r", "K");
   const std::string follower = SubmitOk("r", "K");
-  EXPECT_EQ(store_->AppendResultChunk(id, 1, 0, 1, "x").code(), StatusCode::kFailedPrecondition)
+  EXPECT_EQ(store_->AppendResultChunk(id, 1, 0, 0, 1, "x").code(), StatusCode::kFailedPrecondition)
       << "QUEUED";
-  EXPECT_EQ(store_->AppendResultChunk("nope", 1, 0, 1, "x").code(), StatusCode::kNotFound);
-  EXPECT_EQ(store_->AppendResultChunk(id, 0, 0, 1, "x").code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store_->AppendResultChunk("nope", 1, 0, 0, 1, "x").code(), StatusCode::kNotFound);
+  EXPECT_EQ(store_->AppendResultChunk(id, 0, 0, 0, 1, "x").code(), StatusCode::kInvalidArgument);
   const JobRecord first = ClaimOk();
   ASSERT_EQ(first.id, id);
-  EXPECT_EQ(store_->AppendResultChunk(follower, 1, 0, 1, "x").code(),
+  EXPECT_EQ(store_->AppendResultChunk(follower, 1, 0, 0, 1, "x").code(),
             StatusCode::kFailedPrecondition);
-  EXPECT_EQ(store_->AppendResultChunk(id, 2, 0, 1, "x").code(), StatusCode::kFailedPrecondition)
+  EXPECT_EQ(store_->AppendResultChunk(id, 2, 0, 0, 1, "x").code(), StatusCode::kFailedPrecondition)
       << "a run that does not exist yet";
-  ASSERT_TRUE(store_->AppendResultChunk(id, 1, 0, 1, "old").ok());
+  ASSERT_TRUE(store_->AppendResultChunk(id, 1, 0, 0, 1, "old").ok());
 
   // A graceful requeue gives the attempt back: the next claim has the same attempts as the
   // first, so only the run number tells the stale worker apart.
@@ -193,7 +209,7 @@ TEST_F(StoreResultsTest, AppendAndFinishAreFencedByStateAndRun) {
   ASSERT_EQ(second.id, id);
   EXPECT_EQ(second.attempts, first.attempts);
   EXPECT_EQ(second.run, 2);
-  Status stale = store_->AppendResultChunk(id, 1, 0, 1, "stale");
+  Status stale = store_->AppendResultChunk(id, 1, 0, 0, 1, "stale");
   EXPECT_EQ(stale.code(), StatusCode::kFailedPrecondition);
   EXPECT_THAT(stale.message(), HasSubstr("stale"));
   EXPECT_EQ(store_->Complete(id, 1, "stale", 1).code(), StatusCode::kFailedPrecondition);
@@ -208,11 +224,12 @@ TEST_F(StoreResultsTest, AppendAndFinishAreFencedByStateAndRun) {
   EXPECT_EQ(Must(store_->Get(id)).state, JobState::kRunning);  // None of them touched it.
 
   // The current run starts from item 0 again and completes; its follower reads the result.
-  ASSERT_TRUE(store_->AppendResultChunk(id, 2, 0, 1, "new").ok());
+  ASSERT_TRUE(store_->AppendResultChunk(id, 2, 0, 0, 1, "new").ok());
   ASSERT_TRUE(store_->Complete(id, 2, "S", 1).ok());
   EXPECT_EQ(Must(store_->GetResult(id)), "Snew");
   EXPECT_EQ(Must(store_->GetResult(follower)), "Snew");
-  EXPECT_EQ(store_->AppendResultChunk(id, 2, 1, 1, "late").code(), StatusCode::kFailedPrecondition)
+  EXPECT_EQ(store_->AppendResultChunk(id, 2, 0, 1, 1, "late").code(),
+            StatusCode::kFailedPrecondition)
       << "SUCCEEDED";
   EXPECT_EQ(ChunkRows(), 1);
 }
@@ -226,10 +243,10 @@ TEST_F(StoreResultsTest, RunsThatDoNotCompleteLeaveNoChunks) {
   ASSERT_TRUE(store_->Requeue(requeued, run).ok());
   EXPECT_EQ(ChunkRows(), 0);
   run = ClaimOk().run;
-  EXPECT_EQ(store_->AppendResultChunk(requeued, run, 2, 1, "x").code(),
+  EXPECT_EQ(store_->AppendResultChunk(requeued, run, 0, 2, 1, "x").code(),
             StatusCode::kInvalidArgument)
       << "the count restarted at 0";
-  ASSERT_TRUE(store_->AppendResultChunk(requeued, run, 0, 1, "x").ok());
+  ASSERT_TRUE(store_->AppendResultChunk(requeued, run, 0, 0, 1, "x").ok());
   ASSERT_TRUE(store_->Complete(requeued, run, "S", 1).ok());
   EXPECT_EQ(Must(store_->GetResult(requeued)), "Sx");
   EXPECT_EQ(ChunkRows(), 1);
@@ -275,12 +292,12 @@ TEST_F(StoreResultsTest, CacheHitsAndFollowersReadTheSharedChunksUntilTheLastHol
   for (const std::string& id : {follower, hit->id}) {
     EXPECT_EQ(Must(store_->GetResult(id)), whole) << id;
     EXPECT_EQ(Must(store_->GetResultInfo(id)).total_items, 6) << id;
-    ExpectChunks(Must(store_->ReadResultChunks(id, 0, 1000)), kThreeChunks);
+    ExpectChunks(Must(store_->ReadResultChunks(id, 0, 0, 1000)), kThreeChunks);
   }
   EXPECT_EQ(ChunkRows(), 3);  // Stored once.
 
   ASSERT_TRUE(store_->Delete(runner).ok());  // The job that ran goes; its chunks stay.
-  ExpectChunks(Must(store_->ReadResultChunks(hit->id, 0, 1000)), kThreeChunks);
+  ExpectChunks(Must(store_->ReadResultChunks(hit->id, 0, 0, 1000)), kThreeChunks);
   ASSERT_TRUE(store_->Delete(follower).ok());
   EXPECT_EQ(ChunkRows(), 3);
   ASSERT_TRUE(store_->Delete(hit->id).ok());  // The last holder: result and chunks go.
@@ -297,8 +314,8 @@ TEST_F(StoreResultsTest, ADoubleCompletionKeepsTheFirstResultAndDropsTheSecondRu
   const std::string second = SubmitOk("same", "K");
   ASSERT_TRUE(Must(store_->Get(second)).shared_with.empty());
   const int64_t second_run = ClaimOk().run;
-  ASSERT_TRUE(store_->AppendResultChunk(first, first_run, 0, 1, "first item").ok());
-  ASSERT_TRUE(store_->AppendResultChunk(second, second_run, 0, 2, "second items").ok());
+  ASSERT_TRUE(store_->AppendResultChunk(first, first_run, 0, 0, 1, "first item").ok());
+  ASSERT_TRUE(store_->AppendResultChunk(second, second_run, 0, 0, 2, "second items").ok());
   EXPECT_EQ(ChunkRows(), 2);
   ASSERT_TRUE(store_->Complete(first, first_run, "A", 1).ok());
   ASSERT_TRUE(store_->Complete(second, second_run, "B", 2).ok());
@@ -320,7 +337,7 @@ TEST_F(StoreResultsTest, ReadResultChunksStopsAtTheByteBudgetAndStartsInsideAChu
   AppendAll(id, run, chunks);
   ASSERT_TRUE(store_->Complete(id, run, "S", 10).ok());
   const auto read = [&](int64_t first_item, int64_t max_bytes) {
-    return Must(store_->ReadResultChunks(id, first_item, max_bytes));
+    return Must(store_->ReadResultChunks(id, 0, first_item, max_bytes));
   };
   // At least one chunk, however small the budget.
   ExpectChunks(read(0, 1), {chunks[0]});
@@ -335,9 +352,9 @@ TEST_F(StoreResultsTest, ReadResultChunksStopsAtTheByteBudgetAndStartsInsideAChu
   EXPECT_TRUE(read(10, 1000).empty());
   EXPECT_TRUE(read(std::numeric_limits<int64_t>::max(), 1000).empty());
 
-  EXPECT_EQ(store_->ReadResultChunks(id, -1, 10).status().code(), StatusCode::kInvalidArgument);
-  EXPECT_EQ(store_->ReadResultChunks(id, 0, 0).status().code(), StatusCode::kInvalidArgument);
-  EXPECT_EQ(store_->ReadResultChunks("nope", 0, 10).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(store_->ReadResultChunks(id, 0, -1, 10).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store_->ReadResultChunks(id, 0, 0, 0).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store_->ReadResultChunks("nope", 0, 0, 10).status().code(), StatusCode::kNotFound);
   EXPECT_EQ(store_->GetResultInfo("nope").status().code(), StatusCode::kNotFound);
 }
 

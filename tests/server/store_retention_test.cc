@@ -76,9 +76,10 @@ class StoreRetentionTest : public ::testing::Test {
   // Runs `id` to success with one chunk of `chunk_bytes` bytes.
   void RunToSuccess(const std::string& id, int64_t chunk_bytes) {
     const int64_t run = Claim(id);
-    ASSERT_TRUE(
-        store_->AppendResultChunk(id, run, 0, 1, std::string(static_cast<size_t>(chunk_bytes), 'x'))
-            .ok());
+    ASSERT_TRUE(store_
+                    ->AppendResultChunk(id, run, 0, 0, 1,
+                                        std::string(static_cast<size_t>(chunk_bytes), 'x'))
+                    .ok());
     ASSERT_TRUE(store_->Complete(id, run, "summary", 1).ok());
   }
 
@@ -160,7 +161,7 @@ TEST_F(StoreRetentionTest, DeletesTheOldestFinishedJobsUntilTheDataFitsAndShrink
   for (int i = 0; i < kJobs; ++i) SetFinished(finished[i], (kJobs - i) * kDayMs);
   const std::string running = Submit("running");
   const int64_t run = Claim(running);
-  ASSERT_TRUE(store_->AppendResultChunk(running, run, 0, 1, std::string(kChunk, 'r')).ok());
+  ASSERT_TRUE(store_->AppendResultChunk(running, run, 0, 0, 1, std::string(kChunk, 'r')).ok());
   const std::string queued = Submit("queued");
 
   const int64_t used = Must(store_->Stats()).used_bytes;
@@ -223,7 +224,7 @@ TEST_F(StoreRetentionTest, ALimitBelowTheUnfinishedJobsDeletesOnlyFinishedOnes) 
   RunToSuccess(done, 10);
   const std::string running = Submit("running");
   const int64_t run = Claim(running);
-  ASSERT_TRUE(store_->AppendResultChunk(running, run, 0, 1, std::string(100000, 'r')).ok());
+  ASSERT_TRUE(store_->AppendResultChunk(running, run, 0, 0, 1, std::string(100000, 'r')).ok());
   Submit("queued");
   RetentionOptions retention;
   retention.max_db_bytes = 1;

@@ -263,6 +263,53 @@ TEST_F(StoredResultsTest, AWholeResultIsMovedIntoChunksLeavingItsSummary) {
   EXPECT_EQ(summary.status(), "COMPLETED");
 }
 
+// A simulation produces its samples and events interleaved; pages hold each field's items
+// together, fields in their order (all samples, then all events), as a client prints them.
+TEST_F(StoredResultsTest, InterleavedItemsArePagedFieldByField) {
+  const JobRecord job = Running("simulate");
+  const jobs::JobKindSpec& simulate = *jobs::FindKind(v1::SIMULATE);
+  ResultWriter writer(store_.get(), job, simulate, 0, /*chunk_bytes=*/64);
+  v1::SimulateResult whole;
+  for (int period = 0; period < 40; ++period) {
+    for (int e = 0; e < 3; ++e) {
+      v1::SimulateResult event;
+      event.add_events()->set_period(period);
+      event.mutable_events(0)->set_s(e);
+      ASSERT_TRUE(writer.Append(event, 1).ok());
+      *whole.add_events() = event.events(0);
+    }
+    v1::SimulateResult sample;
+    sample.add_poincare()->set_period(period);
+    ASSERT_TRUE(writer.Append(sample, 1).ok());
+    *whole.add_poincare() = sample.poincare(0);
+  }
+  ASSERT_TRUE(writer.Flush().ok());
+  ASSERT_TRUE(store_->Complete(job.id, job.run, "", writer.items()).ok());
+  std::vector<int> fields_per_page;
+  v1::SimulateResult merged;
+  std::string token;
+  bool events_started = false;
+  do {
+    v1::GetResultResponse page;
+    ASSERT_TRUE(ReadResultPage(*store_, simulate, job.id, 7, token, PageOptions(), &page).ok());
+    // Once events appear, no sample comes any more.
+    if (events_started) EXPECT_EQ(page.simulate().poincare_size(), 0);
+    events_started = events_started || page.simulate().events_size() > 0;
+    for (const auto& p : page.simulate().poincare()) *merged.add_poincare() = p;
+    for (const auto& e : page.simulate().events()) *merged.add_events() = e;
+    EXPECT_EQ(page.simulate().poincare_size() + page.simulate().events_size(),
+              page.next_page_token().empty() ? 160 % 7 : 7);
+    token = page.next_page_token();
+  } while (!token.empty());
+  EXPECT_TRUE(MessageDifferencer::Equals(merged, whole));
+  // And whole: the summary and every chunk.
+  const StatusOr<std::string> bytes = store_->GetResult(job.id);
+  ASSERT_TRUE(bytes.ok());
+  v1::SimulateResult parsed;
+  ASSERT_TRUE(parsed.ParseFromString(*bytes));
+  EXPECT_TRUE(MessageDifferencer::Equals(parsed, whole));
+}
+
 TEST_F(StoredResultsTest, TheFirstPageOnlyCarriesTheNestedPeriodDoubledBranch) {
   const JobRecord job = Running("continue");
   const jobs::JobKindSpec& kind = *jobs::FindKind(v1::CONTINUE);

@@ -192,7 +192,7 @@ TEST_F(PoolTest, AFinishedRunsItemsAreStoredInChunks) {
   ASSERT_TRUE(summary.ParseFromString(info->summary));
   EXPECT_EQ(summary.poincare_size(), 0);
   EXPECT_EQ(summary.status(), "COMPLETED");
-  const StatusOr<std::vector<ResultChunk>> chunks = store_->ReadResultChunks(job.id, 0, 1 << 30);
+  const StatusOr<std::vector<ResultChunk>> chunks = store_->ReadResultChunks(job.id, 0, 0, 1 << 30);
   ASSERT_TRUE(chunks.ok());
   // ~7 kB of samples in chunks of about 1 kB: a chunk is flushed once it holds 1 kB, so it
   // holds at most 1 kB plus the batch that crossed it (itself ~1 kB).
