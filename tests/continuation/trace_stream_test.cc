@@ -69,7 +69,8 @@ void ExpectSameCurve(const TracedCurve& a, const TracedCurve& b, int index) {
   }
 }
 
-// The issue-4 box (seconds of branches and hundreds of curves), stopped 200 ms in.
+// The whole box of problems/issue4_box.h (seconds of branches, hundreds of curves), stopped
+// 200 ms in.
 TEST_F(TraceStream, StopsPromptly) {
   CancelProbe probe(kDelay);
   const TraceResult r = TraceCurves(model_, prop_, start_, testing::Issue4Box(), probe.Callback());
