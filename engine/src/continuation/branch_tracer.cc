@@ -41,6 +41,7 @@ Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_star
   point_ = MakePoint(y_);
   tests_ = Tests(y_, t_, det, point_);
   h_ = options_.initial_step;
+  if (propagator_.stopped()) return Cancelled("cancelled at the start orbit");
   if (record_start) result->points.push_back(point_);
   return Status::Ok();
 }
@@ -52,6 +53,7 @@ bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* itera
   Eigen::MatrixXd gx, a(m() + 1, m() + 1);
   Vec r(m() + 1);
   for (int it = 1; it <= options_.max_iterations; ++it) {
+    if (propagator_.stopped()) return false;
     const Params prm = ParamsAt((*y)[m()]);
     if (!model_.ValidateParams(prm).ok()) return false;
     if (!bvp_->Evaluate(y->head(m()), prm, &g, &gx, &gp).ok()) return false;
@@ -166,6 +168,7 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
   Vec y;
   bool have = false;
   for (int it = 0; it < 100; ++it) {
+    if (propagator_.stopped()) return false;
     double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
     if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
     if (!PointAt(sigma, &y)) {
@@ -201,11 +204,12 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
 
 void BranchTracer::AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
                               ContinuationResult* result) {
-  NoteStop(kind);
   SpecialPoint sp;
   sp.kind = kind;
   sp.point = MakePoint(y);
   sp.detail = std::move(detail);
+  if (propagator_.stopped()) return;  // computed after a stop: not kept
+  NoteStop(kind);
   result->special_points.push_back(std::move(sp));
 }
 
@@ -415,6 +419,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
                   SignatureString(model_, next.orbit.signature);
     sw = std::move(next);
   }
+  if (propagator_.stopped()) return false;  // nothing computed after a stop is kept
   if (!sw.representation_only) {
     SpecialPoint sp;
     sp.kind = sw.kind;
@@ -541,6 +546,10 @@ void BranchTracer::Finish(Termination termination, std::string message) {
 }
 
 bool BranchTracer::Step(ContinuationResult* result) {
+  if (propagator_.stopped()) {
+    Finish(Termination::kCancelled, "cancelled");
+    return false;
+  }
   if (!stop_kind_.empty()) {
     Finish(Termination::kCompleted, "stopped at " + stop_kind_);
     return false;
@@ -549,10 +558,17 @@ bool BranchTracer::Step(ContinuationResult* result) {
     Finish(Termination::kCompleted, "reached max_steps");
     return false;
   }
+  // A stop seen anywhere in the step ends the branch CANCELLED before anything computed after it
+  // is kept.
+  auto cancelled = [&] {
+    Finish(Termination::kCancelled, "cancelled");
+    return false;
+  };
   while (true) {
     Vec y1;
     int iterations = 0;
     if (!Correct(y_ + h_ * t_, t_, &y1, &iterations)) {
+      if (propagator_.stopped()) return cancelled();
       ++rejected_;
       h_ *= 0.5;
       if (h_ < options_.min_step) {
@@ -587,8 +603,10 @@ bool BranchTracer::Step(ContinuationResult* result) {
     const std::vector<Admissibility> violations =
         AdmissibilityViolations(model_, propagator_, p1.orbit);
     const Admissibility adm = violations.empty() ? Admissibility{} : violations.front();
+    if (propagator_.stopped()) return cancelled();
     if (!adm.admissible && !outside) {
       if (!CrossGrazing(h, violations, result)) {
+        if (propagator_.stopped()) return cancelled();
         if (termination_ == Termination::kCompleted && message_.empty()) {
           Finish(Termination::kFailed, "could not locate or cross: " + adm.message);
         }
@@ -602,8 +620,11 @@ bool BranchTracer::Step(ContinuationResult* result) {
       if (Locate(
               h, y_[m()] - bound, value - bound, [&](const Vec& yy) { return yy[m()] - bound; },
               false, &y_b)) {
-        result->points.push_back(MakePoint(y_b));
+        ContinuationPoint at_bound = MakePoint(y_b);
+        if (propagator_.stopped()) return cancelled();
+        result->points.push_back(std::move(at_bound));
       }
+      if (propagator_.stopped()) return cancelled();
       Finish(Termination::kCompleted,
              "reached " + model_.param_names()[param_] + " = " + std::to_string(bound));
       return false;
@@ -616,6 +637,7 @@ bool BranchTracer::Step(ContinuationResult* result) {
     }
     const TestValues tests1 = Tests(y1, t1, det, p1);
     if (options_.locate) DetectSpecialPoints(h, tests1, result);
+    if (propagator_.stopped()) return cancelled();
     // Back within one step of the start, in its signature, after going round: a closed branch
     // (an isola, or a period-2n branch that joins two period doublings of its parent). Going on
     // would retrace it until max_steps.

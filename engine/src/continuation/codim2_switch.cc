@@ -165,6 +165,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         StatusOr<PeriodicOrbit> off =
             SolveSegmentLength(model, propagator, *orbit, candidate.step_off, length, kind, i1, i2);
         if (!off.ok() || !CheckAdmissible(model, propagator, *off).admissible) return false;
+        if (propagator.stopped()) return false;
         to->push_back(*std::move(off));
         return true;
       };
@@ -189,6 +190,13 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         return false;
       }
       CurveResult curve = ContinueCurve(model, propagator, seed, co);
+      if (propagator.stopped()) {
+        // Cut short by a stop: kept with what it has (termination kCancelled), if anything.
+        if (!curve.points.empty()) {
+          result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c), q});
+        }
+        return false;
+      }
       if (curve.summary.termination == Termination::kFailed) {
         // An unverified end is no located point (CurveResult::unverified_ends): named so.
         const std::string what = q < 0 ? std::string("curve end (unverified: no ") +
@@ -229,9 +237,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
     deferred.swap(tally->deferred);
     for (const DeferredStepOff& d : deferred) {
       if (!report(0.99)) return false;
-      if (!process(d.curve, d.codim2, d.point, d.candidate)) return true;
+      if (!process(d.curve, d.codim2, d.point, d.candidate)) return !propagator.stopped();
     }
-    return true;
+    return !propagator.stopped();
   }
   // result->curves grows while it is walked: index, not iterator.
   for (size_t c = first_curve; c < result->curves.size(); ++c) {
@@ -347,12 +355,13 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       } else {
         continue;  // a bracketed root on a grazing curve
       }
+      if (propagator.stopped()) return false;  // the candidates are not to be trusted
       for (const SwitchCandidate& candidate : candidates) {
-        if (!process(c, q, point, candidate)) return true;
+        if (!process(c, q, point, candidate)) return !propagator.stopped();
       }
     }
   }
-  return true;
+  return !propagator.stopped();
 }
 
 }  // namespace drillbif::internal

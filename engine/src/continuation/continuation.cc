@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/phase_progress.h"
 #include "continuation/branch_tracer.h"
 
 namespace drillbif {
@@ -54,13 +55,21 @@ Status ContinuationOptions::Validate() const {
 
 ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
                             const PeriodicOrbit& start, const ContinuationOptions& options,
-                            const ContinuationCallback& callback) {
+                            const ContinuationCallback& callback,
+                            const ProgressCallback& progress) {
   ContinuationResult result;
   ContinuationSummary& sum = result.summary;
+  internal::PhaseProgress phase(propagator, progress);
   auto fail = [&](Status s) {
     sum.termination = Termination::kFailed;
     sum.status = s;
     sum.message = s.message();
+    return result;
+  };
+  auto cancelled_at_start = [&] {
+    sum.termination = Termination::kCancelled;
+    sum.status = Cancelled("continuation cancelled");
+    sum.message = "cancelled before the first step";
     return result;
   };
   if (Status s = options.Validate(); !s.ok()) return fail(s);
@@ -74,6 +83,7 @@ ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
                                 std::to_string(value) + " is outside [min, max]"));
   }
   const Admissibility adm = CheckAdmissible(model, propagator, start);
+  if (phase.stopped()) return cancelled_at_start();
   if (!adm.admissible) {
     return fail(Status(StatusCode::kFailedPrecondition,
                        "the start orbit is not admissible: " + adm.message));
@@ -89,14 +99,22 @@ ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
   for (size_t d = 0; d < signs.size() && !cancelled; ++d) {
     internal::BranchTracer tracer(model, propagator, options, *param);
     ContinuationResult part;
-    if (Status s = tracer.Init(start, signs[d], d == 0, &part); !s.ok()) return fail(s);
+    if (Status s = tracer.Init(start, signs[d], d == 0, &part); !s.ok()) {
+      if (phase.stopped() && result.points.empty()) return cancelled_at_start();
+      if (phase.stopped()) {
+        cancelled = true;
+        break;
+      }
+      return fail(s);
+    }
     while (tracer.Step(&part)) {
-      if (callback && !callback(part.points.back(),
-                                (d + double(tracer.steps()) / options.max_steps) / signs.size())) {
+      const double fraction = (d + double(tracer.steps()) / options.max_steps) / signs.size();
+      if ((callback && !callback(part.points.back(), fraction)) || !phase.Continue(fraction)) {
         cancelled = true;
         break;
       }
     }
+    cancelled = cancelled || tracer.termination() == Termination::kCancelled;
     sum.steps += tracer.steps();
     sum.rejected_steps += tracer.rejected();
     sum.newton_iterations += tracer.newton_iterations();

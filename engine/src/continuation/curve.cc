@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 
+#include "common/phase_progress.h"
 #include "continuation/arclength.h"
 #include "continuation/bordered_sigma.h"
 #include "continuation/grazing_end.h"
@@ -169,6 +170,11 @@ class CurveTracer {
   int m() const { return bvp1_.size(); }
   int n() const { return m() + 2; }
   const Vec& start() const { return start_; }
+
+  // Whether the propagator's throttle has seen a stop: nothing computed since is kept, and
+  // Trace returns kCancelledEnd.
+  bool Stopped() const { return propagator_.stopped(); }
+  static constexpr const char* kCancelledEnd = "cancelled";
 
   Params ParamsAt(const Vec& y) const {
     Params p = base_;
@@ -361,6 +367,7 @@ class CurveTracer {
       return accept();
     };
     for (int it = 1; it <= options_.max_iterations; ++it) {
+      if (Stopped()) return false;
       // After convergence, chord steps: the residual alone (one monodromy, not one per unknown)
       // and the last factorization (the Jacobian moves by O(the step), ~1e-10).
       const bool chord = converged_at > 0;
@@ -513,6 +520,7 @@ class CurveTracer {
     double a = 0.0, fa = f0, b = h, fb = f1;
     int side = 0;
     for (int it = 0; it < 100; ++it) {
+      if (Stopped()) return false;
       double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
       if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
       int iterations = 0;
@@ -556,7 +564,8 @@ class CurveTracer {
       Vec root;
       if (((*dets)[k] > 0.0) != (d1 > 0.0) &&
           LocateCodim2(y, t, t.dot(y1 - y), tests[k], (*dets)[k], d1, &root)) {
-        codim2->push_back({tests[k].kind, MakePoint(root), "", 0.0, {}});
+        CurvePoint point = MakePoint(root);
+        if (!Stopped()) codim2->push_back({tests[k].kind, std::move(point), "", 0.0, {}});
       }
       (*dets)[k] = d1;
     }
@@ -624,7 +633,7 @@ class CurveTracer {
         return;
       }
     }
-    codim2->push_back({Codim2Kind::kCusp, std::move(point), "", 0.0, {}});
+    if (!Stopped()) codim2->push_back({Codim2Kind::kCusp, std::move(point), "", 0.0, {}});
   }
 
   // Whether a violation is an event reaching the Poincare section rather than a grazing: the
@@ -705,7 +714,7 @@ class CurveTracer {
 
   void Bisect(const Vec& t, double tol, Boundary* b) const {
     tol *= 1.0 + b->ya.lpNorm<Eigen::Infinity>();
-    for (int it = 0; it < 80 && t.dot(b->yb - b->ya) > tol; ++it) {
+    for (int it = 0; it < 80 && t.dot(b->yb - b->ya) > tol && !Stopped(); ++it) {
       const Vec mid = 0.5 * (b->ya + b->yb);
       Vec yc;
       int iterations = 0;
@@ -873,7 +882,7 @@ class CurveTracer {
     CurvePoint p = MakePoint(yc);
     std::string why;
     if (yc[m()] >= options_.min1 && yc[m()] <= options_.max1 && yc[m() + 1] >= options_.min2 &&
-        yc[m() + 1] <= options_.max2 && Admissible(p.orbit, &why)) {
+        yc[m() + 1] <= options_.max2 && Admissible(p.orbit, &why) && !Stopped()) {
       points->push_back(std::move(p));
     }
   }
@@ -889,7 +898,9 @@ class CurveTracer {
         guess[j] = c;
         fixed[j] = 1.0;
         int it = 0;
-        if (Correct(guess, fixed, &yc, &it)) crossings->push_back(MakePoint(yc));
+        if (!Correct(guess, fixed, &yc, &it)) continue;
+        CurvePoint point = MakePoint(yc);
+        if (!Stopped()) crossings->push_back(std::move(point));
       }
     }
   }
@@ -963,6 +974,7 @@ class CurveTracer {
         codim2->pop_back();
       }
     }
+    if (Stopped()) return kCancelledEnd;  // nothing computed after a stop is kept
     if (IsSectionCrossing(b.violation, end.orbit)) {
       crossing->happened = true;
       crossing->orbit = end.orbit;
@@ -1045,6 +1057,7 @@ class CurveTracer {
       return std::nullopt;
     };
     for (int step = 0; step < options_.max_steps; ++step) {
+      if (Stopped()) return kCancelledEnd;
       Vec y1;
       int iterations = 0;
       Vec t1;
@@ -1054,6 +1067,7 @@ class CurveTracer {
           (y1 - (y + h * t)).norm() > kMaxDrift * h) {
         ++sum->rejected_steps;
         h *= 0.5;
+        if (Stopped()) return kCancelledEnd;
         if (h < options_.min_step) {
           // Newton failed on every step from y down to min_step: next to a boundary where the
           // curve's own system degenerates (a segment vanishing like a square root) no
@@ -1071,7 +1085,7 @@ class CurveTracer {
       const double v1 = y1[m()], v2 = y1[m() + 1];
       if (v1 < options_.min1 || v1 > options_.max1 || v2 < options_.min2 || v2 > options_.max2) {
         EndOnBox(y, y1, points);
-        return "left the box";
+        return Stopped() ? kCancelledEnd : "left the box";
       }
       // A curve that creeps (the step collapsed while Newton still converges, as next to a
       // fold-grazing where a segment's duration goes to zero like a square root) is ended rather
@@ -1096,7 +1110,9 @@ class CurveTracer {
       CurvePoint p = MakePoint(y1);
       std::string why;
       Admissibility violation;
-      if (!Admissible(p.orbit, &why, &violation)) {
+      const bool admissible = Admissible(p.orbit, &why, &violation);
+      if (Stopped()) return kCancelledEnd;
+      if (!admissible) {
         // A curve ends where its orbit grazes (a segment vanishes or a guard is touched inside
         // one): on a fold or PD curve a fold- or flip-grazing, on a grazing curve a double
         // grazing (a second boundary touched at once).
@@ -1134,9 +1150,17 @@ class CurveTracer {
 }  // namespace
 
 CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
-                          const SpecialPoint& start, const CurveOptions& options) {
+                          const SpecialPoint& start, const CurveOptions& options,
+                          const ProgressCallback& progress) {
   CurveResult result;
   ContinuationSummary& sum = result.summary;
+  internal::PhaseProgress phase(propagator, progress);
+  auto cancelled = [&] {
+    sum.termination = Termination::kCancelled;
+    sum.status = Cancelled("curve cancelled");
+    sum.message = sum.message.empty() ? "cancelled" : sum.message;
+    return result;
+  };
   auto fail = [&](Status s) {
     sum.termination = Termination::kFailed;
     sum.status = s;
@@ -1178,6 +1202,7 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
       StatusOr<PeriodicOrbit> tangent =
           tangent_given || corner_given ? StatusOr<PeriodicOrbit>(orbit)
                                         : internal::GrazingTangentForm(model, propagator, orbit);
+      if (phase.stopped()) return cancelled();
       if (!tangent.ok()) return fail(tangent.status());
       tangent_orbit = *std::move(tangent);
       break;
@@ -1190,8 +1215,11 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
   CurveTracer tracer(model, propagator, options, result.kind, *i1, *i2,
                      result.kind == CurveKind::kGrazing ? tangent_orbit : orbit);
   if (!tracer.CorrectStart()) {
+    if (phase.stopped()) return cancelled();
     return fail(Internal("could not put the start point on the curve"));
   }
+  CurvePoint start_point = tracer.MakePoint(tracer.start());
+  if (phase.stopped()) return cancelled();
   // One direction, through Poincare-section crossings: each goes on with a tracer in the rotated
   // signature (internal::SwitchSignature), leaving along the direction the curve arrived with.
   constexpr int kMaxSectionCrossings = 32;
@@ -1205,13 +1233,14 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                                              &result.unverified_ends, &sum, &cross);
       const std::string through =
           crossed == 0 ? "" : "through " + std::to_string(crossed) + " section crossings, ";
-      if (!cross.happened) return through + end;
+      if (!cross.happened || phase.stopped()) return through + end;
       if (crossed == kMaxSectionCrossings) return through + "stopped at the next one";
       const internal::SwitchedOrbit sw =
           internal::SwitchSignature(model, propagator, cross.orbit, cross.violation);
       rotated.push_back(std::make_unique<CurveTracer>(model, propagator, options, result.kind, *i1,
                                                       *i2, sw.orbit));
       if (!rotated.back()->CorrectStart()) {
+        if (phase.stopped()) return through + "cancelled";
         // Not taken up there (seen where the first segment's guard fires at its start, after
         // contact phases): the curve ends there, reported as before, with the reason; not as a
         // point where only a prediction brackets the crossing (EndAtBoundary).
@@ -1232,10 +1261,11 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
   };
   std::vector<CurvePoint> backward, forward;
   const std::string end_forward = run(+1.0, &forward);
-  const std::string end_backward = run(-1.0, &backward);
+  phase.Continue(0.5);
+  const std::string end_backward = phase.stopped() ? "cancelled" : run(-1.0, &backward);
   std::reverse(backward.begin(), backward.end());
   result.points = std::move(backward);
-  result.points.push_back(tracer.MakePoint(tracer.start()));
+  result.points.push_back(std::move(start_point));
   result.points.insert(result.points.end(), forward.begin(), forward.end());
   // A cusp next to one of the curve's ends is that end: at a fold-grazing end the parameters move
   // as the square of the vanishing duration, so the direction test sees a reversal there, and a
@@ -1254,6 +1284,7 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                       result.codim2.end());
   sum.message = "increasing " + options.param2 + ": " + end_forward + "; decreasing " +
                 options.param2 + ": " + end_backward;
+  if (phase.stopped()) return cancelled();
   // Not a single step either way (and no codimension-2 end next to the start, claimed or not):
   // no curve.
   sum.termination =

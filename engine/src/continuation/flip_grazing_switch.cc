@@ -169,7 +169,17 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
           co.param1 = *names[a], co.min1 = lo[a], co.max1 = hi[a];
           co.param2 = *names[1 - a], co.min2 = lo[1 - a], co.max2 = hi[1 - a];
           if (a == 1) std::swap(co.crossings1, co.crossings2);
+          if (propagator.stopped()) return false;
           CurveResult curve = ContinueCurve(model, propagator, *graze, co);
+          if (propagator.stopped()) {
+            // Cut short by a stop: kept with what it has (termination kCancelled), if anything.
+            if (a == 1) SwapValues(&curve);
+            if (!curve.points.empty()) {
+              result->curves.push_back(
+                  {*graze, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
+            }
+            return false;
+          }
           if (curve.summary.termination == Termination::kFailed) {
             why = "the grazing curve failed: " + curve.summary.message;
             continue;
@@ -191,6 +201,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
         }
         if (done) break;
       }
+      if (propagator.stopped()) return false;  // `why` is not to be trusted
       if (done) {
         ++found[n];
       } else {
@@ -208,9 +219,24 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
   return true;
 }
 
+namespace {
+
+// The location tolerance: ends within it are left as they are by EndsAtFlipGrazings.
+constexpr double kLocated = 1e-8;
+
+// Whether EndsAtFlipGrazings looks at the point: an end of even period beyond kLocated.
+bool MergeCandidate(const Codim2Point& z) {
+  return z.bracket > kLocated && !z.violation.admissible &&
+         z.point.orbit.signature.periods % 2 == 0;
+}
+
+}  // namespace
+
+bool MayMergeAtFlipGrazing(const TracedCurve& curve) {
+  return std::any_of(curve.curve.codim2.begin(), curve.curve.codim2.end(), MergeCandidate);
+}
+
 int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, TraceResult* result) {
-  // The location tolerance: ends within it are left as they are.
-  constexpr double kLocated = 1e-8;
   // The passes of a period-2n orbit born at a PD differ by eps ~ sqrt(mu), mu the distance from
   // the PD curve; at the box's 405 such ends the section state's largest component difference
   // from the period-n orbit's is at most 3.9 sqrt(d) (d: their scaled parameter distance,
@@ -233,7 +259,7 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
   for (TracedCurve& t : result->curves) {
     for (Codim2Point& z : t.curve.codim2) {
       const int periods = z.point.orbit.signature.periods;
-      if (z.bracket <= kLocated || z.violation.admissible || periods % 2 != 0) continue;
+      if (!MergeCandidate(z)) continue;
       const Flip* nearest = nullptr;
       double d = kOnCurve;
       for (const Flip& f : flips) {

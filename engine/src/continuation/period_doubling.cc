@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/phase_progress.h"
 #include "drillbif/continuation/continuation.h"
 #include "orbit/orbit_bvp.h"
 
@@ -49,7 +50,9 @@ Eigen::MatrixXd NullBasis(const Eigen::MatrixXd& gx, const Eigen::VectorXd& gp, 
 StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propagator& propagator,
                                                const SpecialPoint& period_doubling,
                                                const std::string& param,
-                                               const PeriodDoublingSwitchOptions& options) {
+                                               const PeriodDoublingSwitchOptions& options,
+                                               const ProgressCallback& progress) {
+  internal::PhaseProgress phase(propagator, progress);
   if (period_doubling.kind != SpecialPointKind::kPeriodDoubling) {
     return InvalidArgument("branch switching needs a PERIOD_DOUBLING point, got " +
                            std::string(SpecialPointKindName(period_doubling.kind)));
@@ -82,11 +85,15 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
     Params p = orbit.params;
     p[*index] += side * options.offset;
     if (!model.ValidateParams(p).ok()) continue;
+    // Each side's simulation is most of the work: half of the fraction each.
+    const double from = side < 0.0 ? 0.0 : 0.5;
     GuessOptions guess;
     guess.transient_periods = options.transient_periods;
     guess.max_period = 2 * n;
     guess.return_tolerance = options.return_tolerance;
-    StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model, propagator, p, x0, guess);
+    StatusOr<PeriodicOrbit> found =
+        OrbitFromSimulation(model, propagator, p, x0, guess, phase.Sub(from, from + 0.5));
+    if (phase.stopped()) return Cancelled("period-doubling switch cancelled");
     if (!found.ok()) {
       tried += " " + param + " = " + std::to_string(p[*index]) + ": " + found.status().message();
       continue;
@@ -98,6 +105,7 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
     }
     PeriodicOrbit doubled = *found;
     const OrbitSolveSummary s = SolveOrbit(model, propagator, {}, &doubled);
+    if (phase.stopped()) return Cancelled("period-doubling switch cancelled");
     if (s.status == SolveStatus::kConverged) return doubled;
     tried += " " + param + " = " + std::to_string(p[*index]) + ": " + s.message + ";";
   }
@@ -110,8 +118,11 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
 StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model,
                                                         Propagator& propagator,
                                                         const PeriodicOrbit& orbit,
-                                                        const std::string& param, double step) {
+                                                        const std::string& param, double step,
+                                                        const ProgressCallback& progress) {
   using Vec = Eigen::VectorXd;
+  internal::PhaseProgress phase(propagator, progress);
+  const Status cancelled = Cancelled("period-doubling switch cancelled");
   StatusOr<int> index = model.ParamIndex(param);
   if (!index.ok()) return Status(StatusCode::kInvalidArgument, index.status().message());
   if (!(step > 0.0 && std::isfinite(step))) {
@@ -126,7 +137,9 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model
   Eigen::MatrixXd gx;
   // The period-n branch's tangent, mapped into the doubled unknowns (the doubling is linear).
   const Vec x1 = bvp1.Pack(orbit);
-  if (Status s = bvp1.Evaluate(x1, orbit.params, &g, &gx, &gp); !s.ok()) return s;
+  if (Status s = bvp1.Evaluate(x1, orbit.params, &g, &gx, &gp); !s.ok()) {
+    return phase.stopped() ? cancelled : s;
+  }
   const Vec t1 = NullBasis(gx, gp, 1).col(0);
   PeriodicOrbit moved;
   bvp1.Unpack(x1 + t1.head(m1), orbit.params, &moved);
@@ -137,7 +150,9 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model
   t_sym << bvp2.Pack(*moved2) - x2, t1[m1];
   // The doubled system's two-dimensional null space; the new branch leaves orthogonally to the
   // doubled one within it.
-  if (Status s = bvp2.Evaluate(x2, orbit.params, &g, &gx, &gp); !s.ok()) return s;
+  if (Status s = bvp2.Evaluate(x2, orbit.params, &g, &gx, &gp); !s.ok()) {
+    return phase.stopped() ? cancelled : s;
+  }
   const Eigen::MatrixXd basis = NullBasis(gx, gp, 2);
   const Eigen::Vector2d c = basis.transpose() * t_sym;
   const Vec t = basis * Eigen::Vector2d(-c[1], c[0]).normalized();
@@ -149,6 +164,7 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model
   std::string tried;
   for (double h = step * scale; h >= step * scale * 1e-4; h /= 4.0) {
     for (double side : {1.0, -1.0}) {
+      if (!phase.Continue()) return cancelled;
       const Vec y_pred = y0 + side * h * t;
       Vec y = y_pred;
       Params p = orbit.params;
@@ -187,6 +203,7 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model
         continue;
       }
       const Admissibility adm = CheckAdmissible(model, propagator, result);
+      if (phase.stopped()) return cancelled;
       if (!adm.admissible) {
         tried = "not admissible: " + adm.message;
         continue;

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/phase_progress.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
 #include "drillbif/simulate/simulator.h"
@@ -138,20 +139,52 @@ bool Traceable(SpecialPointKind kind) {
          kind == SpecialPointKind::kNeimarkSacker || internal::IsGrazing(kind);
 }
 
-// TraceCurves without its notes' last pass.
-TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& start,
-                     const TraceOptions& options, const TraceProgress& progress) {
-  TraceResult result;
+// Hands the curves to TraceCurves' on_curve in order, each once it is final.
+class CurveStream {
+ public:
+  CurveStream(const TracedCurveCallback& on_curve, const TraceResult& result)
+      : on_curve_(on_curve), result_(result) {}
+  // Hands over the curves from the next one on while they are final (`all`: every one, the
+  // trace having ended). False when on_curve asked to stop.
+  bool Flush(bool all) {
+    if (!on_curve_ || stopped_) return !stopped_;
+    for (; next_ < result_.curves.size(); ++next_) {
+      const TracedCurve& c = result_.curves[next_];
+      if (!all && internal::MayMergeAtFlipGrazing(c)) return true;
+      if (!on_curve_(static_cast<int>(next_), c)) {
+        stopped_ = true;  // called no more
+        return false;
+      }
+    }
+    return true;
+  }
+
+ private:
+  const TracedCurveCallback& on_curve_;
+  const TraceResult& result_;
+  size_t next_ = 0;
+  bool stopped_ = false;
+};
+
+// TraceCurves without its notes' last pass and the last curves' hand-over, into *out.
+void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& start,
+              const TraceOptions& options, const TraceProgress& progress, CurveStream* stream,
+              TraceResult* out) {
+  TraceResult& result = *out;
   TraceSummary& sum = result.summary;
+  // The trace's throttle, attached to the propagator: every flow of every branch, curve and
+  // switch polls it.
+  internal::PhaseProgress phase(propagator, progress);
+
   if (Status s = options.Validate(); !s.ok()) {
     sum.status = s;
-    return result;
+    return;
   }
   const StatusOr<int> i1 = model.ParamIndex(options.param1);
   const StatusOr<int> i2 = model.ParamIndex(options.param2);
   if (!i1.ok() || !i2.ok()) {
     sum.status = InvalidArgument((!i1.ok() ? i1 : i2).status().message());
-    return result;
+    return;
   }
   const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
   struct Axis {
@@ -165,17 +198,25 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
     const double v0 = start.params[a.index];
     if (v0 < a.min || v0 > a.max) {
       sum.status = InvalidArgument("the start orbit's " + *a.name + " lies outside the box");
-      return result;
+      return;
     }
   }
   sum.status = Status::Ok();
   // Progress: the two branches take the first tenth, the curves the rest (one share each); the
   // edge rounds (their work not known ahead) stay where switching left it. Never backwards.
+  // Also hands over the curves final by now (stream).
   double reported = 0.0;
   auto report = [&](double fraction) {
     reported = std::max(reported, fraction);
-    if (progress && !progress(reported)) sum.cancelled = true;
+    if (!sum.cancelled && (!phase.Continue(reported) || !stream->Flush(false))) {
+      sum.cancelled = true;
+    }
     return !sum.cancelled;
+  };
+  // Whether the trace was stopped (meanwhile, by a flow's poll); then nothing since is kept.
+  auto stopped = [&] {
+    if (phase.stopped()) sum.cancelled = true;
+    return sum.cancelled;
   };
   std::vector<std::pair<int, SpecialPoint>> starts;  // (axis, located point)
   // The branch through `orbit` in the axis' parameter over the box; its traceable points are
@@ -199,7 +240,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
     const ContinuationResult r = Continue(
         model, propagator, orbit, branch,
         [&](const ContinuationPoint&, double f) { return report(from + (to - from) * f); });
-    if (sum.cancelled) return false;
+    if (stopped()) return false;
     sum.branch_points += static_cast<int>(r.points.size());
     if (r.summary.termination == Termination::kFailed && edge.empty()) {
       sum.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
@@ -232,6 +273,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
       // above); its "fold curve" was the period-1 PD curve, one point each way.
       if (doubled && s.kind == SpecialPointKind::kFold &&
           internal::TraversedTwice(model, propagator, s.point.orbit)) {
+        if (stopped()) return false;
         sum.notes.push_back(PeriodPrefix(orbit.signature.periods) + "FOLD at " + *a.name + " = " +
                             std::to_string(s.point.value) + " on the period-" +
                             std::to_string(orbit.signature.periods / 2) +
@@ -253,7 +295,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
   };
   for (int axis = 0; axis < 2; ++axis) {
     if (!branch_starts(start, axis, 0.05 * axis, 0.05 * (axis + 1), options.branch.direction)) {
-      return result;
+      return;
     }
   }
   // The seeds' attractors and their branches (progress stays at the tenth meanwhile).
@@ -263,6 +305,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
     const StateVector x0 =
         options.seed_state.size() > 0 ? options.seed_state : DefaultInitialState(model);
     StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model, propagator, params, x0);
+    if (stopped()) return;
     const std::string where = "seed " + options.param1 + " = " + std::to_string(seed) + ": ";
     if (!found.ok()) {
       sum.notes.push_back(where + found.status().message());
@@ -270,6 +313,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
     }
     PeriodicOrbit attractor = *found;
     const OrbitSolveSummary solved = SolveOrbit(model, propagator, {}, &attractor);
+    if (stopped()) return;
     if (solved.status != SolveStatus::kConverged) {
       sum.notes.push_back(where + "the attractor's orbit did not solve: " + solved.message);
       continue;
@@ -280,7 +324,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
       continue;
     }
     for (int axis = 0; axis < 2; ++axis) {
-      if (!branch_starts(attractor, axis, 0.1, 0.1, options.branch.direction)) return result;
+      if (!branch_starts(attractor, axis, 0.1, 0.1, options.branch.direction)) return;
     }
   }
   // The period-2p branches born at the period-p branches' doublings, p = 1, 2, ... while
@@ -314,6 +358,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
       } else {
         doubled = SwitchAtPeriodDoubling(model, propagator, s, *axes[axis].name);
       }
+      if (stopped()) return;
       if (!doubled.ok()) {
         sum.notes.push_back(PeriodPrefix(period) + "PERIOD_DOUBLING at " + options.param1 + " = " +
                             std::to_string(s.point.orbit.params[*i1]) + ", " + options.param2 +
@@ -324,7 +369,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
       const double share = 0.1 / levels;
       const double from = 0.1 + share * (level + static_cast<double>(k) / parents.size());
       const double to = 0.1 + share * (level + static_cast<double>(k + 1) / parents.size());
-      if (!branch_starts(*doubled, axis, from, to, direction)) return result;
+      if (!branch_starts(*doubled, axis, from, to, direction)) return;
     }
   }
   // The curves through starts[first..], progress from `from` to `to`; false when cancelled.
@@ -364,7 +409,10 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
         continue;
       }
       if (axis == 1) SwapValues(&curve);
-      result.curves.push_back({s, *a.name, std::move(curve)});
+      // Cut short by a stop: kept with what it has (termination kCancelled), if anything.
+      const bool cut = curve.summary.termination == Termination::kCancelled;
+      if (!cut || !curve.points.empty()) result.curves.push_back({s, *a.name, std::move(curve)});
+      if (cut || stopped()) return false;
     }
     return true;
   };
@@ -379,8 +427,8 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
     return options.max_period == 1 || internal::GrazingCurvesAtFlipGrazings(
                                           model, propagator, options, report, first_curve, &result);
   };
-  if (!trace_starts(0, options.max_period > 1 ? 0.2 : 0.1, 1.0) || !switch_from(0)) {
-    return result;
+  if (!trace_starts(0, options.max_period > 1 ? 0.2 : 0.1, 1.0) || !switch_from(0) || stopped()) {
+    return;
   }
   // Edge rounds (TraceOptions::edge_branches): the branch along the box's edge through each fold /
   // PD / NS curve's end on it, unless a branch run along that edge located that end's point
@@ -427,7 +475,7 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
                                        options.param2 + " = " + std::to_string(end->value2);
           if (!branch_starts(end->orbit, along, 0.99, 0.99, ContinuationDirection::kBoth,
                              from_end)) {
-            return result;
+            return;
           }
           on_edge_branches.push_back({edge, kind, periods, value});
           for (size_t k = located; k < starts.size(); ++k) {
@@ -440,15 +488,17 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
     }
     ends_from = curves_before;
     if (starts.size() == starts_before) break;
-    if (!trace_starts(starts_before, 0.99, 0.99) || !switch_from(curves_before)) return result;
+    if (!trace_starts(starts_before, 0.99, 0.99) || !switch_from(curves_before) || stopped()) {
+      return;
+    }
   }
   // Last, the step-offs at codimension-2 roots that only a last-resort length starts
   // (SwitchAtCodim2), and the curves leaving the codimension-2 points of the curves they add.
   while (!tally.deferred.empty()) {
     const size_t before = result.curves.size();
     if (!SwitchAtCodim2(model, propagator, options, report, before, &tally, &result, true) ||
-        !switch_from(before)) {
-      return result;
+        !switch_from(before) || stopped()) {
+      return;
     }
   }
   if (edge_runs > 0) {
@@ -484,15 +534,18 @@ TraceResult TraceAll(const HybridModel& model, Propagator& propagator, const Per
                         "claimed; named in the curves' messages)");
   }
   report(1.0);
-  return result;
 }
 
 }  // namespace
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         const PeriodicOrbit& start, const TraceOptions& options,
-                        const TraceProgress& progress) {
-  TraceResult result = TraceAll(model, propagator, start, options, progress);
+                        const TraceProgress& progress, const TracedCurveCallback& on_curve) {
+  TraceResult result;
+  CurveStream stream(on_curve, result);
+  TraceAll(model, propagator, start, options, progress, &stream, &result);
+  // However the trace ended, the curves not handed over yet are final now.
+  if (!stream.Flush(true)) result.summary.cancelled = true;
   // Each note once, in the order first written: a located point met from both directions of a
   // branch, or a codimension-2 point met from every curve through it, gives the same text each
   // time (the --period2 box had 106 notes on curves not started for 80 distinct ones).

@@ -109,6 +109,10 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
 // beyond. Returns how many.
 int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, TraceResult* result);
 
+// Whether EndsAtFlipGrazings may change the curve: it has a codimension-2 end of even period
+// bracketed above 1e-8.
+bool MayMergeAtFlipGrazing(const TracedCurve& curve);
+
 }  // namespace drillbif::internal
 
 #endif  // DRILLBIF_CONTINUATION_TRACE_INTERNAL_H_

@@ -218,6 +218,10 @@ AdvanceResult CvodePropagator::Impl::RunAdvance(const AdvanceRequest& request,
     // Samples in (t_prev, tret], from the dense output of the current step.
     if (sample_dt > 0.0) {
       while (static_cast<double>(next_sample) * sample_dt <= tret) {
+        if (!integrator.KeepGoing()) {
+          fail(Cancelled("advance cancelled"));
+          return res;
+        }
         const double ts = static_cast<double>(next_sample) * sample_dt;
         StateVector xs = x;
         if (ts != tret) {

@@ -93,6 +93,20 @@ class CvodeIntegrator {
   // and CVODES's last error message.
   Status Fail(int flag, const char* what) const;
 
+  // The throttle the right-hand side polls (every ProgressThrottle::kTickStride-th evaluation
+  // reads the clock), or null; a stop fails the CVODES call in progress at once, and cancelled()
+  // says so. Set before each call (clears cancelled()).
+  void set_progress(ProgressThrottle* progress) {
+    progress_ = progress;
+    cancelled_ = false;
+  }
+  bool cancelled() const { return cancelled_; }
+  // Polls the throttle as the right-hand side does, for loops outside CVode (dense output).
+  bool KeepGoing() {
+    if (progress_ != nullptr && !progress_->Tick()) cancelled_ = true;
+    return !cancelled_;
+  }
+
  private:
   // ---- SUNDIALS callbacks (C linkage compatible, never throw) ----
   static int Rhs(double t, N_Vector yv, N_Vector ydot, void* data);
@@ -143,6 +157,9 @@ class CvodeIntegrator {
   std::string callback_error_;  // exception text from a model callback
 
   std::vector<char> armed_;  // see armed()
+
+  ProgressThrottle* progress_ = nullptr;  // see set_progress()
+  bool cancelled_ = false;
 };
 
 }  // namespace drillbif::internal

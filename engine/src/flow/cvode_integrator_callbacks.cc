@@ -32,6 +32,12 @@ inline double NonZero(double v) { return v != 0.0 ? v : kZeroStandIn; }
 
 int CvodeIntegrator::Rhs(double t, N_Vector yv, N_Vector ydot, void* data) {
   auto* self = static_cast<CvodeIntegrator*>(data);
+  // A stop ends the integration: an unrecoverable right-hand-side failure returns from CVode at
+  // once (however long the call still had to go).
+  if (self->progress_ != nullptr && !self->progress_->Tick()) {
+    self->cancelled_ = true;
+    return -1;
+  }
   try {
     StateVector dx;
     const StateVector x = ToState(yv, self->dim_);

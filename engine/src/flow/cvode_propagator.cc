@@ -129,8 +129,12 @@ FlowResult CvodePropagator::Impl::RunFlowMap(int mode, const StateVector& x0, do
 
 FlowResult CvodePropagator::FlowMap(int mode, const StateVector& x0, double t, const Params& params,
                                     const FlowRequest& request) {
+  if (!KeepGoing()) return CancelledFlow(model_, x0, request);
   try {
-    return impl_->RunFlowMap(mode, x0, t, params, request);
+    impl_->integrator.set_progress(progress());
+    FlowResult r = impl_->RunFlowMap(mode, x0, t, params, request);
+    if (impl_->integrator.cancelled()) return CancelledFlow(model_, x0, request);
+    return r;
   } catch (const std::exception& e) {
     FlowResult r;
     r.x = x0;
@@ -145,8 +149,12 @@ FlowResult CvodePropagator::FlowMap(int mode, const StateVector& x0, double t, c
 }
 
 AdvanceResult CvodePropagator::Advance(const AdvanceRequest& request, const Params& params) {
+  if (!KeepGoing()) return CancelledAdvance(model_, request);
   try {
-    return impl_->RunAdvance(request, params);
+    impl_->integrator.set_progress(progress());
+    AdvanceResult r = impl_->RunAdvance(request, params);
+    if (impl_->integrator.cancelled()) return CancelledAdvance(model_, request);
+    return r;
   } catch (const std::exception& e) {
     AdvanceResult r;
     r.x = request.x0;

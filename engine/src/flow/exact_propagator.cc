@@ -1,11 +1,19 @@
 #include "drillbif/flow/exact_propagator.h"
 
+#include <cstdint>
+#include <string>
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include "common/gauss_legendre.h"
 #include "flow/safe_event_locator.h"
 
 namespace drillbif {
+namespace {
+
+// Safety cap on trajectory samples of one Advance call (as the CVODE propagator's).
+constexpr size_t kMaxSamples = 10000000;
+
+}  // namespace
 
 Status ExactOptions::Validate() const {
   if (!(quadrature_panel_fraction > 0.0 && quadrature_panel_fraction <= 1.0)) {
@@ -62,6 +70,7 @@ void ExactPropagator::StateAt(int mode, const StateVector& x0, double t, const P
 
 FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, const Params& params,
                                     const FlowRequest& request) {
+  if (!KeepGoing()) return CancelledFlow(model_, x0, request);
   FlowResult out;
   StateAt(mode, x0, t, params, &out.x, request.state_jacobian ? &out.state_jacobian : nullptr);
   if (request.param_jacobian) {
@@ -107,29 +116,35 @@ FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, c
 }
 
 AdvanceResult ExactPropagator::Advance(const AdvanceRequest& request, const Params& params) {
+  if (!KeepGoing()) return CancelledAdvance(model_, request);
   AdvanceResult out;
   const int mode = request.mode;
   auto state_at = [&](double t, StateVector* x) {
     StateAt(mode, request.x0, t, params, x, nullptr);
   };
+  const auto keep_going = [this] { return KeepGoing(); };
   internal::LocatedEvent ev;
   if (closed_) {
     PreparedSegment seg;
     closed_->PrepareSegment(mode, request.x0, params, &seg);
     ev = internal::LocateFirstEvent(
         model_, mode, request.t_max, options_.events,
-        [&](double t, SegmentPoint* p) { closed_->EvaluateSegment(seg, t, params, true, p); });
+        [&](double t, SegmentPoint* p) { closed_->EvaluateSegment(seg, t, params, true, p); },
+        keep_going);
   } else {
     const int n_guards = static_cast<int>(model_.guards(mode).size());
     ev = internal::LocateFirstEvent(
-        model_, mode, request.t_max, options_.events, [&](double t, SegmentPoint* p) {
+        model_, mode, request.t_max, options_.events,
+        [&](double t, SegmentPoint* p) {
           state_at(t, &p->x);
           for (int i = 0; i < n_guards; ++i) {
             p->guards[i] = model_.Guard(mode, i, p->x, params);
             p->bounds[i] = model_.GuardCurvatureBound(mode, i, p->x, params);
           }
-        });
+        },
+        keep_going);
   }
+  if (ev.status.code() == StatusCode::kCancelled) return CancelledAdvance(model_, request);
   out.status = ev.status;
   out.end = ev.end;
   out.guard = ev.guard;
@@ -163,9 +178,17 @@ AdvanceResult ExactPropagator::Advance(const AdvanceRequest& request, const Para
     }
   }
   if (request.sample_dt > 0.0) {
-    for (int k = 0; k * request.sample_dt < out.duration; ++k) {
+    // 64-bit: a segment can hold more than 2^31 samples of a tiny sample_dt (refused below).
+    for (int64_t k = 0; static_cast<double>(k) * request.sample_dt < out.duration; ++k) {
+      if (out.samples.size() >= kMaxSamples) {
+        out.end = AdvanceEnd::kFailed;
+        out.status = OutOfRange("Advance: more than " + std::to_string(kMaxSamples) +
+                                " trajectory samples (sample_dt too small for t_max)");
+        return out;
+      }
+      if (!KeepGoing()) return CancelledAdvance(model_, request);
       TrajectorySample s;
-      s.t = k * request.sample_dt;
+      s.t = static_cast<double>(k) * request.sample_dt;
       state_at(s.t, &s.x);
       out.samples.push_back(s);
     }

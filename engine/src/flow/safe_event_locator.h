@@ -91,9 +91,11 @@ double PolishRoot(double lo, double v_lo, double hi, double v_hi, double rtol, c
 
 // Finds the first event of `mode` in [0, t_max]. eval(t, &point) gives the exact state at time t
 // from the segment start (eval(0) is the start), with every guard and its curvature bound.
-template <typename Eval>
+// keep_going() is asked before every safe step; false ends the search CANCELLED.
+template <typename Eval, typename KeepGoing>
 LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
-                              const EventOptions& opt, const Eval& eval) {
+                              const EventOptions& opt, const Eval& eval,
+                              const KeepGoing& keep_going) {
   const int n = static_cast<int>(model.guards(mode).size());
   const double tol = opt.tolerance;
   LocatedEvent out;
@@ -115,6 +117,11 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
   }
   GuardValue* gn = next.guards;
   for (int iter = 0; iter < opt.max_iterations; ++iter) {
+    if (!keep_going()) {
+      out.end = AdvanceEnd::kFailed;
+      out.status = Cancelled("event location cancelled");
+      return out;
+    }
     double step = t_max - t;
     for (int i = 0; i < n && step > 0.0; ++i) {
       const double m = cur.bounds[i];

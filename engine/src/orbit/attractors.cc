@@ -4,6 +4,7 @@
 #include <string>
 #include <utility>
 
+#include "common/phase_progress.h"
 #include "drillbif/orbit/signature.h"
 #include "drillbif/simulate/simulator.h"
 
@@ -12,7 +13,8 @@ namespace drillbif {
 StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator& propagator,
                                            const Params& params,
                                            const std::vector<StateVector>& initial_states,
-                                           const GuessOptions& guess) {
+                                           const GuessOptions& guess,
+                                           const ProgressCallback& progress) {
   if (Status s = model.ValidateParams(params); !s.ok()) return s;
   const double tol = SimulationOptions().state_tolerance;
   for (size_t i = 0; i < initial_states.size(); ++i) {
@@ -21,9 +23,13 @@ StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator&
     }
   }
   AttractorSample out;
-  for (int i = 0; i < static_cast<int>(initial_states.size()); ++i) {
+  internal::PhaseProgress phase(propagator, progress);
+  const int n = static_cast<int>(initial_states.size());
+  for (int i = 0; i < n; ++i) {
+    // Most of a state's time is its transient.
     const StatusOr<PeriodicOrbit> found =
-        OrbitFromSimulation(model, propagator, params, initial_states[i], guess);
+        OrbitFromSimulation(model, propagator, params, initial_states[i], guess,
+                            phase.Sub(static_cast<double>(i) / n, static_cast<double>(i + 1) / n));
     PeriodicOrbit orbit;
     std::string why;
     if (found.ok()) {
@@ -33,12 +39,18 @@ StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator&
     } else {
       why = found.status().message();
     }
+    const double rop = why.empty() ? OrbitMeasures(model, propagator, orbit, 1u).front() : 0.0;
+    const bool stable = why.empty() && OrbitStability(model, propagator, orbit).stable;
+    // Nothing computed after a stop is kept.
+    if (phase.stopped() || !phase.Continue(static_cast<double>(i + 1) / n)) {
+      out.cancelled = true;
+      break;
+    }
     if (!why.empty()) {
       out.not_periodic.push_back(i);
       out.why_not.push_back(std::move(why));
       continue;
     }
-    const double rop = OrbitMeasures(model, propagator, orbit, 1u).front();
     bool seen = false;
     for (Attractor& a : out.attractors) {
       if (SameUpToSection(a.orbit.signature, orbit.signature) &&
@@ -50,7 +62,7 @@ StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator&
     }
     if (seen) continue;
     Attractor a;
-    a.stable = OrbitStability(model, propagator, orbit).stable;
+    a.stable = stable;
     a.rop = rop;
     a.orbit = std::move(orbit);
     a.reached_from.push_back(i);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/phase_progress.h"
 #include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
@@ -25,13 +26,22 @@ const char* SolveStatusName(SolveStatus s) {
       return "NO_CONVERGENCE";
     case SolveStatus::kFailed:
       return "FAILED";
+    case SolveStatus::kCancelled:
+      return "CANCELLED";
   }
   return "?";
 }
 
 OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
-                             const OrbitSolverOptions& options, PeriodicOrbit* orbit) {
+                             const OrbitSolverOptions& options, PeriodicOrbit* orbit,
+                             const ProgressCallback& progress) {
   OrbitSolveSummary summary;
+  internal::PhaseProgress phase(propagator, progress);
+  auto cancelled = [&] {
+    summary.status = SolveStatus::kCancelled;
+    summary.message = "cancelled";
+    return summary;
+  };
   for (const Status& s : {options.Validate(), ValidateSignature(model, orbit->signature),
                           model.ValidateParams(orbit->params)}) {
     if (!s.ok()) {
@@ -43,7 +53,11 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
   Eigen::VectorXd x = bvp.Pack(*orbit), g;
   Eigen::MatrixXd gx;
   for (summary.iterations = 1; summary.iterations <= options.max_iterations; ++summary.iterations) {
+    if (!phase.Continue(static_cast<double>(summary.iterations - 1) / options.max_iterations)) {
+      return cancelled();
+    }
     if (Status s = bvp.Evaluate(x, orbit->params, &g, &gx, nullptr); !s.ok()) {
+      if (phase.stopped()) return cancelled();
       summary.message = s.message();
       return summary;
     }
@@ -64,9 +78,11 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
     }
   }
   if (Status s = bvp.Evaluate(x, orbit->params, &g, nullptr, nullptr); !s.ok()) {
+    if (phase.stopped()) return cancelled();
     summary.message = s.message();
     return summary;
   }
+  if (phase.stopped()) return cancelled();
   bvp.Unpack(x, orbit->params, orbit);
   summary.residual = g.lpNorm<Eigen::Infinity>();
   if (summary.iterations > options.max_iterations) {
@@ -226,18 +242,26 @@ Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
 
 StatusOr<PeriodicOrbit> OrbitFromSimulation(const HybridModel& model, Propagator& propagator,
                                             const Params& params, const StateVector& x0,
-                                            const GuessOptions& options) {
+                                            const GuessOptions& options,
+                                            const ProgressCallback& progress) {
+  internal::PhaseProgress phase(propagator, progress);
   SimulationOptions settle;
   settle.transient_periods = std::max(0, options.transient_periods - 1);
   settle.sample_periods = 1;
   settle.outputs = SimulationOutputs{false, false, false, false, 0.0};
-  const SimulationResult first = Simulate(model, propagator, params, x0, settle);
-  if (first.termination != Termination::kCompleted) return first.status;
   SimulationOptions look;
   look.transient_periods = 0;
   look.sample_periods = options.max_period;
   look.outputs = SimulationOutputs{false, true, true, false, 0.0};
-  const SimulationResult r = Simulate(model, propagator, params, first.final_state, look);
+  // Progress in proportion to the periods of the two runs.
+  const double split =
+      static_cast<double>(settle.transient_periods + 1) /
+      static_cast<double>(settle.transient_periods + 1 + std::max<int64_t>(look.sample_periods, 0));
+  const SimulationResult first =
+      Simulate(model, propagator, params, x0, settle, phase.Sub(0.0, split));
+  if (first.termination != Termination::kCompleted) return first.status;
+  const SimulationResult r =
+      Simulate(model, propagator, params, first.final_state, look, phase.Sub(split, 1.0));
   if (r.termination != Termination::kCompleted) return r.status;
 
   const StateVector& start = first.final_state;

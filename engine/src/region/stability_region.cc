@@ -5,10 +5,12 @@
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <memory>
 #include <string>
 #include <utility>
 
 #include "common/format.h"
+#include "common/phase_progress.h"
 #include "region/region_boundary.h"
 #include "region/segment_index.h"
 
@@ -55,11 +57,11 @@ class RegionBuilder {
  public:
   RegionBuilder(const HybridModel& model, Propagator& propagator,
                 const std::vector<RegionCurve>& curves, const RegionOptions& options,
-                const RegionProgress& progress, StabilityRegion* region)
+                internal::PhaseProgress& phase, StabilityRegion* region)
       : model_(model),
         propagator_(propagator),
         options_(options),
-        progress_(progress),
+        phase_(phase),
         region_(*region),
         grid_(region->grid),
         curves_(IndexCurves(curves, options)),
@@ -127,18 +129,19 @@ class RegionBuilder {
     const double total = static_cast<double>(grid_.label.size());
     int done = 0;
     while (!queue.empty()) {
+      if (!phase_.Continue(done / total)) return false;
       const int node = queue.front();
       queue.pop_front();
       const int i = node % grid_.n1, j = node / grid_.n1;
-      const PeriodicOrbit& from = orbits_[node];  // stays put: orbits_ never grows
+      const PeriodicOrbit& from = *orbits_[node];  // stays put: held by pointer
       const int label = grid_.label[node];
       if (i > 0) Visit(from, label, i - 1, j, &queue);
       if (i + 1 < grid_.n1) Visit(from, label, i + 1, j, &queue);
       if (j > 0) Visit(from, label, i, j - 1, &queue);
       if (j + 1 < grid_.n2) Visit(from, label, i, j + 1, &queue);
-      if (progress_ && ++done % 32 == 0 && !progress_(done / total)) return false;
+      ++done;
     }
-    return true;
+    return !phase_.stopped();
   }
 
   // Where the boundary crosses the edge from inside node a to outside node b.
@@ -146,6 +149,8 @@ class RegionBuilder {
     ++region_.summary.boundary_edges;
     const Eigen::Vector2d pa = Position(a), pb = Position(b);
     internal::EdgeCrossing e;
+    // Stopped: the polygons are dropped (ComputeStabilityRegion); no more solves.
+    if (!phase_.Continue()) return e;
     double best = std::numeric_limits<double>::infinity();
     curves_.ForEachNear(pa.cwiseMin(pb), pa.cwiseMax(pb), [&](const internal::Segment& s) {
       double t = 0.0, u = 0.0;
@@ -163,9 +168,9 @@ class RegionBuilder {
     }
     // No traced curve: bisect the edge, keeping the last point where the orbit is still inside.
     ++region_.summary.untraced_edges;
-    PeriodicOrbit inside = orbits_[a], trial;
+    PeriodicOrbit inside = *orbits_[a], trial;
     double lo = 0.0, hi = 1.0;
-    for (int k = 0; k < options_.bisections; ++k) {
+    for (int k = 0; k < options_.bisections && !phase_.stopped(); ++k) {
       const double mid = 0.5 * (lo + hi);
       const Eigen::Vector2d x = pa + mid * (pb - pa);
       if (Solve(inside, x[0], x[1], &trial) == Outcome::kInside) {
@@ -235,16 +240,18 @@ class RegionBuilder {
     const double v1 = grid_.values1[i], v2 = grid_.values2[j];
     PeriodicOrbit orbit;
     const Outcome outcome = Solve(from, v1, v2, &orbit);
-    if (outcome == Outcome::kFailed) return;
+    if (outcome == Outcome::kFailed || phase_.stopped()) return;
     if (outcome == Outcome::kInadmissible) {
-      if (!Switch(from, v1, v2, &orbit)) return;
+      if (!Switch(from, v1, v2, &orbit) || phase_.stopped()) return;
       ++region_.summary.switches;
       label = LabelOf(orbit.signature);
     }
+    const double rop = OrbitMeasures(model_, propagator_, orbit, kRopOnly)[0];
+    if (phase_.stopped()) return;  // nothing computed after a stop is kept
     grid_.label[node] = label;
-    grid_.rop[node] = OrbitMeasures(model_, propagator_, orbit, kRopOnly)[0];
+    grid_.rop[node] = rop;
     ++region_.summary.inside_nodes;
-    orbits_[node] = std::move(orbit);
+    orbits_[node] = std::make_unique<PeriodicOrbit>(std::move(orbit));
     queue->push_back(node);
   }
 
@@ -262,11 +269,13 @@ class RegionBuilder {
   const HybridModel& model_;
   Propagator& propagator_;
   const RegionOptions& options_;
-  const RegionProgress& progress_;
+  internal::PhaseProgress& phase_;
   StabilityRegion& region_;
   RegionGrid& grid_;
   internal::SegmentIndex curves_;
-  std::vector<PeriodicOrbit> orbits_;  // at the inside nodes
+  // At the inside nodes (null elsewhere): a pointer a node, not an orbit (~200 bytes, 0.8 GB at
+  // the largest grid) of which most would stay empty.
+  std::vector<std::unique_ptr<PeriodicOrbit>> orbits_;
   int k1_ = 0, k2_ = 0;
 };
 
@@ -339,19 +348,25 @@ StabilityRegion ComputeStabilityRegion(const HybridModel& model, Propagator& pro
                                      options.param2 + " = " + Num(v2) + ") is outside the box");
     return region;
   }
-  if (start.signature.periods != 1 || !OrbitStability(model, propagator, start).stable) {
+  // The region's throttle, attached to the propagator: every solve polls it.
+  internal::PhaseProgress phase(propagator, progress);
+  auto cancelled = [&] {
+    summary.cancelled = true;
+    summary.message = "cancelled";
+    return std::move(region);
+  };
+  const bool stable =
+      start.signature.periods == 1 && OrbitStability(model, propagator, start).stable;
+  if (phase.stopped()) return cancelled();
+  if (!stable) {
     summary.status = Status(StatusCode::kFailedPrecondition,
                             "the start orbit is not a stable period-1 orbit: it has no stability "
                             "region of period-1 motion");
     return region;
   }
   region.grid = MakeGrid(options);
-  RegionBuilder builder(model, propagator, curves, options, progress, &region);
-  if (!builder.Fill(start)) {
-    summary.cancelled = true;
-    summary.message = "cancelled";
-    return region;
-  }
+  RegionBuilder builder(model, propagator, curves, options, phase, &region);
+  if (!builder.Fill(start)) return cancelled();
   if (summary.inside_nodes == 0) {
     summary.status = Status(StatusCode::kFailedPrecondition,
                             "no grid node next to the start orbit has a stable orbit of its "
@@ -363,6 +378,12 @@ StabilityRegion ComputeStabilityRegion(const HybridModel& model, Propagator& pro
         region.grid, static_cast<int>(label), [&](int a, int b) { return builder.Cross(a, b); },
         curves);
     region.polygons.insert(region.polygons.end(), rings.begin(), rings.end());
+    if (phase.stopped()) break;
+  }
+  // Stopped while the boundary was located: the grid is complete, the polygons are not.
+  if (phase.stopped()) {
+    region.polygons.clear();
+    return cancelled();
   }
   summary.message =
       std::to_string(summary.inside_nodes) + " of " + std::to_string(region.grid.label.size()) +

@@ -2,6 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/phase_progress.h"
+#include "drillbif/common/checked.h"
 
 namespace drillbif {
 
@@ -12,6 +18,11 @@ Status SimulationOptions::Validate() const {
   }
   if (sample_periods < 1) {
     return InvalidArgument("sample_periods must be >= 1, got " + std::to_string(sample_periods));
+  }
+  if (!CheckedAdd(transient_periods, sample_periods)) {
+    return InvalidArgument("transient_periods + sample_periods must be <= 2^63 - 1, got " +
+                           std::to_string(transient_periods) + " + " +
+                           std::to_string(sample_periods));
   }
   if (!(outputs.trajectory_dt >= 0.0) || !std::isfinite(outputs.trajectory_dt)) {
     return InvalidArgument("trajectory_dt must be finite and >= 0 (0: no trajectory)");
@@ -53,6 +64,59 @@ double WrapPhase(double s) {
 
 }  // namespace
 
+namespace {
+
+// The outputs of a run, into the result's vectors or to the sink (SimulationOptions::sink).
+class Outputs {
+ public:
+  Outputs(SimulationSink* sink, SimulationResult* result) : sink_(sink), r_(*result) {}
+
+  // Each false when the sink asks to stop.
+  bool Poincare(PoincareSample sample) {
+    if (sink_ != nullptr) return sink_->OnPoincare(sample);
+    r_.poincare.push_back(std::move(sample));
+    return true;
+  }
+  bool Event(EventRecord event) {
+    if (sink_ != nullptr) return sink_->OnEvent(event);
+    r_.events.push_back(std::move(event));
+    return true;
+  }
+  bool Trajectory(TrajectoryPoint point) {
+    if (sink_ != nullptr) return sink_->OnTrajectoryPoint(point);
+    r_.trajectory.push_back(std::move(point));
+    return true;
+  }
+  // Starts the mode list of forcing period `period`, handing the last one to the sink.
+  bool BeginPeriod(int64_t period, int mode) {
+    const bool go_on = EndPeriod();
+    if (sink_ == nullptr) {
+      r_.period_modes.push_back({mode});
+    } else {
+      modes_.assign(1, mode);
+      modes_period_ = period;
+      open_ = true;
+    }
+    return go_on;
+  }
+  void AddMode(int mode) { (sink_ != nullptr ? modes_ : r_.period_modes.back()).push_back(mode); }
+  // Hands the open mode list to the sink (with no sink, it is in the result already).
+  bool EndPeriod() {
+    if (!open_) return true;
+    open_ = false;
+    return sink_->OnPeriodModes(modes_period_, modes_);
+  }
+
+ private:
+  SimulationSink* sink_;
+  SimulationResult& r_;
+  std::vector<int> modes_;  // with a sink: the open period's modes
+  int64_t modes_period_ = 0;
+  bool open_ = false;
+};
+
+}  // namespace
+
 SimulationResult Simulate(const HybridModel& model, Propagator& propagator, const Params& params,
                           const StateVector& x0, const SimulationOptions& options,
                           const ProgressCallback& progress) {
@@ -62,10 +126,14 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
   if (Status s = model.ValidateState(x0, params, options.state_tolerance); !s.ok()) {
     return Fail(std::move(r), s);
   }
+  // Our own callback, or the one of the computation that runs us (through the propagator).
+  internal::PhaseProgress phase(propagator, progress);
   const SimulationOutputs& out = options.outputs;
+  Outputs emit(options.sink, &r);
   const int ps = model.phase_index();
   const double omega = model.ForcingFrequency(params);
-  const int total = options.transient_periods + options.sample_periods;
+  const int64_t transient = options.transient_periods;
+  const int64_t total = transient + options.sample_periods;  // no overflow: Validate
   const int n_measures = static_cast<int>(model.measure_names().size());
   MeasureVector sums = MeasureVector::Zero(n_measures);
 
@@ -73,15 +141,30 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
   x[ps] = WrapPhase(x0[ps]);
   const double s_start = x[ps];
   int mode = model.ModeAt(x, params);
-  int period = 0;  // sections passed
+  int64_t period = 0;  // sections passed
   int events_this_period = 0;
-  const int progress_every = std::max(1, total / 200);
-  if (out.modes && options.transient_periods == 0) r.period_modes.push_back({mode});
   // Time since the start, from the period index and the phase (no accumulated rounding).
-  auto time_of = [&](int k, double s) { return (kTwoPi * k + s - s_start) / omega; };
+  auto time_of = [&](int64_t k, double s) {
+    return (kTwoPi * static_cast<double>(k) + s - s_start) / omega;
+  };
+  // Ends the run CANCELLED where it stands; the open mode list goes to the sink unless the sink
+  // itself stopped the run.
+  auto stop = [&](const std::string& why, bool flush) {
+    if (flush) static_cast<void>(emit.EndPeriod());
+    r.termination = Termination::kCancelled;
+    r.status = Cancelled(why + " at period " + std::to_string(period));
+    r.final_state = x;
+    r.final_mode = mode;
+    return std::move(r);
+  };
+  auto fail = [&](Status status) {
+    static_cast<void>(emit.EndPeriod());
+    return Fail(std::move(r), std::move(status));
+  };
+  if (out.modes && transient == 0 && !emit.BeginPeriod(0, mode)) return stop("stopped", false);
 
   while (period < total) {
-    const bool in_window = period >= options.transient_periods;
+    const bool in_window = period >= transient;
     AdvanceRequest req;
     req.mode = mode;
     req.x0 = x;
@@ -92,15 +175,18 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
     ++r.segments;
     r.evaluations += adv.evaluations;
     if (adv.end == AdvanceEnd::kFailed) {
-      return Fail(std::move(r), Status(adv.status.code(), adv.status.message() + " (period " +
-                                                              std::to_string(period) + ")"));
+      if (adv.status.code() == StatusCode::kCancelled || propagator.stopped()) {
+        return stop("cancelled", true);
+      }
+      return fail(Status(adv.status.code(),
+                         adv.status.message() + " (period " + std::to_string(period) + ")"));
     }
     if (req.measures) sums += adv.measures;
     if (req.sample_dt > 0.0) {
       for (const TrajectorySample& smp : adv.samples) {
         TrajectoryPoint tp{time_of(period, x[ps] + omega * smp.t), mode, smp.x};
         tp.x[ps] = WrapPhase(smp.x[ps]);
-        r.trajectory.push_back(std::move(tp));
+        if (!emit.Trajectory(std::move(tp))) return stop("stopped by the sink", false);
       }
     }
     x = adv.x;
@@ -116,15 +202,13 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
         e.guard = adv.guard, e.from_mode = mode, e.to_mode = tr.next_mode;
         e.tangential = adv.tangential, e.x = x;
         e.x[ps] = s_event;
-        r.events.push_back(std::move(e));
+        if (!emit.Event(std::move(e))) return stop("stopped by the sink", false);
       }
-      if (in_window && out.modes && tr.next_mode != mode)
-        r.period_modes.back().push_back(tr.next_mode);
+      if (in_window && out.modes && tr.next_mode != mode) emit.AddMode(tr.next_mode);
       mode = tr.next_mode;
       x = tr.x;
       if (++events_this_period > options.max_events_per_period) {
-        return Fail(std::move(r),
-                    Status(StatusCode::kFailedPrecondition,
+        return fail(Status(StatusCode::kFailedPrecondition,
                            "more than " + std::to_string(options.max_events_per_period) +
                                " events in forcing period " + std::to_string(period) +
                                " (chattering or Zeno behaviour)"));
@@ -134,26 +218,25 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
       x[ps] = 0.0;  // exactly: the forcing phase never drifts
       ++period;
       events_this_period = 0;
-      if (period > options.transient_periods && out.poincare) {
-        r.poincare.push_back({period, mode, x});
+      // The period that ended here, then the sample at its end, then the next period.
+      if (!emit.EndPeriod()) return stop("stopped by the sink", false);
+      if (period > transient && out.poincare && !emit.Poincare({period, mode, x})) {
+        return stop("stopped by the sink", false);
       }
-      if (out.modes && period >= options.transient_periods && period < total) {
-        r.period_modes.push_back({mode});
+      if (out.modes && period >= transient && period < total && !emit.BeginPeriod(period, mode)) {
+        return stop("stopped by the sink", false);
       }
-      if (progress && period % progress_every == 0 && !progress(double(period) / total)) {
-        r.termination = Termination::kCancelled;
-        r.status = Status(StatusCode::kCancelled, "cancelled at period " + std::to_string(period));
-        r.final_state = x;
-        r.final_mode = mode;
-        return r;
+      if (!phase.Tick(static_cast<double>(period) / static_cast<double>(total))) {
+        return stop("cancelled", true);
       }
     } else {
       x[ps] = std::min(x[ps], std::nextafter(kTwoPi, 0.0));
     }
   }
+  if (!emit.EndPeriod()) return stop("stopped by the sink", false);
 
   if (out.measures) {
-    const double window = options.sample_periods * kTwoPi / omega;
+    const double window = static_cast<double>(options.sample_periods) * kTwoPi / omega;
     for (int k = 0; k < n_measures; ++k) r.measure_means.push_back(sums[k] / window);
     for (double v : r.measure_means) {
       if (!std::isfinite(v)) return Fail(std::move(r), Internal("a measure is not finite"));

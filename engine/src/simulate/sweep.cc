@@ -4,8 +4,15 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <cstdint>
 #include <functional>
+#include <map>
+#include <mutex>
 #include <thread>
+#include <utility>
+
+#include "drillbif/common/checked.h"
 
 namespace drillbif {
 
@@ -26,6 +33,18 @@ Status SweepOptions::Validate() const {
   if (chunk_start_transient_factor < 1) {
     return InvalidArgument("chunk_start_transient_factor must be >= 1");
   }
+  // An upper bound of the periods simulated in all, which the 64-bit counters must hold.
+  const int directions = direction == SweepDirection::kBoth ? 2 : 1;
+  const std::optional<int64_t> per_value =
+      CheckedAdd(CheckedMul(int64_t{transient_periods}, int64_t{chunk_start_transient_factor}),
+                 std::optional<int64_t>(sample_periods));
+  if (!CheckedMul(CheckedMul(per_value, std::optional<int64_t>(steps)),
+                  std::optional<int64_t>(directions))) {
+    return InvalidArgument(
+        "steps, transient_periods, sample_periods, chunk_start_transient_factor: the sweep's "
+        "forcing periods in all (steps x directions x (transient x factor + samples)) exceed "
+        "2^63 - 1");
+  }
   return Status::Ok();
 }
 
@@ -33,8 +52,93 @@ namespace {
 
 // A contiguous run of grid indices swept in one direction by one thread.
 struct Piece {
-  std::vector<SweepPoint>* points;  // the direction's result, pre-sized
-  int first, last;                  // positions in `points`, inclusive
+  int direction;    // 0: up, 1: down
+  int first, last;  // positions in the direction's list, inclusive
+};
+
+// Streaming: hands the values finished by the workers to the calling thread in grid order per
+// direction. A value whose predecessors have all been added is ready; the others wait ahead.
+// Add() waits while 2 x `capacity` values are held, or, for a value that is not ready, while
+// `capacity` wait ahead; a value that becomes ready while its worker waits is admitted as such.
+// No deadlock: the first value not yet added of each direction is always being computed or held
+// by a worker (pieces are taken in grid order), and it waits only while `capacity` values are
+// ready, which the calling thread takes.
+class InOrderBuffer {
+ public:
+  struct Item {
+    int direction = 0;
+    int index = 0;
+    SweepPoint point;
+  };
+
+  explicit InOrderBuffer(size_t capacity) : capacity_(capacity) {}
+
+  // Adds a finished value; false (the value dropped) when the sweep was stopped meanwhile.
+  bool Add(int direction, int index, SweepPoint&& point) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    room_.wait(lock, [&] {
+      if (stopped_) return true;
+      const bool room = ready_ + ahead_ < 2 * capacity_;
+      return index == added_[direction] ? room : room && ahead_ < capacity_;
+    });
+    if (stopped_) return false;
+    held_.emplace(std::make_pair(direction, index), std::move(point));
+    if (index != added_[direction]) {
+      ++ahead_;
+      return true;
+    }
+    // Ready, and every value after it that waited ahead.
+    ++ready_;
+    ++added_[direction];
+    while (held_.count({direction, added_[direction]}) != 0) {
+      --ahead_;
+      ++ready_;
+      ++added_[direction];
+    }
+    lock.unlock();
+    ready_cv_.notify_one();
+    room_.notify_all();  // a worker's value may have become ready
+    return true;
+  }
+
+  // Waits up to `timeout` for ready values; moves them into *out, in order per direction.
+  void Take(std::chrono::steady_clock::duration timeout, std::vector<Item>* out) {
+    out->clear();
+    std::unique_lock<std::mutex> lock(mutex_);
+    ready_cv_.wait_for(lock, timeout, [&] { return ready_ > 0 || stopped_; });
+    for (int d = 0; d < 2; ++d) {
+      while (taken_[d] < added_[d]) {
+        auto it = held_.find({d, taken_[d]});
+        out->push_back({d, taken_[d], std::move(it->second)});
+        held_.erase(it);
+        --ready_;
+        ++taken_[d];
+      }
+    }
+    lock.unlock();
+    if (!out->empty()) room_.notify_all();
+  }
+
+  // Wakes and refuses every waiting and later Add().
+  void Stop() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stopped_ = true;
+    }
+    room_.notify_all();
+    ready_cv_.notify_all();
+  }
+
+ private:
+  const size_t capacity_;
+  std::mutex mutex_;
+  std::condition_variable room_, ready_cv_;
+  std::map<std::pair<int, int>, SweepPoint> held_;  // (direction, index) -> value
+  int added_[2] = {0, 0};  // per direction: values 0 .. added_ - 1 are all added
+  int taken_[2] = {0, 0};  // per direction: values handed to the calling thread
+  size_t ready_ = 0;       // held values with index < added_ (not yet taken)
+  size_t ahead_ = 0;       // held values waiting for a predecessor
+  bool stopped_ = false;
 };
 
 }  // namespace
@@ -42,7 +146,8 @@ struct Piece {
 SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propagator,
                   const Params& params, const StateVector& x0, const SweepOptions& options,
                   const ProgressCallback& progress,
-                  const std::function<void(double value)>& on_value) {
+                  const std::function<void(double value)>& on_value,
+                  const SweepPointCallback& on_point) {
   SweepResult result;
   if (Status s = options.Validate(); !s.ok()) {
     result.status = s;
@@ -76,18 +181,25 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
       options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
   const int chunks =
       std::clamp(options.chunks > 0 ? options.chunks : std::max(1, threads / directions), 1, n);
+  const bool streaming = static_cast<bool>(on_point);
 
+  std::vector<SweepPoint>* lists[2] = {&result.up, &result.down};
   std::vector<Piece> pieces;
-  auto add_direction = [&](std::vector<SweepPoint>* points, bool ascending) {
-    points->resize(n);
-    for (int i = 0; i < n; ++i) (*points)[i].value = value_at(ascending ? i : n - 1 - i);
+  auto add_direction = [&](int direction) {
+    if (!streaming) {
+      std::vector<SweepPoint>& points = *lists[direction];
+      points.resize(n);
+      for (int i = 0; i < n; ++i) points[i].value = value_at(direction == 0 ? i : n - 1 - i);
+    }
     for (int c = 0; c < chunks; ++c) {
-      pieces.push_back({points, c * n / chunks, (c + 1) * n / chunks - 1});
+      pieces.push_back({direction, c * n / chunks, (c + 1) * n / chunks - 1});
     }
   };
-  if (up) add_direction(&result.up, true);
-  if (down) add_direction(&result.down, false);
+  if (up) add_direction(0);
+  if (down) add_direction(1);
 
+  const int n_threads = std::min<int>(threads, static_cast<int>(pieces.size()));
+  InOrderBuffer buffer(static_cast<size_t>(n_threads));
   std::atomic<bool> cancel{false};
   std::atomic<long long> done{0}, events{0}, periods{0};
   std::atomic<double> last_value{0.0};  // the value of the grid point finished last
@@ -98,15 +210,18 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
       const Piece& piece = pieces[k];
       StateVector x = x0;
       for (int i = piece.first; i <= piece.last && !cancel.load(); ++i) {
-        SweepPoint& pt = (*piece.points)[i];
+        SweepPoint pt;
+        pt.value = value_at(piece.direction == 0 ? i : n - 1 - i);
         Params p = params;
         p[*index] = pt.value;
         SimulationOptions so;
-        so.transient_periods = options.transient_periods *
+        so.transient_periods = int64_t{options.transient_periods} *
                                (i == piece.first ? options.chunk_start_transient_factor : 1);
         so.sample_periods = options.sample_periods;
         so.outputs.measures = false;
         so.outputs.poincare = true;
+        // Polled through the simulation's own throttle (~5 ms): the stop flag set by the
+        // calling thread ends this value's run there.
         SimulationResult sr =
             Simulate(model, *prop, p, x, so, [&](double) { return !cancel.load(); });
         pt.termination = sr.termination;
@@ -118,30 +233,52 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
         if (sr.termination == Termination::kCompleted) x = sr.final_state;
         last_value = pt.value;
         ++done;
+        if (!streaming) {
+          (*lists[piece.direction])[i] = std::move(pt);
+        } else if (!buffer.Add(piece.direction, i, std::move(pt))) {
+          break;
+        }
       }
     }
   };
 
-  const int n_threads = std::min<int>(threads, static_cast<int>(pieces.size()));
   std::vector<std::thread> pool;
-  for (int t = 1; t < n_threads; ++t) pool.emplace_back(worker);
-  if (progress) {
-    // The calling thread reports progress; the work runs on the pool plus one more thread. It
-    // asks every 10 ms, so that a cancel reaches the workers within that (the service promises
-    // 100 ms from the cancel to the job's end; the callback itself is cheap, and whoever shows
-    // progress throttles its own output).
-    pool.emplace_back(worker);
-    const double total = static_cast<double>(n) * directions;
-    while (done.load() < total) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const long long total = static_cast<long long>(n) * directions;
+  if (progress || streaming) {
+    // The calling thread reports progress and hands over the streamed values; the work runs on
+    // the pool.
+    for (int t = 0; t < n_threads; ++t) pool.emplace_back(worker);
+    ProgressThrottle throttle([&](double fraction) {
       if (on_value && done.load() > 0) on_value(last_value.load());
-      if (!progress(done.load() / total)) {
+      return !progress || progress(fraction);
+    });
+    std::vector<InOrderBuffer::Item> ready;
+    long long delivered = 0;
+    const auto wait = throttle.interval() / 2;
+    while ((streaming ? delivered : done.load()) < total) {
+      if (streaming) {
+        buffer.Take(wait, &ready);
+        for (InOrderBuffer::Item& item : ready) {
+          ++delivered;
+          const SweepDirection d =
+              item.direction == 0 ? SweepDirection::kUp : SweepDirection::kDown;
+          if (!on_point(d, item.index, std::move(item.point))) {
+            throttle.Stop();
+            break;
+          }
+        }
+      } else {
+        std::this_thread::sleep_for(wait);
+      }
+      if (!throttle.Continue(static_cast<double>(done.load()) / static_cast<double>(total))) {
         cancel = true;
+        buffer.Stop();
         break;
       }
     }
-    if (on_value && done.load() > 0) on_value(last_value.load());  // the last one, too
+    if (progress && on_value && done.load() > 0) on_value(last_value.load());  // the last one
   } else {
+    for (int t = 1; t < n_threads; ++t) pool.emplace_back(worker);
     worker();
   }
   for (std::thread& t : pool) t.join();
@@ -150,7 +287,7 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
   result.periods_total = periods.load();
   if (cancel.load()) {
     result.termination = Termination::kCancelled;
-    result.status = Status(StatusCode::kCancelled, "sweep cancelled");
+    result.status = Cancelled("sweep cancelled");
   } else {
     result.termination = Termination::kCompleted;
   }

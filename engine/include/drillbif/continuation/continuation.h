@@ -109,10 +109,17 @@ struct ContinuationResult {
 // Receives each accepted point and the fraction of the step budget used; false cancels.
 using ContinuationCallback = std::function<bool(const ContinuationPoint&, double fraction)>;
 
-// Continues the branch through `start` (a solved, admissible orbit).
+// Continues the branch through `start` (a solved, admissible orbit). `callback` receives every
+// accepted point (not throttled). `progress` (optional, common/progress.h) receives the same
+// fraction through a ProgressThrottle and is polled inside the steps too (every flow: a step's
+// corrector, location of special points and signature switching), so that a stop ends the run
+// within milliseconds however long a step takes; without it the run polls the throttle the
+// propagator carries, if any (flow/propagator.h). A stop by either gives termination kCancelled,
+// status CANCELLED and the points accepted before it.
 ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
                             const PeriodicOrbit& start, const ContinuationOptions& options,
-                            const ContinuationCallback& callback = {});
+                            const ContinuationCallback& callback = {},
+                            const ProgressCallback& progress = {});
 
 // Branch switching at a located period-doubling point: the period-2n orbit born there. Found by
 // simulating from the PD orbit perturbed along the eigenvector of its multiplier -1 (size
@@ -129,10 +136,13 @@ struct PeriodDoublingSwitchOptions {
   // Relative return distance accepted from the simulation; Newton then solves the orbit exactly.
   double return_tolerance = 1e-4;
 };
+// `progress` (optional) can stop the search (CANCELLED); without it the search polls the
+// throttle the propagator carries, if any.
 StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propagator& propagator,
                                                const SpecialPoint& period_doubling,
                                                const std::string& param,
-                                               const PeriodDoublingSwitchOptions& options = {});
+                                               const PeriodDoublingSwitchOptions& options = {},
+                                               const ProgressCallback& progress = {});
 
 // Branch switching at a period doubling without simulation, for sub- and supercritical doublings
 // alike: the orbit at the doubling traversed twice solves the period-2n boundary-value system,
@@ -143,11 +153,10 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
 // the result is inadmissible (a doubling next to a grazing) or not yet a genuine period-2n orbit.
 // `orbit` must be solved with a multiplier -1 (a located PERIOD_DOUBLING or a PD curve's point);
 // FAILED_PRECONDITION when no step gives an admissible period-2n orbit.
-StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model,
-                                                        Propagator& propagator,
-                                                        const PeriodicOrbit& orbit,
-                                                        const std::string& param,
-                                                        double step = 1e-3);
+// `progress` as for SwitchAtPeriodDoubling.
+StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(
+    const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+    const std::string& param, double step = 1e-3, const ProgressCallback& progress = {});
 
 }  // namespace drillbif
 

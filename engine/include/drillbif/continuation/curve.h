@@ -141,9 +141,13 @@ struct CurveResult {
 // tangent form; else the form is found from the orbit (a vanishing segment, or an interior touch).
 // INVALID_ARGUMENT for a point of another kind or bad options; UNIMPLEMENTED for a grazing with
 // neither a vanishing segment between two segments of one mode nor a guard touching zero inside a
-// segment.
+// segment. `progress` (optional, common/progress.h) is polled within the steps (every flow) and
+// can stop the tracing: termination kCancelled, status CANCELLED, the points and codimension-2
+// points found before the stop; without it the tracing polls the throttle the propagator
+// carries, if any (flow/propagator.h).
 CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
-                          const SpecialPoint& start, const CurveOptions& options);
+                          const SpecialPoint& start, const CurveOptions& options,
+                          const ProgressCallback& progress = {});
 
 }  // namespace drillbif
 

@@ -112,13 +112,27 @@ struct TraceResult {
   TraceSummary summary;
 };
 
-// Called with the fraction done in [0, 1] during the branches and before each curve; returning
-// false cancels (the result then holds what was traced, summary.cancelled set).
+// Called with the fraction done in [0, 1] (ProgressCallback, common/progress.h), through a
+// ProgressThrottle: about every 5 ms of computation (every flow of every branch, curve and switch
+// polls it) and whenever the fraction passes a percent (before each curve). Returning false
+// cancels within milliseconds: the result then holds the curves traced until then (a curve cut
+// short kept with what it has, its termination kCancelled) and summary.cancelled is set.
 using TraceProgress = std::function<bool(double fraction)>;
+
+// Receives a traced curve when it is final, with its index in TraceResult::curves (the curve is
+// valid during the call only); returning false stops the trace as the progress callback does.
+// Called once per curve, in index order, on the calling thread. A curve is final when it is
+// appended, except a period-2n curve with a codimension-2 end bracketed only above 1e-8: the
+// trace's last pass may report that end as the period-n FLIP_GRAZING its orbit merges into
+// (internal::EndsAtFlipGrazings), so it is handed over at the end, and the curves after it with
+// it (index order). With max_period 1 every curve is handed over as soon as it is traced. The
+// curves are kept in the result as well (the trace needs them to skip duplicates and switch).
+using TracedCurveCallback = std::function<bool(int index, const TracedCurve& curve)>;
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         const PeriodicOrbit& start, const TraceOptions& options,
-                        const TraceProgress& progress = {});
+                        const TraceProgress& progress = {},
+                        const TracedCurveCallback& on_curve = {});
 
 }  // namespace drillbif
 

@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 
+#include "drillbif/common/progress.h"
 #include "drillbif/common/status.h"
 #include "drillbif/common/types.h"
 #include "drillbif/model/hybrid_model.h"
@@ -79,6 +80,14 @@ struct EventOptions {
   Status Validate() const;
 };
 
+// Cancellation. A propagator can carry a ProgressThrottle (set_progress, or ScopedProgress for a
+// scope): its FlowMap and Advance then poll it at every call and inside long integrations (every
+// ProgressThrottle::kTickStride-th segment step or right-hand side), and once it is stopped they
+// return at once with status CANCELLED: FlowMap with x = x0 and identity / zero Jacobians where
+// asked, Advance with end kFailed, x = x0 and zero measures where asked (well-formed, finite,
+// meaningless). Every engine computation runs on a propagator and polls it this way; the engine's
+// own loops check stopped() so that nothing computed after the stop reaches a result. The
+// throttle is called on the thread that calls the propagator.
 class Propagator {
  public:
   virtual ~Propagator() = default;
@@ -86,6 +95,42 @@ class Propagator {
   virtual FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
                              const FlowRequest& request) = 0;
   virtual AdvanceResult Advance(const AdvanceRequest& request, const Params& params) = 0;
+
+  // The throttle polled by this propagator's calls, or null (never cancelled).
+  ProgressThrottle* progress() const { return progress_; }
+  void set_progress(ProgressThrottle* progress) { progress_ = progress; }
+  // Whether the throttle has seen a stop: results computed since are not to be used.
+  bool stopped() const { return progress_ != nullptr && progress_->stopped(); }
+
+ protected:
+  // For implementations, at each call and in long loops: false when the call must end
+  // cancelled (ProgressThrottle::Tick of the attached throttle).
+  bool KeepGoing() { return progress_ == nullptr || progress_->Tick(); }
+  // The results of a call ended by a stop (see above).
+  FlowResult CancelledFlow(const HybridModel& model, const StateVector& x0,
+                           const FlowRequest& request) const;
+  AdvanceResult CancelledAdvance(const HybridModel& model, const AdvanceRequest& request) const;
+
+ private:
+  ProgressThrottle* progress_ = nullptr;
+};
+
+// Attaches a throttle to a propagator for a scope and restores the one before at its end. A null
+// throttle keeps the one attached (an outer computation's), so that a computation called without
+// a callback of its own is still cancelled with the one that called it.
+class ScopedProgress {
+ public:
+  ScopedProgress(Propagator& propagator, ProgressThrottle* progress)
+      : propagator_(propagator), previous_(propagator.progress()) {
+    if (progress != nullptr) propagator_.set_progress(progress);
+  }
+  ~ScopedProgress() { propagator_.set_progress(previous_); }
+  ScopedProgress(const ScopedProgress&) = delete;
+  ScopedProgress& operator=(const ScopedProgress&) = delete;
+
+ private:
+  Propagator& propagator_;
+  ProgressThrottle* previous_;
 };
 
 }  // namespace drillbif

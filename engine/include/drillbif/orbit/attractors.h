@@ -29,15 +29,21 @@ struct AttractorSample {
   // the transient (chaotic, or a longer transient), with why.
   std::vector<int> not_periodic;
   std::vector<std::string> why_not;
+  // The progress callback stopped the sampling: the states from the one it stopped in on are in
+  // neither list.
+  bool cancelled = false;
 };
 
 // Simulates from each initial state (guess.transient_periods forcing periods), finds the periodic
 // orbit it settles on and solves it. INVALID_ARGUMENT for invalid parameters or an invalid initial
-// state (naming its index).
+// state (naming its index). `progress` (optional, common/progress.h) receives the fraction of the
+// states done and can stop the sampling (AttractorSample::cancelled; without it the sampling
+// polls the throttle the propagator carries, if any).
 StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator& propagator,
                                            const Params& params,
                                            const std::vector<StateVector>& initial_states,
-                                           const GuessOptions& guess = {});
+                                           const GuessOptions& guess = {},
+                                           const ProgressCallback& progress = {});
 
 }  // namespace drillbif
 

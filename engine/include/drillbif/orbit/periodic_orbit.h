@@ -71,7 +71,8 @@ struct OrbitSolverOptions {
   Status Validate() const;
 };
 
-enum class SolveStatus { kConverged, kNoConvergence, kFailed };
+// kCancelled: the progress callback stopped the solve (the orbit is left as it was given).
+enum class SolveStatus { kConverged, kNoConvergence, kFailed, kCancelled };
 const char* SolveStatusName(SolveStatus s);
 
 struct OrbitSolveSummary {
@@ -100,9 +101,13 @@ Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
 std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Propagator& propagator,
                                                    const PeriodicOrbit& orbit);
 
-// Solves for the orbit near `guess` (same signature and parameters) by Newton.
+// Solves for the orbit near `guess` (same signature and parameters) by Newton. `progress`
+// (optional; see common/progress.h) receives the fraction of max_iterations used and can stop
+// the solve: status kCancelled, *orbit unchanged. Without it the solve polls the throttle the
+// propagator carries, if any (flow/propagator.h).
 OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
-                             const OrbitSolverOptions& options, PeriodicOrbit* orbit);
+                             const OrbitSolverOptions& options, PeriodicOrbit* orbit,
+                             const ProgressCallback& progress = {});
 
 // An initial guess from simulation: N transient periods from x0, then the smallest n <= max_period
 // such that the Poincare map's n-th iterate returns within `return_tolerance`; the signature and
@@ -113,9 +118,12 @@ struct GuessOptions {
   int max_period = 16;
   double return_tolerance = 1e-6;
 };
+// `progress` (optional) receives the fraction of the periods simulated and can stop the search:
+// CANCELLED then. Without it the search polls the throttle the propagator carries, if any.
 StatusOr<PeriodicOrbit> OrbitFromSimulation(const HybridModel& model, Propagator& propagator,
                                             const Params& params, const StateVector& x0,
-                                            const GuessOptions& options = {});
+                                            const GuessOptions& options = {},
+                                            const ProgressCallback& progress = {});
 
 }  // namespace drillbif
 

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "drillbif/common/progress.h"
 #include "drillbif/common/status.h"
 #include "drillbif/region/stability_region.h"
 
@@ -53,8 +54,11 @@ struct RobustOptimum {
 };
 
 // INVALID_ARGUMENT for bad options or a region without a grid; FAILED_PRECONDITION for a region
-// whose computation did not succeed.
-RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOptions& options);
+// whose computation did not succeed. `progress` (optional, common/progress.h; through a
+// ProgressThrottle) receives the fraction of the nodes checked and can stop the search: status
+// CANCELLED, `candidates` the nodes checked until then, nothing else set.
+RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOptions& options,
+                                const ProgressCallback& progress = {});
 
 }  // namespace drillbif
 

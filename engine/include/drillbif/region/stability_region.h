@@ -125,7 +125,11 @@ struct StabilityRegion {
   RegionSummary summary;
 };
 
-// Called with the fraction of grid nodes done in [0, 1]; returning false cancels.
+// Called with the fraction of grid nodes done in [0, 1] (a ProgressCallback, common/progress.h)
+// through a ProgressThrottle: about every 5 ms of computation (every Newton solve, simulation and
+// boundary location polls it) and at every percent of the nodes. Returning false cancels within
+// milliseconds: summary.cancelled, the grid nodes filled until then and no polygons (also when
+// the stop comes while the boundary is located).
 using RegionProgress = std::function<bool(double fraction)>;
 
 // The region around `start` (a stable period-1 orbit), `curves` its candidate boundaries (every

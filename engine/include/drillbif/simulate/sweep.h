@@ -6,6 +6,20 @@
 // direction is split into `chunks` contiguous pieces, each starting from the initial state at its
 // first value with `chunk_start_transient_factor` times the transient (continuity is only broken
 // at chunk boundaries, where the longer transient settles the start).
+//
+// Cancellation: the progress callback is called on the calling thread only (about every 5 ms,
+// and at every percent of the grid values); when it returns false a shared stop flag ends every
+// worker's simulation within its own poll (~5 ms) and the sweep returns CANCELLED with the values
+// done so far.
+//
+// Streaming: with on_point, each grid value's result goes to that callback, on the calling
+// thread, in grid order per direction, instead of into SweepResult::up / down (which stay
+// empty). Values finished ahead of their turn (another chunk's) wait in a buffer of at most
+// 2 x threads values, at most `threads` of them ahead of their turn; a worker whose value does
+// not fit waits for room, so at most 3 x threads values are held at any time (one more in each
+// worker's hand). A direction split into several chunks then runs them nearly one after another
+// (a chunk's values are handed over only after the previous chunk's last): the parallelism left
+// is across the two directions.
 #ifndef DRILLBIF_SIMULATE_SWEEP_H_
 #define DRILLBIF_SIMULATE_SWEEP_H_
 
@@ -32,6 +46,8 @@ struct SweepOptions {
   int chunks = 0;               // pieces per direction; 0: threads / directions (at least 1)
   int chunk_start_transient_factor = 4;  // transient multiplier at a chunk's first value
 
+  // INVALID_ARGUMENT naming the field; also when the sweep's forcing periods in all (steps x
+  // directions x (transient x factor + samples)) do not fit 64 bits.
   Status Validate() const;
 };
 
@@ -53,14 +69,23 @@ struct SweepResult {
 
 using PropagatorFactory = std::function<std::unique_ptr<Propagator>()>;
 
+// Receives one grid value's result (streaming, see above): its direction (kUp or kDown), its
+// position in that direction's list (0-based; ascending values up, descending down, as
+// SweepResult::up / down), and the point (value, how it ended, its Poincare samples), to keep.
+// Returns false to stop the sweep, which then ends CANCELLED.
+using SweepPointCallback =
+    std::function<bool(SweepDirection direction, int index, SweepPoint&& point)>;
+
 // Runs the sweep. `make_propagator` is called once per worker thread. `progress` is called from
-// the calling thread only (about every 10 ms) and may cancel; just before each such call,
-// `on_value` (optional) receives the parameter value of the grid point finished last (by any
-// worker; none before the first).
+// the calling thread only (see above) and may cancel; just before each such call, `on_value`
+// (optional) receives the parameter value of the grid point finished last (by any worker; none
+// before the first). `on_point` (optional) streams the values (see above): those not handed
+// over when the sweep stops are dropped.
 SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propagator,
                   const Params& params, const StateVector& x0, const SweepOptions& options,
                   const ProgressCallback& progress = {},
-                  const std::function<void(double value)>& on_value = {});
+                  const std::function<void(double value)>& on_value = {},
+                  const SweepPointCallback& on_point = {});
 
 }  // namespace drillbif
 

@@ -1,0 +1,154 @@
+// TraceCurves: cancellation within the bound (support/cancel_probe.h) in its branches and curves
+// and while it switches at codimension-2 points, and the curves handed to on_curve (in order, as
+// the result holds them at the end, each once it is final).
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "drillbif/continuation/trace.h"
+#include "drillbif/flow/exact_propagator.h"
+#include "problems/drifting_reference.h"
+#include "problems/issue4_box.h"
+#include "problems/reference_orbit.h"
+#include "support/cancel_probe.h"
+
+namespace drillbif {
+namespace {
+
+using DO = DriftingOscillator;
+using std::chrono::milliseconds;
+using testing::CancelProbe;
+
+constexpr milliseconds kDelay(200);  // as in simulation_cancel_test.cc
+
+class TraceStream : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const StatusOr<PeriodicOrbit> orbit =
+        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
+    ASSERT_TRUE(orbit.ok()) << orbit.status().ToString();
+    start_ = *orbit;
+  }
+  // The small box of the trace runner's tests (omega in [0.05, 0.2], a in [0.27, 0.32]: ~1 s,
+  // with a flip-grazing to switch at).
+  static TraceOptions SmallBox() {
+    TraceOptions o = testing::Issue4Box();
+    o.max1 = 0.2;
+    o.min2 = 0.27, o.max2 = 0.32;
+    return o;
+  }
+  DO model_;
+  ExactPropagator prop_{model_};
+  PeriodicOrbit start_;
+};
+
+bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// The same curve: kind, start, message, and every point's and codimension-2 point's parameters
+// to the bit.
+void ExpectSameCurve(const TracedCurve& a, const TracedCurve& b, int index) {
+  EXPECT_EQ(a.curve.kind, b.curve.kind) << index;
+  EXPECT_EQ(a.start.kind, b.start.kind) << index;
+  EXPECT_EQ(a.from_curve, b.from_curve) << index;
+  EXPECT_EQ(a.curve.summary.message, b.curve.summary.message) << index;
+  ASSERT_EQ(a.curve.points.size(), b.curve.points.size()) << index;
+  for (size_t k = 0; k < a.curve.points.size(); ++k) {
+    EXPECT_TRUE(SameBits(a.curve.points[k].value1, b.curve.points[k].value1) &&
+                SameBits(a.curve.points[k].value2, b.curve.points[k].value2))
+        << index << " " << k;
+  }
+  ASSERT_EQ(a.curve.codim2.size(), b.curve.codim2.size()) << index;
+  for (size_t k = 0; k < a.curve.codim2.size(); ++k) {
+    EXPECT_EQ(a.curve.codim2[k].kind, b.curve.codim2[k].kind) << index << " " << k;
+    EXPECT_EQ(a.curve.codim2[k].detail, b.curve.codim2[k].detail) << index << " " << k;
+    EXPECT_TRUE(SameBits(a.curve.codim2[k].point.value1, b.curve.codim2[k].point.value1))
+        << index << " " << k;
+  }
+}
+
+// The whole box of problems/issue4_box.h (seconds of branches, hundreds of curves), stopped
+// 200 ms in.
+TEST_F(TraceStream, StopsPromptly) {
+  CancelProbe probe(kDelay);
+  const TraceResult r = TraceCurves(model_, prop_, start_, testing::Issue4Box(), probe.Callback());
+  probe.Returned();
+  EXPECT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+  EXPECT_TRUE(r.summary.cancelled);
+  for (const TracedCurve& c : r.curves) {
+    for (const CurvePoint& p : c.curve.points) ASSERT_TRUE(p.stability.monodromy.allFinite());
+  }
+  probe.ExpectPrompt("trace: branches and curves");
+}
+
+// Stopped at the first report of the switching and edge rounds (fraction 0.99 and beyond, after
+// every curve of the branches' points is traced).
+TEST_F(TraceStream, StopsPromptlyWhileSwitching) {
+  CancelProbe probe([](double fraction) { return fraction >= 0.99; });
+  const TraceResult r = TraceCurves(model_, prop_, start_, SmallBox(), probe.Callback());
+  probe.Returned();
+  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_FALSE(r.curves.empty());
+  probe.ExpectPrompt("trace: switching at codimension-2 points");
+}
+
+// Period 1: every curve is handed over once, in index order, equal to the result's at the end;
+// and during the trace (a consumer that stops at the second curve leaves the trace with fewer
+// curves than a full one).
+TEST_F(TraceStream, CurvesAreHandedOverInOrderAsTraced) {
+  std::vector<TracedCurve> seen;
+  const TraceResult full =
+      TraceCurves(model_, prop_, start_, SmallBox(), {}, [&](int index, const TracedCurve& c) {
+        EXPECT_EQ(index, static_cast<int>(seen.size()));
+        seen.push_back(c);
+        return true;
+      });
+  ASSERT_FALSE(full.summary.cancelled);
+  ASSERT_GE(full.curves.size(), 3u);
+  ASSERT_EQ(seen.size(), full.curves.size());
+  for (size_t k = 0; k < seen.size(); ++k) {
+    ExpectSameCurve(seen[k], full.curves[k], static_cast<int>(k));
+  }
+
+  int calls = 0;
+  const TraceResult stopped = TraceCurves(model_, prop_, start_, SmallBox(), {},
+                                          [&](int, const TracedCurve&) { return ++calls < 2; });
+  EXPECT_TRUE(stopped.summary.cancelled);
+  EXPECT_EQ(calls, 2);
+  EXPECT_LT(stopped.curves.size(), full.curves.size());
+}
+
+// Period 2 (a box where period-2 curves end next to period-1 flip-grazings, which the trace's
+// last pass reports as those points): curves handed over in index order, each equal to what the
+// result holds at the end, so after that pass.
+TEST_F(TraceStream, PeriodTwoCurvesAreHandedOverFinal) {
+  TraceOptions o = testing::Issue4Box();
+  o.max1 = 0.45;
+  o.min2 = 0.27, o.max2 = 0.32;
+  o.max_period = 2;
+  std::vector<TracedCurve> seen;
+  const TraceResult r =
+      TraceCurves(model_, prop_, start_, o, {}, [&](int index, const TracedCurve& c) {
+        EXPECT_EQ(index, static_cast<int>(seen.size()));
+        seen.push_back(c);
+        return true;
+      });
+  ASSERT_FALSE(r.summary.cancelled);
+  ASSERT_EQ(seen.size(), r.curves.size());
+  for (size_t k = 0; k < seen.size(); ++k)
+    ExpectSameCurve(seen[k], r.curves[k], static_cast<int>(k));
+  // The last pass did change curves here (else the check above would not see a curve handed
+  // over too early).
+  int merged = 0;
+  for (const TracedCurve& c : r.curves) {
+    for (const Codim2Point& q : c.curve.codim2) {
+      if (q.detail.find("orbit traversed twice: the FLIP_GRAZING") != std::string::npos) ++merged;
+    }
+  }
+  EXPECT_GT(merged, 0);
+}
+
+}  // namespace
+}  // namespace drillbif
