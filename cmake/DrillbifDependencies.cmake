@@ -14,6 +14,7 @@
 #   drillbif::grpc_reflection  gRPC server reflection (grpc++_reflection)    (server/)
 #   drillbif::microhttpd   GNU libmicrohttpd: the REST gateway's HTTP server  (server/)
 #   utf8cpp                UTF-8 validation of what the gateway passes on    (server/)
+#   prometheus-cpp::core   Prometheus registry and text exposition           (server/)
 #   drillbif::httplib      cpp-httplib: the HTTP client of the REST tests and of
 #                          bench/http_bench                                  (tests/, bench/)
 # The engine links only Eigen and SUNDIALS (see /work/shared/ARCHITECTURE.md).
@@ -113,6 +114,17 @@ message(STATUS "drillbif: libmicrohttpd ${DRILLBIF_MICROHTTPD_VERSION} via pkg-c
 
 # utf8cpp (libutfcpp-dev, header-only): UTF-8 validation and repair of request text.
 find_package(utf8cpp REQUIRED CONFIG)
+
+# prometheus-cpp (prometheus-cpp-dev, 1.0.1; runtime package libprometheus-cpp-core1.0): the
+# metrics' registry and text serializer. Only the core library is linked; the package's config
+# also looks for civetweb, zlib and curl (its pull and push libraries), which the -dev package
+# depends on. Debian ships no version file, so the version is not checked here.
+find_package(prometheus-cpp CONFIG REQUIRED)
+if(NOT TARGET prometheus-cpp::core)
+  message(FATAL_ERROR
+          "drillbif: prometheus-cpp found (${prometheus-cpp_DIR}) without its core target")
+endif()
+message(STATUS "drillbif: prometheus-cpp core via CMake config (${prometheus-cpp_DIR})")
 
 # cpp-httplib (libcpp-httplib-dev, 0.11): Debian builds it as a shared library with OpenSSL,
 # zlib and Brotli support, and the header's class layouts depend on those switches, so its

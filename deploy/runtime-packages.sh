@@ -11,8 +11,8 @@ if [ $# -eq 0 ]; then
 fi
 
 # What drillbif-server needs at run time, named as well as found by ldd below: its HTTP port
-# (libmicrohttpd, which brings GnuTLS for HTTPS).
-server_packages=(libmicrohttpd12)
+# (libmicrohttpd, which brings GnuTLS for HTTPS) and its metrics (prometheus-cpp's core library).
+server_packages=(libmicrohttpd12 libprometheus-cpp-core1.0)
 
 {
 for binary in "$@"; do

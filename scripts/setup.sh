@@ -8,7 +8,7 @@ packages=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libeigen3-dev libsundials-dev libsqlite3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
-  libssl-dev libcpp-httplib-dev libmicrohttpd-dev libutfcpp-dev openssl
+  libssl-dev libcpp-httplib-dev libmicrohttpd-dev libutfcpp-dev prometheus-cpp-dev openssl
   gnuplot-nox
 )
 

@@ -1,10 +1,18 @@
 #include "server/metrics.h"
 
+#include <google/protobuf/descriptor.h>
+#include <prometheus/client_metric.h>
+#include <prometheus/counter.h>
+#include <prometheus/family.h>
+#include <prometheus/histogram.h>
+#include <prometheus/metric_family.h>
+#include <prometheus/metric_type.h>
+#include <prometheus/registry.h>
+#include <prometheus/text_serializer.h>
+
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cmath>
-#include <system_error>
 #include <utility>
 
 namespace drillbif::server {
@@ -14,21 +22,117 @@ namespace {
 constexpr std::array<const char*, kJobStateCount> kStateLabels = {"QUEUED", "RUNNING", "SUCCEEDED",
                                                                   "FAILED", "CANCELLED"};
 
-void Family(std::string* out, const char* name, const char* type, const char* help) {
-  out->append("# HELP ").append(name).append(" ").append(help).append("\n");
-  out->append("# TYPE ").append(name).append(" ").append(type).append("\n");
+// The label value of everything outside a label's known values.
+constexpr char kOther[] = "other";
+
+// HTTP methods counted under their own name (RFC 9110 and PATCH); CONNECT and TRACE, which the
+// gateway never serves, and anything else count as "other".
+constexpr std::array<std::string_view, 7> kHttpMethods = {"GET",    "HEAD",  "POST",   "PUT",
+                                                          "DELETE", "PATCH", "OPTIONS"};
+
+// gRPC's own health service: implemented by gRPC without a generated descriptor.
+constexpr std::array<std::string_view, 2> kHealthMethods = {"/grpc.health.v1.Health/Check",
+                                                            "/grpc.health.v1.Health/Watch"};
+
+std::string HttpMethodLabel(std::string_view method) {
+  const bool known =
+      std::find(kHttpMethods.begin(), kHttpMethods.end(), method) != kHttpMethods.end();
+  return known ? std::string(method) : std::string(kOther);
 }
 
-void Sample(std::string* out, std::string_view name, std::string_view labels, double value) {
-  out->append(name);
-  if (!labels.empty()) out->append("{").append(labels).append("}");
-  out->append(" ").append(FormatSampleValue(value)).append("\n");
+std::string HttpStatusLabel(int status) {
+  return status >= 100 && status <= 599 ? std::to_string(status) : std::string(kOther);
 }
 
-std::string Label(std::string_view name, std::string_view value) {
-  std::string s(name);
-  s.append("=\"").append(EscapeLabelValue(value)).append("\"");
-  return s;
+// `method` ("/package.Service/Method") when a service linked into the process declares it (its
+// descriptor is in the generated pool) or it is a health method; "other" otherwise, so that a
+// client sending made-up paths cannot create series.
+std::string GrpcMethodLabel(std::string_view method) {
+  if (std::find(kHealthMethods.begin(), kHealthMethods.end(), method) != kHealthMethods.end()) {
+    return std::string(method);
+  }
+  const size_t slash = method.rfind('/');
+  if (method.empty() || method.front() != '/' || slash == 0 || slash + 1 == method.size()) {
+    return kOther;
+  }
+  std::string full_name(method.substr(1));  // "package.Service/Method"
+  full_name[slash - 1] = '.';
+  const google::protobuf::MethodDescriptor* descriptor =
+      google::protobuf::DescriptorPool::generated_pool()->FindMethodByName(full_name);
+  return descriptor != nullptr ? std::string(method) : std::string(kOther);
+}
+
+prometheus::MetricFamily Family(const char* name, const char* help, prometheus::MetricType type) {
+  prometheus::MetricFamily family;
+  family.name = name;
+  family.help = help;
+  family.type = type;
+  return family;
+}
+
+// A sample of a counter or gauge family built at scrape time.
+void AddSample(prometheus::MetricFamily* family, double value,
+               std::vector<prometheus::ClientMetric::Label> labels = {}) {
+  prometheus::ClientMetric metric;
+  metric.label = std::move(labels);
+  if (family->type == prometheus::MetricType::Counter) {
+    metric.counter.value = value;
+  } else {
+    metric.gauge.value = value;
+  }
+  family->metric.push_back(std::move(metric));
+}
+
+// The families of the snapshot, in the order of the header's list.
+std::vector<prometheus::MetricFamily> SnapshotFamilies(const MetricsSnapshot& snapshot) {
+  using prometheus::MetricType;
+  std::vector<prometheus::MetricFamily> families;
+  families.reserve(7);
+
+  prometheus::MetricFamily jobs =
+      Family("drillbif_jobs", "Jobs in the store by state.", MetricType::Gauge);
+  for (size_t s = 0; s < kStateLabels.size(); ++s) {
+    AddSample(&jobs, static_cast<double>(snapshot.stats.jobs_by_state[s]),
+              {{"state", kStateLabels[s]}});
+  }
+  families.push_back(std::move(jobs));
+
+  prometheus::MetricFamily queue = Family(
+      "drillbif_queue_depth",
+      "Queued jobs a worker can claim, by cost lane (not counting jobs that follow an identical "
+      "one).",
+      MetricType::Gauge);
+  for (int lane = 0; lane < kLaneCount; ++lane) {
+    AddSample(&queue,
+              static_cast<double>(snapshot.stats.queue_depth_by_lane[static_cast<size_t>(lane)]),
+              {{"lane", LaneName(lane)}});
+  }
+  families.push_back(std::move(queue));
+
+  families.push_back(Family("drillbif_cache_hits_total",
+                            "Jobs that succeeded without running the engine (cache hits and "
+                            "shared runs), over the store's life.",
+                            MetricType::Counter));
+  AddSample(&families.back(), static_cast<double>(snapshot.stats.cache_hits_total));
+  families.push_back(Family("drillbif_engine_runs_total",
+                            "Job runs started on the engine by this process.",
+                            MetricType::Counter));
+  AddSample(&families.back(), static_cast<double>(snapshot.engine_runs));
+  families.push_back(
+      Family("drillbif_watchers",
+             "Calls waiting on jobs (Watch streams, WaitOperation, QueryOptimum computing).",
+             MetricType::Gauge));
+  AddSample(&families.back(), static_cast<double>(snapshot.watchers));
+  families.push_back(Family("drillbif_store_healthy",
+                            "1 when the job store can write, 0 after a write failed (until a "
+                            "probe succeeds).",
+                            MetricType::Gauge));
+  AddSample(&families.back(), snapshot.store_healthy ? 1 : 0);
+  families.push_back(Family("drillbif_store_bytes",
+                            "Bytes of the job store's data (the size retention limits).",
+                            MetricType::Gauge));
+  AddSample(&families.back(), static_cast<double>(snapshot.stats.used_bytes));
+  return families;
 }
 
 // Counts every call's final status (PRE_SEND_STATUS: the status the server is about to send,
@@ -66,6 +170,49 @@ class GrpcMetricsInterceptorFactory : public grpc::experimental::ServerIntercept
 
 }  // namespace
 
+// The process's families. Registry::Collect and each family lock their own mutexes; counters
+// are atomic, a histogram locks its own mutex, so events and Render need no lock of ours.
+struct Metrics::Families {
+  prometheus::Registry registry;
+  prometheus::Family<prometheus::Histogram>& job_duration =
+      prometheus::BuildHistogram()
+          .Name("drillbif_job_duration_seconds")
+          .Help("Wall time of the job runs of this process, by kind and outcome.")
+          .Register(registry);
+  prometheus::Family<prometheus::Counter>& http_requests =
+      prometheus::BuildCounter()
+          .Name("drillbif_http_requests_total")
+          .Help("HTTP requests answered by the REST port, by method, route template and status.")
+          .Register(registry);
+  prometheus::Family<prometheus::Counter>& grpc_requests =
+      prometheus::BuildCounter()
+          .Name("drillbif_grpc_requests_total")
+          .Help(
+              "gRPC calls ended, by full method name and status code (REST calls included: the "
+              "gateway calls the same services).")
+          .Register(registry);
+  prometheus::Family<prometheus::Counter>& refusals =
+      prometheus::BuildCounter()
+          .Name("drillbif_jobs_refused_total")
+          .Help("Submits refused at admission by this process, by job kind and reason.")
+          .Register(registry);
+  // Unlabelled: exposed at 0 from the start, so that rate() has a first sample.
+  prometheus::Counter& evicted_jobs =
+      prometheus::BuildCounter()
+          .Name("drillbif_store_evicted_jobs_total")
+          .Help("Finished jobs deleted by the store's retention in this process.")
+          .Register(registry)
+          .Add({});
+  prometheus::Counter& evicted_bytes =
+      prometheus::BuildCounter()
+          .Name("drillbif_store_evicted_bytes_total")
+          .Help(
+              "Bytes of store data freed by retention in this process (used size before minus "
+              "after).")
+          .Register(registry)
+          .Add({});
+};
+
 Status MetricsOptions::Validate() const {
   if (job_duration_buckets.empty()) {
     return InvalidArgument("job_duration_buckets: must not be empty");
@@ -84,123 +231,54 @@ Status MetricsOptions::Validate() const {
   return Status::Ok();
 }
 
-Metrics::Metrics(MetricsOptions options) : options_(std::move(options)) {}
+Metrics::Metrics(MetricsOptions options)
+    : options_(std::move(options)), families_(std::make_unique<Families>()) {}
+
+Metrics::~Metrics() = default;
 
 void Metrics::ObserveJob(std::string_view kind, std::string_view outcome, double seconds) {
-  const std::vector<double>& bounds = options_.job_duration_buckets;
-  // First bucket whose bound is >= seconds (Prometheus buckets are "le"); +Inf otherwise.
-  const size_t bucket =
-      static_cast<size_t>(std::lower_bound(bounds.begin(), bounds.end(), seconds) - bounds.begin());
-  std::lock_guard<std::mutex> lock(mutex_);
-  Histogram& h = jobs_[{std::string(kind), std::string(outcome)}];
-  if (h.counts.empty()) h.counts.assign(bounds.size() + 1, 0);
-  ++h.counts[bucket];
-  h.sum += seconds;
-  ++h.count;
+  if (!std::isfinite(seconds) || seconds < 0) seconds = 0;
+  families_->job_duration
+      .Add({{"kind", std::string(kind)}, {"outcome", std::string(outcome)}},
+           options_.job_duration_buckets)
+      .Observe(seconds);
 }
 
 void Metrics::CountHttpRequest(std::string_view method, std::string_view route, int status) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  ++http_[{std::string(method), std::string(route), status}];
+  families_->http_requests
+      .Add({{"method", HttpMethodLabel(method)},
+            {"route", std::string(route)},
+            {"code", HttpStatusLabel(status)}})
+      .Increment();
 }
 
 void Metrics::CountGrpcRequest(std::string_view method, int code) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  ++grpc_[{std::string(method), code}];
+  families_->grpc_requests.Add({{"method", GrpcMethodLabel(method)}, {"code", GrpcCodeName(code)}})
+      .Increment();
+}
+
+void Metrics::CountAdmissionRefusal(std::string_view kind, std::string_view reason) {
+  families_->refusals.Add({{"kind", std::string(kind)}, {"reason", std::string(reason)}})
+      .Increment();
+}
+
+void Metrics::CountEvictions(int64_t jobs, int64_t bytes) {
+  if (jobs > 0) families_->evicted_jobs.Increment(static_cast<double>(jobs));
+  if (bytes > 0) families_->evicted_bytes.Increment(static_cast<double>(bytes));
 }
 
 std::string Metrics::Render(const MetricsSnapshot& snapshot) const {
-  std::string out;
-  out.reserve(4096);
-  Family(&out, "drillbif_jobs", "gauge", "Jobs in the store by state.");
-  for (int s = 0; s < kJobStateCount; ++s) {
-    Sample(&out, "drillbif_jobs", Label("state", kStateLabels[static_cast<size_t>(s)]),
-           static_cast<double>(snapshot.stats.jobs_by_state[static_cast<size_t>(s)]));
+  std::vector<prometheus::MetricFamily> families = SnapshotFamilies(snapshot);
+  std::vector<prometheus::MetricFamily> events = families_->registry.Collect();
+  for (prometheus::MetricFamily& family : events) {
+    // A family keeps its series in a hash map: sort them for a stable, readable text.
+    std::sort(family.metric.begin(), family.metric.end(),
+              [](const prometheus::ClientMetric& a, const prometheus::ClientMetric& b) {
+                return a.label < b.label;
+              });
+    families.push_back(std::move(family));
   }
-  Family(&out, "drillbif_queue_depth", "gauge",
-         "Queued jobs a worker can claim (not counting jobs that follow an identical one).");
-  Sample(&out, "drillbif_queue_depth", "", static_cast<double>(snapshot.stats.queue_depth));
-  Family(&out, "drillbif_cache_hits_total", "counter",
-         "Jobs that succeeded without running the engine (cache hits and shared runs), over the "
-         "store's life.");
-  Sample(&out, "drillbif_cache_hits_total", "",
-         static_cast<double>(snapshot.stats.cache_hits_total));
-  Family(&out, "drillbif_engine_runs_total", "counter",
-         "Job runs started on the engine by this process.");
-  Sample(&out, "drillbif_engine_runs_total", "", static_cast<double>(snapshot.engine_runs));
-  Family(&out, "drillbif_watchers", "gauge",
-         "Calls waiting on jobs (Watch streams, WaitOperation, QueryOptimum computing).");
-  Sample(&out, "drillbif_watchers", "", static_cast<double>(snapshot.watchers));
-
-  std::lock_guard<std::mutex> lock(mutex_);
-  Family(&out, "drillbif_job_duration_seconds", "histogram",
-         "Wall time of the job runs of this process, by kind and outcome.");
-  for (const auto& [key, h] : jobs_) {
-    const std::string labels = Label("kind", key.first) + "," + Label("outcome", key.second);
-    int64_t cumulative = 0;
-    for (size_t i = 0; i < h.counts.size(); ++i) {
-      cumulative += h.counts[i];
-      const std::string le = i < options_.job_duration_buckets.size()
-                                 ? FormatSampleValue(options_.job_duration_buckets[i])
-                                 : std::string("+Inf");
-      Sample(&out, "drillbif_job_duration_seconds_bucket", labels + "," + Label("le", le),
-             static_cast<double>(cumulative));
-    }
-    Sample(&out, "drillbif_job_duration_seconds_sum", labels, h.sum);
-    Sample(&out, "drillbif_job_duration_seconds_count", labels, static_cast<double>(h.count));
-  }
-  Family(&out, "drillbif_http_requests_total", "counter",
-         "HTTP requests answered by the REST port, by method, route template and status.");
-  for (const auto& [key, n] : http_) {
-    const auto& [method, route, status] = key;
-    Sample(&out, "drillbif_http_requests_total",
-           Label("method", method) + "," + Label("route", route) + "," +
-               Label("code", std::to_string(status)),
-           static_cast<double>(n));
-  }
-  Family(&out, "drillbif_grpc_requests_total", "counter",
-         "gRPC calls ended, by full method name and status code (REST calls included: the gateway "
-         "calls the same services).");
-  for (const auto& [key, n] : grpc_) {
-    Sample(&out, "drillbif_grpc_requests_total",
-           Label("method", key.first) + "," + Label("code", GrpcCodeName(key.second)),
-           static_cast<double>(n));
-  }
-  return out;
-}
-
-std::string EscapeLabelValue(std::string_view value) {
-  std::string out;
-  out.reserve(value.size());
-  for (char c : value) {
-    switch (c) {
-      case '\\':
-        out += "\\\\";
-        break;
-      case '"':
-        out += "\\\"";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
-std::string FormatSampleValue(double value) {
-  if (std::isnan(value)) return "NaN";
-  if (std::isinf(value)) return value > 0 ? "+Inf" : "-Inf";
-  // Integers below 2^53 are exact in a double: print them without exponent or point.
-  if (value == std::floor(value) && std::fabs(value) < 9007199254740992.0) {
-    return std::to_string(static_cast<int64_t>(value));
-  }
-  // The shortest text that reads back as the same double.
-  char buffer[32];
-  const auto [end, error] = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return error == std::errc() ? std::string(buffer, end) : std::string("NaN");
+  return prometheus::TextSerializer().Serialize(families);
 }
 
 const char* GrpcCodeName(int code) {

@@ -561,7 +561,7 @@ TEST_F(HttpLimitsTest, ClientThatLeavesCancelsItsStreamAndItsCall) {
   std::printf("watcher freed %.1f ms after its client left\n", MsSince(closed_at));
 
   const std::string cancelled =
-      R"(drillbif_http_requests_total{method="POST",route="/v1/optimum:query",code="500"})";
+      R"(drillbif_http_requests_total{code="500",method="POST",route="/v1/optimum:query"})";
   const double cancelled_before = Metrics()[cancelled];
   v1::QueryOptimumRequest query;
   *query.mutable_request()->mutable_trace() = drillbif::testing::SmallBoxTrace();

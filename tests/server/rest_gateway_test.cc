@@ -359,10 +359,10 @@ TEST_F(RestGatewayTest, IdenticalRequestIsACacheHitVisibleInMetricsWithoutEngine
   EXPECT_EQ(after["drillbif_engine_runs_total"], static_cast<double>(server_->engine_runs()));
   // The two submits through REST, counted by route and status, and by the gRPC interceptor.
   const std::string submits =
-      R"(drillbif_http_requests_total{method="POST",route="/v1/jobs:simulate",code="200"})";
+      R"(drillbif_http_requests_total{code="200",method="POST",route="/v1/jobs:simulate"})";
   EXPECT_EQ(after[submits], before[submits] + 1);
   EXPECT_GE(
-      after[R"(drillbif_grpc_requests_total{method="/drillbif.v1.Jobs/SubmitSimulate",code="OK"})"],
+      after[R"(drillbif_grpc_requests_total{code="OK",method="/drillbif.v1.Jobs/SubmitSimulate"})"],
       2);
   EXPECT_GE(after[R"(drillbif_job_duration_seconds_count{kind="simulate",outcome="succeeded"})"],
             1);
@@ -542,7 +542,7 @@ TEST_F(RestGatewayTest, MetricsParseAsPrometheusText) {
   request.mutable_request()->mutable_params()->set_b(0.154);
   WaitDone(Submit("/v1/jobs:simulate", request).name());
   const std::string not_found =
-      R"(drillbif_http_requests_total{method="GET",route="other",code="404"})";
+      R"(drillbif_http_requests_total{code="404",method="GET",route="other"})";
   const double not_found_before = Metrics()[not_found];
   ExpectError(Get("/v1/nothing"), 404, "NOT_FOUND");
 
