@@ -67,9 +67,9 @@ struct RemoteOptions {
   // A PEM file of the CA certificate(s) (or the self-signed certificate) that signed the
   // server's certificate; empty: the system's roots. Only with `tls`.
   std::string tls_ca_file;
-  // Items per GetResult page (GetResultRequest.page_size, in [1, 100000]). 1000: a page of
-  // sweep values or branch points is then ~0.1-1 MB (well inside gRPC's message limits and
-  // quick to print), and a 34 MB result takes ~100 rpcs of ~1 ms each on a local network.
+  // Items per GetResult page (GetResultRequest.page_size, in [1, 100000]). 1000: a result of a
+  // million items (a long sweep or trajectory) takes a thousand rpcs, while a page stays small
+  // enough to hold (the server bounds pages in bytes as well).
   int result_page_size = 1000;
   // Largest message the client accepts, in bytes. The server bounds pages in bytes too, but a
   // single item (a sweep value with many samples, a long curve) is sent whole: 256 MiB holds
