@@ -535,7 +535,9 @@ class JsonFormat final : public PageFormat {
       // The key line's indentation: the spaces after the line break before the key.
       const size_t line = skeleton_.rfind('\n', at);
       const size_t key = skeleton_.find_first_not_of(' ', line == std::string::npos ? 0 : line + 1);
-      close_.push_back(pretty_ ? "\n" + std::string(key - (line + 1), ' ') + "]" : "]");
+      std::string close;
+      if (pretty_) close.append(1, '\n').append(key - (line + 1), ' ');
+      close_.push_back(close.append(1, ']'));
     }
     if (paged_.empty()) return Status::Ok();
     out->append(skeleton_, 0, open_[0] + 1);
@@ -900,49 +902,57 @@ Status ResultPrinter::AddPage(Message& page) {
     return Internal("a result page of type " + page.GetDescriptor()->full_name() + " where " +
                     result_type_->full_name() + " was expected");
   }
-  const auto* reflection = page.GetReflection();
   // The page's items move to `items`; `page` keeps the summary.
   std::unique_ptr<Message> items(page.New());
-  reflection->SwapFields(&page, items.get(), paged_fields_);
+  page.GetReflection()->SwapFields(&page, items.get(), paged_fields_);
+  DRILLBIF_RETURN_IF_ERROR(StartPage(page, *items));
+  ++pages_;
+  return PrintItems(*items);
+}
+
+Status ResultPrinter::StartPage(const Message& summary, const Message& items) {
+  const auto* reflection = items.GetReflection();
   for (int i = 0; i < current_field_; ++i) {
-    if (reflection->FieldSize(*items, paged_fields_[i]) > 0) {
+    if (reflection->FieldSize(items, paged_fields_[i]) > 0) {
       return Internal("page " + std::to_string(pages_ + 1) + " of the result holds items of " +
                       paged_fields_[i]->name() + " after items of " +
                       paged_fields_[current_field_]->name());
     }
   }
-  std::string summary = SummaryBytes(page);
-  std::string out;
-  if (pages_ == 0) {
-    DRILLBIF_RETURN_IF_ERROR(format_->CheckPage(*items));
-    first_summary_ = std::move(summary);
-    status_ = StringField(page, "status");
-    message_ = StringField(page, "message");
-    DRILLBIF_RETURN_IF_ERROR(format_->Begin(page, &out));
-    DRILLBIF_RETURN_IF_ERROR(Flush(&out));
-  } else {
-    if (summary != first_summary_) {
+  std::string bytes = SummaryBytes(summary);
+  if (pages_ > 0) {
+    if (bytes != first_summary_) {
       return Internal("page " + std::to_string(pages_ + 1) +
                       " of the result has another summary (status, counters, ...) than the first");
     }
-    DRILLBIF_RETURN_IF_ERROR(format_->CheckPage(*items));
+    return format_->CheckPage(items);
   }
-  ++pages_;
-  std::unique_ptr<Message> chunk(page.New());
+  DRILLBIF_RETURN_IF_ERROR(format_->CheckPage(items));
+  first_summary_ = std::move(bytes);
+  status_ = StringField(summary, "status");
+  message_ = StringField(summary, "message");
+  std::string out;
+  DRILLBIF_RETURN_IF_ERROR(format_->Begin(summary, &out));
+  return Flush(&out);
+}
+
+Status ResultPrinter::PrintItems(Message& items) {
+  const auto* reflection = items.GetReflection();
+  std::unique_ptr<Message> chunk(items.New());
+  std::string out;
   for (int i = 0; i < static_cast<int>(paged_fields_.size()); ++i) {
     const FieldDescriptor* field = paged_fields_[i];
-    auto* from = reflection->MutableRepeatedPtrField<Message>(items.get(), field);
-    const int n = from->size();
-    if (n == 0) continue;
-    current_field_ = i;
+    const int n = reflection->FieldSize(items, field);
+    if (n > 0) current_field_ = i;
     for (int begin = 0; begin < n;) {
       // Moves the next items, up to kChunkBytes of them (at least one), into `chunk`.
       size_t bytes = 0;
       int end = begin;
       while (end < n && (end == begin || bytes < kChunkBytes)) {
-        bytes += from->Get(end).ByteSizeLong();
+        Message* next = reflection->MutableRepeatedMessage(&items, field, end);
+        bytes += next->ByteSizeLong();
         Message* item = reflection->AddMessage(chunk.get(), field);
-        item->GetReflection()->Swap(item, from->Mutable(end));
+        item->GetReflection()->Swap(item, next);
         ++end;
       }
       DRILLBIF_RETURN_IF_ERROR(format_->Items(i, field, *chunk, &out));

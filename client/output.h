@@ -94,7 +94,8 @@ class PageFormat;
 // Prints a result that arrives in pages, writing each page's part of the text as it arrives and
 // never holding the whole result: the text is byte for byte what ToJson(result, pretty) or the
 // kind's *ResultToCsv prints for the whole result message (for a sweep's CSV, whose failure
-// comments precede the table, the rows wait in a temporary file until the last page).
+// comments precede the table, the rows wait until the last page: in memory up to 1 MiB, the rest
+// in an unlinked temporary file in $TMPDIR, else /tmp).
 //
 // A page is a result message of the kind holding the result's summary fields (status, message,
 // counters, special points, ...; the kind's first-page-only fields in the first page only) and
@@ -105,6 +106,9 @@ class PageFormat;
 //   ResultPrinter::Create(v1::SweepResult::descriptor(), {.csv = true}, write) -> printer
 //   for each page: printer->AddPage(page);
 //   printer->Finish();
+//
+// The summary must come first (JSON prints status and message before the items): a run that
+// streams its items before its summary is known would have to keep them until it is.
 class ResultPrinter {
  public:
   // A printer of results of `result_type` (one of the five kinds' result messages; else
@@ -132,6 +136,13 @@ class ResultPrinter {
  private:
   ResultPrinter(const google::protobuf::Descriptor* result_type,
                 std::unique_ptr<internal::PageFormat> format, TextSink sink);
+  // Checks a page (its summary, and its items before they are printed); for the first page
+  // prints what comes before the items.
+  Status StartPage(const google::protobuf::Message& summary,
+                   const google::protobuf::Message& items);
+  // Prints the items of a page (a result message holding only them), chunk by chunk; takes
+  // them.
+  Status PrintItems(google::protobuf::Message& items);
   // The page's summary fields (first-page-only fields cleared), serialized deterministically.
   std::string SummaryBytes(const google::protobuf::Message& summary) const;
   // Writes `out` to the sink and clears it.
