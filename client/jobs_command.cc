@@ -4,6 +4,7 @@
 
 #include <cctype>
 #include <charconv>
+#include <memory>
 #include <string_view>
 
 #include "client/output.h"
@@ -87,34 +88,6 @@ std::string OperationRow(const Operation& op) {
 StatusOr<std::string> FormatOperation(const Operation& op, const OutputStyle& style) {
   if (style.csv) return std::string(kCsvHeader) + OperationRow(op);
   return ToJson(op, style.pretty);
-}
-
-// The simulate CSV table of the one output a result holds.
-StatusOr<SimulateTable> TableOf(const v1::SimulateResult& r) {
-  v1::SimulateRequest::Outputs present;
-  present.set_poincare(r.poincare_size() > 0);
-  present.set_events(r.events_size() > 0);
-  present.set_modes(r.period_modes_size() > 0);
-  present.set_trajectory_dt(r.trajectory_size() > 0 ? 1.0 : 0.0);
-  return CsvTableFor(present);
-}
-
-template <typename Result, typename ToCsv>
-StatusOr<FormattedResult> Format(const Result& result, const OutputStyle& style,
-                                 const ToCsv& to_csv) {
-  FormattedResult out;
-  out.status = result.status();
-  out.message = result.message();
-  if (style.csv) {
-    StatusOr<std::string> text = to_csv(result);
-    if (!text.ok()) return text.status();
-    out.text = *text;
-  } else {
-    StatusOr<std::string> json = ToJson(result, style.pretty);
-    if (!json.ok()) return json.status();
-    out.text = *json;
-  }
-  return out;
 }
 
 }  // namespace
@@ -209,42 +182,30 @@ StatusOr<v1::JobMetadata> JobsWatch(RemoteClient& client, const std::string& id,
   return last;
 }
 
-StatusOr<FormattedResult> FormatResult(const v1::GetResultResponse& response,
-                                       const OutputStyle& style) {
-  using Text = StatusOr<std::string>;
-  switch (response.result_case()) {
-    case v1::GetResultResponse::kSimulate:
-      return Format(response.simulate(), style, [](const v1::SimulateResult& r) -> Text {
-        StatusOr<SimulateTable> table = TableOf(r);
-        if (!table.ok()) return table.status();
-        return SimulateResultToCsv(r, *table);
-      });
-    case v1::GetResultResponse::kSweep:
-      return Format(response.sweep(), style,
-                    [](const v1::SweepResult& r) -> Text { return SweepResultToCsv(r); });
-    case v1::GetResultResponse::kContinue:
-      return Format(response.continue_(), style,
-                    [](const v1::ContinueResult& r) -> Text { return ContinueResultToCsv(r); });
-    case v1::GetResultResponse::kTrace:
-      return Format(response.trace(), style,
-                    [](const v1::TraceResult& r) -> Text { return TraceResultToCsv(r); });
-    case v1::GetResultResponse::kOptimum:
-      return Format(response.optimum(), style,
-                    [](const v1::OptimumResult& r) -> Text { return OptimumResultToCsv(r); });
-    default:
-      return Internal("the server returned no result for " + response.name());
-  }
-}
-
-StatusOr<FormattedResult> JobsResult(RemoteClient& client, const std::string& id,
-                                     const OutputStyle& style) {
+StatusOr<PrintedResult> JobsResult(RemoteClient& client, const std::string& id,
+                                   const OutputStyle& style, const TextSink& write) {
   const std::string name = OperationName(id);
-  StatusOr<v1::GetResultResponse> response = client.GetResult(name);
-  if (response.ok()) return FormatResult(*response, style);
-  if (response.status().code() != StatusCode::kFailedPrecondition) return response.status();
+  std::unique_ptr<ResultPrinter> printer;
+  const Status fetched =
+      client.GetResultPages(name, [&](google::protobuf::Message& page) -> Status {
+        if (printer == nullptr) {
+          PrintOptions options;
+          options.csv = style.csv;
+          options.pretty = style.pretty;
+          // options.simulate_table unset: the table of the items that come.
+          DRILLBIF_ASSIGN_OR_RETURN(printer,
+                                    ResultPrinter::Create(page.GetDescriptor(), options, write));
+        }
+        return printer->AddPage(page);
+      });
+  if (fetched.ok()) {
+    DRILLBIF_RETURN_IF_ERROR(printer->Finish());
+    return PrintedResult{printer->status(), printer->message()};
+  }
+  if (printer != nullptr || fetched.code() != StatusCode::kFailedPrecondition) return fetched;
   // Not SUCCEEDED: say why, with the job's own error when it failed (as --local would).
   StatusOr<Operation> op = client.Get(name);
-  if (!op.ok()) return response.status();
+  if (!op.ok()) return fetched;
   const v1::JobMetadata m = MetadataOf(*op);
   if (!op->done()) {
     return Status(StatusCode::kFailedPrecondition,
@@ -257,7 +218,7 @@ StatusOr<FormattedResult> JobsResult(RemoteClient& client, const std::string& id
   if (op->has_error() && op->error().code() != 0) {
     return internal::ErrorOf(*op);
   }
-  return response.status();
+  return fetched;
 }
 
 }  // namespace drillbif::client

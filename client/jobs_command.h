@@ -13,6 +13,7 @@
 #include <functional>
 #include <string>
 
+#include "client/output.h"
 #include "client/remote.h"
 #include "drillbif/common/status.h"
 #include "drillbif/v1/service.pb.h"
@@ -69,25 +70,21 @@ StatusOr<v1::JobMetadata> JobsWatch(RemoteClient& client, const std::string& id,
                                     const std::function<void(const std::string&)>& write,
                                     const std::function<bool()>& interrupted);
 
-// A result as drillctl prints it.
-struct FormattedResult {
-  std::string text;
-  // The result's own status ("COMPLETED", "FAILED", ...) and message, for the exit code.
+// What `jobs result` printed: the result's own status ("COMPLETED", "FAILED", ...) and message,
+// for the exit code.
+struct PrintedResult {
   std::string status;
   std::string message;
 };
 
-// `jobs result ID`: the result of a SUCCEEDED job, printed exactly as the command that ran it
-// prints it with --local. A simulate result's CSV table is the one output it holds (Poincare
-// samples, events, modes or trajectory; none: only the measures); INVALID_ARGUMENT when it holds
-// more than one (use JSON). FAILED_PRECONDITION when the job did not succeed (its error is in
-// the message).
-StatusOr<FormattedResult> JobsResult(RemoteClient& client, const std::string& id,
-                                     const OutputStyle& style);
-
-// A GetResult response formatted as the matching --local command prints it (see JobsResult).
-StatusOr<FormattedResult> FormatResult(const v1::GetResultResponse& response,
-                                       const OutputStyle& style);
+// `jobs result ID`: writes the result of a SUCCEEDED job to `write` page by page as it arrives
+// (ResultPrinter), exactly as the command that ran it prints it with --local. A simulate
+// result's CSV table is the one output it holds (Poincare samples, events, modes or trajectory;
+// none: only the measures); INVALID_ARGUMENT when it holds more than one (use JSON), found at the
+// first page holding items of a second one (the pages before are printed). FAILED_PRECONDITION
+// when the job did not succeed (its error is in the message), before anything is written.
+StatusOr<PrintedResult> JobsResult(RemoteClient& client, const std::string& id,
+                                   const OutputStyle& style, const TextSink& write);
 
 }  // namespace drillbif::client
 

@@ -1,26 +1,32 @@
 // drillctl: the command line client. Flags become a request proto, which is run either in this
 // process by the job runner (--local) or as a job of a drillbif server (--server HOST:PORT, else
-// DRILLBIF_SERVER, else localhost:50051; client/remote.h), and the result proto is printed as
-// JSON or CSV, the same in both modes. `drillctl jobs ...` manages the server's jobs
-// (client/jobs_command.h).
+// DRILLBIF_SERVER, else localhost:50051; plaintext, or TLS with --tls / --tls-ca;
+// client/remote.h), and the result proto is printed as JSON or CSV, the same in both modes: a
+// server's result page by page as it arrives (client/output.h, ResultPrinter). `drillctl jobs
+// ...` manages the server's jobs (client/jobs_command.h).
 //
 // Exit codes: 0 completed; 1 the run failed (the partial result is still printed) or the server
 // could not be reached; 2 invalid input (bad flags or parameter values, a token the server
 // refuses), nothing run; 130 interrupted (Ctrl-C), partial result printed.
+#include <grpc/support/log.h>
+
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <variant>
 
 #include "client/jobs_command.h"
@@ -37,6 +43,7 @@
 #include "drillbif/version.h"
 #include "jobs/continue_job.h"
 #include "jobs/registry.h"
+#include "jobs/result_pages.h"
 #include "jobs/simulate_job.h"
 
 namespace drillbif::client {
@@ -54,6 +61,11 @@ static_assert(std::atomic<bool>::is_always_lock_free);
 extern "C" void OnInterrupt(int) { g_interrupted = true; }
 
 bool Interrupted() { return g_interrupted.load(); }
+
+// gRPC logs some transport errors on stderr itself (e.g. "Handshake failed with fatal error ..."
+// for a TLS certificate it cannot verify); drillctl reports every rpc's error in its own words,
+// so these lines are dropped unless GRPC_VERBOSITY is set (to see them when diagnosing).
+extern "C" void DropGrpcLog(gpr_log_func_args*) {}
 
 // Ctrl-C cancels the run through the progress callback (the partial result is printed; in server
 // mode the job is cancelled on the server); a second Ctrl-C kills the process (SA_RESETHAND
@@ -98,6 +110,9 @@ struct GlobalFlags {
   std::string token;   // empty: DRILLBIF_TOKEN, else none
   bool detach = false;
   double timeout = RemoteOptions().rpc_timeout_seconds;
+  bool tls = false;
+  std::string tls_ca;  // empty: DRILLBIF_TLS_CA, else the system's roots (with --tls)
+  int result_page_size = RemoteOptions().result_page_size;  // hidden --result-page-size
 };
 
 struct ModelFlags {
@@ -255,6 +270,50 @@ bool Write(const GlobalFlags& flags, const std::string& text) {
   return false;
 }
 
+// Where a result goes as it is printed: --output (created or truncated at the first write, so
+// that a run that fails before printing leaves it alone) or stdout.
+class OutputStream {
+ public:
+  explicit OutputStream(const std::string& path) : path_(path) {}
+
+  // Writes `text` (flushed, so that each page shows as it arrives).
+  Status Write(std::string_view text) {
+    if (!error_.empty()) return Internal(error_);
+    std::ostream* out = &std::cout;
+    if (!path_.empty()) {
+      if (!file_.is_open()) file_.open(path_, std::ios::binary | std::ios::trunc);
+      out = &file_;
+    }
+    out->write(text.data(), static_cast<std::streamsize>(text.size()));
+    out->flush();
+    if (!*out) {
+      error_ = "cannot write the result to " + (path_.empty() ? std::string("stdout") : path_) +
+               (path_.empty() ? std::string() : std::string(": ") + std::strerror(errno));
+      return Internal(error_);
+    }
+    return Status::Ok();
+  }
+  TextSink Sink() {
+    return [this](std::string_view text) { return Write(text); };
+  }
+  // Closes the file; the message of the first write that failed, or empty.
+  const std::string& Close() {
+    if (file_.is_open()) {
+      file_.close();
+      if (!file_ && error_.empty()) {
+        error_ = "cannot write the result to " + path_ + ": " + std::strerror(errno);
+      }
+    }
+    return error_;
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  std::string path_;
+  std::ofstream file_;
+  std::string error_;
+};
+
 // Exit code and stderr note for a run's final status.
 int Finish(const std::string& status, const std::string& message) {
   if (status == "COMPLETED") return 0;
@@ -262,60 +321,100 @@ int Finish(const std::string& status, const std::string& message) {
   return Error("run " + status + ": " + message, kExitFailed);
 }
 
-// Runs a job with a progress bar on stderr (Ctrl-C cancels), then prints its result as JSON or,
-// with --format csv, as to_csv formats it. Returns the exit code.
-template <typename Run, typename ToCsv>
-int RunAndPrint(const GlobalFlags& global, const Run& run, const ToCsv& to_csv) {
-  auto result = [&] {
-    ProgressBar bar(stderr, IsTerminal(stderr));
-    return run([&bar](double fraction) {
-      bar.Update(fraction);
-      return g_interrupted == 0;
-    });
-  }();
-  if (!result.ok()) return ErrorStatus(result.status());
-  std::string text;
-  if (global.format == "csv") {
-    text = to_csv(*result);
-  } else {
-    StatusOr<std::string> json = ToJson(*result, !global.compact);
-    if (!json.ok()) return ErrorStatus(json.status());
-    text = *json;
-  }
-  if (!Write(global, text)) return kExitFailed;
-  return Finish(result->status(), result->message());
+// Runs `run` with a progress bar on stderr (Ctrl-C cancels the run through its callback); the
+// bar is erased before this returns.
+template <typename Run>
+auto WithProgressBar(const Run& run) {
+  ProgressBar bar(stderr, IsTerminal(stderr));
+  return run([&bar](double fraction) {
+    bar.Update(fraction);
+    return !g_interrupted;
+  });
 }
 
-// Runs a job in this process (`remote` null: through its kind's entry in the job registry, as the
-// server's workers run it) or on the server: submitted, followed with the progress bar, and
-// printed as RunAndPrint prints a local run; with --detach only submitted, and its operation name
-// printed.
-template <typename Result, typename Request, typename ToCsv>
-int RunJob(const GlobalFlags& global, RemoteClient* remote, const Request& request,
-           const ToCsv& to_csv) {
-  if (remote == nullptr) {
-    return RunAndPrint(
-        global,
-        [&](const ProgressCallback& progress) -> StatusOr<Result> {
-          const jobs::JobKindSpec* spec = jobs::FindKind(Request::descriptor());
-          DRILLBIF_RETURN_IF_ERROR(jobs::CheckRequest(*spec, request));
-          DRILLBIF_ASSIGN_OR_RETURN(std::unique_ptr<google::protobuf::Message> result,
-                                    spec->run(request, {.progress = progress}));
-          return std::move(static_cast<Result&>(*result));
-        },
-        to_csv);
+// Runs a request in this process through its kind's entry in the job registry (as the server's
+// workers run it) and prints the whole result as one page.
+template <typename Request>
+Status RunLocal(const Request& request, ResultPrinter& printer) {
+  StatusOr<std::unique_ptr<google::protobuf::Message>> result =
+      WithProgressBar([&](const ProgressCallback& progress)
+                          -> StatusOr<std::unique_ptr<google::protobuf::Message>> {
+        const jobs::JobKindSpec* spec = jobs::FindKind(Request::descriptor());
+        DRILLBIF_RETURN_IF_ERROR(jobs::CheckRequest(*spec, request));
+        jobs::RunContext context;
+        context.progress = progress;
+        return spec->run(request, context);
+      });
+  if (!result.ok()) return result.status();
+  DRILLBIF_RETURN_IF_ERROR(printer.AddPage(**result));
+  return printer.Finish();
+}
+
+// Runs a request as a job of the server (submitted, followed with the progress bar) and prints
+// its result page by page as the pages arrive; a cancelled job (no result on the server) as an
+// empty result with status CANCELLED. Ctrl-C while the pages arrive stops fetching them
+// (CANCELLED; the result stays on the server).
+template <typename Result, typename Request>
+Status RunOnServer(RemoteClient& remote, const Request& request, ResultPrinter& printer) {
+  DRILLBIF_ASSIGN_OR_RETURN(const RemoteRun run,
+                            WithProgressBar([&](const ProgressCallback& progress) {
+                              return RunRemote(remote, request, progress, Interrupted);
+                            }));
+  if (run.cancelled) {
+    Result result;
+    result.set_status(std::string("CANCELLED"));
+    result.set_message(run.message);
+    DRILLBIF_RETURN_IF_ERROR(printer.AddPage(result));
+  } else {
+    DRILLBIF_RETURN_IF_ERROR(
+        remote.GetResultPages(run.name, [&](google::protobuf::Message& page) -> Status {
+          if (Interrupted()) {
+            return Status(StatusCode::kCancelled,
+                          "interrupted while printing the result of " + run.name +
+                              "; the server keeps it: drillctl jobs result " + run.name);
+          }
+          return printer.AddPage(page);
+        }));
   }
-  if (global.detach) {
+  return printer.Finish();
+}
+
+// The exit code for an error while running or printing: the output's own failure first, then
+// Ctrl-C, then the error's.
+int PrintError(const OutputStream& output, const Status& status) {
+  if (!output.error().empty()) return Error(output.error(), kExitFailed);
+  if (status.code() == StatusCode::kCancelled && Interrupted()) {
+    return Error(status.message(), kExitInterrupted);
+  }
+  return ErrorStatus(status);
+}
+
+// Runs a job in this process (`remote` null) or on the server, and prints its result to
+// --output or stdout as JSON or, with --format csv, as its kind's CSV (`table`: a simulate's
+// table); with --detach only submits it and prints its operation name. Returns the exit code.
+template <typename Result, typename Request>
+int RunJob(const GlobalFlags& global, RemoteClient* remote, const Request& request,
+           std::optional<SimulateTable> table = std::nullopt) {
+  if (remote != nullptr && global.detach) {
     StatusOr<google::longrunning::Operation> op = remote->Submit(request);
     if (!op.ok()) return ErrorStatus(op.status());
     return Write(global, op->name() + "\n") ? 0 : kExitFailed;
   }
-  return RunAndPrint(
-      global,
-      [&](const ProgressCallback& progress) {
-        return RunRemote<Result>(*remote, request, progress, Interrupted);
-      },
-      to_csv);
+  OutputStream output(global.output);
+  PrintOptions options;
+  options.csv = global.format == "csv";
+  options.pretty = !global.compact;
+  options.simulate_table = table;
+  StatusOr<std::unique_ptr<ResultPrinter>> printer =
+      ResultPrinter::Create(Result::descriptor(), options, output.Sink());
+  if (!printer.ok()) return ErrorStatus(printer.status());
+  const Status printed = remote == nullptr ? RunLocal(request, **printer)
+                                           : RunOnServer<Result>(*remote, request, **printer);
+  if (!printed.ok()) return PrintError(output, printed);
+  if (const std::string& error = output.Close(); !error.empty()) {
+    return Error(error, kExitFailed);
+  }
+  return Finish((*printer)->status(), (*printer)->message());
 }
 
 int RunSimulateCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
@@ -338,16 +437,14 @@ int RunSimulateCommand(const GlobalFlags& global, RemoteClient* remote, const Mo
   request.set_propagator(f.propagator == "cvode" ? v1::CVODE : v1::EXACT);
   if (f.rtol_option->count() > 0) request.set_cvode_rtol(f.rtol);
 
-  SimulateTable table = SimulateTable::kNone;
+  std::optional<SimulateTable> table;
   if (global.format == "csv") {
     StatusOr<SimulateTable> t = CsvTableFor(jobs::EffectiveOutputs(request));
     if (!t.ok()) return Error(t.status().message(), kExitUsage);
     table = *t;
   }
 
-  return RunJob<v1::SimulateResult>(global, remote, request, [table](const v1::SimulateResult& r) {
-    return SimulateResultToCsv(r, table);
-  });
+  return RunJob<v1::SimulateResult>(global, remote, request, table);
 }
 
 int RunSweepCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
@@ -366,8 +463,7 @@ int RunSweepCommand(const GlobalFlags& global, RemoteClient* remote, const Model
                                                 : v1::SweepRequest::UP);
   request.set_threads(f.threads);
 
-  return RunJob<v1::SweepResult>(global, remote, request,
-                                 [](const v1::SweepResult& r) { return SweepResultToCsv(r); });
+  return RunJob<v1::SweepResult>(global, remote, request);
 }
 
 int RunContinueCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
@@ -401,8 +497,7 @@ int RunContinueCommand(const GlobalFlags& global, RemoteClient* remote, const Mo
   }
   request.set_transient_periods(m.transient);
 
-  return RunJob<v1::ContinueResult>(
-      global, remote, request, [](const v1::ContinueResult& r) { return ContinueResultToCsv(r); });
+  return RunJob<v1::ContinueResult>(global, remote, request);
 }
 
 // The start orbit, plane and box of trace and optimum.
@@ -430,8 +525,7 @@ int RunTraceCommand(const GlobalFlags& global, RemoteClient* remote, const Model
     v1::RegionRequest* region = request.mutable_region();
     for (int n : f.grid) region->add_grid(n);
   }
-  return RunJob<v1::TraceResult>(global, remote, request,
-                                 [](const v1::TraceResult& r) { return TraceResultToCsv(r); });
+  return RunJob<v1::TraceResult>(global, remote, request);
 }
 
 int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
@@ -441,8 +535,7 @@ int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const Mod
   for (double v : f.margin) request.add_margin(v);
   request.set_scaled(f.scaled);
   for (int n : t.grid) request.add_grid(n);
-  return RunJob<v1::OptimumResult>(
-      global, remote, request, [](const v1::OptimumResult& r) { return OptimumResultToCsv(r); });
+  return RunJob<v1::OptimumResult>(global, remote, request);
 }
 
 // --grid n1,n2 of trace --region and optimum.
@@ -582,9 +675,12 @@ int RunJobsCommand(const GlobalFlags& global, RemoteClient& remote, JobsCommand 
       text = JobsCancel(remote, flags.id, style);
       break;
     case JobsCommand::kResult: {
-      StatusOr<FormattedResult> result = JobsResult(remote, flags.id, style);
-      if (!result.ok()) return ErrorStatus(result.status());
-      if (!Write(global, result->text)) return kExitFailed;
+      OutputStream output(global.output);
+      StatusOr<PrintedResult> result = JobsResult(remote, flags.id, style, output.Sink());
+      if (!result.ok()) return PrintError(output, result.status());
+      if (const std::string& error = output.Close(); !error.empty()) {
+        return Error(error, kExitFailed);
+      }
       return Finish(result->status, result->message);
     }
     case JobsCommand::kWatch: {
@@ -613,6 +709,7 @@ int RunJobsCommand(const GlobalFlags& global, RemoteClient& remote, JobsCommand 
 }
 
 int Main(int argc, char** argv) {
+  if (std::getenv("GRPC_VERBOSITY") == nullptr) gpr_set_log_function(DropGrpcLog);
   CLI::App app{"drillctl: bifurcation analysis of the drifting impact oscillator", "drillctl"};
   app.set_version_flag("--version", EngineVersion());
   app.require_subcommand(1);
@@ -643,6 +740,22 @@ int Main(int argc, char** argv) {
       ->capture_default_str()
       ->excludes(local_flag)
       ->group(remote_group);
+  app.add_flag("--tls", global.tls,
+               "Use TLS, verifying the server's certificate against the system's CA roots")
+      ->excludes(local_flag)
+      ->group(remote_group);
+  app.add_option("--tls-ca", global.tls_ca,
+                 "Verify the server's certificate against this PEM CA certificate (or the "
+                 "server's self-signed one); implies --tls (default: $DRILLBIF_TLS_CA)")
+      ->option_text("FILE")
+      ->excludes(local_flag)
+      ->group(remote_group);
+  // Hidden (tests, diagnosis): items per GetResult page.
+  app.add_option("--result-page-size", global.result_page_size,
+                 "Items per GetResult page of a result")
+      ->check(CLI::Range(1, jobs::kMaxResultPageSize))
+      ->excludes(local_flag)
+      ->group("");
   app.add_option("--format", global.format, "Output format: json or csv")
       ->check(CLI::IsMember({"json", "csv"}))
       ->capture_default_str();
@@ -892,6 +1005,9 @@ int Main(int argc, char** argv) {
     options.target = ResolveServer(global.server);
     options.token = ResolveToken(global.token);
     options.rpc_timeout_seconds = global.timeout;
+    options.tls_ca_file = ResolveTlsCa(global.tls_ca);
+    options.tls = global.tls || !options.tls_ca_file.empty();
+    options.result_page_size = global.result_page_size;
     StatusOr<std::unique_ptr<RemoteClient>> client = RemoteClient::Connect(options);
     if (!client.ok()) return ErrorStatus(client.status());
     remote = std::move(client).value();

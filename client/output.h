@@ -3,9 +3,16 @@
 #ifndef DRILLBIF_CLIENT_OUTPUT_H_
 #define DRILLBIF_CLIENT_OUTPUT_H_
 
+#include <google/protobuf/descriptor.h>
 #include <google/protobuf/message.h>
 
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "drillbif/common/status.h"
 #include "drillbif/v1/continue.pb.h"
@@ -64,6 +71,96 @@ std::string TraceResultToCsv(const v1::TraceResult& result);
 // (attractors: how many distinct periodic motions the coexistence check found; 1 when all starts
 // settle on the optimum's orbit) after the status comment when it did not complete.
 std::string OptimumResultToCsv(const v1::OptimumResult& result);
+
+// How ResultPrinter prints a result.
+struct PrintOptions {
+  // CSV (the kind's table, as *ResultToCsv prints it) instead of JSON (as ToJson prints it).
+  bool csv = false;
+  // JSON indented (false: one line, --compact). Ignored for CSV.
+  bool pretty = true;
+  // The table of a simulate result's CSV (the one its request asked for). Unset: the one table
+  // the result holds (`jobs result`, which does not know the request); a result holding more
+  // than one is INVALID_ARGUMENT, detected at the page where the second table's items begin.
+  std::optional<SimulateTable> simulate_table;
+};
+
+// Receives the printed text in order, piece by piece; an error stops the printing.
+using TextSink = std::function<Status(std::string_view text)>;
+
+namespace internal {
+class PageFormat;
+}  // namespace internal
+
+// Prints a result that arrives in pages, writing each page's part of the text as it arrives and
+// never holding the whole result: the text is byte for byte what ToJson(result, pretty) or the
+// kind's *ResultToCsv prints for the whole result message (for a sweep's CSV, whose failure
+// comments precede the table, the rows wait until the last page: in memory up to 1 MiB, the rest
+// in an unlinked temporary file in $TMPDIR, else /tmp).
+//
+// A page is a result message of the kind holding the result's summary fields (status, message,
+// counters, special points, ...; the kind's first-page-only fields in the first page only) and
+// the next items of the kind's paged fields (jobs/registry.h: JobKindSpec::paged_fields), the
+// paged fields' items forming one sequence, fields in their order, that the pages split into
+// consecutive runs (GetResult's pages; a whole result is one page).
+//
+//   ResultPrinter::Create(v1::SweepResult::descriptor(), {.csv = true}, write) -> printer
+//   for each page: printer->AddPage(page);
+//   printer->Finish();
+//
+// The summary must come first (JSON prints status and message before the items): a run that
+// streams its items before its summary is known would have to keep them until it is.
+class ResultPrinter {
+ public:
+  // A printer of results of `result_type` (one of the five kinds' result messages; else
+  // INVALID_ARGUMENT) that writes to `sink`.
+  static StatusOr<std::unique_ptr<ResultPrinter>> Create(
+      const google::protobuf::Descriptor* result_type, const PrintOptions& options, TextSink sink);
+  ~ResultPrinter();
+  ResultPrinter(const ResultPrinter&) = delete;
+  ResultPrinter& operator=(const ResultPrinter&) = delete;
+
+  // Prints the next page. Takes its items: the page's paged fields are left empty. INTERNAL when
+  // the page is of another type, when its summary differs from the first page's, or when it
+  // holds items of a paged field after items of a later one were printed; the sink's errors.
+  Status AddPage(google::protobuf::Message& page);
+  // Prints the rest, after the last page. INTERNAL when no page was added.
+  Status Finish();
+
+  // The result's status ("COMPLETED", ...) and message, from the first page (empty before it).
+  const std::string& status() const { return status_; }
+  const std::string& message() const { return message_; }
+  // Pages added, and items of the paged fields printed.
+  int64_t pages() const { return pages_; }
+  int64_t items() const { return items_; }
+
+ private:
+  ResultPrinter(const google::protobuf::Descriptor* result_type,
+                std::unique_ptr<internal::PageFormat> format, TextSink sink);
+  // Checks a page (its summary, and its items before they are printed); for the first page
+  // prints what comes before the items.
+  Status StartPage(const google::protobuf::Message& summary,
+                   const google::protobuf::Message& items);
+  // Prints the items of a page (a result message holding only them), chunk by chunk; takes
+  // them.
+  Status PrintItems(google::protobuf::Message& items);
+  // The page's summary fields (first-page-only fields cleared), serialized deterministically.
+  std::string SummaryBytes(const google::protobuf::Message& summary) const;
+  // Writes `out` to the sink and clears it.
+  Status Flush(std::string* out);
+
+  const google::protobuf::Descriptor* result_type_;
+  std::vector<const google::protobuf::FieldDescriptor*> paged_fields_;
+  std::vector<const google::protobuf::FieldDescriptor*> first_page_fields_;
+  std::unique_ptr<internal::PageFormat> format_;
+  TextSink sink_;
+  std::string first_summary_;  // SummaryBytes of the first page
+  std::string status_;
+  std::string message_;
+  int current_field_ = 0;  // index in paged_fields_ of the field printed last
+  int64_t pages_ = 0;
+  int64_t items_ = 0;
+  bool finished_ = false;
+};
 
 }  // namespace drillbif::client
 

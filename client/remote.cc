@@ -4,12 +4,20 @@
 #include <google/protobuf/wire_format_lite.h>
 #include <grpcpp/generic/generic_stub.h>
 
+#include <cctype>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
+#include <fstream>
 #include <future>
+#include <sstream>
 #include <stop_token>
 #include <thread>
 #include <utility>
+
+#include "jobs/registry.h"
+#include "jobs/result_pages.h"
 
 namespace drillbif::client {
 namespace {
@@ -62,14 +70,36 @@ std::chrono::system_clock::time_point After(double seconds) {
              std::chrono::duration<double>(seconds));
 }
 
-template <typename Result>
-Status Unpack(bool has, const Result& field, Result* out) {
-  if (!has) {
-    return Internal("the server returned a result of another kind than " +
-                    out->GetDescriptor()->name());
+// Whether `message` (of a gRPC error) says the TLS handshake failed, and why, in the words of
+// gRPC 1.51 with OpenSSL 3: "Ssl handshake failed: SSL_ERROR_SSL: error:0A000086:SSL
+// routines::certificate verify failed" (BoringSSL: CERTIFICATE_VERIFY_FAILED), "... wrong version
+// number" (the server speaks plaintext).
+enum class TlsFailure { kNone, kVerify, kNotTls, kOther };
+
+TlsFailure TlsFailureOf(const std::string& message) {
+  std::string lower = message;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  auto has = [&lower](const char* text) { return lower.find(text) != std::string::npos; };
+  if (has("certificate verify failed") || has("certificate_verify_failed")) {
+    return TlsFailure::kVerify;
   }
-  *out = field;
-  return Status::Ok();
+  if (has("wrong version number") || has("wrong_version_number")) return TlsFailure::kNotTls;
+  if (has("handshake")) return TlsFailure::kOther;
+  return TlsFailure::kNone;
+}
+
+StatusOr<std::string> ReadPemFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return InvalidArgument("--tls-ca: cannot read " + path + ": " + std::strerror(errno));
+  std::stringstream text;
+  text << in.rdbuf();
+  if (!in.good() && !in.eof()) {
+    return InvalidArgument("--tls-ca: cannot read " + path + ": " + std::strerror(errno));
+  }
+  if (text.str().find("-----BEGIN CERTIFICATE-----") == std::string::npos) {
+    return InvalidArgument("--tls-ca: " + path + " holds no PEM certificate");
+  }
+  return text.str();
 }
 
 }  // namespace
@@ -82,6 +112,10 @@ std::string ResolveServer(const std::string& flag) {
 
 std::string ResolveToken(const std::string& flag) {
   return flag.empty() ? FromEnvironment("DRILLBIF_TOKEN") : flag;
+}
+
+std::string ResolveTlsCa(const std::string& flag) {
+  return flag.empty() ? FromEnvironment("DRILLBIF_TLS_CA") : flag;
 }
 
 std::string OperationName(const std::string& id_or_name) {
@@ -99,22 +133,41 @@ Status RemoteOptions::Validate() const {
     return InvalidArgument("watch deadline must be > 0 seconds, got " +
                            std::to_string(watch_seconds));
   }
+  if (result_page_size < 1 || result_page_size > jobs::kMaxResultPageSize) {
+    return InvalidArgument("result page size must be in [1, " +
+                           std::to_string(jobs::kMaxResultPageSize) + "], got " +
+                           std::to_string(result_page_size));
+  }
+  if (max_receive_bytes < (4 << 20)) {
+    return InvalidArgument("receive limit must be >= 4 MiB, got " +
+                           std::to_string(max_receive_bytes) + " bytes");
+  }
+  if (!tls && !tls_ca_file.empty()) return InvalidArgument("a TLS CA file needs TLS");
   return Status::Ok();
 }
 
-RemoteClient::RemoteClient(const RemoteOptions& options) : options_(options) {
+RemoteClient::RemoteClient(const RemoteOptions& options,
+                           const std::shared_ptr<grpc::ChannelCredentials>& credentials)
+    : options_(options) {
   grpc::ChannelArguments args;
-  // Results can be large (a long sweep, a trace with a region grid); the server sends them
-  // whole, so the client accepts any size rather than gRPC's default 4 MB.
-  args.SetMaxReceiveMessageSize(-1);
-  channel_ = grpc::CreateCustomChannel(options_.target, grpc::InsecureChannelCredentials(), args);
+  // Result pages are bounded by the server, but one item is sent whole (RemoteOptions).
+  args.SetMaxReceiveMessageSize(options_.max_receive_bytes);
+  channel_ = grpc::CreateCustomChannel(options_.target, credentials, args);
   jobs_ = v1::Jobs::NewStub(channel_);
   operations_ = google::longrunning::Operations::NewStub(channel_);
 }
 
 StatusOr<std::unique_ptr<RemoteClient>> RemoteClient::Connect(const RemoteOptions& options) {
   if (Status s = options.Validate(); !s.ok()) return s;
-  return std::unique_ptr<RemoteClient>(new RemoteClient(options));
+  std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
+  if (options.tls) {
+    grpc::SslCredentialsOptions ssl;
+    if (!options.tls_ca_file.empty()) {
+      DRILLBIF_ASSIGN_OR_RETURN(ssl.pem_root_certs, ReadPemFile(options.tls_ca_file));
+    }
+    credentials = grpc::SslCredentials(ssl);
+  }
+  return std::unique_ptr<RemoteClient>(new RemoteClient(options, credentials));
 }
 
 std::unique_ptr<grpc::ClientContext> RemoteClient::Context(double seconds) const {
@@ -129,11 +182,41 @@ Status RemoteClient::FromGrpc(const grpc::Status& status) const {
   const std::string& target = options_.target;
   switch (status.error_code()) {
     case grpc::StatusCode::UNAVAILABLE:
+      if (options_.tls) {
+        const TlsFailure failure = TlsFailureOf(status.error_message());
+        const std::string what = "the TLS handshake with the drillbif server at " + target +
+                                 " failed (" + status.error_message() + "); ";
+        switch (failure) {
+          case TlsFailure::kVerify:
+            return Status(StatusCode::kUnauthenticated,
+                          what + (options_.tls_ca_file.empty()
+                                      ? std::string("its certificate is not signed by a CA of "
+                                                    "the system's roots: give its CA "
+                                                    "certificate with --tls-ca FILE or "
+                                                    "DRILLBIF_TLS_CA")
+                                      : "its certificate is not signed by the CA of " +
+                                            options_.tls_ca_file + ", or does not name " + target));
+          case TlsFailure::kNotTls:
+            return Status(StatusCode::kUnauthenticated,
+                          what +
+                              "the server does not use TLS: drop --tls, --tls-ca and "
+                              "DRILLBIF_TLS_CA");
+          case TlsFailure::kOther:
+            return Status(StatusCode::kUnauthenticated, what +
+                                                            "check --tls-ca and the server's "
+                                                            "certificate");
+          case TlsFailure::kNone:
+            break;
+        }
+      }
       return Status(StatusCode::kUnavailable,
                     "the drillbif server at " + target + " is not available (" +
                         status.error_message() +
                         "); start drillbif-server there, or name another with --server "
-                        "HOST:PORT or DRILLBIF_SERVER");
+                        "HOST:PORT or DRILLBIF_SERVER" +
+                        (options_.tls ? std::string()
+                                      : std::string("; a server with TLS needs --tls or "
+                                                    "--tls-ca FILE")));
     case grpc::StatusCode::DEADLINE_EXCEEDED:
       return Status(StatusCode::kDeadlineExceeded, "the drillbif server at " + target +
                                                        " did not answer in time (" +
@@ -262,15 +345,58 @@ StatusOr<Operation> RemoteClient::Wait(const std::string& name, double seconds) 
   return op;
 }
 
-StatusOr<v1::GetResultResponse> RemoteClient::GetResult(const std::string& name) {
+Status RemoteClient::GetResultPages(
+    const std::string& name,
+    const std::function<Status(google::protobuf::Message& page)>& on_page) {
   v1::GetResultRequest request;
   request.set_name(name);
-  v1::GetResultResponse response;
-  auto context = Context(options_.rpc_timeout_seconds);
-  if (grpc::Status s = jobs_->GetResult(context.get(), request, &response); !s.ok()) {
-    return FromGrpc(s);
+  request.set_page_size(options_.result_page_size);
+  const google::protobuf::Descriptor* type = nullptr;
+  const jobs::JobKindSpec* kind = nullptr;
+  int64_t total = 0;
+  int64_t items = 0;
+  int64_t pages = 0;
+  for (;;) {
+    v1::GetResultResponse response;
+    auto context = Context(options_.rpc_timeout_seconds);
+    if (grpc::Status s = jobs_->GetResult(context.get(), request, &response); !s.ok()) {
+      Status status = FromGrpc(s);
+      if (pages == 0) return status;
+      return Status(status.code(), "while fetching page " + std::to_string(pages + 1) +
+                                       " of the result of " + name + ": " + status.message());
+    }
+    google::protobuf::Message* page = MutableResultOf(response);
+    if (page == nullptr) return Internal("the server returned no result for " + name);
+    if (pages == 0) {
+      type = page->GetDescriptor();
+      kind = jobs::FindKind(type);
+      if (kind == nullptr)
+        return Internal("the server returned an unknown result " + type->full_name());
+      total = response.total_points();
+    } else if (page->GetDescriptor() != type) {
+      return Internal("page " + std::to_string(pages + 1) + " of the result of " + name + " is a " +
+                      page->GetDescriptor()->full_name() + ", the first a " + type->full_name());
+    }
+    items += kind->ItemsOf(*page);
+    ++pages;
+    DRILLBIF_RETURN_IF_ERROR(on_page(*page));
+    const std::string& next = response.next_page_token();
+    if (next.empty()) break;
+    // A token that does not move on would loop forever: each page but the first and the last
+    // holds an item, so a result has at most total_points + 2 pages.
+    if (next == request.page_token() || pages > total + 1) {
+      return Internal("the server's page token " + next.substr(0, 64) + " for the result of " +
+                      name + " does not lead on (page " + std::to_string(pages) + ", " +
+                      std::to_string(items) + " of " + std::to_string(total) + " items)");
+    }
+    request.set_page_token(next);
   }
-  return response;
+  if (items != total) {
+    return Internal("the result of " + name + " came with " + std::to_string(items) + " items in " +
+                    std::to_string(pages) + " pages; the server announced " +
+                    std::to_string(total));
+  }
+  return Status::Ok();
 }
 
 StatusOr<std::string> RemoteClient::Health() {
@@ -373,20 +499,22 @@ v1::JobMetadata MetadataOf(const Operation& operation) {
   return metadata;
 }
 
-Status ResultOf(const v1::GetResultResponse& response, v1::SimulateResult* result) {
-  return Unpack(response.has_simulate(), response.simulate(), result);
-}
-Status ResultOf(const v1::GetResultResponse& response, v1::SweepResult* result) {
-  return Unpack(response.has_sweep(), response.sweep(), result);
-}
-Status ResultOf(const v1::GetResultResponse& response, v1::ContinueResult* result) {
-  return Unpack(response.has_continue_(), response.continue_(), result);
-}
-Status ResultOf(const v1::GetResultResponse& response, v1::TraceResult* result) {
-  return Unpack(response.has_trace(), response.trace(), result);
-}
-Status ResultOf(const v1::GetResultResponse& response, v1::OptimumResult* result) {
-  return Unpack(response.has_optimum(), response.optimum(), result);
+google::protobuf::Message* MutableResultOf(v1::GetResultResponse& response) {
+  switch (response.result_case()) {
+    case v1::GetResultResponse::kSimulate:
+      return response.mutable_simulate();
+    case v1::GetResultResponse::kSweep:
+      return response.mutable_sweep();
+    case v1::GetResultResponse::kContinue:
+      return response.mutable_continue_();
+    case v1::GetResultResponse::kTrace:
+      return response.mutable_trace();
+    case v1::GetResultResponse::kOptimum:
+      return response.mutable_optimum();
+    case v1::GetResultResponse::RESULT_NOT_SET:
+      break;
+  }
+  return nullptr;
 }
 
 namespace internal {

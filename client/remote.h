@@ -1,6 +1,8 @@
 // drillctl's server mode: a thin client of the drillbif service (proto/drillbif/v1/service.proto).
 // A job is submitted with a Jobs.Submit* rpc, followed through the Watch stream (progress), and
-// its result fetched with GetResult; Ctrl-C cancels it on the server with CancelOperation.
+// its result fetched page by page with GetResult; Ctrl-C cancels it on the server with
+// CancelOperation. The channel is plaintext, or TLS (RemoteOptions::tls) verified against the
+// system's roots or a given CA certificate.
 //
 // Every rpc has a deadline (RemoteOptions::rpc_timeout_seconds for unary calls; a Watch stream is
 // reopened every RemoteOptions::watch_seconds, so no call waits without a bound). Errors come
@@ -10,8 +12,10 @@
 #ifndef DRILLBIF_CLIENT_REMOTE_H_
 #define DRILLBIF_CLIENT_REMOTE_H_
 
+#include <google/protobuf/message.h>
 #include <grpcpp/grpcpp.h>
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -38,6 +42,10 @@ std::string ResolveServer(const std::string& flag);
 // The bearer token: `flag` (--token) when not empty, else DRILLBIF_TOKEN, else empty (none).
 std::string ResolveToken(const std::string& flag);
 
+// The CA certificate file to verify a TLS server with: `flag` (--tls-ca) when not empty, else
+// DRILLBIF_TLS_CA, else empty (the system's roots).
+std::string ResolveTlsCa(const std::string& flag);
+
 // "operations/{id}" for an id given with or without the "operations/" prefix.
 std::string OperationName(const std::string& id_or_name);
 
@@ -53,15 +61,31 @@ struct RemoteOptions {
   // Deadline of one Watch stream, in seconds; a stream that reaches it while the job runs is
   // reopened. 60 s: one reconnect a minute is negligible, and a dead connection is noticed.
   double watch_seconds = 60.0;
-  // Validate(): the target is not empty and both times are > 0.
+  // TLS: the server's certificate is verified against `tls_ca_file`, or the system's roots
+  // when it is empty. false: plaintext (the server must not use TLS then).
+  bool tls = false;
+  // A PEM file of the CA certificate(s) (or the self-signed certificate) that signed the
+  // server's certificate; empty: the system's roots. Only with `tls`.
+  std::string tls_ca_file;
+  // Items per GetResult page (GetResultRequest.page_size, in [1, 100000]). 1000: a result of a
+  // million items (a long sweep or trajectory) takes a thousand rpcs, while a page stays small
+  // enough to hold (the server bounds pages in bytes as well).
+  int result_page_size = 1000;
+  // Largest message the client accepts, in bytes. The server bounds pages in bytes too, but a
+  // single item (a sweep value with many samples, a long curve) is sent whole: 256 MiB holds
+  // any item of a result within the server's default result limit (256 MB), far above gRPC's
+  // default of 4 MiB, while a broken or hostile server cannot make the client allocate more.
+  int max_receive_bytes = 256 << 20;
+  // Validate(): the target is not empty, both times are > 0, the page size and receive limit in
+  // range, a CA file only with `tls`.
   Status Validate() const;
 };
 
 // A connection to one drillbif server. Thread-compatible: use one per thread.
 class RemoteClient {
  public:
-  // Creates the channel (insecure: the service has no TLS yet). Connects lazily, on the first
-  // rpc. INVALID_ARGUMENT when the options are not valid.
+  // Creates the channel (plaintext, or TLS with `options.tls`). Connects lazily, on the first
+  // rpc. INVALID_ARGUMENT when the options are not valid or the CA file cannot be read.
   static StatusOr<std::unique_ptr<RemoteClient>> Connect(const RemoteOptions& options);
 
   const RemoteOptions& options() const { return options_; }
@@ -83,8 +107,14 @@ class RemoteClient {
   Status Cancel(const std::string& name);
   // Operations.WaitOperation for at most `seconds`: the operation, done or not.
   StatusOr<google::longrunning::Operation> Wait(const std::string& name, double seconds);
-  // Jobs.GetResult of the whole result (page_size 0).
-  StatusOr<v1::GetResultResponse> GetResult(const std::string& name);
+  // Jobs.GetResult page by page (RemoteOptions::result_page_size items a page), following
+  // next_page_token to the last page: `on_page` gets each page's result message, in order (it
+  // may take the page's items). Checks that every page is of the first page's kind, that each
+  // token moves on, and that the pages' items add up to the first page's total_points
+  // (INTERNAL otherwise). Errors: the rpc's (FAILED_PRECONDITION when the job has no result,
+  // NOT_FOUND, ...) and on_page's; an error after the first page leaves what on_page did.
+  Status GetResultPages(const std::string& name,
+                        const std::function<Status(google::protobuf::Message& page)>& on_page);
 
   // grpc.health.v1.Health/Check of the whole server (service ""; no token needed): the
   // serving status, "SERVING", "NOT_SERVING" (e.g. shutting down), "SERVICE_UNKNOWN" or
@@ -101,10 +131,12 @@ class RemoteClient {
                                   const std::function<bool()>& interrupted = {});
 
  private:
-  explicit RemoteClient(const RemoteOptions& options);
+  RemoteClient(const RemoteOptions& options,
+               const std::shared_ptr<grpc::ChannelCredentials>& credentials);
   // A context with the token and a deadline `seconds` from now.
   std::unique_ptr<grpc::ClientContext> Context(double seconds) const;
-  // A gRPC error as a Status with the same code and a message that says what to do about it.
+  // A gRPC error as a Status with the same code and a message that says what to do about it
+  // (a failed TLS verification: UNAUTHENTICATED, naming --tls-ca).
   Status FromGrpc(const grpc::Status& status) const;
 
   RemoteOptions options_;
@@ -116,34 +148,34 @@ class RemoteClient {
 // The JobMetadata of an operation (a default one when it has none).
 v1::JobMetadata MetadataOf(const google::longrunning::Operation& operation);
 
-// The result of one kind from a GetResult response; INTERNAL when it holds another kind.
-Status ResultOf(const v1::GetResultResponse& response, v1::SimulateResult* result);
-Status ResultOf(const v1::GetResultResponse& response, v1::SweepResult* result);
-Status ResultOf(const v1::GetResultResponse& response, v1::ContinueResult* result);
-Status ResultOf(const v1::GetResultResponse& response, v1::TraceResult* result);
-Status ResultOf(const v1::GetResultResponse& response, v1::OptimumResult* result);
+// The result message a GetResult response holds (the member of its `result` oneof that is set);
+// null when none is.
+google::protobuf::Message* MutableResultOf(v1::GetResultResponse& response);
 
-// What RunRemote reports of a job besides its result.
+// What RunRemote reports of a job.
 struct RemoteRun {
   // The operation, "operations/{id}".
   std::string name;
   // True when the server answered from its cache (or an identical job) without running.
   bool cache_hit = false;
+  // True when the job was cancelled (by this call, or before): it has no result, since the
+  // server keeps no partial result. `message` names the operation and says so.
+  bool cancelled = false;
+  std::string message;
 };
 
 // Runs a job on the server as the local job runners run it in-process: submits `request`, calls
-// `progress` with the fraction done from each Watch message (from the calling thread) and, when
-// the job succeeded, returns its result. `progress` returning false, or `interrupted` (polled
-// every 50 ms) returning true, cancels the job on the server; the result is then the server's
-// if it finished first, else an empty result of the kind with status "CANCELLED" and a message
-// naming the operation (the server keeps no partial result of a cancelled job).
+// `progress` with the fraction done from each Watch message (from the calling thread) and
+// returns when the job SUCCEEDED (fetch its result with GetResultPages) or was cancelled.
+// `progress` returning false, or `interrupted` (polled every 50 ms) returning true, cancels the
+// job on the server; the run is then the server's if the job finished first, else `cancelled`.
 // Errors: the submit's (INVALID_ARGUMENT naming the field, UNAUTHENTICATED, UNAVAILABLE, ...),
 // and a FAILED job's error (its code and message, e.g. INVALID_ARGUMENT or FAILED_PRECONDITION
 // from the job runner, as --local reports them).
-template <typename Result, typename Request>
-StatusOr<Result> RunRemote(RemoteClient& client, const Request& request,
-                           const ProgressCallback& progress,
-                           const std::function<bool()>& interrupted, RemoteRun* run = nullptr);
+template <typename Request>
+StatusOr<RemoteRun> RunRemote(RemoteClient& client, const Request& request,
+                              const ProgressCallback& progress,
+                              const std::function<bool()>& interrupted);
 
 // ---------------------------------------------------------------------------------------------
 // Implementation details of RunRemote.
@@ -161,36 +193,28 @@ Status ErrorOf(const google::longrunning::Operation& operation);
 
 }  // namespace internal
 
-template <typename Result, typename Request>
-StatusOr<Result> RunRemote(RemoteClient& client, const Request& request,
-                           const ProgressCallback& progress,
-                           const std::function<bool()>& interrupted, RemoteRun* run) {
+template <typename Request>
+StatusOr<RemoteRun> RunRemote(RemoteClient& client, const Request& request,
+                              const ProgressCallback& progress,
+                              const std::function<bool()>& interrupted) {
   StatusOr<google::longrunning::Operation> submitted = client.Submit(request);
   if (!submitted.ok()) return submitted.status();
-  const std::string name = submitted->name();
-  if (run != nullptr) {
-    run->name = name;
-    run->cache_hit = MetadataOf(*submitted).cache_hit();
-  }
+  RemoteRun run;
+  run.name = submitted->name();
+  run.cache_hit = MetadataOf(*submitted).cache_hit();
   bool cancelled = false;
   StatusOr<google::longrunning::Operation> final_op =
       submitted->done() ? submitted
-                        : internal::FollowJob(client, name, progress, interrupted, &cancelled);
+                        : internal::FollowJob(client, run.name, progress, interrupted, &cancelled);
   if (!final_op.ok()) return final_op.status();
-  const v1::JobMetadata metadata = MetadataOf(*final_op);
-  if (metadata.state() == v1::CANCELLED) {
-    Result result;
-    result.set_status(std::string("CANCELLED"));
-    result.set_message(std::string(cancelled ? "cancelled on the server (" : "cancelled (") + name +
-                       "); the server keeps no partial result");
-    return result;
+  if (MetadataOf(*final_op).state() == v1::CANCELLED) {
+    run.cancelled = true;
+    run.message = std::string(cancelled ? "cancelled on the server (" : "cancelled (") + run.name +
+                  "); the server keeps no partial result";
+    return run;
   }
   if (Status s = internal::ErrorOf(*final_op); !s.ok()) return s;
-  StatusOr<v1::GetResultResponse> response = client.GetResult(name);
-  if (!response.ok()) return response.status();
-  Result result;
-  if (Status s = ResultOf(*response, &result); !s.ok()) return s;
-  return result;
+  return run;
 }
 
 }  // namespace drillbif::client

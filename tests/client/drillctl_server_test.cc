@@ -1,21 +1,27 @@
 // drillctl's server mode end to end: a real drillbif-server child process (127.0.0.1, port 0,
 // a SQLite file in a temp dir, a token) and the drillctl binary run as child processes. Each
 // subcommand through --server prints what --local prints (JSON compared byte for byte after the
-// wall-time fields are zeroed; CSV, which prints no times, as is); --detach then `jobs result`
-// gives the same; `jobs list|get|watch|cancel` work; bad flags, a server-side invalid request and
-// a refused token exit 2 with a clear message; an unreachable server exits 1; Ctrl-C cancels the
-// job on the server and exits 130; `health` prints SERVING.
+// wall-time fields are zeroed; CSV, which prints no times, as is), also when the result comes in
+// many GetResult pages and when it is larger than gRPC's default 4 MiB message limit; --detach
+// then `jobs result` gives the same; `jobs list|get|watch|cancel` work; bad flags, a server-side
+// invalid request and a refused token exit 2 with a clear message; an unreachable server exits
+// 1; Ctrl-C cancels the job on the server and exits 130; `health` prints SERVING. A second
+// server with a throwaway self-signed certificate serves TLS: drillctl reaches it with --tls-ca
+// (or DRILLBIF_TLS_CA), and without the certificate fails with a message naming --tls-ca.
 // The binaries' paths come from the build (client/CMakeLists.txt: DRILLCTL_BINARY,
 // DRILLBIF_SERVER_BINARY).
 #include <fcntl.h>
 #include <gmock/gmock.h>
+#include <google/protobuf/util/json_util.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -27,6 +33,7 @@
 #include <thread>
 #include <vector>
 
+#include "drillbif/v1/sweep.pb.h"
 #include "support/temp_dir.h"
 
 #ifndef DRILLCTL_BINARY
@@ -44,6 +51,12 @@ namespace {
 using ::testing::HasSubstr;
 using Args = std::vector<std::string>;
 
+Args Concat(const Args& a, const Args& b) {
+  Args out = a;
+  out.insert(out.end(), b.begin(), b.end());
+  return out;
+}
+
 constexpr char kToken[] = "test-token";
 
 std::string ReadFile(const std::string& path) {
@@ -53,13 +66,14 @@ std::string ReadFile(const std::string& path) {
   return text.str();
 }
 
-// The environment of this process without DRILLBIF_SERVER and DRILLBIF_TOKEN, plus `extra`
-// ("NAME=value" entries).
+// The environment of this process without DRILLBIF_SERVER, DRILLBIF_TOKEN and DRILLBIF_TLS_CA,
+// plus `extra` ("NAME=value" entries).
 std::vector<std::string> Environment(const Args& extra) {
   std::vector<std::string> env;
   for (char** e = environ; *e != nullptr; ++e) {
     const std::string entry(*e);
-    if (entry.rfind("DRILLBIF_SERVER=", 0) == 0 || entry.rfind("DRILLBIF_TOKEN=", 0) == 0) {
+    if (entry.rfind("DRILLBIF_SERVER=", 0) == 0 || entry.rfind("DRILLBIF_TOKEN=", 0) == 0 ||
+        entry.rfind("DRILLBIF_TLS_CA=", 0) == 0) {
       continue;
     }
     env.push_back(entry);
@@ -110,15 +124,16 @@ int Reap(pid_t pid) {
   return WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1;
 }
 
-// A drillbif-server child process on a free port of 127.0.0.1 with a token, one SQLite file.
+// A drillbif-server child process on a free port of 127.0.0.1 with a token, one SQLite file,
+// and `extra` flags.
 class ServerProcess {
  public:
-  explicit ServerProcess(const std::string& dir) : dir_(dir) {
+  explicit ServerProcess(const std::string& dir, const Args& extra = {}) : dir_(dir) {
     const std::string port_file = dir + "/port";
-    pid_ = Spawn(DRILLBIF_SERVER_BINARY,
-                 {"--grpc-port", "0", "--http-port", "0", "--db", dir + "/jobs.db", "--workers",
-                  "2", "--token", kToken, "--port-file", port_file},
-                 {}, dir + "/server.out", dir + "/server.log");
+    Args args = {"--grpc-port", "0", "--http-port", "0",    "--db",        dir + "/jobs.db",
+                 "--workers",   "2", "--token",     kToken, "--port-file", port_file};
+    args.insert(args.end(), extra.begin(), extra.end());
+    pid_ = Spawn(DRILLBIF_SERVER_BINARY, args, {}, dir + "/server.out", dir + "/server.log");
     // The port file (gRPC port on its first line) appears, renamed into place, once serving.
     const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     while (std::chrono::steady_clock::now() < give_up) {
@@ -187,22 +202,56 @@ class DrillctlServer : public ::testing::Test {
     return Drillctl(all);
   }
 
-  // Runs `args` locally and through the server; both exit 0 and print the same (wall times
-  // zeroed in JSON).
-  static void ExpectSameAsLocal(const Args& args) {
+  // Runs `args` locally and through the server (with `remote_flags` too); both exit 0 and print
+  // the same (wall times zeroed in JSON). Returns the local output.
+  static std::string ExpectSameAsLocal(const Args& args, const Args& remote_flags = {}) {
     const Outcome local = Local(args);
-    const Outcome remote = Remote(args);
-    ASSERT_EQ(local.exit_code, 0) << local.err;
-    ASSERT_EQ(remote.exit_code, 0) << remote.err;
+    const Outcome remote = Remote(Concat(remote_flags, args));
+    EXPECT_EQ(local.exit_code, 0) << local.err;
+    EXPECT_EQ(remote.exit_code, 0) << remote.err;
     EXPECT_FALSE(local.out.empty());
-    EXPECT_EQ(WithoutTimes(remote.out), WithoutTimes(local.out));
+    ExpectSameText(WithoutTimes(remote.out), WithoutTimes(local.out));
+    return local.out;
+  }
+
+  // EXPECT_EQ of two outputs, reporting where they first differ (gtest's diff of megabyte
+  // strings takes minutes).
+  static void ExpectSameText(const std::string& got, const std::string& want) {
+    if (got == want) return;
+    const size_t n = std::min(got.size(), want.size());
+    size_t at = 0;
+    while (at < n && got[at] == want[at]) ++at;
+    const size_t from = at < 80 ? 0 : at - 80;
+    ADD_FAILURE() << "outputs of " << got.size() << " and " << want.size()
+                  << " bytes differ at byte " << at << ":\n got: ..." << got.substr(from, 160)
+                  << "\nwant: ..." << want.substr(from, 160);
   }
 
   // The output with every "...Seconds": value (wallSeconds, traceSeconds, regionSeconds,
-  // querySeconds, checkSeconds: run times, which differ between runs) replaced by 0.
+  // querySeconds, checkSeconds: run times, which differ between runs) replaced by 0, JSON
+  // pretty or compact: "<name>Seconds": 0. (By hand: std::regex takes seconds on megabytes.)
   static std::string WithoutTimes(const std::string& text) {
-    static const std::regex seconds("\"([A-Za-z]*Seconds)\": *[-+0-9.eE]+");
-    return std::regex_replace(text, seconds, "\"$1\": 0");
+    static const std::regex name("[A-Za-z]*");
+    std::string out;
+    out.reserve(text.size());
+    size_t copied = 0;
+    for (size_t at = text.find("Seconds\":"); at != std::string::npos;
+         at = text.find("Seconds\":", at + 1)) {
+      const size_t quote = text.rfind('"', at);
+      if (quote == std::string::npos ||
+          !std::regex_match(text.begin() + quote + 1, text.begin() + at, name)) {
+        continue;
+      }
+      size_t end = at + std::strlen("Seconds\":");
+      while (end < text.size() && text[end] == ' ') ++end;
+      const size_t number = end;
+      while (end < text.size() && std::strchr("-+0123456789.eE", text[end]) != nullptr) ++end;
+      if (end == number) continue;
+      out.append(text, copied, at - copied).append("Seconds\": 0");
+      copied = end;
+    }
+    out.append(text, copied);
+    return out;
   }
 
   // The operation name on the first line of --detach's output.
@@ -226,12 +275,6 @@ const Args kSweep = {"sweep", "--param",     "b",       "--min",     "0.1",
                      "both",  "--transient", "20",      "--samples", "5"};
 const Args kContinue = {"continue", "--param", "b", "--min", "0.14", "--max", "0.16"};
 const Args kBox = {"--params", "omega,a", "--min", "0.05,0.25", "--max", "0.15,0.6"};
-
-Args Concat(const Args& a, const Args& b) {
-  Args out = a;
-  out.insert(out.end(), b.begin(), b.end());
-  return out;
-}
 
 TEST_F(DrillctlServer, SimulatePrintsWhatLocalPrints) {
   ExpectSameAsLocal(Concat(kSimulate, {"--format", "csv"}));
@@ -313,8 +356,9 @@ TEST_F(DrillctlServer, JobsListGetAndCancel) {
   EXPECT_THAT(got.out, HasSubstr("\"@type\":\"type.googleapis.com/drillbif.v1.JobMetadata\""));
 
   // A long sweep cancelled with `jobs cancel`: CANCELLED, and `jobs result` says it has none.
-  const Outcome long_sweep = Remote({"--detach", "sweep", "--param", "b", "--min", "0", "--max",
-                                     "0.2", "--steps", "100000", "--samples", "1", "--threads", "1"});
+  const Outcome long_sweep =
+      Remote({"--detach", "sweep", "--param", "b", "--min", "0", "--max", "0.2", "--steps",
+              "100000", "--samples", "1", "--threads", "1"});
   ASSERT_EQ(long_sweep.exit_code, 0) << long_sweep.err;
   const std::string sweep = NameOf(long_sweep);
   const Outcome cancelled = Remote({"jobs", "cancel", sweep, "--format", "csv"});
@@ -415,6 +459,99 @@ TEST_F(DrillctlServer, UnreachableServerExits1) {
   EXPECT_EQ(outcome.exit_code, 1);
   EXPECT_THAT(outcome.err, HasSubstr("the drillbif server at 127.0.0.1:1 is not available"));
   EXPECT_EQ(Drillctl({"--server", "127.0.0.1:1", "--timeout", "5", "health"}).exit_code, 1);
+}
+
+// Results in many GetResult pages (--result-page-size 3, a hidden flag: 3 items a page) print
+// what --local prints: a simulation's Poincare samples, events, modes and trajectory (pages cross
+// from one output to the next), a sweep both ways (JSON and CSV), a continuation with its
+// period-doubled branch (in the first page only; JSON and CSV), a trace with its region, and
+// `jobs result` of such a result in pages of 2. (Each kind's CSV in pages: result_printer_test.)
+TEST_F(DrillctlServer, ResultsOfManyPagesPrintWhatLocalPrints) {
+  const Args pages = {"--result-page-size", "3"};
+  const std::string simulate = ExpectSameAsLocal(
+      Concat(kSimulate,
+             {"--measures", "--poincare", "--events", "--modes", "--trajectory-dt", "20"}),
+      pages);
+  EXPECT_GT(std::count(simulate.begin(), simulate.end(), '{'), 4 * 3);  // more than 4 pages
+  const std::string sweep = ExpectSameAsLocal(kSweep, pages);
+  EXPECT_THAT(sweep, HasSubstr("\"down\": [\n  {"));  // 40 values: 14 pages
+  ExpectSameAsLocal(Concat(kSweep, {"--format", "csv"}), pages);
+  const Args follow_pd = {"continue", "--param",     "b",        "--min", "0.09",
+                          "--max",    "0.12",        "--b",      "0.115", "--max-steps",
+                          "200",      "--follow-pd", "--compact"};
+  const std::string continued = ExpectSameAsLocal(follow_pd, pages);
+  EXPECT_THAT(continued, HasSubstr("\"periodDoubledBranch\":{\"status\":\"COMPLETED\""));
+  ExpectSameAsLocal(Concat(follow_pd, {"--format", "csv"}), pages);
+  ExpectSameAsLocal(Concat(Concat({"trace"}, kBox), {"--grid", "21,21"}), pages);
+
+  const Outcome detached = Remote(Concat({"--detach"}, kSweep));  // done: a cache hit
+  ASSERT_EQ(detached.exit_code, 0) << detached.err;
+  const Outcome result = Remote({"--result-page-size", "2", "jobs", "result", NameOf(detached)});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  ExpectSameText(WithoutTimes(result.out), WithoutTimes(sweep));
+}
+
+// A result of ~9 MB whose two items (sweep values of 130000 Poincare samples, 35 bytes each) are
+// ~4.5 MB each: whatever the page size, a GetResult message is larger than gRPC's default 4 MiB
+// receive limit. It comes through (in the default pages) as --local prints it.
+TEST_F(DrillctlServer, ResultLargerThanFourMegabytesComesThrough) {
+  const Args sweep = {"--compact", "sweep",  "--param",   "b", "--min",       "0.15",
+                      "--max",     "0.151",  "--steps",   "2", "--transient", "0",
+                      "--samples", "130000", "--threads", "2"};
+  const Outcome local = Local(sweep);
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  v1::SweepResult parsed;
+  ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(local.out, &parsed).ok());
+  ASSERT_EQ(parsed.up_size(), 2);
+  EXPECT_GT(parsed.up(0).ByteSizeLong(), size_t{4} << 20);
+  const Outcome remote = Remote(sweep);
+  ASSERT_EQ(remote.exit_code, 0) << remote.err;
+  ExpectSameText(WithoutTimes(remote.out), WithoutTimes(local.out));
+}
+
+// A server with TLS on its gRPC port, from a throwaway self-signed certificate for 127.0.0.1:
+// --tls-ca (or DRILLBIF_TLS_CA) with that certificate reaches it; --tls alone (the system's roots
+// do not sign it) exits 2 naming --tls-ca; plaintext exits 1 (the server closes the connection)
+// saying a TLS server needs --tls; TLS to the plaintext server exits 2; an unreadable CA file
+// exits 2 before any rpc.
+TEST_F(DrillctlServer, TlsServerNeedsItsCertificate) {
+  const std::string dir = dir_->path() + "/tls";
+  std::filesystem::create_directories(dir);
+  const std::string cert = dir + "/cert.pem";
+  const std::string key = dir + "/key.pem";
+  const std::string openssl =
+      "openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 2 "
+      "-subj /CN=localhost -addext subjectAltName=IP:127.0.0.1,DNS:localhost -keyout " +
+      key + " -out " + cert + " 2>/dev/null";
+  ASSERT_EQ(std::system(openssl.c_str()), 0) << "openssl (Debian's openssl package) is needed";
+  ServerProcess tls(dir, {"--tls-cert", cert, "--tls-key", key});
+  ASSERT_GT(tls.port(), 0) << "the TLS server did not start:\n" << tls.log();
+  const Args base = {"--server", tls.address(), "--token", kToken, "--timeout", "10"};
+  const Args request = Concat(kSimulate, {"--format", "csv"});
+
+  const Outcome verified = Drillctl(Concat(Concat(base, {"--tls-ca", cert}), request));
+  EXPECT_EQ(verified.exit_code, 0) << verified.err;
+  EXPECT_EQ(verified.out, Local(request).out);
+  const Outcome from_env = Drillctl(Concat(base, {"jobs", "list"}), {"DRILLBIF_TLS_CA=" + cert});
+  EXPECT_EQ(from_env.exit_code, 0) << from_env.err;
+  EXPECT_THAT(from_env.out, HasSubstr("\"operations/"));
+
+  const Outcome roots = Drillctl(Concat(Concat(base, {"--tls"}), request));
+  EXPECT_EQ(roots.exit_code, 2);
+  EXPECT_TRUE(roots.out.empty());
+  EXPECT_THAT(roots.err, HasSubstr("the TLS handshake with the drillbif server at " +
+                                   tls.address() + " failed"));
+  EXPECT_THAT(roots.err, HasSubstr("give its CA certificate with --tls-ca FILE"));
+  const Outcome plain = Drillctl(Concat(base, request));
+  EXPECT_EQ(plain.exit_code, 1);
+  EXPECT_THAT(plain.err, HasSubstr("a server with TLS needs --tls or --tls-ca FILE"));
+  const Outcome to_plaintext = Drillctl(
+      Concat({"--server", server_->address(), "--token", kToken, "--tls-ca", cert}, request));
+  EXPECT_EQ(to_plaintext.exit_code, 2);
+  EXPECT_THAT(to_plaintext.err, HasSubstr("the server does not use TLS"));
+  const Outcome missing = Drillctl(Concat(Concat(base, {"--tls-ca", dir + "/none.pem"}), request));
+  EXPECT_EQ(missing.exit_code, 2);
+  EXPECT_THAT(missing.err, HasSubstr("--tls-ca: cannot read " + dir + "/none.pem"));
 }
 
 }  // namespace
