@@ -234,6 +234,8 @@ struct Server::Impl {
       spdlog::warn("retention: eviction failed: {}", report.status().ToString());
       return;
     }
+    metrics.CountEvictions(report->jobs_deleted,
+                           report->used_bytes_before - report->used_bytes_after);
     if (report->jobs_deleted > 0) {
       spdlog::info("retention: evicted {} jobs and {} results, store {} -> {} bytes",
                    report->jobs_deleted, report->results_deleted, report->used_bytes_before,
@@ -250,6 +252,7 @@ struct Server::Impl {
     StatusOr<StoreStats> stats = store->Stats();
     if (!stats.ok()) return stats.status();
     snapshot.stats = *stats;
+    snapshot.store_healthy = store->Health().ok();
     snapshot.engine_runs = pool->engine_runs();
     snapshot.watchers = hub->size();
     return metrics.Render(snapshot);
@@ -313,6 +316,7 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   impl->state.hub = impl->hub.get();
   impl->state.pool = impl->pool.get();
   impl->state.executor = impl->executor.get();
+  impl->state.metrics = &impl->metrics;
   impl->jobs = std::make_unique<JobsService>(&impl->state);
   impl->operations = std::make_unique<OperationsService>(&impl->state);
 

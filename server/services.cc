@@ -153,10 +153,14 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
                  "request_id: at most 128 bytes, got " + std::to_string(request_id.size()));
   }
   const jobs::JobKindSpec& spec = *jobs::FindKind(kind);
-  StatusOr<jobs::JobCost> cost = jobs::CheckRequest(spec, request);
-  if (!cost.ok()) return ToGrpc(cost.status());
-  if (Status s = jobs::CheckCost(*cost, state.options.LimitsOf(spec), spec.name.c_str()); !s.ok()) {
+  const auto refuse = [&](const Status& s, const char* reason) {
+    if (state.metrics != nullptr) state.metrics->CountAdmissionRefusal(spec.name, reason);
     return ToGrpc(s);
+  };
+  StatusOr<jobs::JobCost> cost = jobs::CheckRequest(spec, request);
+  if (!cost.ok()) return refuse(cost.status(), "invalid_argument");
+  if (Status s = jobs::CheckCost(*cost, state.options.LimitsOf(spec), spec.name.c_str()); !s.ok()) {
+    return refuse(s, "resource_exhausted");
   }
   SubmitRequest submit;
   submit.kind = spec.name;
@@ -168,7 +172,12 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
   submit.max_queued = state.options.max_queued_jobs;
   submit.max_queued_per_client = state.options.max_queued_per_client;
   StatusOr<SubmitResult> submitted = state.store->Submit(submit);
-  if (!submitted.ok()) return ToGrpc(submitted.status());
+  if (!submitted.ok()) {
+    // RESOURCE_EXHAUSTED from a healthy store is a queue limit; from a faulty one, its disk.
+    return submitted.status().code() == StatusCode::kResourceExhausted && state.store->Health().ok()
+               ? refuse(submitted.status(), "queue_full")
+               : ToGrpc(submitted.status());
+  }
   if (!submitted->cache_hit && !submitted->deduplicated && submitted->shared_with.empty()) {
     state.pool->Wake();
   }

@@ -20,6 +20,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/executor.h"
+#include "server/metrics.h"
 #include "server/server.h"
 #include "server/store/job_store.h"
 #include "server/tokens.h"
@@ -63,6 +64,8 @@ struct ServiceState {
   WatchHub* hub = nullptr;
   WorkerPool* pool = nullptr;
   BoundedExecutor* executor = nullptr;
+  // Counts refusals at submit (null in tests that need no metrics).
+  Metrics* metrics = nullptr;
   OptimumIndex optimum_index;
   // Set by Server::Shutdown: submits fail with UNAVAILABLE.
   std::atomic<bool> shutting_down{false};
