@@ -7,6 +7,7 @@
 #include <exception>
 #include <memory>
 #include <new>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -16,6 +17,7 @@
 #include "drillbif/orbit/periodic_orbit.h"
 #include "drillbif/orbit/signature.h"
 #include "drillbif/version.h"
+#include "jobs/item_batcher.h"
 
 namespace drillbif::jobs {
 namespace {
@@ -37,6 +39,8 @@ constexpr double kSecondsPerStep = 1e-3;
 constexpr double kSecondsPerTransientPeriod = 1e-5;
 constexpr double kPointBytes = 700;
 constexpr double kPointMemoryBytes = 20e3;
+// Share of the progress bar of the start orbit's search.
+constexpr double kStartShare = 0.05;
 
 // A step option must be a finite number > 0.
 Status CheckPositive(const char* field, double v) {
@@ -179,12 +183,24 @@ void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
   out->set_signature_text(SignatureString(model, pt.orbit.signature));
 }
 
-v1::ContinueResult ToProto(const ContinuationResult& r) {
+// The result of a continuation; its branch points go to `points` when given (streamed), else
+// into the result. Errors: the sink's.
+StatusOr<v1::ContinueResult> ToProto(const ContinuationResult& r,
+                                     ItemBatcher<v1::ContinueResult>* points = nullptr) {
   v1::ContinueResult out;
   out.set_status(TerminationName(r.summary.termination));
   out.set_message(r.summary.message);
-  out.mutable_points()->Reserve(static_cast<int>(r.points.size()));
-  for (const ContinuationPoint& pt : r.points) ToProto(pt, out.add_points());
+  if (points != nullptr) {
+    for (const ContinuationPoint& pt : r.points) {
+      if (!points->Add([&](v1::ContinueResult* batch) { ToProto(pt, batch->add_points()); })) {
+        return points->status();
+      }
+    }
+    if (!points->Flush()) return points->status();
+  } else {
+    out.mutable_points()->Reserve(static_cast<int>(r.points.size()));
+    for (const ContinuationPoint& pt : r.points) ToProto(pt, out.add_points());
+  }
   for (const SpecialPoint& sp : r.special_points) ToProto(sp, out.add_special_points());
   out.set_steps(r.summary.steps);
   out.set_rejected_steps(r.summary.rejected_steps);
@@ -250,11 +266,14 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
   const ValueCallback& on_value = context.on_value;
   try {
     ExactPropagator propagator(model);
+    // The start orbit's search is the first 5% of the progress (a transient of 500 periods
+    // takes milliseconds; a long one is bounded by admission).
     StatusOr<PeriodicOrbit> orbit =
-        StartOrbit(propagator, plan.params, plan.search.x0, plan.search.transient_periods);
-    if (!orbit.ok()) return orbit.status();
-    // The search for the start orbit is not interruptible; honour a cancel that came meanwhile.
-    if (progress && !progress(0.0)) {
+        StartOrbit(propagator, plan.params, plan.search.x0, plan.search.transient_periods,
+                   internal::StageProgress(progress, 0.0, kStartShare));
+    const bool cancelled = !orbit.ok() && orbit.status().code() == StatusCode::kCancelled;
+    if (!orbit.ok() && !cancelled) return orbit.status();
+    if (cancelled || (progress && !progress(kStartShare))) {
       v1::ContinueResult out;
       out.set_status(TerminationName(Termination::kCancelled));
       out.set_message("cancelled before the continuation started");
@@ -262,14 +281,16 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
       out.set_wall_seconds(Seconds(start));
       return out;
     }
+    const ProgressCallback branch_progress = internal::StageProgress(progress, kStartShare, 1.0);
     ContinuationCallback callback;
     if (progress || on_value) {
-      callback = [&progress, &on_value](const ContinuationPoint& p, double fraction) {
+      callback = [&branch_progress, &on_value](const ContinuationPoint& p, double fraction) {
         if (on_value) on_value(p.value);
-        return !progress || progress(fraction);
+        return !branch_progress || branch_progress(fraction);
       };
     }
-    const ContinuationResult r = Continue(model, propagator, *orbit, plan.options, callback);
+    const ContinuationResult r =
+        Continue(model, propagator, *orbit, plan.options, callback, branch_progress);
     // A start the engine refuses before the first step (e.g. an orbit that is not admissible) is
     // an error of the request, not a result.
     const StatusCode code = r.summary.status.code();
@@ -277,7 +298,9 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
         (code == StatusCode::kInvalidArgument || code == StatusCode::kFailedPrecondition)) {
       return r.summary.status;
     }
-    v1::ContinueResult out = ToProto(r);
+    std::optional<ItemBatcher<v1::ContinueResult>> points;
+    if (context.sink != nullptr) points.emplace(context.sink);
+    DRILLBIF_ASSIGN_OR_RETURN(v1::ContinueResult out, ToProto(r, points ? &*points : nullptr));
     if (request.follow_period_doubling()) {
       // The first period doubling on the branch whose period-2n orbit attracts (a supercritical
       // doubling): switch onto it.
@@ -288,7 +311,8 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
       std::string tried;
       for (const SpecialPoint& sp : r.special_points) {
         if (sp.kind != SpecialPointKind::kPeriodDoubling) continue;
-        orbit2 = SwitchAtPeriodDoubling(model, propagator, sp, request.param());
+        orbit2 =
+            SwitchAtPeriodDoubling(model, propagator, sp, request.param(), {}, branch_progress);
         if (orbit2.ok()) break;
         tried += (tried.empty() ? "" : "; ") + orbit2.status().message();
       }
@@ -303,7 +327,8 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
             options2.min = std::min(options2.min, orbit2->params[plan.index]);
             options2.max = std::max(options2.max, orbit2->params[plan.index]);
           }
-          *doubled = ToProto(Continue(model, propagator, *orbit2, options2, callback));
+          DRILLBIF_ASSIGN_OR_RETURN(*doubled, ToProto(Continue(model, propagator, *orbit2, options2,
+                                                               callback, progress)));
         }
       }
     }

@@ -54,19 +54,26 @@ v1::ModelParams ToProtoParams(const Params& p) {
 }
 
 StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
-                                   const StateVector& x0, int transient_periods) {
+                                   const StateVector& x0, int transient_periods,
+                                   const ProgressCallback& progress) {
   const Osc& model = Model();
   GuessOptions guess;
   guess.transient_periods = transient_periods;
-  StatusOr<PeriodicOrbit> orbit = OrbitFromSimulation(model, propagator, params, x0, guess);
+  StatusOr<PeriodicOrbit> orbit =
+      OrbitFromSimulation(model, propagator, params, x0, guess, progress);
   if (!orbit.ok()) {
+    if (orbit.status().code() == StatusCode::kCancelled) return orbit.status();
     return FailedPrecondition(
         "the start state is not near a periodic orbit: " + orbit.status().message() +
         " (try another initial_state, more transient_periods, or a parameter value where the "
         "motion is periodic)");
   }
   PeriodicOrbit solved = *orbit;
-  const OrbitSolveSummary summary = SolveOrbit(model, propagator, OrbitSolverOptions(), &solved);
+  const OrbitSolveSummary summary =
+      SolveOrbit(model, propagator, OrbitSolverOptions(), &solved, progress);
+  if (summary.status == SolveStatus::kCancelled) {
+    return Cancelled("cancelled while solving the start orbit");
+  }
   if (summary.status != SolveStatus::kConverged) {
     return FailedPrecondition(
         "the start state is not near a periodic orbit: Newton on the period-" +
@@ -75,6 +82,11 @@ StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
         SolveStatusName(summary.status) + ": " + summary.message + "); try more transient_periods");
   }
   return solved;
+}
+
+ProgressCallback StageProgress(const ProgressCallback& progress, double lo, double hi) {
+  if (!progress) return {};
+  return [progress, lo, hi](double f) { return progress(lo + (hi - lo) * f); };
 }
 
 Status CheckParamValues(const Params& params, int index,

@@ -36,9 +36,15 @@ StateVector ToEngineState(bool has_state, const v1::State& s);
 v1::ModelParams ToProtoParams(const Params& p);
 
 // The start orbit: simulation from x0, a period read off the Poincare returns, then Newton.
-// FAILED_PRECONDITION when there is none to be found from x0.
+// FAILED_PRECONDITION when there is none to be found from x0; CANCELLED when `progress` stopped
+// the search.
 StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
-                                   const StateVector& x0, int transient_periods);
+                                   const StateVector& x0, int transient_periods,
+                                   const ProgressCallback& progress = {});
+
+// `progress` for a stage that covers [lo, hi] of a run's progress: the stage's own fraction f
+// is reported as lo + (hi - lo) f. Empty when `progress` is.
+ProgressCallback StageProgress(const ProgressCallback& progress, double lo, double hi);
 
 // Every value in `bounds` ({field, value}) is a valid value of parameter `index` with the other
 // parameters as in `params`; else INVALID_ARGUMENT "field: why".

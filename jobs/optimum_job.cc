@@ -71,10 +71,11 @@ std::pair<int, int> GridFor(const v1::OptimumRequest& request, const OptimumOpti
 // message's sentence on it.
 std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propagator,
                              const Params& params, const Signature& optimum,
-                             v1::OptimumResult* out) {
+                             const ProgressCallback& progress, v1::OptimumResult* out) {
   const auto start = std::chrono::steady_clock::now();
   const std::vector<StateVector> states = DriftingOscillator::SpreadStates(params);
-  const StatusOr<AttractorSample> sample = SampleAttractors(model, propagator, params, states);
+  const StatusOr<AttractorSample> sample =
+      SampleAttractors(model, propagator, params, states, GuessOptions(), progress);
   out->set_check_seconds(Seconds(start));
   if (!sample.ok()) return "coexistence not checked: " + sample.status().message();
   std::string others;
@@ -125,8 +126,12 @@ StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const TracePlan& plan,
       return held;
     }
   }
-  DRILLBIF_ASSIGN_OR_RETURN(const internal::EngineTrace trace,
-                            internal::TraceCurvesOf(plan, progress));
+  StatusOr<internal::EngineTrace> traced = internal::TraceCurvesOf(plan, progress);
+  if (!traced.ok() && traced.status().code() == StatusCode::kCancelled) {
+    *cancelled = true;
+    return std::make_shared<const OptimumCurves>();
+  }
+  DRILLBIF_ASSIGN_OR_RETURN(const internal::EngineTrace trace, std::move(traced));
   *cancelled = trace.result.summary.cancelled;
   std::shared_ptr<const OptimumCurves> curves =
       OptimumCurvesOf(trace.start, trace.options, trace.result);
@@ -193,11 +198,14 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   }
 
   const auto query_start = std::chrono::steady_clock::now();
-  const RobustOptimum best = FindRobustOptimum(region, plan.options);
+  const RobustOptimum best = FindRobustOptimum(region, plan.options, progress);
   out.set_query_seconds(Seconds(query_start));
   out.set_candidates(best.candidates);
   if (!best.status.ok()) {
-    out.set_status(best.status.code() == StatusCode::kNotFound ? "NOT_FOUND" : "FAILED");
+    const StatusCode code = best.status.code();
+    out.set_status(code == StatusCode::kNotFound    ? "NOT_FOUND"
+                   : code == StatusCode::kCancelled ? "CANCELLED"
+                                                    : "FAILED");
     out.set_message(best.status.message());
     return out;
   }
@@ -222,8 +230,13 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   out.set_signature(SignatureString(model, optimum_signature));
 
   const std::string coexistence =
-      CheckCoexistence(model, propagator, params, optimum_signature, &out);
+      CheckCoexistence(model, propagator, params, optimum_signature, progress, &out);
 
+  if (progress && !progress(1.0)) {  // stopped during the coexistence check
+    out.set_status("CANCELLED");
+    out.set_message("cancelled while checking the coexistence of other motions");
+    return out;
+  }
   const bool failed = curves.failed;
   out.set_status(failed ? "FAILED" : "COMPLETED");
   std::string message = "ROP " + internal::Num(best.rop) + " at " + region.param1 + " = " +

@@ -6,12 +6,15 @@
 #include <exception>
 #include <memory>
 #include <new>
+#include <optional>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "drillbif/common/checked.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/version.h"
+#include "jobs/item_batcher.h"
 #include "jobs/job_common.h"
 
 namespace drillbif::jobs {
@@ -37,8 +40,38 @@ constexpr double kEventsPerPeriod = 8;
 constexpr double kPoincareBytes = 40, kEventBytes = 90, kPeriodModesBytes = 16,
                  kTrajectoryBytes = 55;
 
+void ToProto(const EventRecord& e, v1::Event* out) {
+  const GuardSpec& guard = Model().guards(e.from_mode)[e.guard];
+  out->set_period(static_cast<int32_t>(e.period));
+  out->set_s(e.s);
+  out->set_t(e.t);
+  out->set_surface(guard.surface);
+  out->set_guard(guard.name);
+  out->set_from_mode(ToProtoMode(e.from_mode));
+  out->set_to_mode(ToProtoMode(e.to_mode));
+  out->set_tangential(e.tangential);
+  out->set_p(e.x[Osc::kP]);
+  out->set_y(e.x[Osc::kY]);
+  out->set_q(e.x[Osc::kQ]);
+}
+
+void ToProto(int64_t period, const std::vector<int>& modes, v1::PeriodModes* out) {
+  out->set_period(static_cast<int32_t>(period));
+  for (int mode : modes) out->add_modes(ToProtoMode(mode));
+}
+
+void ToProto(const TrajectoryPoint& tp, v1::TrajectoryPoint* out) {
+  out->set_t(tp.t);
+  out->set_mode(ToProtoMode(tp.mode));
+  out->set_p(tp.x[Osc::kP]);
+  out->set_y(tp.x[Osc::kY]);
+  out->set_q(tp.x[Osc::kQ]);
+  out->set_s(tp.x[Osc::kS]);
+}
+
+// The result of a run; its outputs are those the engine held (none when they were streamed).
+// (Periods fit the proto's int32: admission keeps runs far below 2^31 periods.)
 v1::SimulateResult ToProto(const SimulationResult& r, const SimulationOptions& options) {
-  const Osc& model = Model();
   v1::SimulateResult out;
   out.set_status(TerminationName(r.termination));
   if (!r.status.ok()) out.set_message(r.status.message());
@@ -49,42 +82,53 @@ v1::SimulateResult ToProto(const SimulationResult& r, const SimulationOptions& o
   }
   out.mutable_poincare()->Reserve(static_cast<int>(r.poincare.size()));
   for (const PoincareSample& smp : r.poincare) internal::ToProto(smp, out.add_poincare());
-  for (const EventRecord& e : r.events) {
-    v1::Event* pe = out.add_events();
-    pe->set_period(e.period);
-    pe->set_s(e.s);
-    pe->set_t(e.t);
-    const GuardSpec& guard = model.guards(e.from_mode)[e.guard];
-    pe->set_surface(guard.surface);
-    pe->set_guard(guard.name);
-    pe->set_from_mode(ToProtoMode(e.from_mode));
-    pe->set_to_mode(ToProtoMode(e.to_mode));
-    pe->set_tangential(e.tangential);
-    pe->set_p(e.x[Osc::kP]);
-    pe->set_y(e.x[Osc::kY]);
-    pe->set_q(e.x[Osc::kQ]);
-  }
+  for (const EventRecord& e : r.events) ToProto(e, out.add_events());
   for (size_t i = 0; i < r.period_modes.size(); ++i) {
-    v1::PeriodModes* pm = out.add_period_modes();
-    pm->set_period(options.transient_periods + static_cast<int>(i));
-    for (int mode : r.period_modes[i]) pm->add_modes(ToProtoMode(mode));
+    ToProto(options.transient_periods + static_cast<int64_t>(i), r.period_modes[i],
+            out.add_period_modes());
   }
   out.mutable_trajectory()->Reserve(static_cast<int>(r.trajectory.size()));
-  for (const TrajectoryPoint& tp : r.trajectory) {
-    v1::TrajectoryPoint* pt = out.add_trajectory();
-    pt->set_t(tp.t);
-    pt->set_mode(ToProtoMode(tp.mode));
-    pt->set_p(tp.x[Osc::kP]);
-    pt->set_y(tp.x[Osc::kY]);
-    pt->set_q(tp.x[Osc::kQ]);
-    pt->set_s(tp.x[Osc::kS]);
-  }
+  for (const TrajectoryPoint& tp : r.trajectory) ToProto(tp, out.add_trajectory());
   out.set_segments(r.segments);
   out.set_events_total(r.events_total);
   out.set_evaluations(r.evaluations);
   out.set_engine_version(EngineVersion());
   return out;
 }
+
+// The engine's outputs, as they are produced, to a run's ResultSink: one batcher per field.
+class SimulateStream final : public SimulationSink {
+ public:
+  explicit SimulateStream(ResultSink* sink)
+      : poincare_(sink), events_(sink), modes_(sink), trajectory_(sink) {}
+
+  bool OnPoincare(const PoincareSample& sample) override {
+    return poincare_.Add(
+        [&](v1::SimulateResult* r) { internal::ToProto(sample, r->add_poincare()); });
+  }
+  bool OnEvent(const EventRecord& event) override {
+    return events_.Add([&](v1::SimulateResult* r) { ToProto(event, r->add_events()); });
+  }
+  bool OnPeriodModes(int64_t period, const std::vector<int>& modes) override {
+    return modes_.Add(
+        [&](v1::SimulateResult* r) { ToProto(period, modes, r->add_period_modes()); });
+  }
+  bool OnTrajectoryPoint(const TrajectoryPoint& point) override {
+    return trajectory_.Add([&](v1::SimulateResult* r) { ToProto(point, r->add_trajectory()); });
+  }
+
+  // Sends what is batched; the sink's first error, if any.
+  Status Finish() {
+    for (ItemBatcher<v1::SimulateResult>* b : {&poincare_, &events_, &modes_, &trajectory_}) {
+      b->Flush();
+      DRILLBIF_RETURN_IF_ERROR(b->status());
+    }
+    return Status::Ok();
+  }
+
+ private:
+  ItemBatcher<v1::SimulateResult> poincare_, events_, modes_, trajectory_;
+};
 
 }  // namespace
 
@@ -203,8 +247,12 @@ StatusOr<v1::SimulateResult> RunSimulate(const v1::SimulateRequest& request,
   DRILLBIF_ASSIGN_OR_RETURN(const SimulatePlan plan, PlanSimulate(request));
   try {
     const std::unique_ptr<Propagator> propagator = plan.MakePropagator();
+    SimulationOptions options = plan.options;
+    std::optional<SimulateStream> stream;
+    if (context.sink != nullptr) options.sink = &stream.emplace(context.sink);
     const SimulationResult r =
-        Simulate(Model(), *propagator, plan.params, plan.x0, plan.options, context.progress);
+        Simulate(Model(), *propagator, plan.params, plan.x0, options, context.progress);
+    if (stream) DRILLBIF_RETURN_IF_ERROR(stream->Finish());
     v1::SimulateResult out = ToProto(r, plan.options);
     out.set_wall_seconds(Seconds(start));
     return out;

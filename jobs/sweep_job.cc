@@ -4,11 +4,13 @@
 #include <exception>
 #include <memory>
 #include <new>
+#include <optional>
 #include <string>
 
 #include "drillbif/common/checked.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/version.h"
+#include "jobs/item_batcher.h"
 #include "jobs/job_common.h"
 
 namespace drillbif::jobs {
@@ -127,9 +129,25 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request, const RunCon
   const PropagatorFactory make_propagator = [&model] {
     return std::unique_ptr<Propagator>(std::make_unique<ExactPropagator>(model));
   };
+  // Streamed: each value goes to the sink as it is final (in grid order per direction).
+  std::optional<ItemBatcher<v1::SweepResult>> up, down;
+  SweepPointCallback on_point;
+  if (context.sink != nullptr) {
+    up.emplace(context.sink);
+    down.emplace(context.sink);
+    on_point = [&](SweepDirection direction, int, SweepPoint&& point) {
+      if (direction == SweepDirection::kDown) {
+        return down->Add([&](v1::SweepResult* r) { ToProto(point, false, r->add_down()); });
+      }
+      return up->Add([&](v1::SweepResult* r) { ToProto(point, false, r->add_up()); });
+    };
+  }
   try {
     const SweepResult r = Sweep(model, make_propagator, plan.params, plan.x0, plan.options,
-                                context.progress, context.on_value);
+                                context.progress, context.on_value, on_point);
+    for (auto* batcher : {&up, &down}) {
+      if (*batcher && !(*batcher)->Flush()) return (*batcher)->status();
+    }
     // Sweep validates everything (parameter name, range ends, initial state) before it starts;
     // once started it always completes or is cancelled, single values failing on their own.
     if (r.termination == Termination::kFailed) {

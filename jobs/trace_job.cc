@@ -6,6 +6,7 @@
 #include <exception>
 #include <memory>
 #include <new>
+#include <optional>
 #include <string>
 
 #include "drillbif/common/checked.h"
@@ -14,6 +15,7 @@
 #include "drillbif/orbit/periodic_orbit.h"
 #include "drillbif/simulate/simulator.h"
 #include "drillbif/version.h"
+#include "jobs/item_batcher.h"
 #include "jobs/job_common.h"
 #include "jobs/optimum_cache.h"
 #include "jobs/region_output.h"
@@ -102,25 +104,29 @@ void ToProto(const CurvePoint& p, v1::CurveVertex* out) {
   out->set_stable(p.stability.stable);
 }
 
-// The curves as the proto result.
-v1::TraceResult ToProto(const TraceResult& r) {
+void ToProto(const TracedCurve& c, v1::Curve* curve) {
+  curve->set_kind(CurveKindName(c.curve.kind));
+  curve->set_period(c.start.point.orbit.signature.periods);
+  v1::SpecialPoint::Kind kind = v1::SpecialPoint::KIND_UNSPECIFIED;
+  v1::SpecialPoint::Kind_Parse(SpecialPointKindName(c.start.kind), &kind);
+  curve->set_start_kind(kind);
+  curve->set_start_param(c.start_param);
+  curve->set_from_curve(c.from_curve);
+  curve->set_message(c.curve.summary.message);
+  for (const CurvePoint& p : c.curve.points) ToProto(p, curve->add_points());
+  for (const Codim2Point& e : c.curve.unverified_ends) {
+    ToProto(e.point, curve->add_unverified_ends());
+  }
+}
+
+// The trace as the proto result: its curves too unless `with_curves` is false (they were
+// streamed), its codimension-2 points (each with its curve's index) and notes.
+v1::TraceResult ToProto(const TraceResult& r, bool with_curves) {
   v1::TraceResult out;
   for (const std::string& note : r.summary.notes) out.add_notes(note);
   for (size_t i = 0; i < r.curves.size(); ++i) {
     const TracedCurve& c = r.curves[i];
-    v1::Curve* curve = out.add_curves();
-    curve->set_kind(CurveKindName(c.curve.kind));
-    curve->set_period(c.start.point.orbit.signature.periods);
-    v1::SpecialPoint::Kind kind = v1::SpecialPoint::KIND_UNSPECIFIED;
-    v1::SpecialPoint::Kind_Parse(SpecialPointKindName(c.start.kind), &kind);
-    curve->set_start_kind(kind);
-    curve->set_start_param(c.start_param);
-    curve->set_from_curve(c.from_curve);
-    curve->set_message(c.curve.summary.message);
-    for (const CurvePoint& p : c.curve.points) ToProto(p, curve->add_points());
-    for (const Codim2Point& e : c.curve.unverified_ends) {
-      ToProto(e.point, curve->add_unverified_ends());
-    }
+    if (with_curves) ToProto(c, out.add_curves());
     for (const Codim2Point& q : c.curve.codim2) {
       v1::Codim2Point* cp = out.add_codim2_points();
       cp->set_kind(Codim2KindName(q.kind));
@@ -183,10 +189,27 @@ StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const RunContex
   const double share = request.has_region() ? 0.9 : 1.0;
   ProgressCallback curves_progress;
   if (progress) curves_progress = [&](double f) { return progress(share * f); };
-  StatusOr<internal::EngineTrace> trace = internal::TraceCurvesOf(plan, curves_progress);
-  if (!trace.ok()) return trace.status();
+  // Streamed: each curve goes to the sink once it is final.
+  std::optional<ItemBatcher<v1::TraceResult>> curves;
+  TracedCurveCallback on_curve;
+  if (context.sink != nullptr) {
+    curves.emplace(context.sink);
+    on_curve = [&](int, const TracedCurve& c) {
+      return curves->Add([&](v1::TraceResult* batch) { ToProto(c, batch->add_curves()); });
+    };
+  }
+  StatusOr<internal::EngineTrace> trace = internal::TraceCurvesOf(plan, curves_progress, on_curve);
+  if (curves && !curves->Flush()) return curves->status();
+  if (!trace.ok()) {
+    if (trace.status().code() != StatusCode::kCancelled) return trace.status();
+    v1::TraceResult out;
+    out.set_status("CANCELLED");
+    out.set_message("cancelled while looking for the start orbit");
+    out.set_engine_version(EngineVersion());
+    return out;
+  }
   const std::pair<int, int> grid = plan.region_grid.value_or(std::pair<int, int>(0, 0));
-  v1::TraceResult out = ToProto(trace->result);
+  v1::TraceResult out = ToProto(trace->result, /*with_curves=*/!curves);
   // Curves an optimum can use (period 1 only, as its are) go to the cache for later optimum jobs.
   const bool for_optimum = cache != nullptr && !trace->result.summary.cancelled &&
                            !request.period2() && request.max_period() <= 1;
@@ -266,17 +289,19 @@ JobCost RegionCost(int n1, int n2) {
 
 namespace internal {
 
-StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallback& progress) {
+StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallback& progress,
+                                    const TracedCurveCallback& on_curve) {
   EngineTrace out;
   out.started = std::chrono::steady_clock::now();
   const Osc& model = Model();
   out.options = plan.options;
   ExactPropagator propagator(model);
   StatusOr<PeriodicOrbit> orbit =
-      StartOrbit(propagator, plan.params, plan.search.x0, plan.search.transient_periods);
+      StartOrbit(propagator, plan.params, plan.search.x0, plan.search.transient_periods, progress);
   if (!orbit.ok()) return orbit.status();
   out.start = *orbit;
-  out.result = TraceCurves(model, propagator, out.start, out.options, progress);
+  out.result = TraceCurves(model, propagator, out.start, out.options,
+                           StageProgress(progress, 0.02, 1.0), on_curve);
   if (!out.result.summary.status.ok()) return out.result.summary.status;
   return out;
 }

@@ -63,9 +63,11 @@ struct EngineTrace {
   std::chrono::steady_clock::time_point started;
 };
 
-// Finds the start orbit of a checked request and traces; `progress` as in RunTrace. Exceptions
+// Finds the start orbit of a checked request and traces; `progress` as in RunTrace, `on_curve`
+// as TraceCurves'. CANCELLED when `progress` stopped the search for the start orbit. Exceptions
 // are the caller's to catch.
-StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallback& progress);
+StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallback& progress,
+                                    const TracedCurveCallback& on_curve = {});
 
 // Whether a curve or a branch of the trace failed (a curve's termination, or a note of a branch
 // or a start that failed): its curves may then miss some.
