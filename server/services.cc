@@ -116,29 +116,20 @@ StatusOr<Operation> OperationOf(const ServiceState& state, const JobRecord& reco
   return op;
 }
 
-// The reactor's default reactor, finished with `status` at once.
-grpc::ServerUnaryReactor* FinishNow(grpc::CallbackServerContext* context, grpc::Status status) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  reactor->Finish(std::move(status));
-  return reactor;
-}
-
 // Checks the token, then runs `work` (given the caller's client) on the executor and finishes the
 // call with its status.
-grpc::ServerUnaryReactor* Offload(ServiceState* state, grpc::CallbackServerContext* context,
-                                  std::function<grpc::Status(const std::string& client)> work) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  StatusOr<std::string> client = Authorize(*state, context);
-  if (!client.ok()) {
-    reactor->Finish(ToGrpc(client.status()));
-    return reactor;
+template <typename Call>
+void Offload(ServiceState* state, Call* call,
+             std::function<grpc::Status(const std::string& client)> work) {
+  StatusOr<std::string> client = Authorize(*state, call->context());
+  if (!client.ok()) return call->Finish(ToGrpc(client.status()));
+  auto task = [call, client = std::move(client).value(), work = std::move(work)]() {
+    call->Finish(work(client));
+  };
+  if (!state->executor->TrySubmit(std::move(task))) {
+    call->Finish(Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                       "the server is busy: its request queue is full; retry later"));
   }
-  if (!state->executor->TrySubmit([reactor, client = std::move(client).value(),
-                                   work = std::move(work)]() { reactor->Finish(work(client)); })) {
-    reactor->Finish(Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "the server is busy: its request queue is full; retry later"));
-  }
-  return reactor;
 }
 
 // Validates, keys and submits a request of `kind` for `client`; fills `op`. Runs on the executor.
@@ -238,7 +229,7 @@ Clock::time_point WaitDeadline(const grpc::CallbackServerContext* context,
 
 // Streams a job's metadata (Watch). The hub delivers records; the reactor writes the newest one
 // not yet written, one write at a time, and finishes after writing a final state.
-class WatchReactor : public grpc::ServerWriteReactor<v1::JobMetadata> {
+class WatchReactor : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
  public:
   // The hub's side: shared so that it survives the reactor (which gRPC deletes in OnDone).
   class Sink : public JobWatcher {
@@ -252,12 +243,11 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobMetadata> {
         FinishLocked(ToGrpc(record.status()));
         return true;
       }
-      v1::JobMetadata metadata = MetadataOf(*record);
       const bool final = IsFinished(record->state);
-      std::string bytes = metadata.SerializeAsString();
+      std::string bytes = MetadataOf(*record).SerializeAsString();
       if (bytes != last_bytes_) {
-        last_bytes_ = std::move(bytes);
-        pending_ = std::move(metadata);
+        last_bytes_ = bytes;
+        pending_ = std::move(bytes);
         pending_final_ = final;
         if (!writing_) WriteLocked();
       }
@@ -302,7 +292,8 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobMetadata> {
 
    private:
     void WriteLocked() {
-      current_ = std::move(*pending_);
+      grpc::Slice slice(*pending_);
+      current_ = grpc::ByteBuffer(&slice, 1);
       pending_.reset();
       writing_ = true;
       if (pending_final_) {
@@ -330,8 +321,8 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobMetadata> {
     bool finishing_ = false;
     bool pending_final_ = false;
     std::optional<grpc::Status> finish_wanted_;
-    std::optional<v1::JobMetadata> pending_;
-    v1::JobMetadata current_;
+    std::optional<std::string> pending_;  // a serialized JobMetadata
+    grpc::ByteBuffer current_;
     std::string last_bytes_;
   };
 
@@ -480,80 +471,105 @@ Status OptimumIndex::Load(JobStore& store) {
 
 // --- Jobs --------------------------------------------------------------------------------------
 
-grpc::ServerUnaryReactor* JobsService::SubmitSimulate(grpc::CallbackServerContext* context,
-                                                      const v1::SubmitSimulateRequest* request,
-                                                      Operation* response) {
-  return Offload(state_, context, [this, request, response](const std::string& client) {
-    return Submit(*state_, v1::SIMULATE, request->request(), request->request_id(), client,
-                  response);
+template <typename Call>
+void JobsService::RegisterUnary(const char* method, void (JobsService::*handle)(Call*)) {
+  MarkMethodRawCallback(
+      MethodIndex(v1::Jobs::service_full_name(), method),
+      new grpc::internal::CallbackUnaryHandler<grpc::ByteBuffer, grpc::ByteBuffer>(
+          [this, handle](grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
+                         grpc::ByteBuffer* out) {
+            auto* call = new Call(context, out);
+            grpc::ServerUnaryReactor* reactor = call->reactor();
+            if (grpc::Status s = ParseRequest(*in, call->mutable_request()); !s.ok()) {
+              call->Finish(std::move(s));
+            } else {
+              (this->*handle)(call);
+            }
+            return reactor;
+          }));
+}
+
+JobsService::JobsService(ServiceState* state) : state_(state) {
+  RegisterUnary("SubmitSimulate", &JobsService::SubmitSimulate);
+  RegisterUnary("SubmitSweep", &JobsService::SubmitSweep);
+  RegisterUnary("SubmitContinue", &JobsService::SubmitContinue);
+  RegisterUnary("SubmitTrace", &JobsService::SubmitTrace);
+  RegisterUnary("SubmitOptimum", &JobsService::SubmitOptimum);
+  RegisterUnary("GetResult", &JobsService::GetResult);
+  RegisterUnary("QueryOptimum", &JobsService::QueryOptimum);
+  MarkMethodRawCallback(
+      MethodIndex(v1::Jobs::service_full_name(), "Watch"),
+      new grpc::internal::CallbackServerStreamingHandler<grpc::ByteBuffer, grpc::ByteBuffer>(
+          [this](grpc::CallbackServerContext* context, const grpc::ByteBuffer* request) {
+            return Watch(context, request);
+          }));
+}
+
+void JobsService::SubmitSimulate(SubmitSimulateCall* call) {
+  Offload(state_, call, [this, call](const std::string& client) {
+    const auto& r = call->request();
+    return Submit(*state_, v1::SIMULATE, r.request(), r.request_id(), client, call->response());
   });
 }
 
-grpc::ServerUnaryReactor* JobsService::SubmitSweep(grpc::CallbackServerContext* context,
-                                                   const v1::SubmitSweepRequest* request,
-                                                   Operation* response) {
-  return Offload(state_, context, [this, request, response](const std::string& client) {
-    return Submit(*state_, v1::SWEEP, request->request(), request->request_id(), client, response);
+void JobsService::SubmitSweep(SubmitSweepCall* call) {
+  Offload(state_, call, [this, call](const std::string& client) {
+    const auto& r = call->request();
+    return Submit(*state_, v1::SWEEP, r.request(), r.request_id(), client, call->response());
   });
 }
 
-grpc::ServerUnaryReactor* JobsService::SubmitContinue(grpc::CallbackServerContext* context,
-                                                      const v1::SubmitContinueRequest* request,
-                                                      Operation* response) {
-  return Offload(state_, context, [this, request, response](const std::string& client) {
-    return Submit(*state_, v1::CONTINUE, request->request(), request->request_id(), client,
-                  response);
+void JobsService::SubmitContinue(SubmitContinueCall* call) {
+  Offload(state_, call, [this, call](const std::string& client) {
+    const auto& r = call->request();
+    return Submit(*state_, v1::CONTINUE, r.request(), r.request_id(), client, call->response());
   });
 }
 
-grpc::ServerUnaryReactor* JobsService::SubmitTrace(grpc::CallbackServerContext* context,
-                                                   const v1::SubmitTraceRequest* request,
-                                                   Operation* response) {
-  return Offload(state_, context, [this, request, response](const std::string& client) {
-    return Submit(*state_, v1::TRACE, request->request(), request->request_id(), client, response);
+void JobsService::SubmitTrace(SubmitTraceCall* call) {
+  Offload(state_, call, [this, call](const std::string& client) {
+    const auto& r = call->request();
+    return Submit(*state_, v1::TRACE, r.request(), r.request_id(), client, call->response());
   });
 }
 
-grpc::ServerUnaryReactor* JobsService::SubmitOptimum(grpc::CallbackServerContext* context,
-                                                     const v1::SubmitOptimumRequest* request,
-                                                     Operation* response) {
-  return Offload(state_, context, [this, request, response](const std::string& client) {
-    return Submit(*state_, v1::OPTIMUM, request->request(), request->request_id(), client,
-                  response);
+void JobsService::SubmitOptimum(SubmitOptimumCall* call) {
+  Offload(state_, call, [this, call](const std::string& client) {
+    const auto& r = call->request();
+    return Submit(*state_, v1::OPTIMUM, r.request(), r.request_id(), client, call->response());
   });
 }
 
-grpc::ServerUnaryReactor* JobsService::GetResult(grpc::CallbackServerContext* context,
-                                                 const v1::GetResultRequest* request,
-                                                 v1::GetResultResponse* response) {
-  return Offload(state_, context, [this, request, response](const std::string&) {
-    StatusOr<std::string> id = IdOf(request->name());
+void JobsService::GetResult(GetResultCall* call) {
+  Offload(state_, call, [this, call](const std::string&) {
+    const v1::GetResultRequest& request = call->request();
+    v1::GetResultResponse* response = call->response();
+    StatusOr<std::string> id = IdOf(request.name());
     if (!id.ok()) return ToGrpc(id.status());
     StatusOr<JobRecord> record = state_->store->Get(*id);
     if (!record.ok()) return ToGrpc(record.status());
     if (record->state != JobState::kSucceeded) {
       return Error(grpc::StatusCode::FAILED_PRECONDITION,
-                   "operation " + request->name() + " is " + JobStateName(record->state) +
+                   "operation " + request.name() + " is " + JobStateName(record->state) +
                        ", not SUCCEEDED: it has no result (GetOperation shows its error)");
     }
-    response->set_name(request->name());
+    response->set_name(request.name());
     const jobs::JobKindSpec* kind = jobs::FindKind(record->kind);
     if (kind == nullptr) return ToGrpc(Internal("job " + *id + " has an unknown kind"));
-    return ToGrpc(ReadResultPage(*state_->store, *kind, *id, request->page_size(),
-                                 request->page_token(), state_->options.pages, response));
+    return ToGrpc(ReadResultPage(*state_->store, *kind, *id, request.page_size(),
+                                 request.page_token(), state_->options.pages, response));
   });
 }
 
-grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext* context,
-                                                    const v1::QueryOptimumRequest* request,
-                                                    v1::QueryOptimumResponse* response) {
-  StatusOr<std::string> client = Authorize(*state_, context);
-  if (!client.ok()) return FinishNow(context, ToGrpc(client.status()));
+void JobsService::QueryOptimum(QueryOptimumCall* call) {
+  StatusOr<std::string> client = Authorize(*state_, call->context());
+  if (!client.ok()) return call->Finish(ToGrpc(client.status()));
+  const v1::QueryOptimumRequest& request = call->request();
+  v1::QueryOptimumResponse* response = call->response();
   const jobs::JobKindSpec& optimum = *jobs::FindKind(v1::OPTIMUM);
-  StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request->request());
-  if (!cost.ok()) return FinishNow(context, ToGrpc(cost.status()));
-  const std::string key =
-      jobs::CacheKey(optimum.name, jobs::DeterministicBytes(request->request()));
+  StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request.request());
+  if (!cost.ok()) return call->Finish(ToGrpc(cost.status()));
+  const std::string key = jobs::CacheKey(optimum.name, jobs::DeterministicBytes(request.request()));
   std::string id;
   std::shared_ptr<const v1::OptimumResult> cached;
   const bool known = state_->optimum_index.Find(key, &id, &cached);
@@ -562,67 +578,66 @@ grpc::ServerUnaryReactor* JobsService::QueryOptimum(grpc::CallbackServerContext*
     *response->mutable_optimum() = *cached;
     response->set_operation(OperationName(id));
     response->set_stored(true);
-    return FinishNow(context, grpc::Status::OK);
+    return call->Finish(grpc::Status::OK);
   }
-  if (!known && !request->compute()) {
-    return FinishNow(context, Error(grpc::StatusCode::NOT_FOUND,
-                                    "no stored optimum for this request; set compute to run it"));
+  if (!known && !request.compute()) {
+    return call->Finish(Error(grpc::StatusCode::NOT_FOUND,
+                              "no stored optimum for this request; set compute to run it"));
   }
   // Computing it is a submit: the same limits apply (a stored answer is served whatever its cost).
   if (Status s = jobs::CheckCost(*cost, state_->options.LimitsOf(optimum), "optimum");
       !known && !s.ok()) {
-    return FinishNow(context, ToGrpc(s));
+    return call->Finish(ToGrpc(s));
   }
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const Clock::time_point deadline = WaitDeadline(context, &request->timeout());
+  const Clock::time_point deadline = WaitDeadline(call->context(), &request.timeout());
   ServiceState* state = state_;
   const bool submitted = state_->executor->TrySubmit([=] {
     if (known) {
       grpc::Status s = AnswerFromStore(*state, key, id, /*stored=*/true, response);
-      if (s.ok() || !request->compute()) {
-        reactor->Finish(s);
-        return;
-      }
+      if (s.ok() || !request.compute()) return call->Finish(s);
       state->optimum_index.RemoveJob(id);  // Deleted meanwhile: compute it again.
     }
     Operation op;
     std::string job_id;
-    if (grpc::Status s = Submit(*state, v1::OPTIMUM, request->request(), "", *client, &op, &job_id);
+    if (grpc::Status s = Submit(*state, v1::OPTIMUM, request.request(), "", *client, &op, &job_id);
         !s.ok()) {
-      reactor->Finish(s);
-      return;
+      return call->Finish(s);
     }
     response->set_operation(op.name());
-    auto done = [state, reactor, response, key, job_id](const StatusOr<JobRecord>& record,
-                                                        bool timed_out) {
-      if (!record.ok()) return reactor->Finish(ToGrpc(record.status()));
-      if (timed_out) return reactor->Finish(grpc::Status::OK);  // `operation` names the job.
+    auto done = [state, call, response, key, job_id](const StatusOr<JobRecord>& record,
+                                                     bool timed_out) {
+      if (!record.ok()) return call->Finish(ToGrpc(record.status()));
+      if (timed_out) return call->Finish(grpc::Status::OK);  // `operation` names the job.
       switch (record->state) {
         case JobState::kSucceeded:
-          return reactor->Finish(AnswerFromStore(*state, key, job_id, record->cache_hit, response));
+          return call->Finish(AnswerFromStore(*state, key, job_id, record->cache_hit, response));
         case JobState::kFailed:
-          return reactor->Finish(ToGrpc(Status(record->error_code, record->error_message)));
+          return call->Finish(ToGrpc(Status(record->error_code, record->error_message)));
         default:
-          return reactor->Finish(Error(grpc::StatusCode::ABORTED, "the optimum job was cancelled"));
+          return call->Finish(Error(grpc::StatusCode::ABORTED, "the optimum job was cancelled"));
       }
     };
     state->hub->Add(job_id, std::make_shared<WaitWatcher>(deadline, std::move(done)));
   });
   if (!submitted) {
-    reactor->Finish(Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "the server is busy: its request queue is full; retry later"));
+    call->Finish(Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                       "the server is busy: its request queue is full; retry later"));
   }
-  return reactor;
 }
 
-grpc::ServerWriteReactor<v1::JobMetadata>* JobsService::Watch(grpc::CallbackServerContext* context,
-                                                              const v1::WatchRequest* request) {
+grpc::ServerWriteReactor<grpc::ByteBuffer>* JobsService::Watch(grpc::CallbackServerContext* context,
+                                                               const grpc::ByteBuffer* raw) {
   auto* reactor = new WatchReactor();
   if (StatusOr<std::string> client = Authorize(*state_, context); !client.ok()) {
     reactor->Finish(ToGrpc(client.status()));
     return reactor;
   }
-  StatusOr<std::string> id = IdOf(request->name());
+  v1::WatchRequest request;
+  if (grpc::Status s = ParseRequest(*raw, &request); !s.ok()) {
+    reactor->Finish(s);
+    return reactor;
+  }
+  StatusOr<std::string> id = IdOf(request.name());
   if (!id.ok()) {
     reactor->Finish(ToGrpc(id.status()));
     return reactor;
@@ -634,51 +649,74 @@ grpc::ServerWriteReactor<v1::JobMetadata>* JobsService::Watch(grpc::CallbackServ
 
 // --- Operations --------------------------------------------------------------------------------
 
-grpc::ServerUnaryReactor* OperationsService::ListOperations(
-    grpc::CallbackServerContext* context, const google::longrunning::ListOperationsRequest* request,
-    google::longrunning::ListOperationsResponse* response) {
-  return Offload(state_, context, [this, request, response](const std::string&) {
-    if (!request->name().empty() && request->name() != "operations") {
+template <typename Call>
+void OperationsService::RegisterUnary(const char* method,
+                                      void (OperationsService::*handle)(Call*)) {
+  MarkMethodRawCallback(
+      MethodIndex(google::longrunning::Operations::service_full_name(), method),
+      new grpc::internal::CallbackUnaryHandler<grpc::ByteBuffer, grpc::ByteBuffer>(
+          [this, handle](grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
+                         grpc::ByteBuffer* out) {
+            auto* call = new Call(context, out);
+            grpc::ServerUnaryReactor* reactor = call->reactor();
+            if (grpc::Status s = ParseRequest(*in, call->mutable_request()); !s.ok()) {
+              call->Finish(std::move(s));
+            } else {
+              (this->*handle)(call);
+            }
+            return reactor;
+          }));
+}
+
+OperationsService::OperationsService(ServiceState* state) : state_(state) {
+  RegisterUnary("ListOperations", &OperationsService::ListOperations);
+  RegisterUnary("GetOperation", &OperationsService::GetOperation);
+  RegisterUnary("DeleteOperation", &OperationsService::DeleteOperation);
+  RegisterUnary("CancelOperation", &OperationsService::CancelOperation);
+  RegisterUnary("WaitOperation", &OperationsService::WaitOperation);
+}
+
+void OperationsService::ListOperations(ListOperationsCall* call) {
+  Offload(state_, call, [this, call](const std::string&) {
+    const google::longrunning::ListOperationsRequest& request = call->request();
+    if (!request.name().empty() && request.name() != "operations") {
       return Error(grpc::StatusCode::INVALID_ARGUMENT,
-                   "name: the parent is \"operations\" (or empty), got '" + request->name() + "'");
+                   "name: the parent is \"operations\" (or empty), got '" +
+                       request.name().substr(0, 100) + "'");
     }
     ListRequest list;
-    if (Status s = ParseFilter(request->filter(), &list); !s.ok()) return ToGrpc(s);
-    list.page_size = request->page_size();
-    list.page_token = request->page_token();
+    if (Status s = ParseFilter(request.filter(), &list); !s.ok()) return ToGrpc(s);
+    list.page_size = request.page_size();
+    list.page_token = request.page_token();
     StatusOr<ListResult> page = state_->store->List(list);
     if (!page.ok()) return ToGrpc(page.status());
     for (const JobRecord& job : page->jobs) {
       // Results are left out of lists (they can be large): GetOperation or GetResult has them.
       StatusOr<Operation> op = OperationOf(*state_, job, /*include_response=*/false);
       if (!op.ok()) return ToGrpc(op.status());
-      *response->add_operations() = std::move(op).value();
+      *call->response()->add_operations() = std::move(op).value();
     }
-    response->set_next_page_token(page->next_page_token);
+    call->response()->set_next_page_token(page->next_page_token);
     return grpc::Status::OK;
   });
 }
 
-grpc::ServerUnaryReactor* OperationsService::GetOperation(
-    grpc::CallbackServerContext* context, const google::longrunning::GetOperationRequest* request,
-    Operation* response) {
-  return Offload(state_, context, [this, request, response](const std::string&) {
-    StatusOr<std::string> id = IdOf(request->name());
+void OperationsService::GetOperation(GetOperationCall* call) {
+  Offload(state_, call, [this, call](const std::string&) {
+    StatusOr<std::string> id = IdOf(call->request().name());
     if (!id.ok()) return ToGrpc(id.status());
     StatusOr<JobRecord> record = state_->store->Get(*id);
     if (!record.ok()) return ToGrpc(record.status());
     StatusOr<Operation> op = OperationOf(*state_, *record, /*include_response=*/true);
     if (!op.ok()) return ToGrpc(op.status());
-    *response = std::move(op).value();
+    *call->response() = std::move(op).value();
     return grpc::Status::OK;
   });
 }
 
-grpc::ServerUnaryReactor* OperationsService::DeleteOperation(
-    grpc::CallbackServerContext* context,
-    const google::longrunning::DeleteOperationRequest* request, google::protobuf::Empty*) {
-  return Offload(state_, context, [this, request](const std::string&) {
-    StatusOr<std::string> id = IdOf(request->name());
+void OperationsService::DeleteOperation(DeleteOperationCall* call) {
+  Offload(state_, call, [this, call](const std::string&) {
+    StatusOr<std::string> id = IdOf(call->request().name());
     if (!id.ok()) return ToGrpc(id.status());
     if (Status s = state_->store->Delete(*id); !s.ok()) return ToGrpc(s);
     state_->optimum_index.RemoveJob(*id);
@@ -687,11 +725,9 @@ grpc::ServerUnaryReactor* OperationsService::DeleteOperation(
   });
 }
 
-grpc::ServerUnaryReactor* OperationsService::CancelOperation(
-    grpc::CallbackServerContext* context,
-    const google::longrunning::CancelOperationRequest* request, google::protobuf::Empty*) {
-  return Offload(state_, context, [this, request](const std::string&) {
-    StatusOr<std::string> id = IdOf(request->name());
+void OperationsService::CancelOperation(CancelOperationCall* call) {
+  Offload(state_, call, [this, call](const std::string&) {
+    StatusOr<std::string> id = IdOf(call->request().name());
     if (!id.ok()) return ToGrpc(id.status());
     StatusOr<JobState> after = state_->store->Cancel(*id);
     if (!after.ok()) return ToGrpc(after.status());
@@ -702,28 +738,25 @@ grpc::ServerUnaryReactor* OperationsService::CancelOperation(
   });
 }
 
-grpc::ServerUnaryReactor* OperationsService::WaitOperation(
-    grpc::CallbackServerContext* context, const google::longrunning::WaitOperationRequest* request,
-    Operation* response) {
-  if (StatusOr<std::string> client = Authorize(*state_, context); !client.ok()) {
-    return FinishNow(context, ToGrpc(client.status()));
+void OperationsService::WaitOperation(WaitOperationCall* call) {
+  if (StatusOr<std::string> client = Authorize(*state_, call->context()); !client.ok()) {
+    return call->Finish(ToGrpc(client.status()));
   }
-  StatusOr<std::string> id = IdOf(request->name());
-  if (!id.ok()) return FinishNow(context, ToGrpc(id.status()));
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const google::longrunning::WaitOperationRequest& request = call->request();
+  StatusOr<std::string> id = IdOf(request.name());
+  if (!id.ok()) return call->Finish(ToGrpc(id.status()));
   ServiceState* state = state_;
-  auto done = [state, reactor, response](const StatusOr<JobRecord>& record, bool) {
-    if (!record.ok()) return reactor->Finish(ToGrpc(record.status()));
+  auto done = [state, call](const StatusOr<JobRecord>& record, bool) {
+    if (!record.ok()) return call->Finish(ToGrpc(record.status()));
     StatusOr<Operation> op = OperationOf(*state, *record, /*include_response=*/true);
-    if (!op.ok()) return reactor->Finish(ToGrpc(op.status()));
-    *response = std::move(op).value();
-    reactor->Finish(grpc::Status::OK);
+    if (!op.ok()) return call->Finish(ToGrpc(op.status()));
+    *call->response() = std::move(op).value();
+    call->Finish(grpc::Status::OK);
   };
   state_->hub->Add(
       *id, std::make_shared<WaitWatcher>(
-               WaitDeadline(context, request->has_timeout() ? &request->timeout() : nullptr),
+               WaitDeadline(call->context(), request.has_timeout() ? &request.timeout() : nullptr),
                std::move(done)));
-  return reactor;
 }
 
 }  // namespace drillbif::server

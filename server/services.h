@@ -1,9 +1,10 @@
 // The gRPC services of the server (internal to server/): drillbif.v1.Jobs and
-// google.longrunning.Operations, callback API. Handlers check the bearer token, then hand their
-// store work to the bounded executor (RESOURCE_EXHAUSTED when it is full) or register with the
-// watch hub (Watch, WaitOperation, QueryOptimum computing); they never run the engine and never
-// block a gRPC thread on disk. The one exception is QueryOptimum's cached answer, an in-memory
-// map lookup answered inline.
+// google.longrunning.Operations, callback API with raw requests (server/grpc_calls.h: bytes that
+// do not parse are INVALID_ARGUMENT naming the field). Handlers check the bearer token, then hand
+// their store work to the bounded executor (RESOURCE_EXHAUSTED when it is full) or register with
+// the watch hub (Watch, WaitOperation, QueryOptimum computing); they never run the engine and
+// never block a gRPC thread on disk. The one exception is QueryOptimum's cached answer, an
+// in-memory map lookup answered inline.
 #ifndef DRILLBIF_SERVER_SERVICES_H_
 #define DRILLBIF_SERVER_SERVICES_H_
 
@@ -20,6 +21,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/executor.h"
+#include "server/grpc_calls.h"
 #include "server/metrics.h"
 #include "server/server.h"
 #include "server/store/job_store.h"
@@ -80,64 +82,65 @@ std::string OperationName(const std::string& id);
 // The metadata of a job record.
 v1::JobMetadata MetadataOf(const JobRecord& record);
 
-// drillbif.v1.Jobs.
+// The calls of the two services, served from raw bytes (server/grpc_calls.h).
+using SubmitSimulateCall = UnaryCall<v1::SubmitSimulateRequest, google::longrunning::Operation>;
+using SubmitSweepCall = UnaryCall<v1::SubmitSweepRequest, google::longrunning::Operation>;
+using SubmitContinueCall = UnaryCall<v1::SubmitContinueRequest, google::longrunning::Operation>;
+using SubmitTraceCall = UnaryCall<v1::SubmitTraceRequest, google::longrunning::Operation>;
+using SubmitOptimumCall = UnaryCall<v1::SubmitOptimumRequest, google::longrunning::Operation>;
+using GetResultCall = UnaryCall<v1::GetResultRequest, v1::GetResultResponse>;
+using QueryOptimumCall = UnaryCall<v1::QueryOptimumRequest, v1::QueryOptimumResponse>;
+using ListOperationsCall = UnaryCall<google::longrunning::ListOperationsRequest,
+                                     google::longrunning::ListOperationsResponse>;
+using GetOperationCall =
+    UnaryCall<google::longrunning::GetOperationRequest, google::longrunning::Operation>;
+using DeleteOperationCall =
+    UnaryCall<google::longrunning::DeleteOperationRequest, google::protobuf::Empty>;
+using CancelOperationCall =
+    UnaryCall<google::longrunning::CancelOperationRequest, google::protobuf::Empty>;
+using WaitOperationCall =
+    UnaryCall<google::longrunning::WaitOperationRequest, google::longrunning::Operation>;
+
+// drillbif.v1.Jobs. Every method is a raw callback method (server/grpc_calls.h), registered by
+// the constructor: the generated typed handlers are never called.
 class JobsService final : public v1::Jobs::CallbackService {
  public:
-  explicit JobsService(ServiceState* state) : state_(state) {}
-
-  grpc::ServerUnaryReactor* SubmitSimulate(grpc::CallbackServerContext* context,
-                                           const v1::SubmitSimulateRequest* request,
-                                           google::longrunning::Operation* response) override;
-  grpc::ServerUnaryReactor* SubmitSweep(grpc::CallbackServerContext* context,
-                                        const v1::SubmitSweepRequest* request,
-                                        google::longrunning::Operation* response) override;
-  grpc::ServerUnaryReactor* SubmitContinue(grpc::CallbackServerContext* context,
-                                           const v1::SubmitContinueRequest* request,
-                                           google::longrunning::Operation* response) override;
-  grpc::ServerUnaryReactor* SubmitTrace(grpc::CallbackServerContext* context,
-                                        const v1::SubmitTraceRequest* request,
-                                        google::longrunning::Operation* response) override;
-  grpc::ServerUnaryReactor* SubmitOptimum(grpc::CallbackServerContext* context,
-                                          const v1::SubmitOptimumRequest* request,
-                                          google::longrunning::Operation* response) override;
-  grpc::ServerUnaryReactor* GetResult(grpc::CallbackServerContext* context,
-                                      const v1::GetResultRequest* request,
-                                      v1::GetResultResponse* response) override;
-  grpc::ServerUnaryReactor* QueryOptimum(grpc::CallbackServerContext* context,
-                                         const v1::QueryOptimumRequest* request,
-                                         v1::QueryOptimumResponse* response) override;
-  grpc::ServerWriteReactor<v1::JobMetadata>* Watch(grpc::CallbackServerContext* context,
-                                                   const v1::WatchRequest* request) override;
+  explicit JobsService(ServiceState* state);
 
  private:
+  // A unary method of the service by name, parsed into `Call`'s request and handled by
+  // `handle`.
+  template <typename Call>
+  void RegisterUnary(const char* method, void (JobsService::*handle)(Call*));
+
+  void SubmitSimulate(SubmitSimulateCall* call);
+  void SubmitSweep(SubmitSweepCall* call);
+  void SubmitContinue(SubmitContinueCall* call);
+  void SubmitTrace(SubmitTraceCall* call);
+  void SubmitOptimum(SubmitOptimumCall* call);
+  void GetResult(GetResultCall* call);
+  void QueryOptimum(QueryOptimumCall* call);
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* Watch(grpc::CallbackServerContext* context,
+                                                    const grpc::ByteBuffer* request);
+
   ServiceState* const state_;
 };
 
-// google.longrunning.Operations over the same jobs.
+// google.longrunning.Operations over the same jobs; raw callback methods as JobsService's.
 class OperationsService final : public google::longrunning::Operations::CallbackService {
  public:
-  explicit OperationsService(ServiceState* state) : state_(state) {}
-
-  grpc::ServerUnaryReactor* ListOperations(
-      grpc::CallbackServerContext* context,
-      const google::longrunning::ListOperationsRequest* request,
-      google::longrunning::ListOperationsResponse* response) override;
-  grpc::ServerUnaryReactor* GetOperation(grpc::CallbackServerContext* context,
-                                         const google::longrunning::GetOperationRequest* request,
-                                         google::longrunning::Operation* response) override;
-  grpc::ServerUnaryReactor* DeleteOperation(
-      grpc::CallbackServerContext* context,
-      const google::longrunning::DeleteOperationRequest* request,
-      google::protobuf::Empty* response) override;
-  grpc::ServerUnaryReactor* CancelOperation(
-      grpc::CallbackServerContext* context,
-      const google::longrunning::CancelOperationRequest* request,
-      google::protobuf::Empty* response) override;
-  grpc::ServerUnaryReactor* WaitOperation(grpc::CallbackServerContext* context,
-                                          const google::longrunning::WaitOperationRequest* request,
-                                          google::longrunning::Operation* response) override;
+  explicit OperationsService(ServiceState* state);
 
  private:
+  template <typename Call>
+  void RegisterUnary(const char* method, void (OperationsService::*handle)(Call*));
+
+  void ListOperations(ListOperationsCall* call);
+  void GetOperation(GetOperationCall* call);
+  void DeleteOperation(DeleteOperationCall* call);
+  void CancelOperation(CancelOperationCall* call);
+  void WaitOperation(WaitOperationCall* call);
+
   ServiceState* const state_;
 };
 

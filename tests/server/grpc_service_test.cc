@@ -638,6 +638,40 @@ TEST_F(GrpcServiceTest, MissingOrWrongTokenIsUnauthenticated) {
   EXPECT_TRUE(operations_->ListOperations(right.get(), list, &page).ok());
 }
 
+// Request bytes that do not parse are INVALID_ARGUMENT with a message naming the field (gRPC's own
+// handlers would answer UNIMPLEMENTED with an empty message): invalid UTF-8 in a proto3 string, a
+// truncated message, garbage; for every kind of method (submit, operations, the Watch stream).
+TEST_F(GrpcServiceTest, UnparsableRequestBytesAreInvalidArgumentNamingTheField) {
+  const auto call = [](const std::string& method, const std::string& bytes) {
+    std::string response;
+    grpc::Status s = drillbif::testing::GenericUnary(*channel_, method, bytes, &response,
+                                                     std::string("Bearer ") + kToken);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << method;
+    return s.error_message();
+  };
+  // SubmitSweepRequest{request (1): SweepRequest{param (2): "\xff\xfe"}}.
+  const std::string sweep("\x0a\x04\x12\x02\xff\xfe", 6);
+  EXPECT_EQ(call("/drillbif.v1.Jobs/SubmitSweep", sweep),
+            "not a valid drillbif.v1.SubmitSweepRequest: request.param: not valid UTF-8");
+  // request_id (2) with invalid UTF-8.
+  EXPECT_THAT(call("/drillbif.v1.Jobs/SubmitSimulate", std::string("\x12\x01\xc3", 3)),
+              HasSubstr("request_id: not valid UTF-8"));
+  // A length beyond the message, garbage.
+  EXPECT_THAT(call("/drillbif.v1.Jobs/SubmitTrace", std::string("\x0a\x7f\x01", 3)),
+              HasSubstr("a length beyond the message"));
+  EXPECT_THAT(call("/drillbif.v1.Jobs/GetResult", std::string("\xff\xff\xff", 3)),
+              HasSubstr("not a valid drillbif.v1.GetResultRequest: malformed protobuf bytes"));
+  EXPECT_THAT(call("/google.longrunning.Operations/GetOperation", std::string("\x0a\x01\x80", 3)),
+              HasSubstr("name: not valid UTF-8"));
+  // The Watch stream, with a name of invalid UTF-8.
+  std::string watch_response;
+  const grpc::Status watch = drillbif::testing::GenericServerStreamFirst(
+      *channel_, "/drillbif.v1.Jobs/Watch", std::string("\x0a\x01\xfe", 3), &watch_response,
+      std::string("Bearer ") + kToken);
+  EXPECT_EQ(watch.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(watch.error_message(), HasSubstr("name: not valid UTF-8"));
+}
+
 TEST_F(GrpcServiceTest, HealthReportsServing) {
   EXPECT_EQ(drillbif::testing::HealthStatus(*channel_), 1);  // SERVING
 }

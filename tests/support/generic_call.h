@@ -14,13 +14,15 @@
 
 namespace drillbif::testing {
 
-// The bytes of one unary call of `method` with `request` bytes.
+// The bytes of one unary call of `method` with `request` bytes (and `authorization` metadata
+// when not empty).
 inline grpc::Status GenericUnary(const std::shared_ptr<grpc::Channel>& channel,
                                  const std::string& method, const std::string& request,
-                                 std::string* response) {
+                                 std::string* response, const std::string& authorization = "") {
   grpc::GenericStub stub(channel);
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  if (!authorization.empty()) context.AddMetadata("authorization", authorization);
   grpc::Slice slice(request);
   grpc::ByteBuffer in(&slice, 1);
   grpc::ByteBuffer out;
@@ -31,6 +33,48 @@ inline grpc::Status GenericUnary(const std::shared_ptr<grpc::Channel>& channel,
   std::vector<grpc::Slice> slices;
   if (status.ok() && out.Dump(&slices).ok()) {
     for (const grpc::Slice& s : slices) response->append(s.begin(), s.end());
+  }
+  return status;
+}
+
+// A server-streaming call of `method` with `request` bytes: its first message's bytes in
+// *response (when one comes) and its final status (the call is cancelled after the first
+// message).
+inline grpc::Status GenericServerStreamFirst(const std::shared_ptr<grpc::Channel>& channel,
+                                             const std::string& method, const std::string& request,
+                                             std::string* response,
+                                             const std::string& authorization = "") {
+  grpc::GenericStub stub(channel);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  if (!authorization.empty()) context.AddMetadata("authorization", authorization);
+  grpc::CompletionQueue cq;
+  std::unique_ptr<grpc::GenericClientAsyncReaderWriter> call =
+      stub.PrepareCall(&context, method, &cq);
+  void* tag = nullptr;
+  bool ok = false;
+  call->StartCall(reinterpret_cast<void*>(1));
+  cq.Next(&tag, &ok);
+  grpc::Slice slice(request);
+  grpc::ByteBuffer in(&slice, 1);
+  call->WriteLast(in, grpc::WriteOptions(), reinterpret_cast<void*>(2));
+  cq.Next(&tag, &ok);
+  grpc::ByteBuffer out;
+  call->Read(&out, reinterpret_cast<void*>(3));
+  cq.Next(&tag, &ok);
+  if (ok) {
+    std::vector<grpc::Slice> slices;
+    if (out.Dump(&slices).ok()) {
+      for (const grpc::Slice& s : slices) response->append(s.begin(), s.end());
+    }
+    context.TryCancel();
+  }
+  grpc::Status status;
+  call->Finish(&status, reinterpret_cast<void*>(4));
+  while (cq.Next(&tag, &ok) && tag != reinterpret_cast<void*>(4)) {
+  }
+  cq.Shutdown();
+  while (cq.Next(&tag, &ok)) {
   }
   return status;
 }
