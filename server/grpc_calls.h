@@ -10,7 +10,9 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/message.h>
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/impl/codegen/server_callback_handlers.h>
 
+#include <functional>
 #include <string>
 #include <string_view>
 
@@ -64,6 +66,26 @@ class UnaryCall {
 // order gRPC registers methods in, for MarkMethodRawCallback. Aborts when there is no such
 // method: the names are the services' own, fixed in the code.
 int MethodIndex(std::string_view service_full_name, std::string_view name);
+
+// The raw callback handler of one unary method: each call becomes a `Call` (a UnaryCall) whose
+// request is parsed from the raw bytes; one that does not parse is finished with ParseRequest's
+// INVALID_ARGUMENT, any other is given to `handle`, which finishes it. For
+// grpc::Service::MarkMethodRawCallback, which takes ownership of the handler.
+template <typename Call>
+grpc::internal::MethodHandler* RawUnaryHandler(std::function<void(Call*)> handle) {
+  return new grpc::internal::CallbackUnaryHandler<grpc::ByteBuffer, grpc::ByteBuffer>(
+      [handle = std::move(handle)](grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
+                                   grpc::ByteBuffer* out) {
+        auto* call = new Call(context, out);
+        grpc::ServerUnaryReactor* reactor = call->reactor();
+        if (grpc::Status s = ParseRequest(*in, call->mutable_request()); !s.ok()) {
+          call->Finish(std::move(s));
+        } else {
+          handle(call);
+        }
+        return reactor;
+      });
+}
 
 }  // namespace drillbif::server
 

@@ -475,26 +475,15 @@ template <typename Call>
 void JobsService::RegisterUnary(const char* method, void (JobsService::*handle)(Call*)) {
   MarkMethodRawCallback(
       MethodIndex(v1::Jobs::service_full_name(), method),
-      new grpc::internal::CallbackUnaryHandler<grpc::ByteBuffer, grpc::ByteBuffer>(
-          [this, handle](grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
-                         grpc::ByteBuffer* out) {
-            auto* call = new Call(context, out);
-            grpc::ServerUnaryReactor* reactor = call->reactor();
-            if (grpc::Status s = ParseRequest(*in, call->mutable_request()); !s.ok()) {
-              call->Finish(std::move(s));
-            } else {
-              (this->*handle)(call);
-            }
-            return reactor;
-          }));
+      RawUnaryHandler<Call>([this, handle](Call* call) { (this->*handle)(call); }));
 }
 
 JobsService::JobsService(ServiceState* state) : state_(state) {
-  RegisterUnary("SubmitSimulate", &JobsService::SubmitSimulate);
-  RegisterUnary("SubmitSweep", &JobsService::SubmitSweep);
-  RegisterUnary("SubmitContinue", &JobsService::SubmitContinue);
-  RegisterUnary("SubmitTrace", &JobsService::SubmitTrace);
-  RegisterUnary("SubmitOptimum", &JobsService::SubmitOptimum);
+  RegisterUnary("SubmitSimulate", &JobsService::SubmitJob<v1::SIMULATE, SubmitSimulateCall>);
+  RegisterUnary("SubmitSweep", &JobsService::SubmitJob<v1::SWEEP, SubmitSweepCall>);
+  RegisterUnary("SubmitContinue", &JobsService::SubmitJob<v1::CONTINUE, SubmitContinueCall>);
+  RegisterUnary("SubmitTrace", &JobsService::SubmitJob<v1::TRACE, SubmitTraceCall>);
+  RegisterUnary("SubmitOptimum", &JobsService::SubmitJob<v1::OPTIMUM, SubmitOptimumCall>);
   RegisterUnary("GetResult", &JobsService::GetResult);
   RegisterUnary("QueryOptimum", &JobsService::QueryOptimum);
   MarkMethodRawCallback(
@@ -505,38 +494,11 @@ JobsService::JobsService(ServiceState* state) : state_(state) {
           }));
 }
 
-void JobsService::SubmitSimulate(SubmitSimulateCall* call) {
+template <v1::JobKind kKind, typename Call>
+void JobsService::SubmitJob(Call* call) {
   Offload(state_, call, [this, call](const std::string& client) {
     const auto& r = call->request();
-    return Submit(*state_, v1::SIMULATE, r.request(), r.request_id(), client, call->response());
-  });
-}
-
-void JobsService::SubmitSweep(SubmitSweepCall* call) {
-  Offload(state_, call, [this, call](const std::string& client) {
-    const auto& r = call->request();
-    return Submit(*state_, v1::SWEEP, r.request(), r.request_id(), client, call->response());
-  });
-}
-
-void JobsService::SubmitContinue(SubmitContinueCall* call) {
-  Offload(state_, call, [this, call](const std::string& client) {
-    const auto& r = call->request();
-    return Submit(*state_, v1::CONTINUE, r.request(), r.request_id(), client, call->response());
-  });
-}
-
-void JobsService::SubmitTrace(SubmitTraceCall* call) {
-  Offload(state_, call, [this, call](const std::string& client) {
-    const auto& r = call->request();
-    return Submit(*state_, v1::TRACE, r.request(), r.request_id(), client, call->response());
-  });
-}
-
-void JobsService::SubmitOptimum(SubmitOptimumCall* call) {
-  Offload(state_, call, [this, call](const std::string& client) {
-    const auto& r = call->request();
-    return Submit(*state_, v1::OPTIMUM, r.request(), r.request_id(), client, call->response());
+    return Submit(*state_, kKind, r.request(), r.request_id(), client, call->response());
   });
 }
 
@@ -654,18 +616,7 @@ void OperationsService::RegisterUnary(const char* method,
                                       void (OperationsService::*handle)(Call*)) {
   MarkMethodRawCallback(
       MethodIndex(google::longrunning::Operations::service_full_name(), method),
-      new grpc::internal::CallbackUnaryHandler<grpc::ByteBuffer, grpc::ByteBuffer>(
-          [this, handle](grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
-                         grpc::ByteBuffer* out) {
-            auto* call = new Call(context, out);
-            grpc::ServerUnaryReactor* reactor = call->reactor();
-            if (grpc::Status s = ParseRequest(*in, call->mutable_request()); !s.ok()) {
-              call->Finish(std::move(s));
-            } else {
-              (this->*handle)(call);
-            }
-            return reactor;
-          }));
+      RawUnaryHandler<Call>([this, handle](Call* call) { (this->*handle)(call); }));
 }
 
 OperationsService::OperationsService(ServiceState* state) : state_(state) {

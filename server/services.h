@@ -113,11 +113,9 @@ class JobsService final : public v1::Jobs::CallbackService {
   template <typename Call>
   void RegisterUnary(const char* method, void (JobsService::*handle)(Call*));
 
-  void SubmitSimulate(SubmitSimulateCall* call);
-  void SubmitSweep(SubmitSweepCall* call);
-  void SubmitContinue(SubmitContinueCall* call);
-  void SubmitTrace(SubmitTraceCall* call);
-  void SubmitOptimum(SubmitOptimumCall* call);
+  // Submit<Kind>: a job of kind kKind from the call's request and request_id.
+  template <v1::JobKind kKind, typename Call>
+  void SubmitJob(Call* call);
   void GetResult(GetResultCall* call);
   void QueryOptimum(QueryOptimumCall* call);
   grpc::ServerWriteReactor<grpc::ByteBuffer>* Watch(grpc::CallbackServerContext* context,
