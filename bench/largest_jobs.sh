@@ -142,7 +142,7 @@ for row in "${kinds[@]}"; do
   refused=$(submit "$kind" "$over")
   refusal="HTTP ${refused%% *}"
   if [[ ${refused%% *} != 200 ]]; then
-    refusal="$refusal, names $(jq -r .message <<<"${refused#* }" | grep -o 'max_[a-z_]*' || echo '?')"
+    refusal="$refusal, names $(jq -r .message <<<"${refused#* }" | grep -o '(max_[a-z_]* of' | tr -d '(' | sed 's/ of$//' || echo '?')"
   fi
   stop_server
   db=$(cat "$dir"/jobs.db* | wc -c)

@@ -279,6 +279,11 @@ JobCost TraceCost(const TracePlan& plan) {
     cost.seconds.amount += region.seconds.amount;
     cost.result_bytes.amount += region.result_bytes.amount;
     cost.memory_bytes.amount += region.memory_bytes.amount;
+    // A refusal names what drives it: the region's grid when it is most of the cost.
+    const std::string grid = region.seconds.driver + " (request.region.grid)";
+    if (region.seconds.amount > cost.seconds.amount / 2) cost.seconds.driver = grid;
+    if (region.result_bytes.amount > cost.result_bytes.amount / 2) cost.result_bytes.driver = grid;
+    if (region.memory_bytes.amount > cost.memory_bytes.amount / 2) cost.memory_bytes.driver = grid;
   }
   return cost;
 }
