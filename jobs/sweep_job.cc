@@ -25,6 +25,10 @@ using internal::Seconds;
 constexpr double kSecondsPerPeriod = 1e-5;
 constexpr double kSampleBytes = 40;
 constexpr double kValueBytes = 30;  // a grid value's own fields (value, status)
+// A grid value's own work beyond its periods (its simulation's setup, the result item, its
+// stream and progress): 3571428 values of one period each ran 87 s on the server on a loaded
+// 2-core machine (bench/largest_jobs.sh), ~24 us a value, of which ~5 us is the period.
+constexpr double kSecondsPerValue = 2.5e-5;
 
 StatusOr<SweepOptions> ToSweepOptions(const v1::SweepRequest& request) {
   SweepOptions options;
@@ -108,7 +112,7 @@ JobCost SweepCost(const SweepPlan& plan) {
           CheckedMul(int64_t{o.chunk_start_transient_factor}, int64_t{o.transient_periods}),
           int64_t{kMaxSweepThreads}));
   JobCost cost;
-  cost.seconds.amount = periods * kSecondsPerPeriod;
+  cost.seconds.amount = periods * kSecondsPerPeriod + CountOrInfinity(values) * kSecondsPerValue;
   cost.seconds.driver =
       "request.steps * directions * (request.transient_periods + "
       "request.sample_periods) = " +

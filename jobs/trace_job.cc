@@ -166,9 +166,16 @@ constexpr double kTraceReferenceSeconds = 30;
 constexpr double kPeriodFactor = 20;
 constexpr double kTraceBytesPerSecond = 2e5;
 constexpr double kTraceMemoryPerSecond = 3e6;
-// A region node: ~15 us to classify (157000 nodes in 2.35 s), ~200 bytes held.
-constexpr double kRegionSecondsPerNode = 1.5e-5;
-constexpr double kRegionBytesPerNode = 200;
+// A region node, measured on the server (bench/largest_jobs.sh: trace jobs of the small (omega,
+// a) box with 601^2 and 901^2 grids, the growth of the server's VmHWM and the run time between the
+// two): ~480 bytes held at the peak (the engine's grid and per-node orbits, the result proto and
+// its serialization) and 26 us (idle) to 45 us (a loaded 2-core machine) to fill. 600 bytes and
+// 50 us keep the largest admitted region (~1.6e6 nodes) under the 1 GB memory limit.
+constexpr double kRegionSecondsPerNode = 5e-5;
+constexpr double kRegionBytesPerNode = 600;
+// The stored region: the ROP (a double) and the label of each node with their tags, ~13.5 bytes
+// a node in the store (the same runs' db size).
+constexpr double kRegionResultBytesPerNode = 16;
 
 // The span of values of a parameter the reference box covers (omega in [0.05, 2], a in
 // [0.01, 8]), and for the others the range their studies use (MODEL.md).
@@ -272,6 +279,11 @@ JobCost TraceCost(const TracePlan& plan) {
     cost.seconds.amount += region.seconds.amount;
     cost.result_bytes.amount += region.result_bytes.amount;
     cost.memory_bytes.amount += region.memory_bytes.amount;
+    // A refusal names what drives it: the region's grid when it is most of the cost.
+    const std::string grid = region.seconds.driver + " (request.region.grid)";
+    if (region.seconds.amount > cost.seconds.amount / 2) cost.seconds.driver = grid;
+    if (region.result_bytes.amount > cost.result_bytes.amount / 2) cost.result_bytes.driver = grid;
+    if (region.memory_bytes.amount > cost.memory_bytes.amount / 2) cost.memory_bytes.driver = grid;
   }
   return cost;
 }
@@ -282,7 +294,7 @@ JobCost RegionCost(int n1, int n2) {
       "a region grid of " + std::to_string(n1) + " x " + std::to_string(n2) + " nodes";
   JobCost cost;
   cost.seconds = {nodes * kRegionSecondsPerNode, driver};
-  cost.result_bytes = {nodes * 8, driver};  // labels and polygons, well under a word a node
+  cost.result_bytes = {nodes * kRegionResultBytesPerNode, driver};
   cost.memory_bytes = {nodes * kRegionBytesPerNode, driver};
   return cost;
 }
