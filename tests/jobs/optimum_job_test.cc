@@ -214,6 +214,53 @@ TEST(OptimumCache, KeepsTheMostRecentlyUsed) {
   EXPECT_NE(OptimumCache::KeyOf(r1.trace()), OptimumCache::KeyOf(r2.trace()));
 }
 
+// A region of n x n nodes (its grid's vectors filled) and its approximate size computed from the
+// element sizes independently of ApproximateBytes' code: two value axes of doubles, a label (int)
+// and a ROP (double) per node.
+std::shared_ptr<StabilityRegion> RegionOfNodes(int n) {
+  auto region = std::make_shared<StabilityRegion>();
+  region->grid.n1 = region->grid.n2 = n;
+  region->grid.values1.assign(n, 0.0);
+  region->grid.values2.assign(n, 0.0);
+  region->grid.label.assign(static_cast<size_t>(n) * n, RegionGrid::kOutside);
+  region->grid.rop.assign(static_cast<size_t>(n) * n, 0.0);
+  return region;
+}
+
+int64_t NodeBytes(int n) {
+  return 2 * n * int64_t{sizeof(double)} + int64_t{n} * n * int64_t{sizeof(int) + sizeof(double)};
+}
+
+// The cache holds at most its byte bound: the least recently used regions, then curves, go first,
+// and a region larger than the bound alone is not kept, so that the memory a server holds between
+// jobs does not grow with the largest regions it computed.
+TEST(OptimumCache, HoldsAtMostItsByteBound) {
+  auto curves = std::make_shared<OptimumCurves>();
+  const int64_t curves_bytes = OptimumCache::ApproximateBytes(*curves);
+  const auto small = RegionOfNodes(100), large = RegionOfNodes(400);
+  EXPECT_GE(OptimumCache::ApproximateBytes(*small), NodeBytes(100));
+  EXPECT_LT(OptimumCache::ApproximateBytes(*small), NodeBytes(100) + 4096);
+  // Room for the curves of two keys and two small regions, not for a large one.
+  const int64_t bound = 2 * curves_bytes + 2 * OptimumCache::ApproximateBytes(*small) + 1024;
+  ASSERT_LT(bound, NodeBytes(400));
+  OptimumCache cache(4, 2, bound);
+  cache.PutCurves("a", curves);
+  cache.PutRegion("a", 100, 100, small);
+  cache.PutCurves("b", curves);
+  cache.PutRegion("b", 100, 100, small);
+  EXPECT_LE(cache.bytes(), bound);
+  EXPECT_EQ(cache.FindRegion("a", 100, 100), small);   // a is now the most recent
+  cache.PutRegion("a", 101, 101, RegionOfNodes(101));  // over the bound: b goes, the oldest
+  EXPECT_LE(cache.bytes(), bound);
+  EXPECT_EQ(cache.FindCurves("b"), nullptr);
+  EXPECT_NE(cache.FindRegion("a", 101, 101), nullptr);
+  cache.PutRegion("a", 400, 400, large);  // larger than the bound alone: not kept
+  EXPECT_EQ(cache.FindRegion("a", 400, 400), nullptr);
+  EXPECT_LE(cache.bytes(), bound);
+  cache.PutCurves("a", curves);  // replaced curves drop their regions and their bytes
+  EXPECT_EQ(cache.bytes(), curves_bytes);
+}
+
 TEST(RunTrace, RegionOnRequestOnly) {
   v1::TraceRequest request = testing::SmallBoxTrace();
   const StatusOr<v1::TraceResult> plain = RunTrace(request);
