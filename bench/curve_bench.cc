@@ -10,7 +10,7 @@
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 
 namespace drillbif {
@@ -19,12 +19,12 @@ namespace {
 // The whole trace: both one-parameter branches and every curve (the start orbit excluded), with
 // the corrector aiming at state.range(0) Newton iterations per curve step (3: the default, the
 // FINE curve steps of a trace request; 4: COARSE).
-void BM_TraceIssueBox(benchmark::State& state) {
+void BM_TraceReferenceBox(benchmark::State& state) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   const PeriodicOrbit start =
       *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  TraceOptions options = testing::Issue4Box();
+  TraceOptions options = testing::ReferenceBox();
   options.curve.target_iterations = static_cast<int>(state.range(0));
   TraceResult r;
   for (auto _ : state) {
@@ -41,7 +41,7 @@ void BM_TraceIssueBox(benchmark::State& state) {
   state.counters["codim2"] = codim2;
   if (!r.summary.status.ok()) state.SkipWithError("trace failed");
 }
-BENCHMARK(BM_TraceIssueBox)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_TraceReferenceBox)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One curve: the l1 grazing curve from the omega-branch grazing at 0.5088 (a = 0.3), 688 points
 // and four codimension-2 points (two flip-, one fold-, one double grazing); the cost per point of

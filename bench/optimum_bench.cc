@@ -15,7 +15,7 @@
 namespace drillbif {
 namespace {
 
-v1::OptimumRequest Issue4Request(double margin) {
+v1::OptimumRequest ReferenceBoxRequest(double margin) {
   v1::OptimumRequest r;
   v1::TraceRequest* t = r.mutable_trace();
   t->add_trace_params(std::string("omega"));  // not ("omega"): GCC 12 -Wrestrict false positive
@@ -33,7 +33,7 @@ v1::OptimumRequest Issue4Request(double margin) {
 jobs::OptimumCache& WarmCache() {
   static jobs::OptimumCache* cache = [] {
     auto* c = new jobs::OptimumCache;
-    (void)jobs::RunOptimum(Issue4Request(0.02), {.optimum_cache = c});
+    (void)jobs::RunOptimum(ReferenceBoxRequest(0.02), {.optimum_cache = c});
     return c;
   }();
   return *cache;
@@ -46,7 +46,7 @@ void BM_OptimumOverKnownCurves(benchmark::State& state) {
   v1::OptimumResult last;
   for (auto _ : state) {
     StatusOr<v1::OptimumResult> r =
-        jobs::RunOptimum(Issue4Request(margins[i++ % 3]), {.optimum_cache = &cache});
+        jobs::RunOptimum(ReferenceBoxRequest(margins[i++ % 3]), {.optimum_cache = &cache});
     if (!r.ok()) {
       state.SkipWithError(r.status().ToString().c_str());
       return;

@@ -15,7 +15,7 @@
 #include "drillbif/continuation/curve.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 #include "support/multipliers.h"
 #include "support/special_point_near.h"
@@ -40,7 +40,7 @@ class CuspTest : public ::testing::Test {
   }
 
   CurveResult Curve(std::vector<double> omegas) {
-    const TraceOptions box = testing::Issue4Box();
+    const TraceOptions box = testing::ReferenceBox();
     CurveOptions co;
     co.param1 = std::string("a");
     co.param2 = std::string("omega");

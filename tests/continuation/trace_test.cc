@@ -11,7 +11,7 @@
 #include <tuple>
 #include <vector>
 
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
 #include "support/special_point_near.h"
@@ -131,7 +131,7 @@ class Trace : public testing::ReferenceOrbitTest {
 class TraceSteps : public testing::ReferenceOrbitTest, public ::testing::WithParamInterface<int> {};
 
 TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.curve.target_iterations = GetParam();
   // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (issue 4's acceptance),
   // and of the lines of the completeness check below: (omega, a of the attractor whose a-branch
@@ -628,12 +628,12 @@ INSTANTIATE_TEST_SUITE_P(DefaultAndLongerSteps, TraceSteps, ::testing::Values(3,
 // and missed its flip-grazing.
 TEST_F(Trace, DefaultAndLongerStepsFindTheSamePoints) {
   auto trace = [&](int target_iterations) {
-    TraceOptions opt = testing::Issue4Box();
+    TraceOptions opt = testing::ReferenceBox();
     opt.curve.target_iterations = target_iterations;
     return TraceCurves(model_, prop_, start_, opt);
   };
   const TraceResult dflt = trace(3), longer = trace(4);
-  const TraceOptions box = testing::Issue4Box();
+  const TraceOptions box = testing::ReferenceBox();
   auto found_in = [&](const TraceResult& r, const Codim2Point& q) {
     for (const TracedCurve& l : r.curves) {
       for (const Codim2Point& e : l.curve.codim2) {
@@ -660,29 +660,29 @@ TEST_F(Trace, DefaultAndLongerStepsFindTheSamePoints) {
 }
 
 TEST_F(Trace, InvalidRequestsNameTheProblem) {
-  TraceOptions same = testing::Issue4Box();
+  TraceOptions same = testing::ReferenceBox();
   same.param2 = same.param1;
   EXPECT_EQ(TraceCurves(model_, prop_, start_, same).summary.status.code(),
             StatusCode::kInvalidArgument);
-  TraceOptions unknown = testing::Issue4Box();
+  TraceOptions unknown = testing::ReferenceBox();
   unknown.param2 = std::string("zeta");
   const TraceResult u = TraceCurves(model_, prop_, start_, unknown);
   EXPECT_EQ(u.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(u.summary.status.message().find("zeta"), std::string::npos);
-  TraceOptions outside = testing::Issue4Box();
+  TraceOptions outside = testing::ReferenceBox();
   outside.min2 = 1.0;  // the start orbit has a = 0.3
   const TraceResult o = TraceCurves(model_, prop_, start_, outside);
   EXPECT_EQ(o.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(o.summary.status.message().find("a lies outside"), std::string::npos);
-  TraceOptions seed = testing::Issue4Box();
+  TraceOptions seed = testing::ReferenceBox();
   seed.seeds1 = {2.5};
   EXPECT_NE(seed.Validate().message().find("seeds1"), std::string::npos);
-  TraceOptions empty = testing::Issue4Box();
+  TraceOptions empty = testing::ReferenceBox();
   empty.max1 = empty.min1;
   EXPECT_EQ(TraceCurves(model_, prop_, start_, empty).summary.status.code(),
             StatusCode::kInvalidArgument);
   for (int bad : {0, 3, 32, -2}) {
-    TraceOptions period = testing::Issue4Box();
+    TraceOptions period = testing::ReferenceBox();
     period.max_period = bad;
     const TraceResult r = TraceCurves(model_, prop_, start_, period);
     EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument) << bad;
@@ -696,7 +696,7 @@ TEST_F(Trace, InvalidRequestsNameTheProblem) {
 // independently here, locates the point (to 1e-7). Without edge branches: curves started on a
 // branch along the box's edge need not cross a = 0.3.
 TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.max1 = 0.45;
   opt.min2 = 0.27, opt.max2 = 0.32;
   opt.edge_branches = false;
@@ -790,7 +790,7 @@ TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
 // the trace) locates a PD at a = 0.47353 that no traced curve crossed. Now a PD curve leaving the
 // corner crosses omega = 0.085 there, to 1e-7 (issue 4's consistency; both are solved to ~1e-10).
 TEST_F(Trace, PdCurveGoesOnPastACorner) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 0.08, opt.max1 = 0.28;
   opt.min2 = 0.29, opt.max2 = 0.6;
   constexpr double kOmega = 0.085;
@@ -830,7 +830,7 @@ TEST_F(Trace, PdCurveGoesOnPastACorner) {
 // omega = 0.065 there, to 1e-7 (both solved to ~1e-10). A seed where no periodic attractor is
 // found (omega = 0.055 would be one: the motion there is not periodic) is a note.
 TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 0.06, opt.max1 = 0.11;
   opt.min2 = 0.2, opt.max2 = 0.32;
   constexpr double kCheck = 0.065, kSeed = 0.07;
@@ -913,7 +913,7 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
 // the prediction 1.5e-2 off the curve, and at section crossings whose rotated signature did not
 // correct with brackets of ~100; of the box's 64 entries bracketed above 1e-8, 4 are left).
 TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEndsAndClaimOnlyTheEndsReached) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 0.09, opt.max1 = 0.11;
   opt.min2 = 0.25, opt.max2 = 0.75;
   opt.max_period = 2;
@@ -993,7 +993,7 @@ TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   ASSERT_EQ(r0.summary.termination, Termination::kCompleted) << r0.summary.message;
   const ContinuationPoint& at = r0.points.back();
   ASSERT_EQ(at.value, 1.5);
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 1.3, opt.max1 = 1.75;
   opt.min2 = 0.2, opt.max2 = 7.5;
   opt.max_period = 2;
@@ -1033,7 +1033,7 @@ TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
 // doublings -> period 2 -> doublings -> period 4, each branch continued over the box), locates a
 // point of its kind (to 1e-7).
 TEST_F(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.max1 = 0.45;
   opt.min2 = 0.295, opt.max2 = 0.305;
   opt.max_period = 4;

@@ -16,7 +16,7 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 #include "support/period_two.h"
 #include "support/special_point_near.h"
@@ -32,7 +32,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   const StatusOr<PeriodicOrbit> start =
       testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   ASSERT_TRUE(start.ok());
-  const TraceOptions box = testing::Issue4Box();
+  const TraceOptions box = testing::ReferenceBox();
   ContinuationOptions branch;
   branch.param = "omega";
   branch.min = box.min1, branch.max = box.max1;
@@ -142,7 +142,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
 // period, are left alone.
 TEST(FlipGrazingSwitch, OnlyEndsMergingIntoTheOrbitTraversedTwiceAreTheFlipGrazing) {
   DriftingOscillator model;
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   const double w1 = opt.max1 - opt.min1;
   auto end = [&](Codim2Kind kind, int periods, double value1, double y, double bracket) {
     Codim2Point z;

@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
 #include "support/special_point_near.h"
@@ -60,7 +60,7 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
 
   // Issue 4's box in (omega, a): the parameters of curves started on the omega-branch.
   static CurveOptions OmegaABox() {
-    const TraceOptions box = testing::Issue4Box();
+    const TraceOptions box = testing::ReferenceBox();
     CurveOptions opt;
     opt.param1 = box.param1, opt.min1 = box.min1, opt.max1 = box.max1;
     opt.param2 = box.param2, opt.min2 = box.min2, opt.max2 = box.max2;
@@ -238,7 +238,7 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
       testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
   ASSERT_NE(graze, nullptr);
   const CurveOptions opt = OmegaABox();
-  const TraceOptions box = testing::Issue4Box();
+  const TraceOptions box = testing::ReferenceBox();
   const CurveResult grazing = ContinueCurve(model_, prop_, *graze, opt);
   const int i1 = DO::kOmega, i2 = DO::kA;
   const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
