@@ -1,6 +1,7 @@
-// Two-parameter curve cost (issue 4's report): tracing every fold, PD and grazing curve through
-// the reference orbit's branches in omega in [0.05, 2], a in [0.01, 8] at b = 0.15, with their
-// codimension-2 points; and one curve alone. Run (medians of 3; the trace takes seconds):
+// Two-parameter curve cost (docs/performance.md): tracing every fold, PD and grazing curve
+// through the reference orbit's branches in the reference (omega, a) box (omega in [0.05, 2], a in
+// [0.01, 8] at b = 0.15, problems/reference_box.h), with their codimension-2 points; and one
+// curve alone. Run (medians of 3; the trace takes seconds):
 //   build/bench/curve_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 // Counters: curves, points (on all curves), codim2 (codimension-2 points found).
 #include <benchmark/benchmark.h>

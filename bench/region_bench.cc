@@ -1,7 +1,7 @@
-// Stability region and robust optimum cost (issue 4's report) in omega in [0.05, 2], a in
-// [0.01, 8] at b = 0.15, once the curves are traced (the trace runs once, before the timings, and
-// is measured by curve_bench). The grid is drillctl optimum's default for --margin 0.02: a
-// spacing of half the margin, 196 x 800 nodes. Run:
+// Stability region and robust optimum cost (docs/performance.md) in the reference (omega, a) box,
+// omega in [0.05, 2], a in [0.01, 8] at b = 0.15, once the curves are traced (the trace runs once,
+// before the timings, and is measured by curve_bench). The grid is drillctl optimum's default for
+// --margin 0.02: a spacing of half the margin, 196 x 800 nodes. Run:
 //   build/bench/region_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // Counters: inside (grid nodes inside), solves (Newton solves), candidates (nodes the query
 // checked).

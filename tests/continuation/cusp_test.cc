@@ -1,4 +1,4 @@
-// A cusp on a fold curve (issue 4: "on fold ... curves cusp ... where they occur"). The fold
+// A cusp on a fold curve (cusps are located on fold curves where they occur). The fold
 // curve through the a-branch's fold at a = 0.156617 (omega = 0.1, orbit CwoP>l2 NC>Pi CwoP)
 // reverses its direction in (omega, a) near (0.10435, 0.15436); the tracer reports a CUSP there.
 // Checked independently of the curve's extended system: one-parameter continuations in a at

@@ -439,7 +439,7 @@ TEST_F(HttpLimitsTest, ErrorBodiesAreJsonWithSanitisedEchoes) {
 }
 
 // 64 clients sending a request one byte at a time and 64 event streams of a queued job hold
-// connections; /metrics and a submit are still answered at once. The bound, 1 s, is the issue's;
+// connections; /metrics and a submit are still answered at once. The bound, 1 s, is the service's;
 // with the gateway holding a thread per such client they waited forever.
 TEST_F(HttpLimitsTest, SlowClientsAndOpenStreamsDoNotBlockOtherRequests) {
   const std::string queued = QueuedJob();
