@@ -1,4 +1,4 @@
-// Accuracy against time, one-parameter continuation (issue 6; docs/accuracy.md,
+// Accuracy against time, one-parameter continuation (docs/accuracy.md,
 // scripts/accuracy.sh): the b-continuation of the reference period-1 orbit (MODEL.md; a = 0.3,
 // omega = 0.1) from b = 0.15 down to b = 0 and up to the fold, at several
 // ContinuationOptions::locate_tolerance and max_step settings, and at several corrector

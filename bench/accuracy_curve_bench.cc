@@ -1,4 +1,4 @@
-// Accuracy against time, two-parameter curves (issue 6; docs/accuracy.md, scripts/accuracy.sh):
+// Accuracy against time, two-parameter curves (docs/accuracy.md, scripts/accuracy.sh):
 // the period-doubling curve through the PD point of the reference b-branch (b = 0.11001, a = 0.3,
 // omega = 0.1) traced in (b, a) over a in [0.25, 0.35], at several CurveOptions::tolerance and
 // max_step settings (the rest at their defaults), against the error of its crossing of a = 0.28

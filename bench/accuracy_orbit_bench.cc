@@ -1,4 +1,4 @@
-// Accuracy against time, periodic orbits (issue 6; docs/accuracy.md, scripts/accuracy.sh): the
+// Accuracy against time, periodic orbits (docs/accuracy.md, scripts/accuracy.sh): the
 // Newton solve of the reference period-1 orbit's boundary-value problem (orbit/periodic_orbit.h)
 // from a perturbed guess (below), at
 // Newton tolerances 1e-4 ... 1e-12 with the exact flow (closed-form derivatives), and shooting with

@@ -1,4 +1,4 @@
-// Accuracy against time, on-demand outputs (issue 6; docs/accuracy.md, scripts/accuracy.sh): the
+// Accuracy against time, on-demand outputs (docs/accuracy.md, scripts/accuracy.sh): the
 // same simulation (100 forcing periods from the reference period-1 orbit, no transient) asking for
 // ROP only (the measures) versus every output (measures, Poincare samples, event log, modes of
 // each period, trajectory every 0.1 time units). The answers' ROP must agree exactly. Run:

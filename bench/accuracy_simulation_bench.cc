@@ -1,4 +1,4 @@
-// Accuracy against time, simulation stage (issue 6; docs/accuracy.md, scripts/accuracy.sh): the
+// Accuracy against time, simulation stage (docs/accuracy.md, scripts/accuracy.sh): the
 // exact propagator and CVODE at rtol 1e-3 ... 1e-12 (atol = rtol / 100), each simulating 100
 // forcing periods from the reference period-1 orbit (MODEL.md's fixed point). Reference: the exact
 // propagator (closed-form flows, events polished to rounding). Run:

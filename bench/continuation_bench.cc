@@ -1,6 +1,6 @@
 // One-parameter continuation cost: the b-continuation of the reference period-1 orbit (MODEL.md)
 // from the start orbit down to b = 0 and up to the fold, with every special point on the way
-// located (the report of issue 3), and its parts. Run (medians of 5):
+// located (docs/performance.md), and its parts. Run (medians of 5):
 //   build/bench/continuation_bench --benchmark_repetitions=5
 //   --benchmark_report_aggregates_only=true
 // Counters: points (accepted points), specials (located special points), and for the start

@@ -1,6 +1,7 @@
-// Two-parameter curve cost (issue 4's report): tracing every fold, PD and grazing curve through
-// the reference orbit's branches in omega in [0.05, 2], a in [0.01, 8] at b = 0.15, with their
-// codimension-2 points; and one curve alone. Run (medians of 3; the trace takes seconds):
+// Two-parameter curve cost (docs/performance.md): tracing every fold, PD and grazing curve
+// through the reference orbit's branches in the reference (omega, a) box (omega in [0.05, 2], a in
+// [0.01, 8] at b = 0.15, problems/reference_box.h), with their codimension-2 points; and one
+// curve alone. Run (medians of 3; the trace takes seconds):
 //   build/bench/curve_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 // Counters: curves, points (on all curves), codim2 (codimension-2 points found).
 #include <benchmark/benchmark.h>
@@ -10,7 +11,7 @@
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 
 namespace drillbif {
@@ -19,12 +20,12 @@ namespace {
 // The whole trace: both one-parameter branches and every curve (the start orbit excluded), with
 // the corrector aiming at state.range(0) Newton iterations per curve step (3: the default, the
 // FINE curve steps of a trace request; 4: COARSE).
-void BM_TraceIssueBox(benchmark::State& state) {
+void BM_TraceReferenceBox(benchmark::State& state) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   const PeriodicOrbit start =
       *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  TraceOptions options = testing::Issue4Box();
+  TraceOptions options = testing::ReferenceBox();
   options.curve.target_iterations = static_cast<int>(state.range(0));
   TraceResult r;
   for (auto _ : state) {
@@ -41,7 +42,7 @@ void BM_TraceIssueBox(benchmark::State& state) {
   state.counters["codim2"] = codim2;
   if (!r.summary.status.ok()) state.SkipWithError("trace failed");
 }
-BENCHMARK(BM_TraceIssueBox)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_TraceReferenceBox)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One curve: the l1 grazing curve from the omega-branch grazing at 0.5088 (a = 0.3), 688 points
 // and four codimension-2 points (two flip-, one fold-, one double grazing); the cost per point of

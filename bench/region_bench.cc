@@ -1,7 +1,7 @@
-// Stability region and robust optimum cost (issue 4's report) in omega in [0.05, 2], a in
-// [0.01, 8] at b = 0.15, once the curves are traced (the trace runs once, before the timings, and
-// is measured by curve_bench). The grid is drillctl optimum's default for --margin 0.02: a
-// spacing of half the margin, 196 x 800 nodes. Run:
+// Stability region and robust optimum cost (docs/performance.md) in the reference (omega, a) box,
+// omega in [0.05, 2], a in [0.01, 8] at b = 0.15, once the curves are traced (the trace runs once,
+// before the timings, and is measured by curve_bench). The grid is drillctl optimum's default for
+// --margin 0.02: a spacing of half the margin, 196 x 800 nodes. Run:
 //   build/bench/region_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // Counters: inside (grid nodes inside), solves (Newton solves), candidates (nodes the query
 // checked).
@@ -13,7 +13,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/region/robust_optimum.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 
 namespace drillbif {
@@ -31,7 +31,7 @@ const Setup& Shared() {
     auto* s = new Setup;
     ExactPropagator prop(s->model);
     s->start = *testing::SolvedOrbitFromRest(s->model, prop, testing::ReferenceParams());
-    const TraceOptions box = testing::Issue4Box();
+    const TraceOptions box = testing::ReferenceBox();
     s->curves = RegionCurvesOf(TraceCurves(s->model, prop, s->start, box).curves);
     s->options.param1 = box.param1, s->options.param2 = box.param2;
     s->options.min1 = box.min1, s->options.max1 = box.max1;
@@ -42,7 +42,7 @@ const Setup& Shared() {
   return *setup;
 }
 
-void BM_StabilityRegionIssueBox(benchmark::State& state) {
+void BM_StabilityRegionReferenceBox(benchmark::State& state) {
   const Setup& s = Shared();
   ExactPropagator prop(s.model);
   StabilityRegion r;
@@ -54,7 +54,7 @@ void BM_StabilityRegionIssueBox(benchmark::State& state) {
   state.counters["solves"] = r.summary.solves;
   if (!r.summary.status.ok()) state.SkipWithError("region failed");
 }
-BENCHMARK(BM_StabilityRegionIssueBox)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_StabilityRegionReferenceBox)->Unit(benchmark::kMillisecond);
 
 // The query alone: drillctl optimum --margin 0.02 (per parameter) once curves and region exist.
 void BM_RobustOptimumQuery(benchmark::State& state) {

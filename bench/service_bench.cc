@@ -1,4 +1,4 @@
-// Service load (issue 5's report): latency of a cached QueryOptimum at 1000 requests per second,
+// Service load (docs/performance.md): latency of a cached QueryOptimum at 1000 requests per second,
 // and throughput of small simulate jobs, against a real server (Server::Start, 127.0.0.1, port 0,
 // a SQLite file in a temp dir, 2 workers). Run:
 //   build/bench/service_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
@@ -177,7 +177,7 @@ BENCHMARK(BM_SmallSimulateJobs)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // Cancel latency: a long sweep (1e5 values of b) is submitted, followed until RUNNING, then
 // cancelled; the time from the CancelOperation call until GetOperation shows CANCELLED (polled
-// every 1 ms, so up to 1 ms of it is polling), for 10 jobs. Issue 5: within 100 ms.
+// every 1 ms, so up to 1 ms of it is polling), for 10 jobs. Target: within 100 ms.
 void BM_CancelRunningSweep(benchmark::State& state) {
   Service& service = Shared();
   if (!service.server) {

@@ -1,8 +1,10 @@
 // What an optimum job computes before its query, kept for later optimum jobs of the same box:
 // the traced curves (as the region and the answer use them) by the trace request, and the
-// stability region by trace request and grid. The curves take ~25 s for issue 4's box and the
-// region ~2.4 s; the query alone takes milliseconds, so another margin (or `scaled`) over the same
-// curves and grid is answered from here in milliseconds, and another grid without tracing again.
+// stability region by trace request and grid. For the reference (omega, a) box (omega in
+// [0.05, 2], a in [0.01, 8] at b = 0.15) the curves take tens of seconds and the region seconds
+// (docs/performance.md); the query alone takes milliseconds, so another margin (or `scaled`) over
+// the same curves and grid is answered from here in milliseconds, and another grid without
+// tracing again.
 // Trace jobs of period-1 curves put theirs here too (and their region), for an optimum asked
 // after the map was drawn. The server's worker pool owns one; `drillctl --local` runs one job per
 // process and has none.

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# The accuracy-versus-time report (issue 6), in one command: builds (scripts/build.sh, Release),
-# runs the bench/accuracy_*_bench programs with JSON output into build/accuracy/, and regenerates
-# docs/accuracy.md and docs/figures/accuracy_*.png from that run (scripts/accuracy_report.py,
-# gnuplot). Takes about two minutes on the project's 2-core machine. CI builds these benchmarks
-# but never runs this.
+# The accuracy-versus-time report (docs/accuracy.md), in one command: builds (scripts/build.sh,
+# Release), runs the bench/accuracy_*_bench programs with JSON output into build/accuracy/, and
+# regenerates docs/accuracy.md and docs/figures/accuracy_*.png from that run
+# (scripts/accuracy_report.py, gnuplot). Takes about two minutes on the project's 2-core machine. CI
+# builds these benchmarks but never runs this.
 #   ./scripts/accuracy.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."

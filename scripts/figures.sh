@@ -15,7 +15,8 @@ mkdir -p "$out"
 "$drillctl" --local continue --param b --min 0 --max 0.2 -o "$work/continue.json"
 "$drillctl" plot "$work/continue.json" -o "$out/continue_b.png"
 
-# Two-parameter: the issue-4 small box with its stability region and the robust optimum.
+# Two-parameter: a small (omega, a) box around the reference orbit with its stability region and the
+# robust optimum.
 box=(--params omega,a --min 0.05,0.25 --max 0.15,0.6)
 "$drillctl" --local trace "${box[@]}" --grid 101,101 -o "$work/trace.json"
 "$drillctl" --local optimum "${box[@]}" --margin 0.01,0.02 --grid 101,101 -o "$work/optimum.json"

@@ -57,8 +57,9 @@ class Codim2Test : public testing::ReferenceOrbitTest {
   ContinuationResult omega_branch_;
 };
 
-// Issue 4's acceptance: a curve traced in (omega, a) from the omega-continuation at a = 0.3
-// crosses omega = 0.1 where the a-continuation at omega = 0.1 locates the same kind of point.
+// The acceptance check of two-parameter curves: a curve traced in (omega, a) from the
+// omega-continuation at a = 0.3 crosses omega = 0.1 where the a-continuation at omega = 0.1 locates
+// the same kind of point.
 TEST_F(Codim2Test, PeriodDoublingCurveCrossesOmegaOneTenthWhereTheABranchLocatesIt) {
   const SpecialPoint* pd = Find(SpecialPointKind::kPeriodDoubling, 0.09, 0.1);
   ASSERT_NE(pd, nullptr);
@@ -78,7 +79,7 @@ TEST_F(Codim2Test, PeriodDoublingCurveCrossesOmegaOneTenthWhereTheABranchLocates
     }
   }
   // Both are located to 1e-10 in a (the crossing to the corrector's 1e-10, the branch's point to
-  // locate_tolerance); the issue asks for 1e-7.
+  // locate_tolerance); 1e-7 is required.
   EXPECT_LE(nearest, 1e-7) << "crossing at a = " << c.value2;
   EXPECT_LE(testing::DistanceToMultiplier(c.stability, -1.0), 1e-8);
 }
@@ -122,7 +123,7 @@ TEST_F(Codim2Test, TwoGrazingCurvesMeetAtTheDoubleGrazingEachLocates) {
   }
   // A common end. The bisections stop where the corrector stalls beyond the boundary, so a
   // `bracket` can be wide although the last admissible point lies next to the boundary; the two
-  // locations agree to 1.4e-12 measured, 1e-7 asked (the issue's bound for crossings).
+  // locations agree to 1.4e-12 measured, 1e-7 asked (the required bound for crossings).
   double nearest = std::numeric_limits<double>::infinity();
   for (const CurvePoint& p : ends[0]) {
     for (const CurvePoint& q : ends[1]) {

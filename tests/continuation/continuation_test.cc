@@ -318,9 +318,8 @@ TEST(Continuation, InvalidRequestsAreClearErrors) {
 }
 
 // MODEL.md's other continuations from the start orbit: in a over [0.05, 3] and in omega over
-// [0.03, 3.5]. Both run to both ends, through every special point on the way (their lists are in
-// the closing note of issue 3), with every point admissible and every located fold and period
-// doubling at a multiplier +1 / -1 to 1e-9.
+// [0.03, 3.5]. Both run to both ends, through every special point on the way, with every point
+// admissible and every located fold and period doubling at a multiplier +1 / -1 to 1e-9.
 class RangeContinuationTest
     : public ::testing::TestWithParam<std::tuple<const char*, double, double>> {};
 
@@ -379,12 +378,12 @@ TEST(Continuation, HardParametersCompleteWithAdmissiblePoints) {
 // at once. At xi = 0.5 the simulation settles on such an orbit (a = 0.3, omega = 0.1); continued in
 // omega, both of its impacts fall below the progression threshold at omega = 0.68815, so both CwP
 // phases must get a CwoP phase before them at that one point. Crossing one violation at a time
-// (before) left the other already violated at the step-off point and the branch FAILED there;
-// both are now switched together and the branch goes on to omega = 3.5 with admissible points.
+// leaves the other already violated at the step-off point and the branch FAILED there; so both
+// are switched together and the branch goes on to omega = 3.5 with admissible points.
 // The same at omega = 0.69896, where both CwP phases vanish: located in arclength 1e-2 of a step
 // apart (the branch is stationary in omega there) but 6e-9 apart in omega, they are one switch;
 // crossed one at a time, the other direction (down to the fold at omega = 0.0909 and back) FAILED
-// there. Both directions now reach omega = 3.5.
+// there. Both directions reach omega = 3.5.
 TEST(Continuation, SwitchesBothCopiesOfATwiceTraversedOrbitAtOnce) {
   DO model;
   ExactPropagator prop(model);

@@ -89,8 +89,8 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
     const ContinuationResult one = BBranch(model, prop, c.value2);
     const SpecialPoint* located = FindKind(one, GetParam());
     ASSERT_NE(located, nullptr) << "a = " << c.value2;
-    // Both are located to 1e-10 in b (the curve's crossing to the corrector's 1e-10); the issue
-    // asks for agreement to 1e-7.
+    // Both are located to 1e-10 in b (the curve's crossing to the corrector's 1e-10); agreement
+    // to 1e-7 is required.
     EXPECT_NEAR(c.value1, located->point.value, 1e-7) << "a = " << c.value2;
     if (grazing) {
       // Independent check of the crossing: the original-signature orbit (with its CwP phase)
@@ -231,7 +231,7 @@ TEST(Curve, GrazingCurvesCrossXiOneHalfWhereTheBranchesThereLocate) {
     for (const SpecialPoint& s : at_half.special_points) {
       if (s.kind == kind) best = std::min(best, std::abs(s.point.value - c.value1));
     }
-    // Both located to 1e-10 (corrector, location); the issue's bound for curves vs branches.
+    // Both located to 1e-10 (corrector, location); the required bound for curves vs branches.
     EXPECT_LE(best, 1e-7) << param << " crossing at " << c.value1;
     const std::optional<GuardValue> g = testing::TangentEndGuard(model, prop, c.orbit);
     ASSERT_TRUE(g.has_value());
@@ -291,16 +291,16 @@ TEST(Curve, PiGrazingCurveFromTheNonImpactingSide) {
       if (s.kind == SpecialPointKind::kGrazingPi)
         best = std::min(best, std::abs(s.point.value - x.value2));
     }
-    EXPECT_LE(best, 1e-7) << "crossing a = 0.3 at omega = " << x.value2;  // issue 4's bound
+    EXPECT_LE(best, 1e-7) << "crossing a = 0.3 at omega = " << x.value2;  // the required bound
   }
 }
 
 // A grazing curve's orbit touches its surface at a tangent end only to the corrector's accuracy:
 // h(tau) of a few 1e-12 below zero puts a crossing of the guard sqrt(2 |h| / h'') before the
-// end, farther than rounding alone explains. Such a dip (issue 4's box: h = -4e-12, h'' = 0.065,
-// the crossing 1.1e-5 before the end) ended a grazing curve at a spurious double grazing. The
-// orbit is admissible at the corrector's residual, and not when its end is off the surface by
-// more than the corrector's tolerance (1e-10 (1 + |x|)).
+// end, farther than rounding alone explains. Such a dip (in the reference box: h = -4e-12,
+// h'' = 0.065, the crossing 1.1e-5 before the end) ended a grazing curve at a spurious double
+// grazing. The orbit is admissible at the corrector's residual, and not when its end is off the
+// surface by more than the corrector's tolerance (1e-10 (1 + |x|)).
 TEST(Curve, TangentEndOffTheSurfaceByTheCorrectorsResidualIsAdmissible) {
   DO model;
   ExactPropagator prop(model);

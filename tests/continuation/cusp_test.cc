@@ -1,4 +1,4 @@
-// A cusp on a fold curve (issue 4: "on fold ... curves cusp ... where they occur"). The fold
+// A cusp on a fold curve (cusps are located on fold curves where they occur). The fold
 // curve through the a-branch's fold at a = 0.156617 (omega = 0.1, orbit CwoP>l2 NC>Pi CwoP)
 // reverses its direction in (omega, a) near (0.10435, 0.15436); the tracer reports a CUSP there.
 // Checked independently of the curve's extended system: one-parameter continuations in a at
@@ -15,7 +15,7 @@
 #include "drillbif/continuation/curve.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 #include "support/multipliers.h"
 #include "support/special_point_near.h"
@@ -40,7 +40,7 @@ class CuspTest : public ::testing::Test {
   }
 
   CurveResult Curve(std::vector<double> omegas) {
-    const TraceOptions box = testing::Issue4Box();
+    const TraceOptions box = testing::ReferenceBox();
     CurveOptions co;
     co.param1 = std::string("a");
     co.param2 = std::string("omega");

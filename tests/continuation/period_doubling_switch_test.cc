@@ -172,8 +172,8 @@ TEST(PeriodDoublingSwitch, AlgebraicSwitchWorksWhereSimulationFindsNothing) {
 // The period-2 branch born at the a-branch's doubling at a = 0.45763 (omega = 0.1) meets, near
 // a = 2.18218, a touch of l1 0.03 before the end of a CwoP phase that itself ends at l1: the
 // contact phase inserted there, stepped off at 1e-3, came out cancelled by the CwoP phase after
-// it (-1e-3 long) and the branch FAILED at its next step, as did issue 4's box traced with
-// max_period 2. The step off is now tried shorter (1e-4, 1e-5; here none gives positive
+// it (-1e-3 long) and the branch FAILED at its next step, as did the reference box traced with
+// max_period 2. So the step off is also tried shorter (1e-4, 1e-5; here none gives positive
 // durations and the shortest is kept); the branch goes on and closes on itself with every
 // point admissible.
 TEST(PeriodDoublingSwitch, PeriodTwoBranchSteppingOffATouchNextToAnotherEventCloses) {

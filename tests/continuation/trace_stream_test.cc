@@ -11,7 +11,7 @@
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 #include "support/cancel_probe.h"
 
@@ -35,7 +35,7 @@ class TraceStream : public ::testing::Test {
   // The small box of the trace runner's tests (omega in [0.05, 0.2], a in [0.27, 0.32]: ~1 s,
   // with a flip-grazing to switch at).
   static TraceOptions SmallBox() {
-    TraceOptions o = testing::Issue4Box();
+    TraceOptions o = testing::ReferenceBox();
     o.max1 = 0.2;
     o.min2 = 0.27, o.max2 = 0.32;
     return o;
@@ -69,11 +69,12 @@ void ExpectSameCurve(const TracedCurve& a, const TracedCurve& b, int index) {
   }
 }
 
-// The whole box of problems/issue4_box.h (seconds of branches, hundreds of curves), stopped
+// The whole box of problems/reference_box.h (seconds of branches, hundreds of curves), stopped
 // 200 ms in.
 TEST_F(TraceStream, StopsPromptly) {
   CancelProbe probe(kDelay);
-  const TraceResult r = TraceCurves(model_, prop_, start_, testing::Issue4Box(), probe.Callback());
+  const TraceResult r =
+      TraceCurves(model_, prop_, start_, testing::ReferenceBox(), probe.Callback());
   probe.Returned();
   EXPECT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
   EXPECT_TRUE(r.summary.cancelled);
@@ -124,7 +125,7 @@ TEST_F(TraceStream, CurvesAreHandedOverInOrderAsTraced) {
 // last pass reports as those points): curves handed over in index order, each equal to what the
 // result holds at the end, so after that pass.
 TEST_F(TraceStream, PeriodTwoCurvesAreHandedOverFinal) {
-  TraceOptions o = testing::Issue4Box();
+  TraceOptions o = testing::ReferenceBox();
   o.max1 = 0.45;
   o.min2 = 0.27, o.max2 = 0.32;
   o.max_period = 2;

@@ -1,4 +1,5 @@
-// Tracing every curve through the reference orbit's branches in the (omega, a) box of issue 4.
+// Tracing every curve through the reference orbit's branches in the reference (omega, a) box
+// (problems/reference_box.h).
 #include "drillbif/continuation/trace.h"
 
 #include <gtest/gtest.h>
@@ -11,7 +12,7 @@
 #include <tuple>
 #include <vector>
 
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
 #include "support/special_point_near.h"
@@ -85,7 +86,7 @@ void AttractorABranch(const DO& model, Propagator& prop, const PeriodicOrbit& st
 }
 
 // The trace's notes name, per period, how many codimension-2 points are known only to a bracket
-// above 1e-8 (the issue's bound), and no note names such points where there are none. Returns
+// above 1e-8 (the required bound), and no note names such points where there are none. Returns
 // how many there are.
 int ExpectWideBracketNotes(const TraceResult& r) {
   std::map<int, int> wide;
@@ -131,9 +132,9 @@ class Trace : public testing::ReferenceOrbitTest {
 class TraceSteps : public testing::ReferenceOrbitTest, public ::testing::WithParamInterface<int> {};
 
 TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.curve.target_iterations = GetParam();
-  // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (issue 4's acceptance),
+  // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (the acceptance lines),
   // and of the lines of the completeness check below: (omega, a of the attractor whose a-branch
   // is checked; at a = 0.3 the attractor is of period 2 at omega = 0.3 and chaotic at 0.5, 0.8
   // and 1.2, at these a of period 1).
@@ -154,7 +155,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   double longest_off = 0.0;  // the longest shortest segment of a vertex off by more than 1e-8
   for (const TracedCurve& c : r.curves) {
     EXPECT_NE(c.curve.summary.termination, Termination::kFailed) << c.curve.summary.message;
-    // End to end (issue 4): each direction leaves the box or ends at a codimension-2 point; none
+    // End to end: each direction leaves the box or ends at a codimension-2 point; none
     // stalls, hits max_steps or ends where the corrector fails without a boundary ahead.
     const std::string& message = c.curve.summary.message;
     const size_t split = message.find("; decreasing ");
@@ -194,7 +195,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   }
   // The flip-grazings of codim2_test, each seen from the grazing curve and from a PD curve.
   EXPECT_GE(flip_grazings, 4);
-  // Above: the fold / PD vertices' critical multiplier at +-1 to the issue's 1e-8. Next to a
+  // Above: the fold / PD vertices' critical multiplier at +-1 to the required 1e-8. Next to a
   // segment shorter than ~1e-3 (saltations growing like 1 / tau at its events) the condition's
   // residual can stop at rounding's floor before that: 32 of 58921 vertices with the default
   // steps, 25 of 11688 with the longer, next to segments 5.2e-4 .. 3e-7 long, up to 4.7e-5 off;
@@ -248,7 +249,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(corner_starts, 3);  // omega = 0.0683, 0.0581 (a = 0.3); a = 0.5387 (omega = 0.1)
   // Consistency with the one-parameter results: every crossing of omega = 0.1 (a = 0.3) by a curve
   // is a point of the curve's kind that the a-continuation at omega = 0.1 (the omega-continuation
-  // at a = 0.3) located, to 1e-7 (issue 4). Both are solved to the corrector's tolerance (1e-10
+  // at a = 0.3) located, to 1e-7 (required). Both are solved to the corrector's tolerance (1e-10
   // scaled) and located to 1e-10 or better; measured agreement: 4e-15 or better, 93 crossings.
   // A corner's grazing curve crosses where a branch changes signature at such a corner.
   auto same_kind = [&](const CurveResult& c, SpecialPointKind k) {
@@ -285,8 +286,8 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
                2;
   }
   // Not only each curve's own start: crossings far from it (the omega-branch PD curves crossing
-  // omega = 0.1, ...), and curves that turn back and cross omega = 0.1 twice (a hard case of the
-  // issue: the fold curve from a = 0.15662 comes back at a = 0.15688).
+  // omega = 0.1, ...), and curves that turn back and cross omega = 0.1 twice (a hard case: the
+  // fold curve from a = 0.15662 comes back at a = 0.15688).
   EXPECT_GE(away_from_start, 5);
   EXPECT_GE(turning, 2);
   // The corners' curves reach every such signature change of the omega-branch near omega = 0.06
@@ -294,7 +295,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(corner_crossings, 4);
   RecordProperty("corner_crossings", corner_crossings);
 
-  // Completeness (issue 4: every curve in the box): the a-branches of the attractors at
+  // Completeness (every curve in the box): the a-branches of the attractors at
   // omega = 0.065, 0.075, 0.085, 0.09, 0.12 and 0.2 (a = 0.3), 0.3 and 0.5 (a = 3), 0.8 and 1.2 (a
   // = 6), and the omega-branches of the attractors at omega = 0.1, a = 0.15, 0.17, 0.18 and 4,
   // continued here independently of the trace over the box, locate 648 folds, PDs and grazings
@@ -507,7 +508,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
         }
         continue;
       }
-      // The issue's 1e-8: a bisection bracket (arclength), or an extrapolated end's estimated
+      // The required 1e-8: a bisection bracket (arclength), or an extrapolated end's estimated
       // error (parameters), below it.
       EXPECT_LE(q.bracket, 1e-8) << Codim2KindName(q.kind) << " at (" << q.point.value1 << ", "
                                  << q.point.value2 << "): " << q.detail;
@@ -563,7 +564,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
           std::count_if(tau.begin(), tau.end(), [](double d) { return std::abs(d) <= 1e-12; }));
       zero_length_ends += zero_length;
       // Or, for a double grazing, a segment ending where its guard touches zero to third order
-      // (h' = h'' = 0 there to the issue's 1e-8: a touch merged into the crossing after it, as a
+      // (h' = h'' = 0 there to the required 1e-8: a touch merged into the crossing after it, as a
       // contact force touching zero at lift-off), which stands in for both touches.
       const PeriodicOrbit& o = q.point.orbit;
       int cubic = 0;
@@ -628,12 +629,12 @@ INSTANTIATE_TEST_SUITE_P(DefaultAndLongerSteps, TraceSteps, ::testing::Values(3,
 // and missed its flip-grazing.
 TEST_F(Trace, DefaultAndLongerStepsFindTheSamePoints) {
   auto trace = [&](int target_iterations) {
-    TraceOptions opt = testing::Issue4Box();
+    TraceOptions opt = testing::ReferenceBox();
     opt.curve.target_iterations = target_iterations;
     return TraceCurves(model_, prop_, start_, opt);
   };
   const TraceResult dflt = trace(3), longer = trace(4);
-  const TraceOptions box = testing::Issue4Box();
+  const TraceOptions box = testing::ReferenceBox();
   auto found_in = [&](const TraceResult& r, const Codim2Point& q) {
     for (const TracedCurve& l : r.curves) {
       for (const Codim2Point& e : l.curve.codim2) {
@@ -660,29 +661,29 @@ TEST_F(Trace, DefaultAndLongerStepsFindTheSamePoints) {
 }
 
 TEST_F(Trace, InvalidRequestsNameTheProblem) {
-  TraceOptions same = testing::Issue4Box();
+  TraceOptions same = testing::ReferenceBox();
   same.param2 = same.param1;
   EXPECT_EQ(TraceCurves(model_, prop_, start_, same).summary.status.code(),
             StatusCode::kInvalidArgument);
-  TraceOptions unknown = testing::Issue4Box();
+  TraceOptions unknown = testing::ReferenceBox();
   unknown.param2 = std::string("zeta");
   const TraceResult u = TraceCurves(model_, prop_, start_, unknown);
   EXPECT_EQ(u.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(u.summary.status.message().find("zeta"), std::string::npos);
-  TraceOptions outside = testing::Issue4Box();
+  TraceOptions outside = testing::ReferenceBox();
   outside.min2 = 1.0;  // the start orbit has a = 0.3
   const TraceResult o = TraceCurves(model_, prop_, start_, outside);
   EXPECT_EQ(o.summary.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(o.summary.status.message().find("a lies outside"), std::string::npos);
-  TraceOptions seed = testing::Issue4Box();
+  TraceOptions seed = testing::ReferenceBox();
   seed.seeds1 = {2.5};
   EXPECT_NE(seed.Validate().message().find("seeds1"), std::string::npos);
-  TraceOptions empty = testing::Issue4Box();
+  TraceOptions empty = testing::ReferenceBox();
   empty.max1 = empty.min1;
   EXPECT_EQ(TraceCurves(model_, prop_, start_, empty).summary.status.code(),
             StatusCode::kInvalidArgument);
   for (int bad : {0, 3, 32, -2}) {
-    TraceOptions period = testing::Issue4Box();
+    TraceOptions period = testing::ReferenceBox();
     period.max_period = bad;
     const TraceResult r = TraceCurves(model_, prop_, start_, period);
     EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument) << bad;
@@ -696,7 +697,7 @@ TEST_F(Trace, InvalidRequestsNameTheProblem) {
 // independently here, locates the point (to 1e-7). Without edge branches: curves started on a
 // branch along the box's edge need not cross a = 0.3.
 TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.max1 = 0.45;
   opt.min2 = 0.27, opt.max2 = 0.32;
   opt.edge_branches = false;
@@ -763,7 +764,7 @@ TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
                                                       s.kind == SpecialPointKind::kGrazingPi);
         if (same) best = std::min(best, std::abs(s.point.value - x.value1));
       }
-      // Both located to 1e-10 (corrector, location); the issue's bound.
+      // Both located to 1e-10 (corrector, location); the required 1e-7.
       EXPECT_LE(best, 1e-7) << CurveKindName(c.curve.kind)
                             << " crosses a = 0.3 at omega = " << x.value1;
       if (c.curve.kind == CurveKind::kPeriodDoubling) {
@@ -773,7 +774,7 @@ TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
     }
   }
   EXPECT_GE(period2, 3);
-  // Every codimension-2 point to the issue's 1e-8, period 2 too: the period-2 PD curve's end near
+  // Every codimension-2 point to the required 1e-8, period 2 too: the period-2 PD curve's end near
   // (0.0891, 0.3015), where a contact phase vanishes between two flights, is extrapolated (it kept
   // a bisection bracket of 1.5e-6 while the extrapolation's fixed-length solves asked 1e-12 of a
   // sigma that settles at 1e-11).
@@ -785,12 +786,12 @@ TEST_F(Trace, PeriodTwoCurvesOnRequestMatchThePeriodTwoBranch) {
 // goes on past it in the signature without that segment, as a one-parameter branch does through
 // such a SIGNATURE_CHANGE. In omega in [0.08, 0.28], a in [0.29, 0.6] the PD curve through the
 // a-branch's PD at a = 0.45763 (omega = 0.1) ends at the corner near (0.0931, 0.4649), solved with
-// that phase of zero length; its continuation (NC>Pi CwP>l1 CwoP>l2 NC) was not traced before, and
-// the a-branch at omega = 0.085 (from the attractor simulated there at a = 0.3, independent of
-// the trace) locates a PD at a = 0.47353 that no traced curve crossed. Now a PD curve leaving the
-// corner crosses omega = 0.085 there, to 1e-7 (issue 4's consistency; both are solved to ~1e-10).
+// that phase of zero length; its continuation (NC>Pi CwP>l1 CwoP>l2 NC) must be traced too: the
+// a-branch at omega = 0.085 (from the attractor simulated there at a = 0.3, independent of the
+// trace) locates a PD at a = 0.47353 that only that continuation crosses. A PD curve leaving the
+// corner crosses omega = 0.085 there, to 1e-7 (required; both are solved to ~1e-10).
 TEST_F(Trace, PdCurveGoesOnPastACorner) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 0.08, opt.max1 = 0.28;
   opt.min2 = 0.29, opt.max2 = 0.6;
   constexpr double kOmega = 0.085;
@@ -830,7 +831,7 @@ TEST_F(Trace, PdCurveGoesOnPastACorner) {
 // omega = 0.065 there, to 1e-7 (both solved to ~1e-10). A seed where no periodic attractor is
 // found (omega = 0.055 would be one: the motion there is not periodic) is a note.
 TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 0.06, opt.max1 = 0.11;
   opt.min2 = 0.2, opt.max2 = 0.32;
   constexpr double kCheck = 0.065, kSeed = 0.07;
@@ -913,7 +914,7 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
 // the prediction 1.5e-2 off the curve, and at section crossings whose rotated signature did not
 // correct with brackets of ~100; of the box's 64 entries bracketed above 1e-8, 4 are left).
 TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEndsAndClaimOnlyTheEndsReached) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 0.09, opt.max1 = 0.11;
   opt.min2 = 0.25, opt.max2 = 0.75;
   opt.max_period = 2;
@@ -977,13 +978,13 @@ TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEndsAndClaimOnlyTheEndsReached)
   EXPECT_GT(from_unverified, 0);
 }
 
-// Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings
-// (deliverable 2 of issue 4). In omega in [1.3, 1.75], a in [0.2, 7.5], traced from the
-// omega-branch's orbit at omega = 1.5, the PD curve of period 1 ends at the flip-grazing
-// (1.3946, 6.7289); a period-2 grazing curve ends there where its second pass grazes too, its
-// orbit becoming the period-1 orbit traversed twice: reported as that FLIP_GRAZING (the period-2
-// system is singular there and the bisection keeps a bracket above 1e-8; before such ends were
-// told apart, a DOUBLE_GRAZING within that bracket of the point).
+// Period-2 curves include the period-2 grazing curves that leave the period-1 flip-grazings. In
+// omega in [1.3, 1.75], a in [0.2, 7.5], traced from the omega-branch's orbit at omega = 1.5, the
+// PD curve of period 1 ends at the flip-grazing (1.3946, 6.7289); a period-2 grazing curve ends
+// there where its second pass grazes too, its orbit becoming the period-1 orbit traversed twice:
+// reported as that FLIP_GRAZING (the period-2 system is singular there and the bisection keeps a
+// bracket above 1e-8; not told apart, such an end would be a DOUBLE_GRAZING within that bracket
+// of the point).
 TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   ContinuationOptions to;
   to.param = "omega";
@@ -993,7 +994,7 @@ TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
   ASSERT_EQ(r0.summary.termination, Termination::kCompleted) << r0.summary.message;
   const ContinuationPoint& at = r0.points.back();
   ASSERT_EQ(at.value, 1.5);
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.min1 = 1.3, opt.max1 = 1.75;
   opt.min2 = 0.2, opt.max2 = 7.5;
   opt.max_period = 2;
@@ -1033,7 +1034,7 @@ TEST_F(Trace, PeriodTwoGrazingCurveLeavesTheFlipGrazing) {
 // doublings -> period 2 -> doublings -> period 4, each branch continued over the box), locates a
 // point of its kind (to 1e-7).
 TEST_F(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   opt.max1 = 0.45;
   opt.min2 = 0.295, opt.max2 = 0.305;
   opt.max_period = 4;
@@ -1085,7 +1086,7 @@ TEST_F(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
           }
         }
       }
-      // Both located to 1e-10 (curve corrector, branch location); the issue's bound.
+      // Both located to 1e-10 (curve corrector, branch location); the required 1e-7.
       EXPECT_LE(best, 1e-7) << CurveKindName(c.curve.kind)
                             << " crosses a = 0.3 at omega = " << x.value1;
       ++checked;

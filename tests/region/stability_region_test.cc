@@ -349,10 +349,10 @@ StabilityRegion TracedRegion(const DriftingOscillator& model, Propagator& prop,
 // Where an event crosses the Poincare section inside the region, the same orbit's signature
 // rotates ("NC>Pi CwoP>l2 NC|" <-> "CwoP>l2 NC>Pi CwoP|"): one label, no seam. Below the l2
 // grazing curve the bit stays in contact ("CwoP|"), stable once the contact constraint's unit
-// multiplier is set apart (before, rounding decided: nodes of that orbit were in or out at
+// multiplier is set apart (else rounding decides: nodes of that orbit are in or out at
 // random). In omega in [1.3, 1.42], a in [0.09, 0.17] (spacing 0.01), from the attractor at
 // (1.36, 0.15): two labels, and every boundary edge is crossed by the traced l2 grazing curve
-// (in issue 4's box the seams were 205 of 863 boundary edges, none on a traced curve).
+// (in the reference box the seams were 205 of 863 boundary edges, none on a traced curve).
 TEST(StabilityRegion, OneLabelPerOrbitWhereTheSectionCutsItElsewhere) {
   DriftingOscillator model;
   ExactPropagator prop(model);

@@ -1,4 +1,4 @@
-// Issue 5's load acceptance: 50 concurrent clients, each on its own channel, submit 500 jobs in
+// The service under load: 50 concurrent clients, each on its own channel, submit 500 jobs in
 // all to one real server (2 workers, a real SQLite file). Every job completes, each with the job
 // runner's own result, none is lost or run for another's request. Half of the requests are
 // repeats of another client's (same request, no request_id): those share a result through the

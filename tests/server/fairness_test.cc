@@ -36,7 +36,7 @@ grpc::Status Submit(TestServer& server, const v1::SubmitSweepRequest& request, O
   return server.jobs().SubmitSweep(context.get(), request, op);
 }
 
-// The scenario: more long jobs than workers, all running or queued, then a simulation of
+// The scenario: more long jobs than workers, all running or queued, then a simulation of
 // 3 + 3 periods (a few milliseconds of engine time). It runs on the worker reserved for short
 // jobs: done within 1 s of its submit (the bound asserted; the time measured is printed).
 TEST(Fairness, AShortJobBehindMoreLongJobsThanWorkersFinishesWithinASecond) {

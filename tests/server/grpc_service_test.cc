@@ -151,7 +151,6 @@ std::shared_ptr<grpc::Channel>* GrpcServiceTest::channel_ = nullptr;
 
 using drillbif::testing::ExpectSameResult;
 
-// The small box of the issue-4 tests: omega in [0.05, 0.15], a in [0.25, 0.6].
 TEST_F(GrpcServiceTest, SimulateGivesTheRunnersResult) {
   v1::SubmitSimulateRequest request;
   request.mutable_request()->set_sample_periods(20);
@@ -409,7 +408,7 @@ TEST_F(GrpcServiceTest, IdenticalRequestIsACacheHitWithoutEngineRun) {
 // then returns false; the sweep's worker checks its cancel flag every 1/200 of a value's 600
 // forcing periods (microseconds); MarkCancelled is one committed transaction (an fsync, ~1 ms
 // here, tens of ms on a slow disk). So the engine-side bound is 50 ms plus a few ms: the
-// issue's 100 ms. That goal is measured by bench/service_bench.cc (BM_CancelRunningSweep, on a
+// 100 ms target. That goal is measured by bench/service_bench.cc (BM_CancelRunningSweep, on a
 // quiet machine), not asserted here: on a loaded machine (ctest -j2 beside other work) this
 // test measured 135 ms and more. Here the job must reach CANCELLED within the 5 s it is polled
 // for (it would run for minutes); the value measured is printed.

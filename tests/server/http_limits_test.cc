@@ -439,7 +439,7 @@ TEST_F(HttpLimitsTest, ErrorBodiesAreJsonWithSanitisedEchoes) {
 }
 
 // 64 clients sending a request one byte at a time and 64 event streams of a queued job hold
-// connections; /metrics and a submit are still answered at once. The bound, 1 s, is the issue's;
+// connections; /metrics and a submit are still answered at once. The bound, 1 s, is the service's;
 // with the gateway holding a thread per such client they waited forever.
 TEST_F(HttpLimitsTest, SlowClientsAndOpenStreamsDoNotBlockOtherRequests) {
   const std::string queued = QueuedJob();
@@ -509,7 +509,7 @@ TEST_F(HttpLimitsTest, WaitingQueryOptimumDoesNotBlockOtherRequests) {
   query.set_compute(true);
   const std::string body = Json(query);
   std::vector<std::unique_ptr<RawConnection>> waiting;
-  // More than the old gateway's 8 threads.
+  // More than 8: a gateway holding one of 8 threads per waiting request would block here.
   for (int i = 0; i < 12; ++i) {
     waiting.push_back(std::make_unique<RawConnection>(port()));
     ASSERT_TRUE(waiting.back()->Send("POST /v1/optimum:query HTTP/1.1\r\nHost: x\r\n" + Auth() +

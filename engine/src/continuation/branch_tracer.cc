@@ -305,7 +305,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   // clearly earlier (by 1e-3 of the arclength: one at the vanishing itself belongs to that
   // grazing, as where an impact's contact phase vanishes in one copy of a twice-traversed orbit
   // and the free flight of the other copy re-crosses Pi with it). (The omega = 0.05 a-branch of
-  // issue 4's box: a touch inside a 72-long free flight 1.2e-6 in a, 21% of the way, before the
+  // the reference box: a touch inside a 72-long free flight 1.2e-6 in a, 21% of the way, before the
   // first segment vanished; crossing the vanishing first left the touch already violated, and
   // the branch failed.)
   if (violation.guard < 0) {
@@ -458,7 +458,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     // Where the orbit has another short segment next to the touch, that step can overrun it
     // (the solution then has negative durations): it is retried 10 and 100 times shorter, and
     // the first with every duration positive is solved again below (once per switch); when none
-    // is, the shortest. The period-2 a-branch of issue 4's box at a = 2.18218 is such a case:
+    // is, the shortest. The period-2 a-branch of the reference box at a = 2.18218 is such a case:
     // the l1 touch lies 0.03 before the end of a CwoP phase that ends at l1 too, next to a CwP
     // phase of zero length, and the solved step-off cancels the inserted CwP phase with the CwoP
     // phase after it (-1e-3, -1e-4, -1e-5 at the three lengths). Stepped off at 1e-3 the next

@@ -125,7 +125,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
           // Nor does it always tell which touch: where one contact phase touches its guard
           // twice (two tangent ends in a row at a double grazing), the curves of either
           // touch alone have the same signature and differ in how long the tangent segment
-          // is (5.5 and 24.5 at (0.0628, 0.1813) in issue 4's box, where the one was taken
+          // is (5.5 and 24.5 at (0.0628, 0.1813) in the reference box, where the one was taken
           // for the other and the second touch's curve, crossed by the omega-branch at
           // a = 0.18, was not traced). So a curve whose point of that signature next to this
           // one (within 1e-2 of the box) has other durations, beyond a longest step and 10%,
@@ -150,7 +150,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
     // lengths as a one-parameter branch's step off an inserted segment), else, in the last
     // round (`last_resort`), at each kLastResortStepOffs length in turn. Next to a contact
     // phase vanishing between flights the fixed-length system can stagnate or leave the
-    // flows' domain down to 1e-5 and solve shorter (issue 4's box: a PD curve of 253 points
+    // flows' domain down to 1e-5 and solve shorter (in the reference box: a PD curve of 253 points
     // between two flip-grazings near (0.062, 0.17), crossed by the omega-branch at a = 0.17,
     // was not traced without it; with longer steps its start needed 1e-7). Last, because a
     // curve started so close to its root is traced coarsely there (its first steps long
@@ -212,7 +212,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
       }
       // Started at a last-resort length but never away from the point: from most such
       // starts the curve ends at once both ways, back at the root and where its corrector
-      // fails at the first step (issue 4's box: nine curves at 1e-6, each within 1e-9 of its
+      // fails at the first step (in the reference box: nine curves at 1e-6, each within 1e-9 of its
       // root, seven with their second end bracketed only to 5 .. 7 in arclength). Kept,
       // such a curve would also hide the real curve of its signature through the point from
       // a later start (it hid two, of 11 and 80 points). The next length is tried.
@@ -245,8 +245,8 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
   for (size_t c = first_curve; c < result->curves.size(); ++c) {
     // After its codimension-2 points the curve's unverified ends (CurveResult::unverified_ends):
     // not located, but the curves that may leave there are tried as from a located end (in
-    // issue 4's box with max_period 2 that adds 413 curves and 11 period-2 codimension-2 points,
-    // located to 1e-8, that no other curve reaches).
+    // the reference box with max_period 2 that adds 413 curves and 11 period-2 codimension-2
+    // points, located to 1e-8, that no other curve reaches).
     const size_t located = result->curves[c].curve.codim2.size();
     const size_t ends = located + result->curves[c].curve.unverified_ends.size();
     for (size_t e = 0; e < ends; ++e) {
@@ -270,9 +270,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         if (point.bracket != 0.0) continue;
         // And the grazing curve of each touch beyond the other's boundary, where that touch
         // has become a crossing (CrossingForm, stepped off as at a root of a grazing curve): the
-        // fourth half-curve through the point. (Issue 4's box: a grazing curve between two double
-        // grazings near (0.065, 0.166), which the a-branch at omega = 0.065 crosses, met neither
-        // other way.)
+        // fourth half-curve through the point. (In the reference box: a grazing curve between two
+        // double grazings near (0.065, 0.166), which the a-branch at omega = 0.065 crosses, met
+        // neither other way.)
         for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
           if (!segs[j].tangent) continue;
           StatusOr<PeriodicOrbit> single = MergedForm(point.point.orbit, j);
@@ -292,10 +292,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         // A root along a grazing curve: the orbit without the vanishing segment folds / doubles,
         // and so does the orbit with it, whose curve ends here from the side where the touch has
         // become a crossing (started from a point off the root, the segment's length stepped off
-        // from zero). Either may be known, traced from its other end; the second was not tried
-        // before, and issue 4's box then lacked 174 curves (a PD curve between two
-        // flip-grazings, next to a hairpin of another PD curve of its signature, was found only
-        // where longer steps jumped onto it).
+        // from zero). Either may be known, traced from its other end; without the second the
+        // reference box lacks 174 curves (a PD curve between two flip-grazings, next to a hairpin
+        // of another PD curve of its signature, is found only where longer steps jump onto it).
         const SpecialPointKind seed =
             fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
         const CurveKind kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
@@ -335,7 +334,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         // contact phase between an impact and progression vanishing, the impact going straight
         // into progression) is no end of the fold / PD curve itself: past the corner its orbit
         // goes on without that segment, as a one-parameter branch does through such a
-        // SIGNATURE_CHANGE, and so does the curve. (Issue 4's box: the PD curve through
+        // SIGNATURE_CHANGE, and so does the curve. (In the reference box: the PD curve through
         // (omega, a) = (0.1, 0.45763) ended at such a corner at omega = 0.0931, and its
         // continuation in the signature NC>Pi CwP>l1 CwoP>l2 NC, which the a-branches at
         // omega = 0.065 .. 0.085 cross, was never traced.)

@@ -137,8 +137,8 @@ class CurveTracer {
   // Bordering vectors (bordered_sigma.h) from the shifted monodromy. Fixed ones serve only near
   // where they were taken: far along a curve the bordered matrix can turn singular (sigma then
   // blows up and the corrector fails in ever shorter steps: the a-branch fold curve from
-  // a = 0.2718 stalled so in issue 4's box), so they are renewed at every accepted point. sigma's
-  // zero set, the curve, does not depend on them.
+  // a = 0.2718 stalled so in the reference box), so they are renewed at every accepted point.
+  // sigma's zero set, the curve, does not depend on them.
   void SetBorders(const Mat& monodromy) const {
     if (kind_ == CurveKind::kGrazing) return;
     sigma_ = internal::BorderedSigma(internal::ShiftedMonodromy(kind_, monodromy));
@@ -345,8 +345,8 @@ class CurveTracer {
     // The condition's residual must be small too, not only the step: where the condition is
     // steep in the unknowns (next to a segment vanishing between two of one mode its saltations
     // grow like 1 / tau, and the multiplier's derivatives like 1 / tau^2) a point within the
-    // step tolerance of the curve can have its multiplier 1e-6 off +-1 (issue 4's box: 327 of
-    // 58902 fold / PD vertices above 1e-8, up to 4.7e-5). Once the step has converged, the
+    // step tolerance of the curve can have its multiplier 1e-6 off +-1 (in the reference box: 327
+    // of 58902 fold / PD vertices above 1e-8, up to 4.7e-5). Once the step has converged, the
     // iterations go on while the residual |condition| is above condition_tolerance and
     // decreasing at least twofold; they end at the iterate of smallest residual (at rounding's
     // floor, or where an evaluation fails, the converged one). The step control still sees the
@@ -641,7 +641,7 @@ class CurveTracer {
   // start (the same, seen by the event locator before the duration turns negative), or, on a
   // grazing curve whose first segment ends in its touch, that guard fires in the last segment
   // (of the same mode, running on across the section into the first): the touch reaching the
-  // section, its guard within rounding of zero at the last segment's end. (Issue 4's box: a
+  // section, its guard within rounding of zero at the last segment's end. (In the reference box: a
   // grazing curve ended so at (0.1318, 0.1577) as a DOUBLE_GRAZING, and its part beyond the
   // section, crossed by the omega-branch at a = 0.17, was never traced.)
   // `end` is the last admissible orbit: its first segment must be of zero length to rounding
@@ -686,14 +686,14 @@ class CurveTracer {
   // `beyond_corrected`: whether `beyond` is a corrected point (not where the end came from a
   // prediction, end_ahead's, and no midpoint beyond the boundary corrected since). From a
   // prediction, a midpoint beyond counts so only where it lands within kMaxDrift of its distance
-  // from ya (as a step's, below): issue 4's period-2 curves next to slow lift-offs brought
+  // from ya (as a step's, below): period-2 curves next to slow lift-offs brought
   // predictions ~65 ahead (where the tangent said a flight vanishes), whose first midpoints
   // corrected ~50 away onto orbits with that flight -24 long, and the end was reported with a
   // bracket of ~100 though the curve had stopped for its corrector failing at the last point (8
   // of the 12 entries above 1e-8 in omega [0.09, 0.11], a [0.25, 0.75]). The bisection's course
-  // is the same either way (refusing such midpoints moved a period-1 curve's end of issue 4's
-  // box, whose bisection had jumped 7e-4 along it, to a FOLD_GRAZING 4e-5 before the jump, and
-  // left a 3-point piece of it at the box's edge untraced).
+  // is the same either way (refusing such midpoints moved a period-1 curve's end of the
+  // reference box, whose bisection had jumped 7e-4 along it, to a FOLD_GRAZING 4e-5 before the
+  // jump, and left a 3-point piece of it at the box's edge untraced).
   struct Boundary {
     Vec ya, yb, beyond;
     std::string why;
@@ -765,7 +765,7 @@ class CurveTracer {
     // start again at once), or, before the end of the segment before it, that segment's own guard
     // (the one that starts j) firing early: the flow of that mode touches the guard where j shrinks
     // away, as a contact phase's force reaching the progression threshold just before a short
-    // progression phase between two contact phases vanishes (a PD curve of issue 4's box with
+    // progression phase between two contact phases vanishes (a PD curve of the reference box with
     // longer steps: l1 inside CwoP 6e-3 before its end, CwP 3e-3 long, bracket 6e-3 as Newton fails
     // next to the end); j at most 1e-2 long (a touch inside a segment followed by a long one is an
     // interior grazing, the touch form's). A solution is kept only within the bracket (below), so a
@@ -945,7 +945,7 @@ class CurveTracer {
     // Roots of the test functions between the last point and the boundary (a fold- or
     // flip-grazing root can lie next to a double grazing end), and requested values crossed
     // there (at a section crossing the curve goes on from b.ya in the rotated signature: a
-    // crossing of omega = 0.065 by a PD curve of issue 4's box, within such a step, was lost).
+    // crossing of omega = 0.065 by a PD curve of the reference box, within such a step, was lost).
     RootsOnStep(y, t, b.ya, end.stability.monodromy, tests, dets, codim2);
     CrossingsOnStep(y, b.ya, crossings);
     // And a cusp: a fold curve approaching a fold-grazing nearly at rest in the parameter plane
@@ -954,7 +954,7 @@ class CurveTracer {
     // (the fixed-signature system meets its zero-length solutions there), so the step is probed
     // at 7 inner points closing in on the end and the cusp located before the first one past a
     // reversal, until the sign change is bracketed to rounding (psi is 1e-13 .. 1e-9 there). In
-    // issue 4's box this found 2 more cusps with the default steps (4e-9 and 5e-9, box-scaled,
+    // the reference box this found 2 more cusps with the default steps (4e-9 and 5e-9, box-scaled,
     // before their curve's end, where psi was 4e-13 of the wrong sign) and 3 more with
     // target_iterations 4 (where the search's trial points next to the end did not correct):
     // 21 -> 23 and 20 -> 23 cusps, the same 23 (evenly spaced probes found 22 with the longer
@@ -993,7 +993,7 @@ class CurveTracer {
     // violate anything. A prediction off the curve is not admissible for reasons of its own: next
     // to a slow lift-off (the contact force's rate ~2e-3) the guard row's residual at a prediction
     // (~2e-7) moves that event ~1e-4 earlier, which reads as the guard crossed inside the segment
-    // (issue 4's period-2 curves next to a = 0.689, omega = 0.1, in the box omega [0.09, 0.11],
+    // (period-2 curves next to a = 0.689, omega = 0.1, in the box omega [0.09, 0.11],
     // a [0.25, 0.75]: such ends were reported as codimension-2 points with brackets up to 345;
     // and section crossings only a prediction brackets are taken up as any other, but where the
     // rotated signature does not correct they are unverified ends too (ContinueCurve): the last
@@ -1090,8 +1090,8 @@ class CurveTracer {
       // A curve that creeps (the step collapsed while Newton still converges, as next to a
       // fold-grazing where a segment's duration goes to zero like a square root) is ended rather
       // than left to spend max_steps: at the boundary ahead where there is one (three PD curves
-      // stepped off flip-grazings in issue 4's box crept, their parameters moving ~1e-9 per step,
-      // towards a progression phase between two contact phases vanishing 4e-4 ahead), else as
+      // stepped off flip-grazings in the reference box crept, their parameters moving ~1e-9 per
+      // step, towards a progression phase between two contact phases vanishing 4e-4 ahead), else as
       // stalled.
       recent.emplace_back(v1 / w1_, v2 / w2_);
       if (static_cast<int>(recent.size()) > kStallWindow) {
@@ -1271,7 +1271,7 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
   // as the square of the vanishing duration, so the direction test sees a reversal there, and a
   // curve started just off its end (stepped off a codimension-2 root, trace.cc) begins inside
   // that hook, where the cusp test's tangent ratio is relative to an already stationary tangent.
-  // Measured in issue 4's box: such points 7e-10 from the end (box-scaled), real cusps in a
+  // Measured in the reference box: such points 7e-10 from the end (box-scaled), real cusps in a
   // hook before an end 4e-9 .. 5e-9 from it; 1e-9 lies between.
   auto at_an_end = [&](const Codim2Point& cusp) {
     return cusp.kind == Codim2Kind::kCusp &&

@@ -221,7 +221,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
 
 namespace {
 
-// The location tolerance: ends within it are left as they are by EndsAtFlipGrazings.
+// The required location tolerance: ends within it are left as they are by EndsAtFlipGrazings.
 constexpr double kLocated = 1e-8;
 
 // Whether EndsAtFlipGrazings looks at the point: an end of even period beyond kLocated.

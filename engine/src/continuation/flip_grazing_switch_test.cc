@@ -1,6 +1,6 @@
 // The period-2 grazing curves leaving flip-grazing points (trace_internal.h): given only the
 // period-1 PD curve from the omega-branch's doubling at omega = 1.6258 (a = 0.3), which ends at
-// the two flip-grazings (1.3946, 6.7289) and (0.4734, 0.1616) of issue 4's box, the step finds
+// the two flip-grazings (1.3946, 6.7289) and (0.4734, 0.1616) of the reference box, the step finds
 // the period-2 grazing curve leaving each. Checked independently: each such curve ends where its
 // second pass grazes too (DOUBLE_GRAZING) at the flip-grazing point, where its orbit becomes the
 // period-1 orbit traversed twice (then reported as that FLIP_GRAZING, EndsAtFlipGrazings), its
@@ -16,7 +16,7 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 #include "support/period_two.h"
 #include "support/special_point_near.h"
@@ -32,7 +32,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   const StatusOr<PeriodicOrbit> start =
       testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   ASSERT_TRUE(start.ok());
-  const TraceOptions box = testing::Issue4Box();
+  const TraceOptions box = testing::ReferenceBox();
   ContinuationOptions branch;
   branch.param = "omega";
   branch.min = box.min1, branch.max = box.max1;
@@ -81,7 +81,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   std::vector<PeriodicOrbit> last;  // the last admissible orbit of each end, before the merge
   for (const auto& [c, i] : ends) last.push_back(result.curves[c].curve.codim2[i].point.orbit);
   // There the period-2 orbit becomes the period-1 orbit traversed twice and the period-2 system
-  // is singular: the ends keep a bracket above the issue's 1e-8 (1.8e-4 and 2.7e-4 at this
+  // is singular: the ends keep a bracket above the required 1e-8 (1.8e-4 and 2.7e-4 at this
   // code) and are reported as the flip-grazing itself.
   EXPECT_EQ(EndsAtFlipGrazings(model, opt, &result), 2);
   for (const Codim2Point& q : result.curves[0].curve.codim2) {
@@ -142,7 +142,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
 // period, are left alone.
 TEST(FlipGrazingSwitch, OnlyEndsMergingIntoTheOrbitTraversedTwiceAreTheFlipGrazing) {
   DriftingOscillator model;
-  TraceOptions opt = testing::Issue4Box();
+  TraceOptions opt = testing::ReferenceBox();
   const double w1 = opt.max1 - opt.min1;
   auto end = [&](Codim2Kind kind, int periods, double value1, double y, double bracket) {
     Codim2Point z;

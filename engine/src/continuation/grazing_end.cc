@@ -101,8 +101,8 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
     // monodromy (sigma's borders) are singular there. First the orbit of that signature with
     // the segment `length` long, one parameter free (no monodromy: a regular system, the
     // crossing speed ~ h'' length / 2), then the whole system from it. From the root itself
-    // Newton lost its way (issue 4's box: a step-off solved or not by rounding differences in
-    // the root).
+    // Newton lost its way (in the reference box: a step-off solved or not by rounding differences
+    // in the root).
     PeriodicOrbit g = guess;
     const SegmentSpec& seg = g.signature.segments[segment];
     const StateVector end = propagator.FlowMap(seg.mode, g.starts[segment], length, g.params, {}).x;
@@ -124,10 +124,10 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
   return solve_from(guess);
 }
 
-// The fixed-length solves' scaled step: on a period-2 PD curve of issue 4's box sigma settles at
-// 1e-11 (a long orbit's monodromy), where Newton's steps hover at 1e-11 .. 1e-9 and 1e-12 is never
-// reached; at 1e-10 the extrapolated parameters carry ~5e-10 of that noise (the weights' sum of
-// magnitudes is 5), within the issue's 1e-8.
+// The fixed-length solves' scaled step: on a period-2 PD curve of the reference box sigma settles
+// at 1e-11 (a long orbit's monodromy), where Newton's steps hover at 1e-11 .. 1e-9 and 1e-12 is
+// never reached; at 1e-10 the extrapolated parameters carry ~5e-10 of that noise (the weights' sum
+// of magnitudes is 5), within the required 1e-8.
 constexpr double kExtrapolationTolerance = 1e-10;
 
 StatusOr<ExtrapolatedEnd> ExtrapolateZeroLength(const HybridModel& model, Propagator& propagator,

@@ -2,8 +2,9 @@
 // the admissibility boundary (curve.cc) brackets such an end, but next to it the curve's own
 // system degenerates (the vanishing segment's two events merge and a family of zero-length
 // solutions meets the curve there, tangent_grazing.h), Newton fails on the last stretch and the
-// bracket can stay wide (1e-5 .. 1e-2 in issue 4's box). In tangent form the same point is the
-// regular root of a square system in (X, lambda1, lambda2):
+// bracket can stay wide (1e-5 .. 1e-2 in the reference (omega, a) box, omega in [0.05, 2], a in
+// [0.01, 8] at b = 0.15). In tangent form the same point is the regular root of a square system
+// in (X, lambda1, lambda2):
 //   fold / PD / NS curve:  G = 0, h' = 0 at the one tangent end, sigma(shifted M) = 0
 //   grazing curve:         G = 0, h' = 0 at both tangent ends (a double grazing)
 // with M the tangent-form orbit's monodromy (that of the orbit without the vanishing segment; it
@@ -50,13 +51,13 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
 // (both events of the vanishing segment degenerate at once, as a contact phase vanishing between
 // two flights: impact at zero speed and lift-off at zero force rate; Newton stagnates) and the
 // tangent form's root is another point. Along the curve the segment's length tau is a regular
-// coordinate near the end (the parameters move linearly in it, measured in issue 4's box), and
+// coordinate near the end (the parameters move linearly in it, measured in the reference box), and
 // the fixed-length system (SolveSegmentLength) is regular for tau > 0. So the curve's points at
 // tau = L, 2L, 4L are solved (each from the last) and the orbit's unknowns and parameters
 // extrapolated to tau = 0 by the quadratic through them (weights 8/3, -2, 1/3; error O(L^3)); the
 // error of its parameters is estimated by the difference to the linear extrapolation from (L, 2L)
 // (whose error, -2 c L^2 for x(tau) = a + b tau + c tau^2, dominates: a bound). L = 1e-5: the
-// estimate is 3e-13 .. 2.5e-9 in issue 4's box, while the fold / PD condition at L stays well
+// estimate is 3e-13 .. 2.5e-9 in the reference box, while the fold / PD condition at L stays well
 // conditioned (the saltations at the segment's events grow like 1/tau; at tau = 1e-7 the
 // multiplier +1 came out 1e-8 off and Newton can stagnate). A linear extrapolation left the
 // orbit's flight 4e-8 off the impact surface; the quadratic one, 1e-12.

@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "problems/issue4_box.h"
+#include "problems/reference_box.h"
 #include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
 #include "support/special_point_near.h"
@@ -31,7 +31,7 @@ std::string Sci(double x) {
 }
 
 // The reference orbit's a-branch at omega = 0.1 over a in [0.01, 8], and curves from its points
-// in (a, omega) over issue 4's box.
+// in (a, omega) over the reference box.
 class GrazingEnd : public testing::ReferenceOrbitTest {
  protected:
   void SetUp() override {
@@ -49,7 +49,7 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
     return testing::SpecialPointNear(a_branch_, kind, a, tol);
   }
 
-  // The reference orbit's omega-branch at a = 0.3 over issue 4's omega range.
+  // The reference orbit's omega-branch at a = 0.3 over the reference box's omega range.
   ContinuationResult OmegaBranch() {
     ContinuationOptions branch;
     branch.param = "omega";
@@ -58,16 +58,16 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
     return Continue(model_, prop_, start_, branch);
   }
 
-  // Issue 4's box in (omega, a): the parameters of curves started on the omega-branch.
+  // The reference box in (omega, a): the parameters of curves started on the omega-branch.
   static CurveOptions OmegaABox() {
-    const TraceOptions box = testing::Issue4Box();
+    const TraceOptions box = testing::ReferenceBox();
     CurveOptions opt;
     opt.param1 = box.param1, opt.min1 = box.min1, opt.max1 = box.max1;
     opt.param2 = box.param2, opt.min2 = box.min2, opt.max2 = box.max2;
     return opt;
   }
 
-  // Issue 4's box, in (a, omega): the parameters of curves started on the a-branch.
+  // The reference box, in (a, omega): the parameters of curves started on the a-branch.
   static CurveOptions Box() {
     CurveOptions opt = OmegaABox();
     std::swap(opt.param1, opt.param2);
@@ -96,7 +96,7 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
 // the end is solved in tangent form. Checked: both defining conditions on the reported orbit
 // (h = h' = 0 at the tangent end, multiplier +1), and the same point located independently, as
 // the root of det(M - I) along the l1 grazing curve traced from a grazing 1e-3 away in omega
-// (SolveTangentGrazing at fixed omega); measured agreement 1.3e-15, asserted to the issue's 1e-8.
+// (SolveTangentGrazing at fixed omega); measured agreement 1.3e-15, asserted to the required 1e-8.
 TEST_F(GrazingEnd, FoldCurveEndIsTheGrazingCurvesFoldGrazing) {
   const SpecialPoint* fold = Find(SpecialPointKind::kFold, 0.2718, 1e-3);
   ASSERT_NE(fold, nullptr);
@@ -231,14 +231,14 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
 // values. Checked: the stepped-off orbit holds the phase at 1e-3, is admissible and has the
 // multiplier -1 (to 1e-8, as every located PD point), and the PD curve traced from it ends back
 // at the root, that end solved independently (in tangent form, from the bisected end):
-// measured agreement 1.4e-14 and 4e-17 (box-scaled), asserted the issue's 1e-8.
+// measured agreement 1.4e-14 and 4e-17 (box-scaled), asserted the required 1e-8.
 TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
   const ContinuationResult ro = OmegaBranch();
   const SpecialPoint* graze =
       testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
   ASSERT_NE(graze, nullptr);
   const CurveOptions opt = OmegaABox();
-  const TraceOptions box = testing::Issue4Box();
+  const TraceOptions box = testing::ReferenceBox();
   const CurveResult grazing = ContinueCurve(model_, prop_, *graze, opt);
   const int i1 = DO::kOmega, i2 = DO::kA;
   const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
@@ -285,7 +285,8 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
 // degenerates); each end is solved in merged form, one on the l2 guard's h' = h'' = 0 at
 // lift-off, the other on the Pi guard's h'' = h''' = 0 at the flight's start (h''' by
 // differences): two different systems. Checked: both agree (asserted 1e-9), and both orbits meet
-// the first system's conditions (F, F', F'' at lift-off, exact from the model) to the issue's 1e-8.
+// the first system's conditions (F, F', F'' at lift-off, exact from the model) to the required
+// 1e-8.
 TEST_F(GrazingEnd, TouchMergingIntoLiftOffEndsTwoGrazingCurvesAtOnePoint) {
   std::vector<Codim2Point> ends;
   for (const auto& [kind, a] : {std::pair{SpecialPointKind::kGrazingL2, 0.156354},
@@ -334,10 +335,10 @@ TEST_F(GrazingEnd, TouchMergingIntoLiftOffEndsTwoGrazingCurvesAtOnePoint) {
 // Where a contact phase vanishes between two flights (an impact at vanishing speed, lift-off at
 // once) neither the tangent form (its root is another point) nor the zero-length system (singular
 // there) solves the end, and Newton fails next to it along the curve: the bisection left such
-// ends of issue 4's box bracketed to 1e-8 .. 1e-6. The fold curve of the a-branch's fold at
+// ends of the reference box bracketed to 1e-8 .. 1e-6. The fold curve of the a-branch's fold at
 // a = 0.2602 (omega = 0.1) ends so near (omega, a) = (0.0884, 0.2657); the end is extrapolated to
 // zero length from the curve's points at lengths 1e-5, 2e-5, 4e-5. Checked: its estimated error
-// within the issue's 1e-8; the extrapolated multiplier +1 to 1e-8; the grazing itself on the
+// within the required 1e-8; the extrapolated multiplier +1 to 1e-8; the grazing itself on the
 // reported orbit: the flight before the zero-length phase reaches the impact surface at zero speed,
 // h = 0 and h' = 0 to 1e-9 (measured 2e-12: the extrapolation is quadratic, its error O(L^3); a
 // linear one left h 4e-8 off); and, independently of the extrapolation's arithmetic, the curve's

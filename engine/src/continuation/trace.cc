@@ -247,8 +247,8 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
                           "-branch failed: " + r.summary.message);
     } else if (r.summary.termination == Termination::kFailed) {
       // An edge branch searches for more curves; where it stops, the curves crossing the edge
-      // beyond are found only if another edge branch or switching reaches them (in issue 4's
-      // box one period-2 edge branch stops with max_period 2; two period-1 ones did at
+      // beyond are found only if another edge branch or switching reaches them (in the
+      // reference box one period-2 edge branch stops with max_period 2; two period-1 ones did at
       // omega = 0.05, a = 0.2153, before branch_tracer.cc's CrossGrazing saw a touch hidden
       // behind a vanishing segment). Not a failure of the curves asked for.
       sum.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
@@ -267,7 +267,7 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
           });
       if (turn) continue;
       // A fold of the period-2n system on the period-n orbit traversed twice is that orbit's
-      // doubling (multiplier -1, squared): issue 4's period-2 omega-branch from the doubling at
+      // doubling (multiplier -1, squared): the period-2 omega-branch from the doubling at
       // omega = 0.2698 (a = 0.3) ran on through its other birth at 1.6258 onto the doubled
       // branch and located a fold at 1.62585, 8e-5 from the branch point (so not the turn
       // above); its "fold curve" was the period-1 PD curve, one point each way.
@@ -511,7 +511,7 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
                         " curve ends where a period-2n orbit becomes the period-n orbit traversed "
                         "twice, reported as that period-n FLIP_GRAZING");
   }
-  // Points the issue's 1e-8 does not cover: their `bracket` says how far they are known.
+  // Points the required 1e-8 does not cover: their `bracket` says how far they are known.
   // Per period: codimension-2 points with bracket > 1e-8, and curve ends not claimed as points.
   std::map<int, int> wide, unverified;
   for (const TracedCurve& c : result.curves) {

@@ -39,7 +39,7 @@ double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, cons
 // section state returns after n forcing periods to 1e-6 (1 + |x|) (DistanceWithoutPhase; |x| the
 // largest component but the phase). A doubled
 // orbit returns to the corrector's tolerance amplified by its multipliers (2.7e-12 measured at
-// the fold TraceCurves skips so, on issue 4's period-2 omega-branch at a = 0.3); the genuine
+// the fold TraceCurves skips so, on the period-2 omega-branch at a = 0.3); the genuine
 // period-2 folds of those branches, no closer than 0.29; the fold where a period-2 branch turns
 // at its birth (told apart by its branch point), ~sqrt of its location tolerance (1.3e-3).
 bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o);
@@ -101,7 +101,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
 // curve leaving a period-n flip-grazing (above), or a period-2n fold curve ending at one, meets
 // there the period-n orbit traversed twice: the period-2n system is singular at that end (its
 // multiplier -1 squared is a second +1), Newton fails next to it and the end keeps a wide
-// bracket (1e-5 .. 10 in arclength in issue 4's box) although its parameters lie within ~1e-5
+// bracket (1e-5 .. 10 in arclength in the reference box) although its parameters lie within ~1e-5
 // of the period-n point. Each such end (bracket above 1e-8, within 1e-4 (box-scaled) of a
 // located period-n FLIP_GRAZING, its section state that point's to the O(sqrt(distance)) by which
 // the passes of a period-2n orbit next to its birth at a PD differ) is reported as that point: kind

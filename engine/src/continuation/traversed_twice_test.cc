@@ -1,4 +1,4 @@
-// internal::TraversedTwice (trace_internal.h): on issue 4's period-2 omega-branch at a = 0.3
+// internal::TraversedTwice (trace_internal.h): on the period-2 omega-branch at a = 0.3
 // (born at the period-1 doubling near omega = 0.2698, continued to the one near 1.6258), the
 // fold located next to that second doubling is the period-1 orbit traversed twice, which
 // TraceCurves must not trace as a period-2 fold curve; the branch's other folds are genuine.

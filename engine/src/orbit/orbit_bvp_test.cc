@@ -54,7 +54,7 @@ TEST_P(OrbitBvpTest, TwoParameterDerivativesMatchOneAtATimeAndDifferences) {
   }
 }
 
-// (omega, a) as issue 4's curves; (a, xi) with xi's derivative by Van Loan in contact.
+// (omega, a) as the reference box's curves; (a, xi) with xi's derivative by Van Loan in contact.
 INSTANTIATE_TEST_SUITE_P(Pairs, OrbitBvpTest,
                          ::testing::Values(std::pair{DO::kOmega, DO::kA},
                                            std::pair{DO::kA, DO::kXi}, std::pair{DO::kB, DO::kG}));

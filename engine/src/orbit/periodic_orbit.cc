@@ -176,7 +176,7 @@ namespace {
 // around it, and the locator can see a crossing anywhere there (with h'' = 2e-4, 1e-6 before
 // tau, grazing curves ended at spurious double grazings at random places along them; with
 // h'' = 0.065 and h(tau) = -4e-12 left by the corrector, 1.1e-5 before it, a grazing curve of
-// issue 4's box ended at one). A real crossing that close to the end is itself a degenerate
+// the reference box ended at one). A real crossing that close to the end is itself a degenerate
 // (cubic) tangency.
 bool IsOwnEnd(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
               size_t i, double t) {

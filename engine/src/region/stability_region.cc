@@ -199,8 +199,8 @@ class RegionBuilder {
   // Whether the branch of `from` along the edge to `to` (one coordinate differs) reaches it with
   // every point stable and no fold, period doubling, Neimark-Sacker point or grazing on the way:
   // the one-parameter continuation carries the orbit on where its representation rotates (an
-  // event crossing the section), which Solve, with the signature fixed, cannot (issue 4's box:
-  // a seam at (0.87, 0.02125) went unclassified, the flight orbit's representation rotating at
+  // event crossing the section), which Solve, with the signature fixed, cannot (in the reference
+  // box: a seam at (0.87, 0.02125) went unclassified, the flight orbit's representation rotating at
   // a = 0.0213 on its way to the far node).
   bool CarriedStable(const PeriodicOrbit& from, const Eigen::Vector2d& to) {
     const bool along1 = from.params[k1_] != to[0];
@@ -257,7 +257,7 @@ class RegionBuilder {
 
   // One label per orbit: signatures that differ only in where the section cuts the orbit (an
   // event crossing s = 0 inside the region) share it, else the seam would count as a boundary
-  // (issue 4's box: 205 of 863 boundary edges, none on a traced curve, were such seams).
+  // (in the reference box: 205 of 863 boundary edges, none on a traced curve, were such seams).
   int LabelOf(const Signature& signature) {
     for (size_t k = 0; k < region_.signatures.size(); ++k) {
       if (SameUpToSection(region_.signatures[k], signature)) return static_cast<int>(k);

@@ -56,8 +56,9 @@ struct CurveOptions {
   int max_steps = 10000;       // per direction (see below)
   double tolerance = 1e-10;    // corrector: scaled Newton step
   // max_steps: curves of long orbits are long in the unknowns (at omega ~ 0.1 a period-2 orbit's
-  // drift coordinate moves ~6000 times as far as omega along its PD curve): in issue 4's box
-  // with period 2, 12 of the period-2 curves of omega in [0.09, 0.11] stopped at 2000.
+  // drift coordinate moves ~6000 times as far as omega along its PD curve): in the reference
+  // (omega, a) box (omega in [0.05, 2], a in [0.01, 8] at b = 0.15) with period 2, 12 of the
+  // period-2 curves of omega in [0.09, 0.11] stopped at 2000.
   // Values of lambda2 where the curve's crossing points are solved exactly (Newton with lambda2
   // fixed, from the interpolation between the two points around it), e.g. to compare with a
   // one-parameter continuation at that value.
@@ -112,8 +113,8 @@ const char* Codim2KindName(Codim2Kind kind);
 // regular (a contact phase vanishing between two flights), the end is the limit of the curve's
 // points as the segment's length goes to zero, extrapolated from lengths 1e-5, 2e-5 and 4e-5
 // (`detail` ending "(extrapolated to segment j of zero length)"; `bracket` then the estimated
-// error of its two parameters, 3e-13 .. 2.5e-9 in issue 4's box, and its multipliers the curve's,
-// extrapolated too). Other ends keep their bisection bracket.
+// error of its two parameters, 3e-13 .. 2.5e-9 in the reference box, and its multipliers the
+// curve's, extrapolated too). Other ends keep their bisection bracket.
 struct Codim2Point {
   Codim2Kind kind = Codim2Kind::kFoldGrazing;
   CurvePoint point;

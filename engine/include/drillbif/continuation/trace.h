@@ -32,9 +32,10 @@ struct TraceOptions {
   // purpose: near omega = 0.1, a = 0.16 distinct curves lie 1e-3 of the box apart, and a curve
   // traced twice costs time while a curve skipped is lost. The polyline's chord error (~ step^2
   // times the curvature) can exceed it; a located point would then start its curve twice (not
-  // seen in issue 4's box: curves of one kind come within 1e-5 of each other at one vertex at
-  // most). Curves switched onto at codimension-2 points, compared with curves of the same
-  // signature, allow for that error too (a grazing curve with COARSE steps was traced twice).
+  // seen in the reference (omega, a) box, omega in [0.05, 2], a in [0.01, 8] at b = 0.15: curves of
+  // one kind come within 1e-5 of each other at one vertex at most). Curves switched onto at
+  // codimension-2 points, compared with curves of the same signature, allow for that error too (a
+  // grazing curve with COARSE steps was traced twice).
   double duplicate_distance = 1e-5;
   // The longest period traced: 1 (default), 2, 4, 8 or 16. With 2, also the period-2 curves: at
   // every period doubling of the period-1 branches the period-2 branch born there
@@ -49,8 +50,8 @@ struct TraceOptions {
   // and the start's other parameters (simulated from seed_state, solved as a periodic orbit) and
   // its branches in both parameters over the box, like the start's; their points start curves
   // unless already on a traced one. Curves that no branch through the start meets and no
-  // switching reaches are found so: in issue 4's box a seed at omega = 0.07 added ~240 curves of
-  // the network below omega = 0.09 before the edge branches (below), and none once they were in.
+  // switching reaches are found so: in the reference box a seed at omega = 0.07 added ~240 curves
+  // of the network below omega = 0.09 before the edge branches (below), and none once they were in.
   // An attractor not found, or of a period above max_period, is named in a note.
   std::vector<double> seeds1;
   StateVector seed_state;  // empty: the model's default initial state
@@ -59,7 +60,7 @@ struct TraceOptions {
   // unless a branch run along that edge located that end's point already; the curves of its
   // points (unless on a traced one) and the curves leaving their codimension-2 points. Curves
   // that neither cross a branch through the start nor meet a curve that does, but cross the
-  // box's edge on a branch a traced curve ends on, are found so: in issue 4's box two branches
+  // box's edge on a branch a traced curve ends on, are found so: in the reference box two branches
   // along omega = 0.05 (the decreasing a-branch snakes there through many more turns than at
   // omega = 0.1) add 8 curves to the 756 traced without them (306 to 436 before switching at
   // double grazings reached most of that network too), ~1 s. Grazing curves' ends start no edge
@@ -76,7 +77,7 @@ struct TraceOptions {
   // the same kind and signature is skipped.
   bool switch_at_codim2 = true;
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
-  // what issue 4's box needs (436 curves in all; 2884 with max_period 2, which 2000 cut short).
+  // what the reference box needs (436 curves in all; 2884 with max_period 2, which 2000 cut short).
   int max_switched_curves = 5000;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of

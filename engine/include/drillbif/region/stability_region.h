@@ -53,7 +53,8 @@ struct RegionOptions {
   double min1 = 0.0, max1 = 0.0, min2 = 0.0, max2 = 0.0;  // the box, finite, min < max
   // Grid nodes per parameter, >= 3 each. The region and the optimum are resolved to one spacing
   // (box width / (n - 1)); the cost grows with n1 * n2 (one Newton solve per node inside, plus
-  // the failed ones around it). 101 resolves the issue-4 box to ~2% in a, 1% in omega.
+  // the failed ones around it). 101 resolves the reference (omega, a) box (omega in [0.05, 2],
+  // a in [0.01, 8]) to ~2% in a, 1% in omega.
   int n1 = 101, n2 = 101;
   // Halvings of a grid edge when the boundary is located by bisection (no traced curve crosses
   // it): 12 gives 1/4096 of a spacing.

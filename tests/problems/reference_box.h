@@ -1,7 +1,7 @@
-// The (omega, a) box of issue 4, omega in [0.05, 2], a in [0.01, 8] (at the reference b = 0.15):
+// The reference (omega, a) box, omega in [0.05, 2], a in [0.01, 8] (at the reference b = 0.15):
 // where every period-1 fold, PD and grazing curve is to be traced. Shared by tests and benches.
-#ifndef DRILLBIF_TESTS_PROBLEMS_ISSUE4_BOX_H_
-#define DRILLBIF_TESTS_PROBLEMS_ISSUE4_BOX_H_
+#ifndef DRILLBIF_TESTS_PROBLEMS_REFERENCE_BOX_H_
+#define DRILLBIF_TESTS_PROBLEMS_REFERENCE_BOX_H_
 
 #include <string>
 
@@ -9,7 +9,8 @@
 
 namespace drillbif::testing {
 
-inline TraceOptions Issue4Box() {
+// The trace options of the reference (omega, a) box, every other option at its default.
+inline TraceOptions ReferenceBox() {
   TraceOptions o;
   o.param1 = std::string("omega");  // not = "omega": GCC 12 -Wrestrict false positive
   o.param2 = std::string("a");
@@ -20,4 +21,4 @@ inline TraceOptions Issue4Box() {
 
 }  // namespace drillbif::testing
 
-#endif  // DRILLBIF_TESTS_PROBLEMS_ISSUE4_BOX_H_
+#endif  // DRILLBIF_TESTS_PROBLEMS_REFERENCE_BOX_H_
