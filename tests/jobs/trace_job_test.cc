@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 namespace drillbif::jobs {
 namespace {
@@ -241,6 +242,26 @@ TEST(RunTrace, EdgeBranchesAddCurvesStartedOnTheBoxEdge) {
         << c.kind() << " " << c.message();
   }
   EXPECT_GT(added, 0);
+}
+
+// The progress of a trace whose start search simulates a long transient (long enough for the
+// search to report) rises monotonically: the search is the first 2% of the bar, the curves the
+// rest.
+TEST(RunTrace, ProgressIsMonotoneThroughALongStartSearch) {
+  v1::TraceRequest request = SmallBox();
+  request.set_transient_periods(200000);
+  std::vector<double> fractions;
+  const StatusOr<v1::TraceResult> r = RunTrace(request, {.progress = [&](double f) {
+                                                 fractions.push_back(f);
+                                                 return true;
+                                               }});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+  ASSERT_FALSE(fractions.empty());
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()))
+      << ::testing::PrintToString(fractions);
+  EXPECT_LE(fractions.back(), 1.0);
+  EXPECT_GE(fractions.front(), 0.0);
 }
 
 TEST(RunTrace, CancelStopsBeforeTheNextCurveAndKeepsWhatWasTraced) {
