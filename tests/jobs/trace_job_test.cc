@@ -264,6 +264,23 @@ TEST(RunTrace, ProgressIsMonotoneThroughALongStartSearch) {
   EXPECT_GE(fractions.front(), 0.0);
 }
 
+// A stop seen while a curve is being traced (not between curves) ends the trace CANCELLED too,
+// with the part of that curve traced so far. The curves stage reports its fraction before each
+// curve (the job's bar: 0.02 + 0.98 * 0.1 at the first curve); within a curve the flows poll the
+// same callback with that fraction. The second call at or past the first curve's fraction comes
+// from within the first curve (the first may be the report itself).
+TEST(RunTrace, AStopWhileACurveIsTracedEndsTheTraceCancelled) {
+  constexpr double kFirstCurve = 0.02 + 0.98 * 0.1;
+  int calls_in_curves = 0;
+  const StatusOr<v1::TraceResult> r = RunTrace(SmallBox(), {.progress = [&](double f) {
+                                                 if (f >= kFirstCurve - 1e-12) ++calls_in_curves;
+                                                 return calls_in_curves < 2;
+                                               }});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "CANCELLED") << r->message();
+  EXPECT_GE(calls_in_curves, 2);
+}
+
 TEST(RunTrace, CancelStopsBeforeTheNextCurveAndKeepsWhatWasTraced) {
   int calls = 0;
   double last = -1.0;
