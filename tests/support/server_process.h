@@ -68,8 +68,7 @@ class ServerProcess {
     for (std::string& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
     const int log_fd = open(log_path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-    started_at_ = Clock::now();
-    signalled_at_ = started_at_;
+    signalled_at_ = Clock::now();  // WaitExit measures from the start until a signal is sent
     pid_ = fork();
     if (pid_ == 0) {
       if (log_fd >= 0) {
@@ -147,7 +146,7 @@ class ServerProcess {
   std::string log_path_;
   pid_t pid_ = -1;
   int port_ = 0;
-  Clock::time_point started_at_, signalled_at_;
+  Clock::time_point signalled_at_;
   std::optional<ServerExit> exit_;
   std::shared_ptr<grpc::Channel> channel_;
 };
