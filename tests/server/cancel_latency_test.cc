@@ -129,7 +129,7 @@ std::vector<Phase> Phases() {
                     }});
   // A continuation of b from the reference orbit whose start search simulates 3e6 periods
   // (~15 s) first; and one with the default search whose steps are capped at 1e-7
-  // (LongContinuation: minutes).
+  // (LongContinuation: 40000 steps, far longer than the test waits).
   phases.push_back(
       {"continue: start-orbit search",
        [](Jobs::Stub& jobs, int i) {
