@@ -301,6 +301,9 @@ JobCost RegionCost(int n1, int n2) {
 
 namespace internal {
 
+// Share of the progress bar of the start orbit's search.
+constexpr double kStartShare = 0.02;
+
 StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallback& progress,
                                     const TracedCurveCallback& on_curve) {
   EngineTrace out;
@@ -308,12 +311,15 @@ StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallbac
   const Osc& model = Model();
   out.options = plan.options;
   ExactPropagator propagator(model);
+  // The start orbit's search is the first 2% of the progress, the curves the rest: the fraction
+  // stays monotone (a long transient reports its own fractions from 0 to 1).
   StatusOr<PeriodicOrbit> orbit =
-      StartOrbit(propagator, plan.params, plan.search.x0, plan.search.transient_periods, progress);
+      StartOrbit(propagator, plan.params, plan.search.x0, plan.search.transient_periods,
+                 StageProgress(progress, 0.0, kStartShare));
   if (!orbit.ok()) return orbit.status();
   out.start = *orbit;
   out.result = TraceCurves(model, propagator, out.start, out.options,
-                           StageProgress(progress, 0.02, 1.0), on_curve);
+                           StageProgress(progress, kStartShare, 1.0), on_curve);
   if (!out.result.summary.status.ok()) return out.result.summary.status;
   return out;
 }

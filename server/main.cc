@@ -3,8 +3,10 @@
 //   drillbif-server --grpc-port 50051 --http-port 8080 --db drillbif.db [--workers N] [--token T]
 //                   [--config FILE]
 //
-// SIGTERM and SIGINT shut it down gracefully (Server::Shutdown). The signals are blocked in
-// every thread and taken by sigwait on the main thread, so no work happens in a signal handler.
+// SIGTERM and SIGINT shut it down gracefully (Server::Shutdown); it exits 0 once done, or 3 when
+// the shutdown did not finish within --shutdown-grace-ms or a second signal came first. The
+// signals are blocked in every thread and taken by sigwait, so no work happens in a signal
+// handler.
 #include <signal.h>
 #include <spdlog/spdlog.h>
 
@@ -163,6 +165,18 @@ int main(int argc, char** argv) {
   int received = 0;
   sigwait(&signals, &received);
   spdlog::info("signal {} received", received);
+  // A second signal (an operator's second Ctrl-C or kill) cuts the graceful shutdown short. The
+  // signals stay blocked in every thread, so this sigwait takes it even if it came already.
+  std::thread([signals] {
+    int again = 0;
+    sigwait(&signals, &again);
+    spdlog::warn(
+        "signal {} received again; exiting now (running jobs are requeued at the next "
+        "start)",
+        again);
+    spdlog::default_logger()->flush();
+    std::_Exit(3);
+  }).detach();
   // A watchdog: running jobs stop within milliseconds (their engines check for it), but whatever
   // happens the process ends within the grace period; the store recovers what was running.
   std::thread([shutdown_grace_ms] {

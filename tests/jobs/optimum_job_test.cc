@@ -6,9 +6,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "jobs/optimum_cache.h"
 #include "jobs/trace_job.h"
@@ -169,6 +171,25 @@ TEST(RunOptimum, ATraceOfTheSameBoxLeavesItsCurvesAndRegion) {
   request.add_grid(41);
   ExpectReuse(request, &cache, true, true);
   EXPECT_EQ(OptimumCache::KeyOf(map), OptimumCache::KeyOf(request.trace()));  // region left out
+}
+
+// The progress rises monotonically through every stage (curves, region, the optimum's query, the
+// coexistence check) and ends at 1, so that a client can tell the stages apart by the fraction.
+TEST(RunOptimum, ProgressIsMonotoneThroughEveryStage) {
+  v1::OptimumRequest request = Request();
+  request.add_grid(101);
+  request.add_grid(101);
+  std::vector<double> fractions;
+  const StatusOr<v1::OptimumResult> r = RunOptimum(request, {.progress = [&](double f) {
+                                                     fractions.push_back(f);
+                                                     return true;
+                                                   }});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+  ASSERT_FALSE(fractions.empty());
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()))
+      << ::testing::PrintToString(fractions);
+  EXPECT_EQ(fractions.back(), 1.0);
 }
 
 // A cancelled optimum leaves nothing in the cache: the next request computes its curves.

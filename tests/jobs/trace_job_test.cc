@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 namespace drillbif::jobs {
 namespace {
@@ -241,6 +242,43 @@ TEST(RunTrace, EdgeBranchesAddCurvesStartedOnTheBoxEdge) {
         << c.kind() << " " << c.message();
   }
   EXPECT_GT(added, 0);
+}
+
+// The progress of a trace whose start search simulates a long transient (long enough for the
+// search to report) rises monotonically: the search is the first 2% of the bar, the curves the
+// rest.
+TEST(RunTrace, ProgressIsMonotoneThroughALongStartSearch) {
+  v1::TraceRequest request = SmallBox();
+  request.set_transient_periods(200000);
+  std::vector<double> fractions;
+  const StatusOr<v1::TraceResult> r = RunTrace(request, {.progress = [&](double f) {
+                                                 fractions.push_back(f);
+                                                 return true;
+                                               }});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+  ASSERT_FALSE(fractions.empty());
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()))
+      << ::testing::PrintToString(fractions);
+  EXPECT_LE(fractions.back(), 1.0);
+  EXPECT_GE(fractions.front(), 0.0);
+}
+
+// A stop seen while a curve is being traced (not between curves) ends the trace CANCELLED too,
+// with the part of that curve traced so far. The curves stage reports its fraction before each
+// curve (the job's bar: 0.02 + 0.98 * 0.1 at the first curve); within a curve the flows poll the
+// same callback with that fraction. The second call at or past the first curve's fraction comes
+// from within the first curve (the first may be the report itself).
+TEST(RunTrace, AStopWhileACurveIsTracedEndsTheTraceCancelled) {
+  constexpr double kFirstCurve = 0.02 + 0.98 * 0.1;
+  int calls_in_curves = 0;
+  const StatusOr<v1::TraceResult> r = RunTrace(SmallBox(), {.progress = [&](double f) {
+                                                 if (f >= kFirstCurve - 1e-12) ++calls_in_curves;
+                                                 return calls_in_curves < 2;
+                                               }});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "CANCELLED") << r->message();
+  EXPECT_GE(calls_in_curves, 2);
 }
 
 TEST(RunTrace, CancelStopsBeforeTheNextCurveAndKeepsWhatWasTraced) {

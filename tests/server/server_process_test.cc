@@ -2,19 +2,16 @@
 // on the same SQLite file: every job completes, none is lost, none completes twice, and the
 // results are the job runner's. Also a graceful SIGTERM: the running job is requeued, not lost.
 // The binary's path comes from the build (DRILLBIF_SERVER_BINARY, server/CMakeLists.txt).
-#include <fcntl.h>
+#include "support/server_process.h"
+
 #include <gmock/gmock.h>
 #include <google/protobuf/util/message_differencer.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <stdlib.h>
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
-#include <filesystem>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -30,108 +27,19 @@
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
-#ifndef DRILLBIF_SERVER_BINARY
-#error "DRILLBIF_SERVER_BINARY must name the drillbif-server executable"
-#endif
-
 namespace drillbif::server {
 namespace {
 
+using drillbif::testing::ContextWithDeadline;
+using drillbif::testing::GetOperation;
 using drillbif::testing::MetadataOf;
+using drillbif::testing::ServerProcess;
+using drillbif::testing::WaitDone;
 using google::longrunning::Operation;
 using google::protobuf::util::MessageDifferencer;
 
 using drillbif::testing::SmallSweep;
 using drillbif::testing::TempDir;
-
-// A drillbif-server child process on a free port of 127.0.0.1.
-class ServerProcess {
- public:
-  ServerProcess(const std::string& dir, const std::string& db) {
-    const std::string port_file = dir + "/port";
-    std::filesystem::remove(port_file);
-    const std::string log = dir + "/server.log";
-    // The log file is opened before fork: between fork and exec the child of a multithreaded
-    // process may only call async-signal-safe functions (dup2, execl, _exit).
-    const int log_fd = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-    pid_ = fork();
-    if (pid_ == 0) {
-      // Child: log to the file (appending across restarts), exec the binary.
-      if (log_fd >= 0) {
-        dup2(log_fd, STDOUT_FILENO);
-        dup2(log_fd, STDERR_FILENO);
-      }
-      execl(DRILLBIF_SERVER_BINARY, DRILLBIF_SERVER_BINARY, "--grpc-port", "0", "--http-port", "0",
-            "--db", db.c_str(), "--workers", "1", "--port-file", port_file.c_str(),
-            static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    if (log_fd >= 0) close(log_fd);
-    // The port file appears (renamed into place) once the server serves.
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-    while (std::chrono::steady_clock::now() < give_up) {
-      std::ifstream in(port_file);
-      if (in >> port_) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    EXPECT_GT(port_, 0) << "the server did not start; see " << log;
-    channel_ = grpc::CreateChannel("127.0.0.1:" + std::to_string(port_),
-                                   grpc::InsecureChannelCredentials());
-  }
-  ~ServerProcess() { Kill(SIGKILL); }
-
-  // Sends `signal` and reaps the process; returns its wait status.
-  int Kill(int signal) {
-    int status = 0;
-    if (pid_ > 0) {
-      kill(pid_, signal);
-      waitpid(pid_, &status, 0);
-      pid_ = -1;
-    }
-    return status;
-  }
-
-  std::shared_ptr<grpc::Channel> channel() const { return channel_; }
-
- private:
-  pid_t pid_ = -1;
-  int port_ = 0;
-  std::shared_ptr<grpc::Channel> channel_;
-};
-
-std::unique_ptr<grpc::ClientContext> Context(double seconds = 20) {
-  auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() +
-                        std::chrono::milliseconds(static_cast<int>(seconds * 1000)));
-  return context;
-}
-
-Operation Get(google::longrunning::Operations::Stub& stub, const std::string& name) {
-  google::longrunning::GetOperationRequest request;
-  request.set_name(name);
-  Operation op;
-  auto context = Context();
-  grpc::Status s = stub.GetOperation(context.get(), request, &op);
-  EXPECT_TRUE(s.ok()) << s.error_message();
-  return op;
-}
-
-// Polls until the operation is done (or 60 s).
-Operation WaitDone(google::longrunning::Operations::Stub& stub, const std::string& name) {
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  Operation op;
-  while (std::chrono::steady_clock::now() < give_up) {
-    google::longrunning::WaitOperationRequest request;
-    request.set_name(name);
-    request.mutable_timeout()->set_seconds(5);
-    auto context = Context(10);
-    grpc::Status s = stub.WaitOperation(context.get(), request, &op);
-    EXPECT_TRUE(s.ok()) << s.error_message();
-    if (!s.ok() || op.done()) return op;
-  }
-  ADD_FAILURE() << name << " not done";
-  return op;
-}
 
 // Submits one long sweep (about a second of engine time on one worker) and three short ones;
 // returns the requests and operation names, the long one first.
@@ -143,7 +51,7 @@ void SubmitJobs(v1::Jobs::Stub& jobs, std::vector<v1::SweepRequest>* requests,
     v1::SubmitSweepRequest submit;
     *submit.mutable_request() = sweep;
     Operation op;
-    auto context = Context();
+    auto context = ContextWithDeadline();
     grpc::Status s = jobs.SubmitSweep(context.get(), submit, &op);
     ASSERT_TRUE(s.ok()) << s.error_message();
     names->push_back(op.name());
@@ -155,7 +63,7 @@ void SubmitJobs(v1::Jobs::Stub& jobs, std::vector<v1::SweepRequest>* requests,
 void WaitUntilRunning(google::longrunning::Operations::Stub& stub, const std::string& name) {
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(20);
   while (std::chrono::steady_clock::now() < give_up) {
-    const v1::JobMetadata m = MetadataOf(Get(stub, name));
+    const v1::JobMetadata m = MetadataOf(GetOperation(stub, name));
     if (m.state() == v1::RUNNING && m.progress() > 0) return;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
@@ -184,7 +92,7 @@ void ExpectAllCompleteOnce(ServerProcess& server, const std::vector<v1::SweepReq
   google::longrunning::ListOperationsRequest list;
   list.set_page_size(100);
   google::longrunning::ListOperationsResponse page;
-  auto context = Context();
+  auto context = ContextWithDeadline();
   ASSERT_TRUE(operations->ListOperations(context.get(), list, &page).ok());
   ASSERT_EQ(page.operations_size(), static_cast<int>(names.size()));
   for (int i = 0; i < page.operations_size(); ++i) {
@@ -205,7 +113,7 @@ TEST(ServerProcess, KillNineWithJobsQueuedAndRunningThenRestartCompletesEveryJob
     SubmitJobs(*jobs, &requests, &names);
     WaitUntilRunning(*operations, names[0]);
     for (size_t i = 1; i < names.size(); ++i) {
-      EXPECT_EQ(MetadataOf(Get(*operations, names[i])).state(), v1::QUEUED);
+      EXPECT_EQ(MetadataOf(GetOperation(*operations, names[i])).state(), v1::QUEUED);
     }
     const int status = server.Kill(SIGKILL);
     EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);

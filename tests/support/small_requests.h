@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "drillbif/v1/continue.pb.h"
 #include "drillbif/v1/sweep.pb.h"
 #include "drillbif/v1/trace.pb.h"
 
@@ -41,6 +42,21 @@ inline v1::SweepRequest LongSweep() {
   v1::SweepRequest sweep = SmallSweep(0.0, 100000);
   sweep.set_sample_periods(1);
   return sweep;
+}
+
+// A continuation of b from the reference orbit, decreasing, with steps capped at 1e-7: 40000
+// steps (seconds to a minute) inside every default limit (admission estimates 40 s and 800 MB);
+// a job to cancel or interrupt in its continuation stage (progress above the start search's 5%).
+inline v1::ContinueRequest LongContinuation() {
+  v1::ContinueRequest r;
+  r.set_param(std::string("b"));
+  r.set_min(0.1);
+  r.set_max(0.2);
+  r.set_direction(v1::ContinueRequest::DECREASING);
+  r.set_initial_step(1e-7);
+  r.set_max_step(1e-7);
+  r.set_max_steps(40'000);
+  return r;
 }
 
 }  // namespace drillbif::testing

@@ -409,10 +409,12 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
         continue;
       }
       if (axis == 1) SwapValues(&curve);
-      // Cut short by a stop: kept with what it has (termination kCancelled), if anything.
+      // Cut short by a stop: kept with what it has (termination kCancelled), if anything, and the
+      // trace ends cancelled (stopped() records it; `cut ||` before it would skip the record).
       const bool cut = curve.summary.termination == Termination::kCancelled;
       if (!cut || !curve.points.empty()) result.curves.push_back({s, *a.name, std::move(curve)});
-      if (cut || stopped()) return false;
+      if (cut) sum.cancelled = true;
+      if (stopped()) return false;
     }
     return true;
   };
