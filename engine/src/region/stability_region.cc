@@ -129,7 +129,7 @@ class RegionBuilder {
     const double total = static_cast<double>(grid_.label.size());
     int done = 0;
     while (!queue.empty()) {
-      if (!phase_.Continue(done / total)) return false;
+      if (!phase_.Continue(kRegionFillShare * done / total)) return false;
       const int node = queue.front();
       queue.pop_front();
       const int i = node % grid_.n1, j = node / grid_.n1;
@@ -149,8 +149,9 @@ class RegionBuilder {
     ++region_.summary.boundary_edges;
     const Eigen::Vector2d pa = Position(a), pb = Position(b);
     internal::EdgeCrossing e;
-    // Stopped: the polygons are dropped (ComputeStabilityRegion); no more solves.
-    if (!phase_.Continue()) return e;
+    // Stopped: the polygons are dropped (ComputeStabilityRegion); no more solves. The edge's
+    // bisections poll with the fraction given here (a throttle repeats the last one).
+    if (!phase_.Continue(kRegionFillShare)) return e;
     double best = std::numeric_limits<double>::infinity();
     curves_.ForEachNear(pa.cwiseMin(pb), pa.cwiseMax(pb), [&](const internal::Segment& s) {
       double t = 0.0, u = 0.0;

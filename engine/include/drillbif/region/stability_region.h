@@ -126,12 +126,15 @@ struct StabilityRegion {
   RegionSummary summary;
 };
 
-// Called with the fraction of grid nodes done in [0, 1] (a ProgressCallback, common/progress.h)
-// through a ProgressThrottle: about every 5 ms of computation (every Newton solve, simulation and
-// boundary location polls it) and at every percent of the nodes. Returning false cancels within
-// milliseconds: summary.cancelled, the grid nodes filled until then and no polygons (also when
-// the stop comes while the boundary is located).
+// Called with the fraction done in [0, 1] (a ProgressCallback, common/progress.h) through a
+// ProgressThrottle: about every 5 ms of computation (every Newton solve, simulation and boundary
+// location polls it) and at every percent of the nodes. The fill reports kRegionFillShare times
+// the fraction of grid nodes filled (always below kRegionFillShare), the location of the boundary
+// exactly kRegionFillShare (its number of edges is not known in advance). Returning false cancels
+// within milliseconds: summary.cancelled, the grid nodes filled until then and no polygons (also
+// when the stop comes while the boundary is located).
 using RegionProgress = std::function<bool(double fraction)>;
+inline constexpr double kRegionFillShare = 0.9;
 
 // The region around `start` (a stable period-1 orbit), `curves` its candidate boundaries (every
 // traced curve may be given; those that bound the region are the ones its edges cross).
