@@ -4,16 +4,20 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <fstream>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "drillbif/v1/continue.pb.h"
-#include "server/child_server.h"
+#include "support/server_process.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
 namespace {
 
+using drillbif::testing::ServerExit;
 using drillbif::testing::ServerProcess;
 using drillbif::testing::Submit;
 using drillbif::testing::TempDir;
@@ -31,6 +35,14 @@ v1::ContinueRequest Continuation(int steps) {
   return r;
 }
 
+// The flags of a one-worker server that reads `config`, then `more`.
+std::vector<std::string> ConfigFlags(const std::string& config,
+                                     const std::vector<std::string>& more = {}) {
+  std::vector<std::string> flags = {"--workers", "1", "--config", config};
+  flags.insert(flags.end(), more.begin(), more.end());
+  return flags;
+}
+
 std::string WriteConfig(const TempDir& dir, const std::string& text) {
   const std::string path = dir.path() + "/drillbif.toml";
   std::ofstream(path) << text;
@@ -44,8 +56,8 @@ TEST(ConfigLimits, AJobLimitFromTheConfigFileIsEnforcedAtSubmitNamingIt) {
                                          "# drillbif-server flags\n"
                                          "job-limit = [\"continue.memory-bytes=1000000\", "
                                          "\"sweep.seconds=2\"]\n");
-  ServerProcess server(dir.path(), {"--config", config});
-  ASSERT_TRUE(server.serving()) << "see " << server.log();
+  ServerProcess server(dir.path(), dir.path() + "/jobs.db", ConfigFlags(config));
+  ASSERT_TRUE(server.serving()) << "see " << server.log_path();
   const jobs::JobKindSpec& cont = *jobs::FindKind("continue");
 
   Operation op;
@@ -73,9 +85,9 @@ TEST(ConfigLimits, AFlagOnTheCommandLineOverridesTheConfigFile) {
   TempDir dir("drillbif_config_override");
   const std::string config = WriteConfig(dir, "job-limit = [\"continue.memory-bytes=1000000\"]\n");
   // CLI11: a flag given on the command line replaces the file's value.
-  ServerProcess server(dir.path(),
-                       {"--config", config, "--job-limit", "continue.memory-bytes=100000000"});
-  ASSERT_TRUE(server.serving()) << "see " << server.log();
+  ServerProcess server(dir.path(), dir.path() + "/jobs.db",
+                       ConfigFlags(config, {"--job-limit", "continue.memory-bytes=100000000"}));
+  ASSERT_TRUE(server.serving()) << "see " << server.log_path();
   Operation op;
   const grpc::Status s = Submit(server, *jobs::FindKind("continue"), Continuation(1000), &op);
   EXPECT_TRUE(s.ok()) << s.error_message();
@@ -84,10 +96,14 @@ TEST(ConfigLimits, AFlagOnTheCommandLineOverridesTheConfigFile) {
 TEST(ConfigLimits, AnUnknownLimitInTheConfigFileStopsTheServerNamingIt) {
   TempDir dir("drillbif_config_bad");
   const std::string config = WriteConfig(dir, "job-limit = [\"continue.bytes=1000\"]\n");
-  ServerProcess server(dir.path(), {"--config", config});
+  ServerProcess server =
+      ServerProcess::ExpectingEarlyExit(dir.path(), dir.path() + "/jobs.db", ConfigFlags(config));
   EXPECT_FALSE(server.serving());
-  EXPECT_EQ(server.exit_code(), 2);
-  std::ifstream log(server.log());
+  // The constructor returned on the exit, so it is reaped without waiting.
+  const std::optional<ServerExit> exit = server.WaitExit(std::chrono::milliseconds(0));
+  ASSERT_TRUE(exit.has_value()) << "the server still runs; see " << server.log_path();
+  EXPECT_EQ(exit->code(), 2);
+  std::ifstream log(server.log_path());
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
   EXPECT_THAT(text, HasSubstr("unknown limit 'bytes'"));
 }

@@ -25,8 +25,8 @@
 #include "google/longrunning/operations.grpc.pb.h"
 #include "jobs/job_cost.h"
 #include "jobs/registry.h"
-#include "server/child_server.h"
 #include "support/operations.h"
+#include "support/server_process.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
@@ -59,11 +59,13 @@ struct LargestJob {
   const char* field;          // the request field it names
 };
 
+// One worker, and `limits` as `kind`'s --job-limit flags.
 std::vector<std::string> FlagsOf(const char* kind, const jobs::KindLimits& limits) {
   const std::string k = kind;
   std::ostringstream seconds;
   seconds << limits.max_seconds;
-  return {"--job-limit", k + ".seconds=" + seconds.str(),
+  return {"--workers",   "1",
+          "--job-limit", k + ".seconds=" + seconds.str(),
           "--job-limit", k + ".result-bytes=" + std::to_string(limits.max_result_bytes),
           "--job-limit", k + ".memory-bytes=" + std::to_string(limits.max_memory_bytes)};
 }
@@ -91,8 +93,8 @@ void RunLargest(const LargestJob& job) {
   const jobs::JobCost cost = *Admitted(job, lo);
 
   drillbif::testing::TempDir dir(std::string("drillbif_largest_") + job.kind);
-  ServerProcess server(dir.path(), FlagsOf(job.kind, job.limits));
-  ASSERT_TRUE(server.serving()) << "see " << server.log();
+  ServerProcess server(dir.path(), dir.path() + "/jobs.db", FlagsOf(job.kind, job.limits));
+  ASSERT_TRUE(server.serving()) << "see " << server.log_path();
   const jobs::JobKindSpec& spec = *jobs::FindKind(job.kind);
   // The idle peak: after a call has been served, so that gRPC's and the store's first-use
   // allocations are not counted as the job's.
@@ -105,11 +107,12 @@ void RunLargest(const LargestJob& job) {
   const auto start = std::chrono::steady_clock::now();
   const grpc::Status s = Submit(server, spec, *job.request(lo), &op);
   ASSERT_TRUE(s.ok()) << s.error_message();
-  op = WaitDone(server, op.name(), 120);
+  auto operations = google::longrunning::Operations::NewStub(server.channel());
+  op = WaitDone(*operations, op.name(), 120);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(drillbif::testing::MetadataOf(op).state(), v1::SUCCEEDED)
-      << op.error().message() << "; see " << server.log();
+      << op.error().message() << "; see " << server.log_path();
   const int64_t growth = PeakRssBytes(server.pid()) - idle;
   std::printf(
       "%s: largest admitted size %lld (estimate %.1f MB of memory, %.1f s); ran %.1f s; "
@@ -214,8 +217,8 @@ TEST(LargestJobMemory, TheLargestAdmittedOptimumStaysWithinItsMemoryLimit) {
 
 TEST(LargestJobMemory, ATenMillionValueSweepIsRefusedAtSubmitByTheDefaultLimits) {
   drillbif::testing::TempDir dir("drillbif_huge_sweep");
-  ServerProcess server(dir.path(), {});
-  ASSERT_TRUE(server.serving()) << "see " << server.log();
+  ServerProcess server(dir.path(), dir.path() + "/jobs.db", {"--workers", "1"});
+  ASSERT_TRUE(server.serving()) << "see " << server.log_path();
   const jobs::JobKindSpec& sweep = *jobs::FindKind("sweep");
   v1::SweepRequest request = drillbif::testing::SmallSweep(0.0, 10'000'000);
   // With the default 100 samples a value: 10^9 samples, over what one sweep may record.

@@ -1,5 +1,6 @@
 // The drillbif-server binary as a child process of a test: started on free ports of 127.0.0.1
-// with the given flags, its log appended to a file, signalled, and waited for with a timeout.
+// with the given flags, its log appended to a file, signalled, and waited for with a timeout;
+// its peak RSS, submits of any job kind through the generic stub, and waiting for an operation.
 //
 // The binary's path comes from the build: a test that includes this header is compiled with
 // DRILLBIF_SERVER_BINARY (server/CMakeLists.txt).
@@ -7,6 +8,8 @@
 #define DRILLBIF_TESTS_SUPPORT_SERVER_PROCESS_H_
 
 #include <fcntl.h>
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/message.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -14,6 +17,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -22,7 +26,10 @@
 #include <thread>
 #include <vector>
 
+#include "drillbif/v1/service.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
+#include "jobs/registry.h"
+#include "support/generic_call.h"
 
 #ifndef DRILLBIF_SERVER_BINARY
 #error "DRILLBIF_SERVER_BINARY must name the drillbif-server executable"
@@ -50,49 +57,29 @@ class ServerProcess {
 
   // Starts the server on the SQLite file `db` with `flags` appended (e.g. {"--workers", "2"});
   // the port file and the log (`log_path()`, appended across restarts) go to `dir`. Returns
-  // once the server serves (its port file is written), or after `start_timeout` with a test
-  // failure.
+  // once the server serves (its port file is written), or after `start_timeout` or an exit
+  // before serving with a test failure.
   ServerProcess(const std::string& dir, const std::string& db,
                 const std::vector<std::string>& flags = {"--workers", "1"},
                 std::chrono::seconds start_timeout = std::chrono::seconds(20))
-      : log_path_(dir + "/server.log") {
-    const std::string port_file = dir + "/port";
-    std::filesystem::remove(port_file);
-    std::vector<std::string> args = {
-        DRILLBIF_SERVER_BINARY, "--grpc-port", "0", "--http-port", "0", "--db", db,
-        "--port-file",          port_file};
-    args.insert(args.end(), flags.begin(), flags.end());
-    // Everything the child needs is made before fork: between fork and exec the child of a
-    // multithreaded process may only call async-signal-safe functions (dup2, execv, _exit).
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const int log_fd = open(log_path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-    signalled_at_ = Clock::now();  // WaitExit measures from the start until a signal is sent
-    pid_ = fork();
-    if (pid_ == 0) {
-      if (log_fd >= 0) {
-        dup2(log_fd, STDOUT_FILENO);  // dup2 clears O_CLOEXEC on the copies
-        dup2(log_fd, STDERR_FILENO);
-      }
-      execv(argv[0], argv.data());
-      _exit(127);
-    }
-    if (log_fd >= 0) close(log_fd);
-    // The port file appears (renamed into place) once the server serves.
-    const auto give_up = Clock::now() + start_timeout;
-    while (Clock::now() < give_up && !WaitExit(std::chrono::milliseconds(0))) {
-      std::ifstream in(port_file);
-      if (in >> port_) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    EXPECT_GT(port_, 0) << "the server did not start; see " << log_path_;
-    channel_ = grpc::CreateChannel("127.0.0.1:" + std::to_string(port_),
-                                   grpc::InsecureChannelCredentials());
+      : ServerProcess(dir, db, flags, start_timeout, /*must_serve=*/true) {}
+
+  // Starts a server that the test expects to stop before serving (a bad flag or config file):
+  // as the constructor, but returns without a test failure when the process exits first, so
+  // that the test checks serving() and WaitExit()'s exit code itself. Copy elision returns the
+  // process in place.
+  static ServerProcess ExpectingEarlyExit(
+      const std::string& dir, const std::string& db, const std::vector<std::string>& flags,
+      std::chrono::seconds start_timeout = std::chrono::seconds(20)) {
+    return ServerProcess(dir, db, flags, start_timeout, /*must_serve=*/false);
   }
+
   ~ServerProcess() { Kill(SIGKILL); }
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
+
+  // Whether the server served: its port file was read at start.
+  bool serving() const { return port_ > 0; }
 
   // Whether the process has not been reaped yet (it may have exited: a zombie counts).
   bool running() const { return pid_ > 0 && !exit_; }
@@ -143,6 +130,51 @@ class ServerProcess {
   std::shared_ptr<grpc::Channel> channel() const { return channel_; }
 
  private:
+  // Starts the server (see the public constructor); an exit before serving is a test failure
+  // only when `must_serve`.
+  ServerProcess(const std::string& dir, const std::string& db,
+                const std::vector<std::string>& flags, std::chrono::seconds start_timeout,
+                bool must_serve)
+      : log_path_(dir + "/server.log") {
+    const std::string port_file = dir + "/port";
+    std::filesystem::remove(port_file);
+    std::vector<std::string> args = {
+        DRILLBIF_SERVER_BINARY, "--grpc-port", "0", "--http-port", "0", "--db", db,
+        "--port-file",          port_file};
+    args.insert(args.end(), flags.begin(), flags.end());
+    // Everything the child needs is made before fork: between fork and exec the child of a
+    // multithreaded process may only call async-signal-safe functions (dup2, execv, _exit).
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const int log_fd = open(log_path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    signalled_at_ = Clock::now();  // WaitExit measures from the start until a signal is sent
+    pid_ = fork();
+    if (pid_ == 0) {
+      if (log_fd >= 0) {
+        dup2(log_fd, STDOUT_FILENO);  // dup2 clears O_CLOEXEC on the copies
+        dup2(log_fd, STDERR_FILENO);
+      }
+      execv(argv[0], argv.data());
+      _exit(127);
+    }
+    if (log_fd >= 0) close(log_fd);
+    // The port file appears (renamed into place) once the server serves.
+    const auto give_up = Clock::now() + start_timeout;
+    while (Clock::now() < give_up && !WaitExit(std::chrono::milliseconds(0))) {
+      std::ifstream in(port_file);
+      if (in >> port_) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (must_serve) {
+      EXPECT_GT(port_, 0) << "the server did not start; see " << log_path_;
+    }
+    // A channel even to a server that did not start, so that a test's calls fail with a status
+    // rather than on a null channel.
+    channel_ = grpc::CreateChannel("127.0.0.1:" + std::to_string(port_),
+                                   grpc::InsecureChannelCredentials());
+  }
+
   std::string log_path_;
   pid_t pid_ = -1;
   int port_ = 0;
@@ -150,6 +182,40 @@ class ServerProcess {
   std::optional<ServerExit> exit_;
   std::shared_ptr<grpc::Channel> channel_;
 };
+
+// The peak resident set of a process (VmHWM of /proc/PID/status), in bytes; -1 when unreadable.
+inline int64_t PeakRssBytes(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) return std::stoll(line.substr(6)) * 1024;  // "... kB"
+  }
+  return -1;
+}
+
+// Submits `request` (of `kind`'s request type) through the kind's Submit rpc, by the generic
+// stub: one call for every kind of the registry, without a typed stub method per kind.
+inline grpc::Status Submit(const ServerProcess& server, const jobs::JobKindSpec& kind,
+                           const google::protobuf::Message& request,
+                           google::longrunning::Operation* op) {
+  const google::protobuf::Descriptor* type =
+      // Through a message of service.proto, so that its descriptors are linked in.
+      v1::SubmitSimulateRequest::descriptor()->file()->FindMessageTypeByName(kind.submit_method +
+                                                                             "Request");
+  if (type == nullptr) return grpc::Status(grpc::StatusCode::INTERNAL, "no submit message");
+  std::unique_ptr<google::protobuf::Message> submit(
+      google::protobuf::MessageFactory::generated_factory()->GetPrototype(type)->New());
+  submit->GetReflection()
+      ->MutableMessage(submit.get(), type->FindFieldByName("request"))
+      ->CopyFrom(request);
+  std::string response;
+  grpc::Status s = GenericUnary(server.channel(), "/drillbif.v1.Jobs/" + kind.submit_method,
+                                submit->SerializeAsString(), &response);
+  if (s.ok() && !op->ParseFromString(response)) {
+    return grpc::Status(grpc::StatusCode::INTERNAL, "unparsable operation");
+  }
+  return s;
+}
 
 // A client context whose deadline is `seconds` from now.
 inline std::unique_ptr<grpc::ClientContext> ContextWithDeadline(double seconds = 20) {
@@ -171,8 +237,8 @@ inline google::longrunning::Operation GetOperation(google::longrunning::Operatio
   return op;
 }
 
-// The operation once done (WaitOperation in 5 s slices), or as it is after `seconds` with a test
-// failure.
+// The operation once done (WaitOperation in 5 s slices), or as it is after `seconds` or a failed
+// call with a test failure.
 inline google::longrunning::Operation WaitDone(google::longrunning::Operations::Stub& stub,
                                                const std::string& name, double seconds = 60) {
   const auto give_up =
