@@ -215,8 +215,14 @@ Clock::time_point WaitDeadline(const grpc::CallbackServerContext* context,
   const Clock::time_point now = Clock::now();
   Clock::time_point deadline = now + kMaxWait;
   if (timeout != nullptr && (timeout->seconds() > 0 || timeout->nanos() > 0)) {
-    const auto ms = std::chrono::milliseconds(TimeUtil::DurationToMilliseconds(*timeout));
-    deadline = std::min(deadline, now + ms);
+    // Compared in seconds before any conversion: a timeout of up to 2^63 s (any int64, valid
+    // Duration or not) overflows the milliseconds and the clock's nanoseconds, and an overflowed
+    // deadline lies in the past, ending the wait at once.
+    const double seconds = static_cast<double>(timeout->seconds()) + timeout->nanos() * 1e-9;
+    if (seconds < std::chrono::duration<double>(kMaxWait).count()) {
+      deadline = std::min(deadline, now + std::chrono::duration_cast<Clock::duration>(
+                                              std::chrono::duration<double>(seconds)));
+    }
   }
   const auto client = context->deadline();
   if (client != std::chrono::system_clock::time_point::max()) {
