@@ -313,6 +313,7 @@ class WatchReactor : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
     // Finishes once; after a write in flight completes if there is one (gRPC allows one
     // operation of each kind at a time, and a finish must not overtake its last write).
     void FinishLocked(grpc::Status status) {
+      status = BoundedStatus(std::move(status));
       finishing_ = true;
       if (writing_) {
         finish_wanted_ = std::move(status);
@@ -635,17 +636,17 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* JobsService::Watch(grpc::CallbackSer
                                                                const grpc::ByteBuffer* raw) {
   auto* reactor = new WatchReactor();
   if (StatusOr<std::string> client = Authorize(*state_, context); !client.ok()) {
-    reactor->Finish(ToGrpc(client.status()));
+    reactor->Finish(BoundedStatus(ToGrpc(client.status())));
     return reactor;
   }
   v1::WatchRequest request;
   if (grpc::Status s = ParseRequest(*raw, &request); !s.ok()) {
-    reactor->Finish(s);
+    reactor->Finish(BoundedStatus(std::move(s)));
     return reactor;
   }
   StatusOr<std::string> id = IdOf(request.name());
   if (!id.ok()) {
-    reactor->Finish(ToGrpc(id.status()));
+    reactor->Finish(BoundedStatus(ToGrpc(id.status())));
     return reactor;
   }
   // The first record (and NOT_FOUND for an unknown job) comes from the hub at once.
