@@ -114,6 +114,7 @@ std::string Post(const std::string& path, const std::string& body,
 enum class Answer {
   kJson,       // the gateway's or the services' JSON error body: {code, message, details}
   kServerOwn,  // libmicrohttpd's own answer (its HTML body), before the gateway is called
+  kClosed,     // no answer: libmicrohttpd closes a connection that does not speak HTTP/1.x
 };
 
 struct RestCase {
@@ -562,6 +563,14 @@ std::vector<RestCase> RestCatalogue(const std::string& queued_op, const std::str
   add(g11, "GET on a submit route", Get("/v1/jobs:sweep"), 405, "UNIMPLEMENTED", "GET");
   add(g11, "unknown method", "BREW /v1/operations HTTP/1.1\r\nHost: x\r\n" + Auth() + "\r\n", 405,
       "UNIMPLEMENTED", "BREW");
+  add(g11, "not HTTP at all", "\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03\r\n\r\n", 0, "", "",
+      Answer::kClosed);
+  add(g11, "HTTP/2 preface", "PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n", 505, "", "", Answer::kServerOwn);
+  add(g11, "OPTIONS", "OPTIONS /v1/operations HTTP/1.1\r\nHost: x\r\n" + Auth() + "\r\n", 405,
+      "UNIMPLEMENTED", "OPTIONS");
+  add(g11, "NUL escape in a string field",
+      submit("sweep", R"({"request": {"param": "b\u0000", "min": 0.1, "max": 0.2}})"), 400, kIA,
+      "param");
   add(g11, "absolute-form target", Get("http://evil.example/v1/operations"), 400, kIA,
       "request target: must start with '/'");
   return cases;
@@ -818,6 +827,10 @@ void CheckRestAnswer(const RestCase& c, const std::string& response, bool closed
   EXPECT_EQ(status, c.status) << response.substr(0, 400);
   EXPECT_NE(status, 500);
   EXPECT_FALSE(MentionsSql(response)) << response.substr(0, 400);
+  if (c.answer == Answer::kClosed) {
+    EXPECT_TRUE(closed) << response.substr(0, 400);
+    return;
+  }
   if (c.answer == Answer::kServerOwn) {
     // libmicrohttpd's own answer: then it closes the connection.
     EXPECT_TRUE(closed || response.find("Connection: close") != std::string::npos)
