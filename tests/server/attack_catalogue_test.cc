@@ -1091,17 +1091,24 @@ TEST(AttackCatalogueTable, DISABLED_PrintTable) {
   std::map<std::string, int> counts;
   for (const RestCase& c : RestCatalogue("operations/QUEUED", "operations/DONE")) {
     const std::string outcome =
-        std::to_string(c.status) + " " +
-        (c.answer == Answer::kServerOwn ? std::string("(libmicrohttpd's HTML)") : c.code);
+        c.answer == Answer::kClosed
+            ? std::string("closed, no answer")
+            : std::to_string(c.status) + " " +
+                  (c.answer == Answer::kServerOwn ? std::string("(libmicrohttpd's HTML)") : c.code);
     auto& list = rows[c.group];
     if (std::find(list.begin(), list.end(), outcome) == list.end()) list.push_back(outcome);
     ++counts[c.group];
   }
   for (const GrpcCase& c : GrpcCatalogue("operations/DONE")) {
-    std::ostringstream code;
-    code << "code " << static_cast<int>(c.code);
+    const std::map<grpc::StatusCode, std::string> names = {
+        {grpc::StatusCode::INVALID_ARGUMENT, "INVALID_ARGUMENT"},
+        {grpc::StatusCode::RESOURCE_EXHAUSTED, "RESOURCE_EXHAUSTED"},
+        {grpc::StatusCode::NOT_FOUND, "NOT_FOUND"},
+        {grpc::StatusCode::UNIMPLEMENTED, "UNIMPLEMENTED"},
+        {grpc::StatusCode::UNAUTHENTICATED, "UNAUTHENTICATED"}};
+    const std::string code = names.count(c.code) ? names.at(c.code) : "?";
     auto& list = rows[c.group];
-    if (std::find(list.begin(), list.end(), code.str()) == list.end()) list.push_back(code.str());
+    if (std::find(list.begin(), list.end(), code) == list.end()) list.push_back(code);
     ++counts[c.group];
   }
   std::printf("| Group | Cases | Expected |\n| --- | --- | --- |\n");
