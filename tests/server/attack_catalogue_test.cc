@@ -560,6 +560,7 @@ std::vector<RestCase> RestCatalogue(const std::string& queued_op, const std::str
   add(g11, "PUT on a submit route",
       "PUT /v1/jobs:simulate HTTP/1.1\r\nHost: x\r\n" + Auth() + "Content-Length: 2\r\n\r\n{}", 405,
       "UNIMPLEMENTED", "PUT");
+  add(g11, "POST on the health route", Post("/healthz", "{}"), 405, "UNIMPLEMENTED", "POST");
   add(g11, "GET on a submit route", Get("/v1/jobs:sweep"), 405, "UNIMPLEMENTED", "GET");
   add(g11, "unknown method", "BREW /v1/operations HTTP/1.1\r\nHost: x\r\n" + Auth() + "\r\n", 405,
       "UNIMPLEMENTED", "BREW");
@@ -1057,6 +1058,9 @@ TEST_F(AttackCatalogueTest, EveryHostileInputGetsItsCodeAndTheServerStaysHealthy
 
   // --- Afterwards: healthy.
   EXPECT_EQ(drillbif::testing::HealthStatus(channel_), 1) << "gRPC health is not SERVING";
+  const std::string health = Exchange(port(), Get("/healthz", ""));
+  EXPECT_EQ(StatusOf(health), 200) << health;
+  EXPECT_EQ(BodyOf(health), R"({"status":"SERVING"})");
   const std::map<std::string, double> after = Metrics();
   EXPECT_EQ(after.at("drillbif_store_healthy"), 1.0);
   const std::string final_body =
