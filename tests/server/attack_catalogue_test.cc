@@ -507,18 +507,20 @@ std::vector<RestCase> RestCatalogue(const std::string& queued_op, const std::str
   add(g9, "unknown query parameter", Get("/v1/operations?color=red"), 400, kIA, "color");
   add(g9, "repeated query parameter", Get("/v1/operations?filter=a&filter=b"), 400, kIA, "filter");
   add(g9, "unknown operation", Get("/v1/operations/0123456789abcdef0123456789abcdef"), 404,
-      "NOT_FOUND", "");
+      "NOT_FOUND", "no job '0123456789abcdef0123456789abcdef'");
   add(g9, "operation name of SQL", Get("/v1/operations/x%27%20OR%20%271%27%3D%271"), 400, kIA,
       "name");
   add(g9, "operation name of 5000 bytes", Get("/v1/operations/" + std::string(5000, 'n')), 400, kIA,
       "name");
   add(g9, "result of an unknown operation",
-      Get("/v1/operations/0123456789abcdef0123456789abcdef:result"), 404, "NOT_FOUND", "");
+      Get("/v1/operations/0123456789abcdef0123456789abcdef:result"), 404, "NOT_FOUND",
+      "no job '0123456789abcdef0123456789abcdef'");
   add(g9, "watch of an unknown operation",
-      Get("/v1/operations/0123456789abcdef0123456789abcdef:watch"), 404, "NOT_FOUND", "");
+      Get("/v1/operations/0123456789abcdef0123456789abcdef:watch"), 404, "NOT_FOUND",
+      "no job '0123456789abcdef0123456789abcdef'");
   add(g9, "delete of a queued operation",
       "DELETE /v1/" + queued_op + " HTTP/1.1\r\nHost: x\r\n" + Auth() + "\r\n", 400,
-      "FAILED_PRECONDITION", "");
+      "FAILED_PRECONDITION", "is QUEUED: cancel it");
   add(g9, "cancel with a differing body name",
       Post("/v1/" + queued_op + ":cancel", R"({"name": "operations/other"})"), 400, kIA, "name");
   add(g9, "X-Server-Timeout NaN", Get("/v1/operations", Auth() + "X-Server-Timeout: nan\r\n"), 400,
@@ -541,14 +543,15 @@ std::vector<RestCase> RestCatalogue(const std::string& queued_op, const std::str
   // Tokens.
   const std::string g10 = "missing or wrong token";
   add(g10, "no token", Get("/v1/operations", ""), 401, "UNAUTHENTICATED", "missing");
-  add(g10, "wrong token", Get("/v1/operations", Auth("not-the-token")), 401, "UNAUTHENTICATED", "");
+  add(g10, "wrong token", Get("/v1/operations", Auth("not-the-token")), 401, "UNAUTHENTICATED",
+      "wrong bearer token");
   add(g10, "token without Bearer",
       Get("/v1/operations", std::string("Authorization: ") + kToken + "\r\n"), 401,
-      "UNAUTHENTICATED", "");
+      "UNAUTHENTICATED", "wrong bearer token");
   add(g10, "Basic scheme", Get("/v1/operations", "Authorization: Basic YWxpY2U6cHc=\r\n"), 401,
-      "UNAUTHENTICATED", "");
+      "UNAUTHENTICATED", "wrong bearer token");
   add(g10, "10 KB token", Get("/v1/operations", Auth(std::string(10000, 't'))), 401,
-      "UNAUTHENTICATED", "");
+      "UNAUTHENTICATED", "wrong bearer token");
   add(g10, "no token on a submit", Post("/v1/jobs:simulate", "{}", ""), 401, "UNAUTHENTICATED",
       "missing");
 
@@ -556,7 +559,8 @@ std::vector<RestCase> RestCatalogue(const std::string& queued_op, const std::str
   const std::string g11 = "unknown paths and methods";
   add(g11, "unknown path", Get("/v1/nothing"), 404, "NOT_FOUND", "no route");
   add(g11, "unknown kind", submit("teleport", "{}"), 404, "NOT_FOUND", "no route");
-  add(g11, "path traversal", Get("/v1/../../etc/passwd"), 404, "NOT_FOUND", "");
+  add(g11, "path traversal", Get("/v1/../../etc/passwd"), 404, "NOT_FOUND",
+      "no route for GET /v1/../../etc/passwd");
   add(g11, "PUT on a submit route",
       "PUT /v1/jobs:simulate HTTP/1.1\r\nHost: x\r\n" + Auth() + "Content-Length: 2\r\n\r\n{}", 405,
       "UNIMPLEMENTED", "PUT");
@@ -681,7 +685,7 @@ std::vector<GrpcCase> GrpcCatalogue(const std::string& done_op) {
     v1::SubmitSimulateRequest r;
     r.set_request_id(std::string(5 << 20, 'x'));
     add(g2, "5 MB request", "/drillbif.v1.Jobs/SubmitSimulate", r.SerializeAsString(),
-        grpc::StatusCode::RESOURCE_EXHAUSTED, "");
+        grpc::StatusCode::RESOURCE_EXHAUSTED, "larger than max (5242885 vs. 4194304)");
   }
   {
     v1::GetResultRequest r;
@@ -761,7 +765,7 @@ std::vector<GrpcCase> GrpcCatalogue(const std::string& done_op) {
       grpc::StatusCode::UNAUTHENTICATED, "missing");
   cases.back().token = "";
   add(g2, "wrong token", "/drillbif.v1.Jobs/SubmitSimulate", "", grpc::StatusCode::UNAUTHENTICATED,
-      "");
+      "wrong bearer token");
   cases.back().token = "wrong-token-0123456789";
   return cases;
 }
@@ -841,6 +845,7 @@ void CheckRestAnswer(const RestCase& c, const std::string& response, bool closed
   const std::string message = ExpectJsonError(BodyOf(response), c.code.c_str());
   EXPECT_LE(message.size(), kMaxMessageBytes);
   EXPECT_FALSE(message.empty()) << response.substr(0, 400);
+  EXPECT_FALSE(c.names.empty()) << "every JSON case names what its message must say";
   EXPECT_THAT(message, HasSubstr(c.names));
 }
 
@@ -1002,6 +1007,7 @@ TEST_F(AttackCatalogueTest, EveryHostileInputGetsItsCodeAndTheServerStaysHealthy
     // gRPC itself answers an unknown method, with no message.
     if (c.code != grpc::StatusCode::UNIMPLEMENTED) {
       EXPECT_FALSE(s.error_message().empty());
+      EXPECT_FALSE(c.names.empty()) << "every case names what its message must say";
     }
     EXPECT_THAT(s.error_message(), HasSubstr(c.names));
     EXPECT_FALSE(MentionsSql(s.error_message())) << s.error_message();
