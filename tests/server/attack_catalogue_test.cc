@@ -986,7 +986,11 @@ TEST_F(AttackCatalogueTest, EveryHostileInputGetsItsCodeAndTheServerStaysHealthy
   start = Clock::now();
   for (const RestCase& c : rest) {
     bool closed = false;
+    const auto sent = Clock::now();
     const std::string response = Exchange(port(), c.request, &closed);
+    if (const double ms = MsSince(sent); ms > 500) {
+      std::printf("  slow case: %s / %s: %.0f ms\n", c.group.c_str(), c.name.c_str(), ms);
+    }
     CheckRestAnswer(c, response, closed);
     ++per_group[c.group];
   }
