@@ -214,8 +214,11 @@ JobCost SimulateCost(const SimulatePlan& plan) {
         kCvodeSecondsPerPeriod * std::max(1.0, std::pow(1e-10 / plan.cvode_options.rtol, 0.2));
   }
   cost.seconds.amount = periods * per_period;
-  cost.seconds.driver = "request.transient_periods + request.sample_periods = " + Num(periods) +
-                        " forcing periods" + (plan.cvode ? " with the CVODE propagator" : "");
+  cost.seconds.driver =
+      "request.transient_periods + request.sample_periods = " + Num(periods) + " forcing periods" +
+      (plan.cvode
+           ? " with the CVODE propagator at request.cvode_rtol = " + Num(plan.cvode_options.rtol)
+           : "");
   const double samples = o.sample_periods;
   double bytes = 0;
   std::string outputs;

@@ -75,6 +75,11 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     }
     opt.max_period = request.max_period();
   }
+  if (request.seeds_size() > kMaxTraceSeeds) {
+    return InvalidArgument("seeds: at most " + std::to_string(kMaxTraceSeeds) +
+                           " values (each is a simulation, an orbit solve and two branches), got " +
+                           std::to_string(request.seeds_size()));
+  }
   for (const double seed : request.seeds()) {
     if (!(std::isfinite(seed) && seed >= opt.min1 && seed <= opt.max1)) {
       return InvalidArgument("seeds: each value of " + opt.param1 + " must lie in the box [" +

@@ -20,6 +20,10 @@ namespace drillbif::jobs {
 
 // Largest region grid per parameter, whatever the limits configured.
 inline constexpr int kMaxRegionNodes = 10001;
+// Most TraceRequest.seeds: each seed is a 500-period simulation, an orbit solve and two branches
+// over the box, none of which the cost estimate counts, so their number is bounded instead (one
+// or a few seeds are the use; without a bound a 4 MB request held ~500000 of them).
+inline constexpr int kMaxTraceSeeds = 100;
 
 // A checked trace request as the engine takes it.
 struct TracePlan {

@@ -73,6 +73,15 @@ std::string DescribeParseFailure(const Descriptor* type, std::string_view bytes)
   return "not a valid " + type->full_name() + ": " + problem;
 }
 
+grpc::Status BoundedStatus(grpc::Status status) {
+  const std::string& message = status.error_message();
+  if (message.size() <= kMaxStatusMessageBytes) return status;
+  size_t cut = kMaxStatusMessageBytes;
+  // Back to the first byte of a character (continuation bytes are 10xxxxxx).
+  while (cut > 0 && (static_cast<unsigned char>(message[cut]) & 0xC0) == 0x80) --cut;
+  return grpc::Status(status.error_code(), message.substr(0, cut) + "...", status.error_details());
+}
+
 grpc::Status ParseRequest(const grpc::ByteBuffer& raw, google::protobuf::Message* message) {
   std::vector<grpc::Slice> slices;
   std::string bytes;

@@ -26,6 +26,17 @@ std::string DescribeParseFailure(const google::protobuf::Descriptor* type, std::
 // when it does not parse.
 grpc::Status ParseRequest(const grpc::ByteBuffer& raw, google::protobuf::Message* message);
 
+// Longest status message sent, in bytes. gRPC sends the message percent-encoded in the trailers,
+// which a client refuses beyond its metadata limit (8 KiB by default) with RESOURCE_EXHAUSTED
+// "received initial metadata size exceeds limit", losing the code and the message: a message that
+// echoed a 1 MB field did. 1024 bytes stay under that limit even when every byte is encoded
+// (3 bytes each) and leave room for the other headers.
+inline constexpr size_t kMaxStatusMessageBytes = 1024;
+
+// `status` with its message cut after kMaxStatusMessageBytes (on a UTF-8 character boundary)
+// and "..." appended when it was longer.
+grpc::Status BoundedStatus(grpc::Status status);
+
 // One unary rpc served from raw bytes: the request parsed (ParseRequest) and the response
 // serialized into gRPC's buffer when the call finishes OK. Handlers end every call with Finish,
 // exactly once, from any thread; it deletes the call.
@@ -51,7 +62,7 @@ class UnaryCall {
     }
     grpc::ServerUnaryReactor* reactor = reactor_;
     delete this;
-    reactor->Finish(std::move(status));
+    reactor->Finish(BoundedStatus(std::move(status)));
   }
 
  private:

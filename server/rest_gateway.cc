@@ -2,6 +2,7 @@
 
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
+#include <grpcpp/generic/generic_stub.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -34,6 +35,9 @@ using google::protobuf::util::JsonPrintOptions;
 constexpr char kJson[] = "application/json";
 // Longest deadline a request may ask for with X-Server-Timeout (the services' longest wait).
 constexpr double kMaxServerTimeoutSeconds = 600;
+// Deadline of GET /healthz's Check: the health service answers from memory, so this only bounds
+// a server too overloaded to answer, which a probe should see as unhealthy.
+constexpr std::chrono::seconds kHealthDeadline{5};
 // /metrics renders wait beyond the one running; more are refused (429): scrapers come every few
 // seconds, so only a flood fills this.
 constexpr int kMaxQueuedMetricsRenders = 16;
@@ -67,6 +71,7 @@ constexpr RouteSpec kRoutes[] = {
     {"GET", "/v1/{name=operations/**}"},
     {"DELETE", "/v1/{name=operations/**}"},
     {"GET", "/metrics"},
+    {"GET", "/healthz"},
 };
 enum RouteIndex {
   kSubmitSimulate,
@@ -82,6 +87,7 @@ enum RouteIndex {
   kGetOperation,
   kDeleteOperation,
   kMetrics,
+  kHealth,
   kRouteCount,
 };
 static_assert(std::size(kRoutes) == kRouteCount, "one index per route");
@@ -368,7 +374,8 @@ struct RestGateway::Impl final : public HttpHandler {
   MetricsTextFunction metrics_text;
   std::unique_ptr<v1::Jobs::Stub> jobs;
   std::unique_ptr<google::longrunning::Operations::Stub> operations;
-  std::unique_ptr<BoundedExecutor> renderer;  // /metrics (it reads the store: may block).
+  std::unique_ptr<grpc::GenericStub> generic;  // grpc.health.v1.Health (no proto compiled here)
+  std::unique_ptr<BoundedExecutor> renderer;   // /metrics (it reads the store: may block).
   std::unique_ptr<HttpServer> http;
 
   // Calls in progress, by a number of their own, with what cancels each (Stop cancels them).
@@ -505,6 +512,53 @@ struct RestGateway::Impl final : public HttpHandler {
     }
   }
 
+  // GET /healthz: the gRPC health service's Check of the whole server, over the in-process
+  // channel like every route: 200 {"status":"SERVING"}, else 503 with the status it gave
+  // (NOT_SERVING during shutdown or a store fault).
+  void ServeHealth(const std::shared_ptr<HttpExchange>& exchange) {
+    struct Call {
+      grpc::ClientContext context;
+      grpc::ByteBuffer request;
+      grpc::ByteBuffer response;
+    };
+    auto call = std::make_shared<Call>();
+    // No token is passed on (the route is open, and so is the health service); a probe's
+    // answer is due at once.
+    call->context.set_deadline(std::chrono::system_clock::now() + kHealthDeadline);
+    grpc::Slice empty("");  // HealthCheckRequest{service: ""}: the empty message.
+    call->request = grpc::ByteBuffer(&empty, 1);
+    const uint64_t id = Enter([call] { call->context.TryCancel(); }, false);
+    if (id == 0) return exchange->Respond(ShuttingDown());
+    exchange->OnClientGone([call] { call->context.TryCancel(); });
+    generic->UnaryCall(&call->context, "/grpc.health.v1.Health/Check", grpc::StubOptions(),
+                       &call->request, &call->response,
+                       [this, exchange, call, id](grpc::Status status) {
+                         if (!status.ok()) {
+                           exchange->Respond(ErrorResponse(status));
+                           return Leave(id, false);
+                         }
+                         std::vector<grpc::Slice> slices;
+                         std::string bytes;
+                         if (call->response.Dump(&slices).ok()) {
+                           for (const grpc::Slice& slice : slices)
+                             bytes.append(slice.begin(), slice.end());
+                         }
+                         // HealthCheckResponse.status is field 1, a varint: 1 SERVING, 2
+                         // NOT_SERVING; the empty message is UNKNOWN (0).
+                         const int value = bytes.size() == 2 && bytes[0] == '\x08' ? bytes[1] : 0;
+                         HttpResponse response;
+                         response.status = value == 1 ? 200 : 503;
+                         response.content_type = "application/json";
+                         response.body = std::string(R"({"status":")") +
+                                         (value == 1   ? "SERVING"
+                                          : value == 2 ? "NOT_SERVING"
+                                                       : "UNKNOWN") +
+                                         "\"}";
+                         exchange->Respond(std::move(response));
+                         Leave(id, false);
+                       });
+  }
+
   // HttpHandler: route, method and token, before the body is read.
   std::optional<HttpResponse> OnHeaders(HttpExchange& exchange) override {
     std::string name;
@@ -527,7 +581,7 @@ struct RestGateway::Impl final : public HttpHandler {
       std::lock_guard<std::mutex> lock(mutex);
       if (stopping) return ShuttingDown();
     }
-    if (route == kMetrics) return std::nullopt;  // Open, like health probes.
+    if (route == kMetrics || route == kHealth) return std::nullopt;  // Open, like gRPC health.
     if (grpc::Status s = Authorize(exchange); !s.ok()) return ErrorResponse(s);
     return std::nullopt;
   }
@@ -584,6 +638,8 @@ struct RestGateway::Impl final : public HttpHandler {
                                                     [o](auto... a) { o->DeleteOperation(a...); });
       case kMetrics:
         return ServeMetrics(exchange);
+      case kHealth:
+        return ServeHealth(exchange);
       default:
         // OnHeaders refused every other path.
         return exchange->Respond(
@@ -741,6 +797,7 @@ StatusOr<std::unique_ptr<RestGateway>> RestGateway::Start(const RestOptions& opt
   impl->metrics_text = std::move(metrics_text);
   impl->jobs = v1::Jobs::NewStub(channel);
   impl->operations = google::longrunning::Operations::NewStub(channel);
+  impl->generic = std::make_unique<grpc::GenericStub>(channel);
   ExecutorOptions renderer;
   renderer.threads = 1;
   renderer.max_queued = kMaxQueuedMetricsRenders;

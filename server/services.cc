@@ -215,8 +215,14 @@ Clock::time_point WaitDeadline(const grpc::CallbackServerContext* context,
   const Clock::time_point now = Clock::now();
   Clock::time_point deadline = now + kMaxWait;
   if (timeout != nullptr && (timeout->seconds() > 0 || timeout->nanos() > 0)) {
-    const auto ms = std::chrono::milliseconds(TimeUtil::DurationToMilliseconds(*timeout));
-    deadline = std::min(deadline, now + ms);
+    // Compared in seconds before any conversion: a timeout of up to 2^63 s (any int64, valid
+    // Duration or not) overflows the milliseconds and the clock's nanoseconds, and an overflowed
+    // deadline lies in the past, ending the wait at once.
+    const double seconds = static_cast<double>(timeout->seconds()) + timeout->nanos() * 1e-9;
+    if (seconds < std::chrono::duration<double>(kMaxWait).count()) {
+      deadline = std::min(deadline, now + std::chrono::duration_cast<Clock::duration>(
+                                              std::chrono::duration<double>(seconds)));
+    }
   }
   const auto client = context->deadline();
   if (client != std::chrono::system_clock::time_point::max()) {
@@ -307,6 +313,7 @@ class WatchReactor : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
     // Finishes once; after a write in flight completes if there is one (gRPC allows one
     // operation of each kind at a time, and a finish must not overtake its last write).
     void FinishLocked(grpc::Status status) {
+      status = BoundedStatus(std::move(status));
       finishing_ = true;
       if (writing_) {
         finish_wanted_ = std::move(status);
@@ -591,17 +598,17 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* JobsService::Watch(grpc::CallbackSer
                                                                const grpc::ByteBuffer* raw) {
   auto* reactor = new WatchReactor();
   if (StatusOr<std::string> client = Authorize(*state_, context); !client.ok()) {
-    reactor->Finish(ToGrpc(client.status()));
+    reactor->Finish(BoundedStatus(ToGrpc(client.status())));
     return reactor;
   }
   v1::WatchRequest request;
   if (grpc::Status s = ParseRequest(*raw, &request); !s.ok()) {
-    reactor->Finish(s);
+    reactor->Finish(BoundedStatus(std::move(s)));
     return reactor;
   }
   StatusOr<std::string> id = IdOf(request.name());
   if (!id.ok()) {
-    reactor->Finish(ToGrpc(id.status()));
+    reactor->Finish(BoundedStatus(ToGrpc(id.status())));
     return reactor;
   }
   // The first record (and NOT_FOUND for an unknown job) comes from the hub at once.

@@ -7,7 +7,6 @@
 // the request deadline; TLS serves both ports with one certificate.
 #include <arpa/inet.h>
 #include <gmock/gmock.h>
-#include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
@@ -23,7 +22,6 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -32,6 +30,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/server.h"
+#include "support/raw_http.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
@@ -43,6 +42,10 @@ namespace drillbif::server {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using drillbif::testing::BodyOf;
+using drillbif::testing::ExpectJsonError;
+using drillbif::testing::RawConnection;
+using drillbif::testing::StatusOf;
 using drillbif::testing::TempDir;
 using google::longrunning::Operation;
 using std::chrono::milliseconds;
@@ -62,118 +65,6 @@ long VmRssKib() {
     if (line.rfind("VmRSS:", 0) == 0) return std::atol(line.c_str() + 6);
   }
   return -1;
-}
-
-// A client socket that sends exactly what it is given.
-class RawConnection {
- public:
-  explicit RawConnection(int port) {
-    fd_ = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_port = htons(static_cast<uint16_t>(port));
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    connected_ = connect(fd_, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0;
-  }
-  ~RawConnection() { Close(); }
-  RawConnection(const RawConnection&) = delete;
-  RawConnection& operator=(const RawConnection&) = delete;
-
-  bool connected() const { return connected_; }
-
-  // Sends all of `data` (false if the server closed meanwhile).
-  bool Send(std::string_view data) {
-    size_t sent = 0;
-    while (sent < data.size()) {
-      const ssize_t n = send(fd_, data.data() + sent, data.size() - sent, MSG_NOSIGNAL);
-      if (n <= 0) return false;
-      sent += static_cast<size_t>(n);
-    }
-    return true;
-  }
-
-  // Reads until `done(received)` holds, the connection closes, or `wait` passes. Returns what
-  // arrived; *closed tells whether the server closed the connection.
-  template <typename Done>
-  std::string ReadUntil(Done done, milliseconds wait, bool* closed = nullptr) {
-    const auto end = Clock::now() + wait;
-    bool eof = false;
-    while (!done(received_)) {
-      const auto left = std::chrono::duration_cast<milliseconds>(end - Clock::now()).count();
-      if (left <= 0) break;
-      pollfd p{fd_, POLLIN, 0};
-      if (poll(&p, 1, static_cast<int>(left)) <= 0) break;
-      char buffer[16384];
-      const ssize_t n = recv(fd_, buffer, sizeof(buffer), 0);
-      if (n <= 0) {
-        eof = true;
-        break;
-      }
-      received_.append(buffer, static_cast<size_t>(n));
-    }
-    if (closed != nullptr) *closed = eof;
-    return received_;
-  }
-
-  // Reads one whole response (headers and Content-Length bytes), or what came before the
-  // connection closed or `wait` passed.
-  std::string ReadResponse(milliseconds wait, bool* closed = nullptr) {
-    return ReadUntil([](const std::string& r) { return ResponseComplete(r); }, wait, closed);
-  }
-
-  // Whether the server closes the connection within `wait` (reading and dropping what comes).
-  bool ClosedWithin(milliseconds wait) {
-    bool closed = false;
-    ReadUntil([](const std::string&) { return false; }, wait, &closed);
-    return closed;
-  }
-
-  // Whether nothing is readable now (the answer has not come).
-  bool NothingYet() {
-    pollfd p{fd_, POLLIN, 0};
-    return poll(&p, 1, 0) == 0;
-  }
-
-  void Close() {
-    if (fd_ >= 0) close(fd_);
-    fd_ = -1;
-  }
-
-  static bool ResponseComplete(const std::string& r) {
-    const size_t end = r.find("\r\n\r\n");
-    if (end == std::string::npos) return false;
-    const size_t at = r.find("Content-Length: ");
-    if (at == std::string::npos || at > end) return false;
-    return r.size() >= end + 4 + std::stoul(r.substr(at + 16));
-  }
-
- private:
-  int fd_ = -1;
-  bool connected_ = false;
-  std::string received_;
-};
-
-int StatusOf(const std::string& response) {
-  if (response.rfind("HTTP/1.1 ", 0) != 0 || response.size() < 12) return 0;
-  return std::atoi(response.substr(9, 3).c_str());
-}
-
-std::string BodyOf(const std::string& response) {
-  const size_t end = response.find("\r\n\r\n");
-  return end == std::string::npos ? std::string() : response.substr(end + 4);
-}
-
-// Expects a JSON error body {"code": code, "message", "details": []}; returns the message.
-std::string ExpectJsonError(const std::string& body, const char* code) {
-  google::protobuf::Struct parsed;
-  const auto status = google::protobuf::util::JsonStringToMessage(body, &parsed);
-  EXPECT_TRUE(status.ok()) << "not JSON: " << body.substr(0, 300);
-  std::set<std::string> keys;
-  for (const auto& [key, value] : parsed.fields()) keys.insert(key);
-  EXPECT_EQ(keys, (std::set<std::string>{"code", "message", "details"})) << body;
-  if (parsed.fields().count("code") == 0) return {};
-  EXPECT_EQ(parsed.fields().at("code").string_value(), code) << body;
-  return parsed.fields().at("message").string_value();
 }
 
 std::string Json(const google::protobuf::Message& message) {
