@@ -24,12 +24,15 @@
 
 namespace drillbif::fuzz {
 
-// Whether two messages hold the same fields and values. NaN equals NaN: the JSON mapping writes
-// every NaN as "NaN", so a re-encoding keeps NaN-ness, not the payload bits.
+// Whether two messages hold the same values. NaN equals NaN: the JSON mapping writes every NaN
+// as "NaN", so a re-encoding keeps NaN-ness, not the payload bits. A field set to its default
+// equals an unset one (EQUIVALENT), and -0 equals 0: a proto3 double of -0.0 is serialized (its
+// bits are not zero) but protobuf's JSON parser reads "-0" back as an unset +0, the same number.
 inline bool SameMessage(const google::protobuf::Message& a, const google::protobuf::Message& b) {
   google::protobuf::util::DefaultFieldComparator comparator;
   comparator.set_treat_nan_as_equal(true);
   google::protobuf::util::MessageDifferencer differencer;
+  differencer.set_message_field_comparison(google::protobuf::util::MessageDifferencer::EQUIVALENT);
   differencer.set_field_comparator(&comparator);
   return differencer.Compare(a, b);
 }
