@@ -26,3 +26,18 @@ if(DRILLBIF_SANITIZE)
   add_compile_options(${_drillbif_sanitize_flags})
   add_link_options(${_drillbif_sanitize_flags})
 endif()
+
+# The fuzz build (fuzz/CMakeLists.txt): every library is compiled with libFuzzer's coverage
+# instrumentation and the sanitizers, so a finding deep in the jobs or the engine is caught where
+# it happens; the fuzz targets alone link -fsanitize=fuzzer (libFuzzer's main).
+if(DRILLBIF_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "DRILLBIF_FUZZ needs Clang (CMAKE_CXX_COMPILER=clang++)")
+  endif()
+  if(DRILLBIF_SANITIZE)
+    message(FATAL_ERROR "DRILLBIF_FUZZ already sanitizes; leave DRILLBIF_SANITIZE off")
+  endif()
+  add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=all
+                      -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=address,undefined)
+endif()

@@ -10,6 +10,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
   libssl-dev libcpp-httplib-dev libmicrohttpd-dev libutfcpp-dev prometheus-cpp-dev openssl
   gnuplot-nox python3-yaml
+  clang libclang-rt-14-dev
 )
 
 missing=()

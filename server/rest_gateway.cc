@@ -1,7 +1,6 @@
 #include "server/rest_gateway.h"
 
 #include <google/protobuf/struct.pb.h>
-#include <google/protobuf/util/json_util.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <spdlog/spdlog.h>
 
@@ -22,6 +21,7 @@
 #include "server/executor.h"
 #include "server/http_server.h"
 #include "server/http_text.h"
+#include "server/rest_request.h"
 #include "server/services.h"
 
 namespace drillbif::server {
@@ -29,151 +29,14 @@ namespace {
 
 using google::longrunning::Operation;
 using google::protobuf::Message;
-using google::protobuf::util::JsonParseOptions;
-using google::protobuf::util::JsonPrintOptions;
 
 constexpr char kJson[] = "application/json";
-// Longest deadline a request may ask for with X-Server-Timeout (the services' longest wait).
-constexpr double kMaxServerTimeoutSeconds = 600;
 // Deadline of GET /healthz's Check: the health service answers from memory, so this only bounds
 // a server too overloaded to answer, which a probe should see as unhealthy.
 constexpr std::chrono::seconds kHealthDeadline{5};
 // /metrics renders wait beyond the one running; more are refused (429): scrapers come every few
 // seconds, so only a flood fills this.
 constexpr int kMaxQueuedMetricsRenders = 16;
-
-// What binds the fields of a route's request message (google.api.http): the path's {name=...}
-// variable, and either the body ("*": every other field) or the query parameters (GET, DELETE).
-enum class Binding { kBody, kQuery };
-
-// A route: its method and its path template as written in the annotation (also the metrics
-// label). A template has at most one variable, {name=operations} (that text), {name=operations/*}
-// (one non-empty segment after "operations/") or {name=operations/**} (anything non-empty after
-// it, '/' included).
-struct RouteSpec {
-  const char* method;
-  const char* label;
-};
-
-// Every route, in matching order: a path matched by two templates goes to the first (so the
-// ":result", ":watch" and ":cancel" routes precede the catch-all operations/** ones).
-constexpr RouteSpec kRoutes[] = {
-    {"POST", "/v1/jobs:simulate"},
-    {"POST", "/v1/jobs:sweep"},
-    {"POST", "/v1/jobs:continue"},
-    {"POST", "/v1/jobs:trace"},
-    {"POST", "/v1/jobs:optimum"},
-    {"GET", "/v1/{name=operations/*}:result"},
-    {"POST", "/v1/optimum:query"},
-    {"GET", "/v1/{name=operations/*}:watch"},
-    {"GET", "/v1/{name=operations}"},
-    {"POST", "/v1/{name=operations/**}:cancel"},
-    {"GET", "/v1/{name=operations/**}"},
-    {"DELETE", "/v1/{name=operations/**}"},
-    {"GET", "/metrics"},
-    {"GET", "/healthz"},
-};
-enum RouteIndex {
-  kSubmitSimulate,
-  kSubmitSweep,
-  kSubmitContinue,
-  kSubmitTrace,
-  kSubmitOptimum,
-  kGetResult,
-  kQueryOptimum,
-  kWatch,
-  kListOperations,
-  kCancelOperation,
-  kGetOperation,
-  kDeleteOperation,
-  kMetrics,
-  kHealth,
-  kRouteCount,
-};
-static_assert(std::size(kRoutes) == kRouteCount, "one index per route");
-
-// Whether `path` matches the template `label`; *name gets the variable's value.
-bool MatchTemplate(std::string_view label, std::string_view path, std::string* name) {
-  const size_t open = label.find('{');
-  if (open == std::string_view::npos) return path == label;
-  const size_t close = label.find('}', open);
-  const std::string_view prefix = label.substr(0, open);
-  const std::string_view suffix = label.substr(close + 1);
-  const std::string_view variable = label.substr(open + 1, close - open - 1);
-  const std::string_view pattern = variable.substr(variable.find('=') + 1);
-  if (path.size() < prefix.size() + suffix.size() || !path.starts_with(prefix) ||
-      !path.ends_with(suffix)) {
-    return false;
-  }
-  const std::string_view value =
-      path.substr(prefix.size(), path.size() - prefix.size() - suffix.size());
-  bool match;
-  if (pattern.ends_with("/**")) {
-    const std::string_view base = pattern.substr(0, pattern.size() - 2);
-    match = value.size() > base.size() && value.starts_with(base);
-  } else if (pattern.ends_with("/*")) {
-    const std::string_view base = pattern.substr(0, pattern.size() - 1);
-    match = value.size() > base.size() && value.starts_with(base) &&
-            value.find('/', base.size()) == std::string_view::npos;
-  } else {
-    match = value == pattern;
-  }
-  if (match) *name = std::string(value);
-  return match;
-}
-
-// The first route serving `method` `path` (-1 if none); `*path_known` tells whether some route
-// serves the path with another method (405 rather than 404).
-int MatchRoute(const std::string& method, const std::string& path, std::string* name,
-               bool* path_known) {
-  *path_known = false;
-  for (int i = 0; i < kRouteCount; ++i) {
-    std::string value;
-    if (!MatchTemplate(kRoutes[i].label, path, &value)) continue;
-    if (method == kRoutes[i].method) {
-      *name = std::move(value);
-      return i;
-    }
-    *path_known = true;
-  }
-  return -1;
-}
-
-// The JSON text of a message (protobuf's JSON mapping, one line, lowerCamelCase names, fields
-// at their default value left out). Any fields (Operation.metadata, .response) resolve their
-// types in the generated pool, which holds every message of the API.
-StatusOr<std::string> ToJson(const Message& message) {
-  std::string out;
-  JsonPrintOptions options;
-  auto status = google::protobuf::util::MessageToJsonString(message, &out, options);
-  if (!status.ok()) {
-    return Status(StatusCode::kInternal, "cannot print " + message.GetTypeName() +
-                                             " as JSON: " + std::string(status.message()));
-  }
-  return out;
-}
-
-// Parses JSON into `message`, refusing unknown fields (a misspelt field must not be silently
-// ignored: the request would run with a default instead) and text that is not UTF-8 (RFC 8259
-// 8.1). Strings parsed are then valid UTF-8: protobuf's parser refuses \u escapes of lone
-// surrogates ("Missing low surrogate", "Invalid unicode code point").
-grpc::Status FromJson(std::string_view json, Message* message, const char* what) {
-  if (const size_t bad = FindInvalidUtf8(json); bad != std::string_view::npos) {
-    return grpc::Status(
-        grpc::StatusCode::INVALID_ARGUMENT,
-        std::string(what) + ": not valid UTF-8 (at byte " + std::to_string(bad) + ")");
-  }
-  JsonParseOptions options;
-  options.ignore_unknown_fields = false;
-  auto status = google::protobuf::util::JsonStringToMessage(
-      google::protobuf::StringPiece(json.data(), json.size()), message, options);
-  if (!status.ok()) {
-    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                        std::string(what) + ": not a valid " + message->GetTypeName() +
-                            " in JSON: " + ValidUtf8(std::string(status.message())));
-  }
-  return grpc::Status::OK;
-}
 
 HttpResponse JsonResponse(int status, std::string body) {
   HttpResponse response;
@@ -194,61 +57,15 @@ HttpResponse MessageResponse(const Message& message) {
   return JsonResponse(200, std::move(json).value());
 }
 
-// Sets the field `name` (a string) of `message` to the path variable, refusing a different value
-// given in the body or the query.
-grpc::Status BindName(const std::string& name, Message* message) {
-  const auto* field = message->GetDescriptor()->FindFieldByName("name");
-  if (field == nullptr) {
-    return grpc::Status(grpc::StatusCode::INTERNAL,
-                        message->GetTypeName() + " has no field 'name' to bind the path to");
-  }
-  const auto* reflection = message->GetReflection();
-  const std::string given = reflection->GetString(*message, field);
-  if (!given.empty() && given != name) {
-    return grpc::Status(
-        grpc::StatusCode::INVALID_ARGUMENT,
-        "name: '" + Sanitize(given) + "' differs from the path's '" + Sanitize(name) + "'");
-  }
-  reflection->SetString(message, field, name);
-  return grpc::Status::OK;
-}
-
-// The query parameters as a JSON object of strings, parsed into `message` by the JSON mapping:
-// names are the fields' (proto or lowerCamelCase), numbers are accepted as strings, and an
-// unknown parameter is refused like an unknown JSON field. (Names and values are valid UTF-8:
-// ParseRequestTarget checked them.)
-grpc::Status FromQuery(const std::vector<std::pair<std::string, std::string>>& params,
-                       Message* message) {
-  google::protobuf::Struct object;
-  for (const auto& [key, value] : params) {
-    auto* fields = object.mutable_fields();
-    if (fields->count(key) != 0) {
-      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                          "query parameter '" + Sanitize(key) + "' is given more than once");
-    }
-    (*fields)[key].set_string_value(value);
-  }
-  StatusOr<std::string> json = ToJson(object);
-  if (!json.ok()) return ToGrpc(json.status());
-  return FromJson(*json, message, "query");
-}
-
 // The deadline of a call made for `exchange`: X-Server-Timeout seconds when given (bounded),
 // else the default. INVALID_ARGUMENT for a value that is not a positive number.
 grpc::Status DeadlineOf(const HttpExchange& exchange, int default_ms,
                         std::chrono::system_clock::time_point* deadline) {
   double seconds = default_ms / 1000.0;
   if (const std::string* text = exchange.header("X-Server-Timeout")) {
-    char* end = nullptr;
-    const double value = std::strtod(text->c_str(), &end);
-    // The whole value must be the number (a NUL byte inside would end strtod's string early).
-    if (text->empty() || end != text->c_str() + text->size() || !std::isfinite(value) ||
-        value <= 0) {
-      return grpc::Status(
-          grpc::StatusCode::INVALID_ARGUMENT,
-          "header X-Server-Timeout: expected seconds > 0, got '" + Sanitize(*text) + "'");
-    }
-    seconds = std::min(value, kMaxServerTimeoutSeconds);
+    StatusOr<double> asked = ParseServerTimeout(*text);
+    if (!asked.ok()) return ToGrpc(asked.status());
+    seconds = *asked;
   }
   *deadline = std::chrono::system_clock::now() +
               std::chrono::microseconds(static_cast<int64_t>(seconds * 1e6));
@@ -442,43 +259,20 @@ struct RestGateway::Impl final : public HttpHandler {
     return grpc::Status::OK;
   }
 
-  // Builds the request message of a route from the path's `name`, the body or the query.
-  grpc::Status BuildRequest(const HttpExchange& exchange, Binding binding, const std::string& name,
-                            Message* request) const {
-    if (binding == Binding::kBody) {
-      if (exchange.target().has_query) {
-        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                            "query parameters: this route takes every field from the body");
-      }
-      // The body is JSON whatever the Content-Type says (curl -d sends a form's type).
-      const std::string& body = exchange.body();
-      const bool blank = std::all_of(body.begin(), body.end(), [](char c) {
-        return c == ' ' || c == '\n' || c == '\r' || c == '\t';
-      });
-      if (grpc::Status s = FromJson(blank ? std::string_view("{}") : body, request, "body");
-          !s.ok()) {
-        return s;
-      }
-    } else if (grpc::Status s = FromQuery(exchange.target().query, request); !s.ok()) {
-      return s;
-    }
-    if (!name.empty()) return BindName(name, request);
-    return grpc::Status::OK;
-  }
-
   // The common shape of a unary route: request, callback call, JSON answer or JSON error. The
   // connection stays suspended until the callback answers; a client that goes away cancels.
   template <typename Request, typename Response, typename StartCall>
-  void Unary(const std::shared_ptr<HttpExchange>& exchange, Binding binding,
-             const std::string& name, StartCall start) {
+  void Unary(const std::shared_ptr<HttpExchange>& exchange, int route, const std::string& name,
+             StartCall start) {
     struct Call {
       grpc::ClientContext context;
       Request request;
       Response response;
     };
     auto call = std::make_shared<Call>();
-    if (grpc::Status s = BuildRequest(*exchange, binding, name, &call->request); !s.ok()) {
-      return exchange->Respond(ErrorResponse(s));
+    if (Status s = BuildRequest(route, exchange->target(), exchange->body(), name, &call->request);
+        !s.ok()) {
+      return exchange->Respond(ErrorResponse(ToGrpc(s)));
     }
     if (grpc::Status s = PrepareContext(*exchange, &call->context, true); !s.ok()) {
       return exchange->Respond(ErrorResponse(s));
@@ -562,20 +356,13 @@ struct RestGateway::Impl final : public HttpHandler {
   // HttpHandler: route, method and token, before the body is read.
   std::optional<HttpResponse> OnHeaders(HttpExchange& exchange) override {
     std::string name;
-    bool path_known = false;
-    const int route = MatchRoute(exchange.method(), exchange.target().path, &name, &path_known);
-    if (route < 0 && path_known) {
-      return ErrorResponse(
-          grpc::Status(grpc::StatusCode::UNIMPLEMENTED, "method " + Sanitize(exchange.method()) +
-                                                            " is not served on " +
-                                                            Sanitize(exchange.target().path)),
-          405);
+    const StatusOr<int> found = FindRoute(exchange.method(), exchange.target().path, &name);
+    if (!found.ok()) {
+      // A path served with other methods is 405 (UNIMPLEMENTED alone would be 500).
+      return ErrorResponse(ToGrpc(found.status()),
+                           found.status().code() == StatusCode::kUnimplemented ? 405 : 0);
     }
-    if (route < 0) {
-      return ErrorResponse(grpc::Status(
-          grpc::StatusCode::NOT_FOUND,
-          "no route for " + Sanitize(exchange.method()) + " " + Sanitize(exchange.target().path)));
-    }
+    const int route = *found;
     exchange.set_route_label(kRoutes[route].label);
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -603,38 +390,38 @@ struct RestGateway::Impl final : public HttpHandler {
     switch (route) {
       case kSubmitSimulate:
         return Unary<v1::SubmitSimulateRequest, Operation>(
-            exchange, Binding::kBody, name, [j](auto... a) { j->SubmitSimulate(a...); });
+            exchange, route, name, [j](auto... a) { j->SubmitSimulate(a...); });
       case kSubmitSweep:
-        return Unary<v1::SubmitSweepRequest, Operation>(exchange, Binding::kBody, name,
+        return Unary<v1::SubmitSweepRequest, Operation>(exchange, route, name,
                                                         [j](auto... a) { j->SubmitSweep(a...); });
       case kSubmitContinue:
         return Unary<v1::SubmitContinueRequest, Operation>(
-            exchange, Binding::kBody, name, [j](auto... a) { j->SubmitContinue(a...); });
+            exchange, route, name, [j](auto... a) { j->SubmitContinue(a...); });
       case kSubmitTrace:
-        return Unary<v1::SubmitTraceRequest, Operation>(exchange, Binding::kBody, name,
+        return Unary<v1::SubmitTraceRequest, Operation>(exchange, route, name,
                                                         [j](auto... a) { j->SubmitTrace(a...); });
       case kSubmitOptimum:
         return Unary<v1::SubmitOptimumRequest, Operation>(
-            exchange, Binding::kBody, name, [j](auto... a) { j->SubmitOptimum(a...); });
+            exchange, route, name, [j](auto... a) { j->SubmitOptimum(a...); });
       case kGetResult:
         return Unary<v1::GetResultRequest, v1::GetResultResponse>(
-            exchange, Binding::kQuery, name, [j](auto... a) { j->GetResult(a...); });
+            exchange, route, name, [j](auto... a) { j->GetResult(a...); });
       case kQueryOptimum:
         return Unary<v1::QueryOptimumRequest, v1::QueryOptimumResponse>(
-            exchange, Binding::kBody, name, [j](auto... a) { j->QueryOptimum(a...); });
+            exchange, route, name, [j](auto... a) { j->QueryOptimum(a...); });
       case kWatch:
         return Watch(exchange, name);
       case kListOperations:
         return Unary<ListOperationsRequest, ListOperationsResponse>(
-            exchange, Binding::kQuery, name, [o](auto... a) { o->ListOperations(a...); });
+            exchange, route, name, [o](auto... a) { o->ListOperations(a...); });
       case kCancelOperation:
-        return Unary<CancelOperationRequest, Empty>(exchange, Binding::kBody, name,
+        return Unary<CancelOperationRequest, Empty>(exchange, route, name,
                                                     [o](auto... a) { o->CancelOperation(a...); });
       case kGetOperation:
-        return Unary<GetOperationRequest, Operation>(exchange, Binding::kQuery, name,
+        return Unary<GetOperationRequest, Operation>(exchange, route, name,
                                                      [o](auto... a) { o->GetOperation(a...); });
       case kDeleteOperation:
-        return Unary<DeleteOperationRequest, Empty>(exchange, Binding::kQuery, name,
+        return Unary<DeleteOperationRequest, Empty>(exchange, route, name,
                                                     [o](auto... a) { o->DeleteOperation(a...); });
       case kMetrics:
         return ServeMetrics(exchange);
@@ -765,9 +552,10 @@ class RestGateway::Impl::WatchStream final : public grpc::ClientReadReactor<v1::
 void RestGateway::Impl::Watch(const std::shared_ptr<HttpExchange>& exchange,
                               const std::string& name) {
   auto stream = std::make_shared<WatchStream>(this, exchange);
-  if (grpc::Status s = BuildRequest(*exchange, Binding::kQuery, name, &stream->request());
+  if (Status s =
+          BuildRequest(kWatch, exchange->target(), exchange->body(), name, &stream->request());
       !s.ok()) {
-    return exchange->Respond(ErrorResponse(s));
+    return exchange->Respond(ErrorResponse(ToGrpc(s)));
   }
   // No deadline: the stream lasts as long as the job.
   if (grpc::Status s = PrepareContext(*exchange, &stream->context(), false); !s.ok()) {

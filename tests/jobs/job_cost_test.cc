@@ -80,6 +80,22 @@ TEST(JobCost, ATenMillionValueSweepIsRefusedAtSubmit) {
   EXPECT_THAT(s.message(), HasSubstr("steps"));
 }
 
+TEST(JobCost, ASweepWithoutSamplesOrWithANegativeTransientIsRefusedNamingTheField) {
+  v1::SweepRequest request;  // Found by sweep_request_fuzz (the engine said "samples").
+  request.set_param("b");
+  request.set_min(0.1);
+  request.set_max(0.2);
+  request.set_sample_periods(0);
+  StatusOr<JobCost> cost = CostOf(v1::SWEEP, request);
+  EXPECT_EQ(cost.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(cost.status().message(), HasSubstr("sample_periods must be >= 1, got 0"));
+  request.set_sample_periods(10);
+  request.set_transient_periods(-1);
+  cost = CostOf(v1::SWEEP, request);
+  EXPECT_EQ(cost.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(cost.status().message(), HasSubstr("transient_periods must be >= 0, got -1"));
+}
+
 TEST(JobCost, SweepCostCountsEveryValueAndDirection) {
   v1::SweepRequest request;
   request.set_param("b");

@@ -379,7 +379,10 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
                              static_cast<double>(starts.size() - first))) {
         return false;
       }
-      const auto& [axis, s] = starts[k];
+      // Named references, not a structured binding: Clang 14 (the fuzz build) cannot capture a
+      // binding in a lambda.
+      const int axis = starts[k].first;
+      const SpecialPoint& s = starts[k].second;
       const Axis& a = axes[axis];
       const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
       const auto on_traced =

@@ -26,8 +26,13 @@ Status SweepOptions::Validate() const {
                            ", max = " + std::to_string(max) + ")");
   }
   if (steps < 2) return InvalidArgument("steps must be >= 2, got " + std::to_string(steps));
-  if (transient_periods < 0) return InvalidArgument("transient must be >= 0");
-  if (sample_periods < 1) return InvalidArgument("samples must be >= 1");
+  if (transient_periods < 0) {
+    return InvalidArgument("transient_periods must be >= 0, got " +
+                           std::to_string(transient_periods));
+  }
+  if (sample_periods < 1) {
+    return InvalidArgument("sample_periods must be >= 1, got " + std::to_string(sample_periods));
+  }
   if (threads < 0) return InvalidArgument("threads must be >= 0 (0: number of cores)");
   if (chunks < 0) return InvalidArgument("chunks must be >= 0 (0: automatic)");
   if (chunk_start_transient_factor < 1) {
