@@ -84,7 +84,7 @@ void BM_CvodePerPeriod(benchmark::State& state) {
 BENCHMARK(BM_CvodePerPeriod)->Arg(6)->Arg(9)->Arg(12)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The brute-force diagram of the report: 1000 values of b in [0, 0.2], 500 + 100 periods each,
-// on `threads` threads (wall time).
+// swept up on `threads` threads with the direction cut into `chunks` pieces (wall time).
 void BM_SweepB(benchmark::State& state) {
   DriftingOscillator model;
   SweepOptions o;
@@ -93,6 +93,7 @@ void BM_SweepB(benchmark::State& state) {
   o.max = 0.2;
   o.steps = 1000;
   o.threads = static_cast<int>(state.range(0));
+  o.chunks = static_cast<int>(state.range(1));
   SweepResult r;
   for (auto _ : state) {
     r = Sweep(
@@ -105,7 +106,14 @@ void BM_SweepB(benchmark::State& state) {
   state.counters["failed_values"] = static_cast<double>(failed);
   state.counters["periods"] = static_cast<double>(r.periods_total);
 }
-BENCHMARK(BM_SweepB)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK(BM_SweepB)
+    ->ArgNames({"threads", "chunks"})
+    ->Args({1, 1})
+    ->Args({2, 1})
+    ->Args({2, 2})
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
 
 }  // namespace
 }  // namespace drillbif

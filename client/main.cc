@@ -145,6 +145,7 @@ struct SweepFlags {
   int steps = SweepOptions().steps;
   std::string direction = "up";
   int threads = 0;
+  int chunks = 1;
 };
 
 struct ContinueFlags {
@@ -462,6 +463,7 @@ int RunSweepCommand(const GlobalFlags& global, RemoteClient* remote, const Model
                         : f.direction == "both" ? v1::SweepRequest::BOTH
                                                 : v1::SweepRequest::UP);
   request.set_threads(f.threads);
+  if (f.chunks != 1) request.set_chunks(f.chunks);
 
   return RunJob<v1::SweepResult>(global, remote, request);
 }
@@ -810,7 +812,15 @@ int Main(int argc, char** argv) {
       ->check(CLI::IsMember({"up", "down", "both"}))
       ->capture_default_str()
       ->group("Sweep");
-  sweep->add_option("--threads", sw.threads, "Worker threads (0: one per core)")
+  sweep
+      ->add_option("--threads", sw.threads,
+                   "Worker threads (0: one per core); a direction uses one unless --chunks > 1")
+      ->capture_default_str()
+      ->group("Sweep");
+  sweep
+      ->add_option("--chunks", sw.chunks,
+                   "Pieces each direction is split into, run in parallel; each piece after the "
+                   "first starts from the initial state (4 x transient), breaking continuity")
       ->capture_default_str()
       ->group("Sweep");
   AddModelFlags(sweep, &model);

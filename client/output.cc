@@ -139,7 +139,7 @@ constexpr char kPoincareHeader[] = "period,mode,p,y,q\n";
 constexpr char kEventsHeader[] = "period,s,t,surface,guard,from_mode,to_mode,tangential,p,y,q\n";
 constexpr char kModesHeader[] = "period,modes\n";
 constexpr char kTrajectoryHeader[] = "t,mode,p,y,q,s\n";
-constexpr char kSweepHeader[] = "direction,value,period,p,y,q\n";
+constexpr char kSweepHeader[] = "direction,value,period,p,y,q,start\n";
 constexpr char kContinueHeader[] = "value,rop,power,period,stable,signature_text,mu_abs_max\n";
 constexpr char kTraceHeader[] = "curve,kind,a,b,omega,xi,g,phi0,rop,stable\n";
 
@@ -250,10 +250,19 @@ void AppendSweepFailure(std::string_view direction, const v1::SweepPoint& pt, st
   AppendComment(line, out);
 }
 
-// One row per Poincare sample of a sweep value.
+// One row per Poincare sample of a sweep value, with how the value was started.
 void AppendSweepRows(std::string_view direction, const v1::SweepPoint& pt, std::string* out) {
+  const std::string& start = v1::SweepPoint::Start_Name(pt.start());
   for (const v1::PoincarePoint& s : pt.samples()) {
-    Row(out).Str(direction).Num(pt.value()).Int(s.period()).Num(s.p()).Num(s.y()).Num(s.q()).End();
+    Row(out)
+        .Str(direction)
+        .Num(pt.value())
+        .Int(s.period())
+        .Num(s.p())
+        .Num(s.y())
+        .Num(s.q())
+        .Str(start)
+        .End();
   }
 }
 

@@ -46,8 +46,9 @@ StatusOr<SimulateTable> CsvTableFor(const v1::SimulateRequest::Outputs& outputs)
 std::string SimulateResultToCsv(const v1::SimulateResult& result, SimulateTable table);
 
 // Sweep result as CSV: "# status=..." lines when the sweep or single values did not complete, then
-//   direction,value,period,p,y,q
-// one row per Poincare sample, the up sweep first.
+//   direction,value,period,p,y,q,start
+// one row per Poincare sample, the up sweep first; start: how the value was started
+// (FROM_INITIAL_STATE, FROM_PREVIOUS_VALUE, FROM_EARLIER_VALUE; SweepPoint.Start).
 std::string SweepResultToCsv(const v1::SweepResult& result);
 
 // Continuation result as CSV: "# status=..." lines when it did not complete, then

@@ -53,6 +53,7 @@ StatusOr<SweepOptions> ToSweepOptions(const v1::SweepRequest& request) {
   if (request.has_transient_periods()) options.transient_periods = request.transient_periods();
   if (request.has_sample_periods()) options.sample_periods = request.sample_periods();
   options.threads = request.threads();
+  if (request.has_chunks()) options.chunks = request.chunks();
   DRILLBIF_RETURN_IF_ERROR(options.Validate());
   if (options.threads > kMaxSweepThreads) {
     return InvalidArgument("threads must be <= " + std::to_string(kMaxSweepThreads) + ", got " +
@@ -70,8 +71,24 @@ StatusOr<SweepOptions> ToSweepOptions(const v1::SweepRequest& request) {
   return options;
 }
 
+v1::SweepPoint::Start ToProto(SweepStart start) {
+  switch (start) {
+    case SweepStart::kFromInitialState:
+      return v1::SweepPoint::FROM_INITIAL_STATE;
+    case SweepStart::kFromPreviousValue:
+      return v1::SweepPoint::FROM_PREVIOUS_VALUE;
+    case SweepStart::kFromEarlierValue:
+      return v1::SweepPoint::FROM_EARLIER_VALUE;
+    case SweepStart::kNotStarted:
+      break;
+  }
+  return v1::SweepPoint::START_UNSPECIFIED;
+}
+
 void ToProto(const SweepPoint& in, bool sweep_cancelled, v1::SweepPoint* out) {
   out->set_value(in.value);
+  out->set_start(ToProto(in.start));
+  out->set_transient_periods(in.transient_periods);
   // A grid value the workers never reached keeps the engine's initial kFailed with no message.
   if (sweep_cancelled && in.termination == Termination::kFailed && in.message.empty()) {
     out->set_status(TerminationName(Termination::kCancelled));
@@ -104,18 +121,19 @@ JobCost SweepCost(const SweepPlan& plan) {
   const SweepOptions& o = plan.options;
   const int64_t directions = o.direction == SweepDirection::kBoth ? 2 : 1;
   const std::optional<int64_t> values = CheckedMul(int64_t{o.steps}, directions);
-  // Each value runs its transient and its window; a chunk's first value a longer transient.
+  // Each value runs its transient and its window; the first value of each chunk after the first
+  // (chunks - 1 per direction) factor - 1 more transients.
   const double periods =
       CountOrInfinity(
           CheckedMul(values, CheckedAdd(int64_t{o.transient_periods}, int64_t{o.sample_periods}))) +
       CountOrInfinity(CheckedMul(
-          CheckedMul(int64_t{o.chunk_start_transient_factor}, int64_t{o.transient_periods}),
-          int64_t{kMaxSweepThreads}));
+          CheckedMul(int64_t{o.chunk_start_transient_factor - 1}, int64_t{o.transient_periods}),
+          CheckedMul(int64_t{o.chunks - 1}, directions)));
   JobCost cost;
   cost.seconds.amount = periods * kSecondsPerPeriod + CountOrInfinity(values) * kSecondsPerValue;
   cost.seconds.driver =
-      "request.steps * directions * (request.transient_periods + "
-      "request.sample_periods) = " +
+      "request.steps * directions * (request.transient_periods + request.sample_periods) + "
+      "directions * (request.chunks - 1) * 3 * request.transient_periods = " +
       Num(periods) + " forcing periods";
   const double samples = CountOrInfinity(CheckedMul(values, int64_t{o.sample_periods}));
   cost.result_bytes.amount = samples * kSampleBytes + CountOrInfinity(values) * kValueBytes;

@@ -23,6 +23,7 @@ using jobs::EffectiveOutputs;
 using jobs::RunContinue;
 using jobs::RunSimulate;
 using jobs::RunSweep;
+using ::testing::EndsWith;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
@@ -126,9 +127,22 @@ TEST(Output, SweepCsvHasOneRowPerSample) {
   ASSERT_TRUE(result.ok()) << result.status().ToString();
   const std::vector<std::string> lines = Lines(SweepResultToCsv(*result));
   ASSERT_EQ(lines.size(), 1u + 5u * 5u);
-  EXPECT_EQ(lines[0], "direction,value,period,p,y,q");
+  EXPECT_EQ(lines[0], "direction,value,period,p,y,q,start");
   EXPECT_THAT(lines[1], StartsWith("up,0.145,"));
   EXPECT_THAT(lines.back(), StartsWith("up,0.15"));  // 0.155 up to rounding
+  // The first value's 5 rows started from the initial state, the others from the previous value.
+  for (size_t k = 1; k < lines.size(); ++k) {
+    EXPECT_THAT(lines[k], EndsWith(k <= 5 ? ",FROM_INITIAL_STATE" : ",FROM_PREVIOUS_VALUE")) << k;
+  }
+}
+
+TEST(Output, SweepJsonSaysHowEachValueStarted) {
+  const StatusOr<v1::SweepResult> result = RunSweep(SmallSweep());
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  const StatusOr<std::string> json = ToJson(*result, false);
+  ASSERT_TRUE(json.ok()) << json.status().ToString();
+  EXPECT_THAT(*json, HasSubstr("\"start\":\"FROM_INITIAL_STATE\",\"transientPeriods\":\"50\""));
+  EXPECT_THAT(*json, HasSubstr("\"start\":\"FROM_PREVIOUS_VALUE\""));
 }
 
 TEST(Output, ContinueJsonHasTheDocumentedNamesAndReadsBack) {

@@ -107,10 +107,16 @@ TEST(JobCost, SweepCostCountsEveryValueAndDirection) {
   request.set_sample_periods(10);
   const StatusOr<JobCost> cost = CostOf(v1::SWEEP, request);
   ASSERT_TRUE(cost.ok()) << cost.status().ToString();
-  // 2000 values of 110 periods, plus the chunk starts' longer transients (4 * 100 periods for up
-  // to 512 chunks), at 1e-5 s a period, and 25 us of each value's own work.
-  EXPECT_NEAR(cost->seconds.amount, (2000.0 * 110 + 4.0 * 100 * 512) * 1e-5 + 2000 * 2.5e-5, 1e-9);
+  // 2000 values of 110 periods (one chunk: no longer transient), at 1e-5 s a period, and 25 us of
+  // each value's own work.
+  EXPECT_NEAR(cost->seconds.amount, 2000.0 * 110 * 1e-5 + 2000 * 2.5e-5, 1e-9);
   EXPECT_NEAR(cost->result_bytes.amount, 2000.0 * 10 * 40 + 2000.0 * 30, 1e-6);
+  // 8 chunks a direction: 7 later chunk starts each way, each 3 * 100 periods longer.
+  request.set_chunks(8);
+  const StatusOr<JobCost> chunked = CostOf(v1::SWEEP, request);
+  ASSERT_TRUE(chunked.ok()) << chunked.status().ToString();
+  EXPECT_NEAR(chunked->seconds.amount, (2000.0 * 110 + 2 * 7 * 3.0 * 100) * 1e-5 + 2000 * 2.5e-5,
+              1e-9);
 }
 
 TEST(JobCost, ContinuationCostGrowsWithTheStepBudgetAndDirections) {

@@ -96,6 +96,9 @@ TEST(Streaming, ASweepStreamsItsValuesInGridOrderInBothDirections) {
   request.set_sample_periods(3);
   request.set_threads(3);
   ExpectStreamedEqualsWhole(v1::SWEEP, request, 2 * 130 / 64);
+  // Chunked: values of later chunks finish ahead and wait for their turn.
+  request.set_chunks(3);
+  ExpectStreamedEqualsWhole(v1::SWEEP, request, 2 * 130 / 64);
 }
 
 TEST(Streaming, AContinuationStreamsItsBranchPoints) {

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -64,11 +65,12 @@ TEST(SweepCancel, EveryWorkerStopsPromptly) {
   EXPECT_LT(done, 2000);
 }
 
-// Values of 2^31 - 1 transient periods (and 4 times that at each chunk's first value, which used
-// to overflow 32 bits): each worker is inside one long simulation when the stop comes.
+// Values of 2^31 - 1 transient periods (and 4 times that at the second chunk's first value,
+// which used to overflow 32 bits): each of the four workers (two chunks each way) is inside one
+// long simulation when the stop comes.
 TEST(SweepCancel, WorkersInsideLongValuesStopPromptly) {
   DO model;
-  SweepOptions o = Grid(4, SweepDirection::kBoth, 2, 1);
+  SweepOptions o = Grid(4, SweepDirection::kBoth, 4, 2);
   o.transient_periods = std::numeric_limits<int32_t>::max();
   ASSERT_TRUE(o.Validate().ok());
   CancelProbe probe(kDelay);
@@ -76,8 +78,12 @@ TEST(SweepCancel, WorkersInsideLongValuesStopPromptly) {
                               DefaultInitialState(model), o, probe.Callback());
   probe.Returned();
   EXPECT_EQ(r.termination, Termination::kCancelled);
-  EXPECT_EQ(r.up.front().termination, Termination::kCancelled);
-  EXPECT_EQ(r.down.front().termination, Termination::kCancelled);
+  for (const std::vector<SweepPoint>* list : {&r.up, &r.down}) {
+    ASSERT_EQ(list->size(), 4u);
+    EXPECT_EQ((*list)[0].termination, Termination::kCancelled);
+    EXPECT_EQ((*list)[2].termination, Termination::kCancelled);  // the second chunk's first
+    EXPECT_EQ((*list)[2].transient_periods, int64_t{4} * std::numeric_limits<int32_t>::max());
+  }
   probe.ExpectPrompt("sweep, workers in 2^33-period values");
 }
 
@@ -95,7 +101,8 @@ TEST(SweepOverflow, TotalPeriodsBeyond64BitsAreRefused) {
 
 bool SameBits(const SweepPoint& a, const SweepPoint& b) {
   if (std::memcmp(&a.value, &b.value, sizeof a.value) != 0 || a.termination != b.termination ||
-      a.message != b.message || a.samples.size() != b.samples.size()) {
+      a.message != b.message || a.start != b.start || a.transient_periods != b.transient_periods ||
+      a.samples.size() != b.samples.size()) {
     return false;
   }
   for (size_t k = 0; k < a.samples.size(); ++k) {
@@ -109,11 +116,9 @@ bool SameBits(const SweepPoint& a, const SweepPoint& b) {
   return true;
 }
 
-// Three threads, three chunks per direction: the values arrive on the calling thread in grid
-// order per direction, equal bit for bit to the accumulated ones, and the result lists stay empty.
-TEST(SweepStream, ValuesArriveInGridOrderAsAccumulated) {
+// Streams the sweep `o` and compares with the same sweep accumulated.
+void ExpectStreamedEqualsAccumulated(const SweepOptions& o) {
   DO model;
-  const SweepOptions o = Grid(30, SweepDirection::kBoth, 3, 3);
   const Params prm = testing::ReferenceParams();
   const StateVector x0 = DefaultInitialState(model);
   const SweepResult kept = Sweep(model, Exact(model), prm, x0, o);
@@ -138,6 +143,16 @@ TEST(SweepStream, ValuesArriveInGridOrderAsAccumulated) {
   ASSERT_EQ(down.size(), kept.down.size());
   for (size_t k = 0; k < up.size(); ++k) EXPECT_TRUE(SameBits(up[k], kept.up[k])) << k;
   for (size_t k = 0; k < down.size(); ++k) EXPECT_TRUE(SameBits(down[k], kept.down[k])) << k;
+}
+
+// Three threads, three chunks per direction, and three threads with the default one chunk: the
+// values arrive on the calling thread in grid order per direction, equal bit for bit to the
+// accumulated ones, and the result lists stay empty.
+TEST(SweepStream, ValuesArriveInGridOrderAsAccumulated) {
+  for (int chunks : {3, 1}) {
+    SCOPED_TRACE(std::to_string(chunks) + " chunks");
+    ExpectStreamedEqualsAccumulated(Grid(30, SweepDirection::kBoth, 3, chunks));
+  }
 }
 
 // A slow consumer (2 ms a value) of one direction in two chunks: without back-pressure the second

@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <string_view>
+#include <utility>
+#include <vector>
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
@@ -58,14 +62,13 @@ TEST(Sweep, UpAndDownAgreeInsideThePeriodOneWindow) {
   EXPECT_NEAR(r.up[3].samples[0].x[DO::kP], testing::kRefFixedP, testing::kRefFixedPrecision);
 }
 
-// Sequential sweeping starts each value from the previous value's final state: one chunk, one
-// thread, gives the same result as simulating the values one after another by hand.
+// Sequential sweeping starts each value from the previous value's final state: the default (one
+// chunk) on one thread gives the same result as simulating the values one after another by hand,
+// the first from x0 with the plain transient (the longer one is for later chunks' starts only).
 TEST(Sweep, EachValueStartsFromTheLastState) {
   DO model;
   SweepOptions o = Small(0.09, 0.12, 3, SweepDirection::kUp);
   o.threads = 1;
-  o.chunks = 1;
-  o.chunk_start_transient_factor = 1;
   const SweepResult r =
       Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o);
   ASSERT_EQ(r.termination, Termination::kCompleted);
@@ -83,7 +86,102 @@ TEST(Sweep, EachValueStartsFromTheLastState) {
       EXPECT_EQ(s.poincare[k].x, r.up[i].samples[k].x) << "value " << i << " sample " << k;
     }
     x = s.final_state;
+    EXPECT_EQ(r.up[i].start,
+              i == 0 ? SweepStart::kFromInitialState : SweepStart::kFromPreviousValue);
+    EXPECT_EQ(r.up[i].transient_periods, o.transient_periods);
   }
+}
+
+bool SameBits(const SweepPoint& a, const SweepPoint& b) {
+  if (std::memcmp(&a.value, &b.value, sizeof a.value) != 0 || a.termination != b.termination ||
+      a.message != b.message || a.start != b.start || a.transient_periods != b.transient_periods ||
+      a.samples.size() != b.samples.size()) {
+    return false;
+  }
+  for (size_t k = 0; k < a.samples.size(); ++k) {
+    const StateVector &x = a.samples[k].x, &y = b.samples[k].x;
+    if (a.samples[k].period != b.samples[k].period || a.samples[k].mode != b.samples[k].mode ||
+        x.size() != y.size() ||
+        std::memcmp(x.data(), y.data(), sizeof(double) * static_cast<size_t>(x.size())) != 0) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// More threads do not change a sweep: each direction still runs value after value from the last
+// state, so 2 and 4 threads (in one direction and in both, with and without a progress callback,
+// which moves the work onto a pool) give the values of 1 thread bit for bit (the exact propagator
+// is deterministic), every value but a direction's first started FROM_PREVIOUS_VALUE. The grid
+// crosses the period-doubling at b = 0.110, where a restarted value would land elsewhere.
+TEST(Sweep, MoreThreadsKeepEveryValueStartingFromThePreviousOne) {
+  DO model;
+  const Params prm = testing::ReferenceParams();
+  const StateVector x0 = DefaultInitialState(model);
+  for (SweepDirection direction :
+       {SweepDirection::kUp, SweepDirection::kDown, SweepDirection::kBoth}) {
+    SweepOptions o = Small(0.09, 0.13, 12, direction);
+    o.transient_periods = 50;
+    o.threads = 1;
+    const SweepResult one = Sweep(model, Exact(model), prm, x0, o);
+    ASSERT_EQ(one.termination, Termination::kCompleted) << one.status.ToString();
+    for (const std::vector<SweepPoint>* list : {&one.up, &one.down}) {
+      for (size_t i = 0; i < list->size(); ++i) {
+        EXPECT_EQ((*list)[i].start,
+                  i == 0 ? SweepStart::kFromInitialState : SweepStart::kFromPreviousValue)
+            << i;
+        EXPECT_EQ((*list)[i].termination, Termination::kCompleted) << (*list)[i].message;
+      }
+    }
+    for (int threads : {2, 4}) {
+      for (bool with_progress : {false, true}) {
+        o.threads = threads;
+        const SweepResult many =
+            with_progress ? Sweep(model, Exact(model), prm, x0, o, [](double) { return true; })
+                          : Sweep(model, Exact(model), prm, x0, o);
+        ASSERT_EQ(many.termination, Termination::kCompleted);
+        EXPECT_EQ(many.periods_total, one.periods_total);
+        EXPECT_EQ(many.events_total, one.events_total);
+        ASSERT_EQ(many.up.size(), one.up.size());
+        ASSERT_EQ(many.down.size(), one.down.size());
+        for (size_t i = 0; i < one.up.size(); ++i) {
+          EXPECT_TRUE(SameBits(many.up[i], one.up[i])) << threads << " threads, up " << i;
+        }
+        for (size_t i = 0; i < one.down.size(); ++i) {
+          EXPECT_TRUE(SameBits(many.down[i], one.down[i])) << threads << " threads, down " << i;
+        }
+      }
+    }
+  }
+}
+
+// An explicitly chunked sweep: each chunk's first value starts from x0, the direction's first
+// with the plain transient and every later chunk's with the factor's; the others from the
+// previous value. Chunk c of 3 over 11 values starts at floor(c x 11 / 3) = 0, 3, 7.
+TEST(Sweep, ExplicitChunksStartEachChunkFromTheInitialState) {
+  DO model;
+  SweepOptions o = Small(0.0, 0.2, 11, SweepDirection::kBoth);
+  o.threads = 2;
+  o.chunks = 3;
+  o.transient_periods = 20;
+  o.sample_periods = 2;
+  const SweepResult r =
+      Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o);
+  ASSERT_EQ(r.termination, Termination::kCompleted);
+  for (const std::vector<SweepPoint>* list : {&r.up, &r.down}) {
+    ASSERT_EQ(list->size(), 11u);
+    for (int i = 0; i < 11; ++i) {
+      const SweepPoint& pt = (*list)[i];
+      ASSERT_EQ(pt.termination, Termination::kCompleted) << pt.message;
+      const bool chunk_start = i == 0 || i == 3 || i == 7;
+      EXPECT_EQ(pt.start,
+                chunk_start ? SweepStart::kFromInitialState : SweepStart::kFromPreviousValue)
+          << i;
+      EXPECT_EQ(pt.transient_periods, chunk_start && i > 0 ? 4 * 20 : 20) << i;
+    }
+  }
+  // Each direction: 11 x (20 + 2) periods and 2 x 3 x 20 more at the later chunks' starts.
+  EXPECT_EQ(r.periods_total, 2 * (11 * 22 + 2 * 3 * 20));
 }
 
 TEST(Sweep, ChunksCoverTheGridInOrder) {
@@ -105,6 +203,72 @@ TEST(Sweep, ChunksCoverTheGridInOrder) {
   }
 }
 
+// The exact propagator, except that every Advance at the listed values of b fails.
+class FailingAt final : public Propagator {
+ public:
+  FailingAt(const DO& model, std::vector<double> values)
+      : exact_(model), values_(std::move(values)) {}
+  std::string_view name() const override { return "failing"; }
+  FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
+                     const FlowRequest& request) override {
+    return exact_.FlowMap(mode, x0, t, params, request);
+  }
+  AdvanceResult Advance(const AdvanceRequest& request, const Params& params) override {
+    for (double v : values_) {
+      if (std::abs(params[DO::kB] - v) < 1e-12) {  // grid values are 0.01 apart
+        AdvanceResult r;
+        r.status = Internal("injected failure");
+        r.x = request.x0;
+        return r;
+      }
+    }
+    return exact_.Advance(request, params);
+  }
+
+ private:
+  ExactPropagator exact_;
+  std::vector<double> values_;
+};
+
+// A value that fails hands no state on: the values after it start from the last value that
+// completed (FROM_EARLIER_VALUE), or from x0 while none has (FROM_INITIAL_STATE). Values 0, 2 and
+// 3 of 0.10, 0.11, ..., 0.14 fail; value 4 equals, bit for bit, a run by hand from value 1's end.
+TEST(Sweep, AfterAFailedValueTheNextStartsFromTheLastCompletedOne) {
+  DO model;
+  SweepOptions o = Small(0.10, 0.14, 5, SweepDirection::kUp);
+  o.threads = 1;
+  const PropagatorFactory failing = [&model] {
+    return std::make_unique<FailingAt>(model, std::vector<double>{0.10, 0.12, 0.13});
+  };
+  const Params prm = testing::ReferenceParams();
+  const StateVector x0 = DefaultInitialState(model);
+  const SweepResult r = Sweep(model, failing, prm, x0, o);
+  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.up.size(), 5u);
+  const Termination kOk = Termination::kCompleted, kFail = Termination::kFailed;
+  const Termination ends[] = {kFail, kOk, kFail, kFail, kOk};
+  const SweepStart starts[] = {SweepStart::kFromInitialState, SweepStart::kFromInitialState,
+                               SweepStart::kFromPreviousValue, SweepStart::kFromEarlierValue,
+                               SweepStart::kFromEarlierValue};
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(r.up[i].termination, ends[i]) << i << ": " << r.up[i].message;
+    EXPECT_EQ(r.up[i].start, starts[i]) << i;
+  }
+  ExactPropagator prop(model);
+  SimulationOptions so;
+  so.transient_periods = o.transient_periods;
+  so.sample_periods = o.sample_periods;
+  Params p = prm;
+  p[DO::kB] = r.up[1].value;
+  const SimulationResult first = Simulate(model, prop, p, x0, so);
+  p[DO::kB] = r.up[4].value;
+  const SimulationResult last = Simulate(model, prop, p, first.final_state, so);
+  ASSERT_EQ(last.poincare.size(), r.up[4].samples.size());
+  for (size_t k = 0; k < last.poincare.size(); ++k) {
+    EXPECT_EQ(last.poincare[k].x, r.up[4].samples[k].x) << k;
+  }
+}
+
 TEST(Sweep, InvalidRequestsNameTheProblem) {
   DO model;
   const Params prm = testing::ReferenceParams();
@@ -119,8 +283,13 @@ TEST(Sweep, InvalidRequestsNameTheProblem) {
   SweepOptions one_step = Small(0.1, 0.2, 1, SweepDirection::kUp);
   SweepOptions bad_xi = Small(-1.0, 0.5, 3, SweepDirection::kUp);
   bad_xi.param = "xi";
-  for (const Case& c : {Case{unknown, "zeta"}, Case{reversed, "max must be > min"},
-                        Case{one_step, "steps"}, Case{bad_xi, "xi"}}) {
+  SweepOptions no_chunk = Small(0.1, 0.2, 3, SweepDirection::kUp);
+  no_chunk.chunks = 0;
+  SweepOptions too_many_chunks = Small(0.1, 0.2, 3, SweepDirection::kUp);
+  too_many_chunks.chunks = 4;
+  for (const Case& c :
+       {Case{unknown, "zeta"}, Case{reversed, "max must be > min"}, Case{one_step, "steps"},
+        Case{bad_xi, "xi"}, Case{no_chunk, "chunks"}, Case{too_many_chunks, "chunks"}}) {
     const SweepResult r = Sweep(model, Exact(model), prm, x0, c.options);
     EXPECT_FALSE(r.status.ok());
     EXPECT_NE(r.termination, Termination::kCompleted);

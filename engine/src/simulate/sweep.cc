@@ -34,7 +34,12 @@ Status SweepOptions::Validate() const {
     return InvalidArgument("sample_periods must be >= 1, got " + std::to_string(sample_periods));
   }
   if (threads < 0) return InvalidArgument("threads must be >= 0 (0: number of cores)");
-  if (chunks < 0) return InvalidArgument("chunks must be >= 0 (0: automatic)");
+  if (chunks < 1 || chunks > steps) {
+    return InvalidArgument(
+        "chunks must be >= 1 (1: every value from the previous one) and <= "
+        "steps, got " +
+        std::to_string(chunks));
+  }
   if (chunk_start_transient_factor < 1) {
     return InvalidArgument("chunk_start_transient_factor must be >= 1");
   }
@@ -184,8 +189,7 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
   const int directions = (up ? 1 : 0) + (down ? 1 : 0);
   const int threads =
       options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-  const int chunks =
-      std::clamp(options.chunks > 0 ? options.chunks : std::max(1, threads / directions), 1, n);
+  const int chunks = options.chunks;  // validated: 1..n
   const bool streaming = static_cast<bool>(on_point);
 
   std::vector<SweepPoint>* lists[2] = {&result.up, &result.down};
@@ -214,14 +218,20 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
     for (size_t k; (k = next_piece.fetch_add(1)) < pieces.size();) {
       const Piece& piece = pieces[k];
       StateVector x = x0;
+      SweepStart start = SweepStart::kFromInitialState;
       for (int i = piece.first; i <= piece.last && !cancel.load(); ++i) {
         SweepPoint pt;
         pt.value = value_at(piece.direction == 0 ? i : n - 1 - i);
+        pt.start = start;
         Params p = params;
         p[*index] = pt.value;
         SimulationOptions so;
+        // A later chunk's first value stands in for a continued start: the longer transient
+        // lets it settle. A direction's first value starts from x0 in the continued sweep too.
+        const bool later_chunk_start = i == piece.first && piece.first > 0;
         so.transient_periods = int64_t{options.transient_periods} *
-                               (i == piece.first ? options.chunk_start_transient_factor : 1);
+                               (later_chunk_start ? options.chunk_start_transient_factor : 1);
+        pt.transient_periods = so.transient_periods;
         so.sample_periods = options.sample_periods;
         so.outputs.measures = false;
         so.outputs.poincare = true;
@@ -235,7 +245,12 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
         events += sr.events_total;
         periods += so.transient_periods + so.sample_periods;
         // Continue from this value's final state; after a failure, from the last good state.
-        if (sr.termination == Termination::kCompleted) x = sr.final_state;
+        if (sr.termination == Termination::kCompleted) {
+          x = sr.final_state;
+          start = SweepStart::kFromPreviousValue;
+        } else if (start != SweepStart::kFromInitialState) {
+          start = SweepStart::kFromEarlierValue;
+        }
         last_value = pt.value;
         ++done;
         if (!streaming) {

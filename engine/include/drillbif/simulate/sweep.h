@@ -2,10 +2,13 @@
 // last state of the previous one (so coexisting attractors show up as hysteresis between the up and
 // down sweeps), N transient periods then M Poincare samples per value.
 //
-// Parallelism: the up and down sweeps are independent and run on separate threads; a single
-// direction is split into `chunks` contiguous pieces, each starting from the initial state at its
-// first value with `chunk_start_transient_factor` times the transient (continuity is only broken
-// at chunk boundaries, where the longer transient settles the start).
+// Parallelism: the up and down sweeps are independent and run on separate threads; within a
+// direction every value starts from the previous value's final state, whatever the number of
+// threads (a sweep of one direction runs on one thread). Only when asked for (`chunks` > 1) is
+// each direction split into contiguous pieces run in parallel, each piece after the first
+// starting from the initial state with `chunk_start_transient_factor` times the transient:
+// continuity is then broken at the piece boundaries, and a branch that the continued sweep would
+// have followed there may be lost. SweepPoint::start says how each value was started.
 //
 // Cancellation: the progress callback is called on the calling thread only (about every 5 ms,
 // and at every percent of the grid values); when it returns false a shared stop flag ends every
@@ -23,6 +26,7 @@
 #ifndef DRILLBIF_SIMULATE_SWEEP_H_
 #define DRILLBIF_SIMULATE_SWEEP_H_
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -42,19 +46,32 @@ struct SweepOptions {
   SweepDirection direction = SweepDirection::kUp;
   int transient_periods = 500;  // per value
   int sample_periods = 100;     // Poincare samples per value
-  int threads = 0;              // worker threads; 0: the number of cores
-  int chunks = 0;               // pieces per direction; 0: threads / directions (at least 1)
-  int chunk_start_transient_factor = 4;  // transient multiplier at a chunk's first value
+  int threads = 0;              // worker threads (at most directions x chunks used); 0: cores
+  // Pieces each direction is split into, run in parallel, each from x0 (1..steps); 1: continuity.
+  int chunks = 1;
+  int chunk_start_transient_factor = 4;  // transient multiplier at each later chunk's first value
 
   // INVALID_ARGUMENT naming the field; also when the sweep's forcing periods in all (steps x
   // directions x (transient x factor + samples)) do not fit 64 bits.
   Status Validate() const;
 };
 
+// The state a grid value's simulation started from.
+enum class SweepStart {
+  kNotStarted,         // never reached (the sweep was cancelled before it)
+  kFromInitialState,   // x0: a direction's first value, a chunk's first value (or the values
+                       // after it while every value of the chunk so far failed)
+  kFromPreviousValue,  // the final state of the previous value in the sweep's direction
+  kFromEarlierValue,   // the final state of the last earlier value that completed (the values
+                       // between it and this one failed)
+};
+
 struct SweepPoint {
   double value = 0.0;
   Termination termination = Termination::kFailed;
-  std::string message;  // why, when not completed
+  std::string message;                         // why, when not completed
+  SweepStart start = SweepStart::kNotStarted;  // the state the simulation started from
+  int64_t transient_periods = 0;  // forcing periods simulated before the samples; 0 if not run
   std::vector<PoincareSample> samples;
 };
 
