@@ -41,6 +41,10 @@ using google::protobuf::util::MessageDifferencer;
 using drillbif::testing::SmallSweep;
 using drillbif::testing::TempDir;
 
+// One worker and no worker reserved for short jobs: every job waits for the one worker, so the
+// short ones are still queued behind the long one when the server is killed.
+const std::vector<std::string> kOneWorker = {"--workers", "1", "--short-workers", "0"};
+
 // Submits one long sweep (about a second of engine time on one worker) and three short ones;
 // returns the requests and operation names, the long one first.
 void SubmitJobs(v1::Jobs::Stub& jobs, std::vector<v1::SweepRequest>* requests,
@@ -107,7 +111,7 @@ TEST(ServerProcess, KillNineWithJobsQueuedAndRunningThenRestartCompletesEveryJob
   std::vector<v1::SweepRequest> requests;
   std::vector<std::string> names;
   {
-    ServerProcess server(dir.path(), db);
+    ServerProcess server(dir.path(), db, kOneWorker);
     auto jobs = v1::Jobs::NewStub(server.channel());
     auto operations = google::longrunning::Operations::NewStub(server.channel());
     SubmitJobs(*jobs, &requests, &names);
@@ -118,7 +122,7 @@ TEST(ServerProcess, KillNineWithJobsQueuedAndRunningThenRestartCompletesEveryJob
     const int status = server.Kill(SIGKILL);
     EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
   }
-  ServerProcess restarted(dir.path(), db);
+  ServerProcess restarted(dir.path(), db, kOneWorker);
   // The interrupted run counts as an attempt: the job ran twice, completed once.
   ExpectAllCompleteOnce(restarted, requests, names, /*expected_first_attempts=*/2);
 }
@@ -129,7 +133,7 @@ TEST(ServerProcess, SigtermRequeuesTheRunningJobAndExitsCleanly) {
   std::vector<v1::SweepRequest> requests;
   std::vector<std::string> names;
   {
-    ServerProcess server(dir.path(), db);
+    ServerProcess server(dir.path(), db, kOneWorker);
     auto jobs = v1::Jobs::NewStub(server.channel());
     auto operations = google::longrunning::Operations::NewStub(server.channel());
     SubmitJobs(*jobs, &requests, &names);
@@ -151,7 +155,7 @@ TEST(ServerProcess, SigtermRequeuesTheRunningJobAndExitsCleanly) {
     ASSERT_TRUE(first.ok());
     EXPECT_EQ(first->state, JobState::kQueued);
   }
-  ServerProcess restarted(dir.path(), db);
+  ServerProcess restarted(dir.path(), db, kOneWorker);
   ExpectAllCompleteOnce(restarted, requests, names, /*expected_first_attempts=*/1);
 }
 
