@@ -305,6 +305,12 @@ Status SqliteStoreImpl::Configure() {
   DRILLBIF_RETURN_IF_ERROR(connection_.Exec(options_.full_sync ? "PRAGMA synchronous = FULL"
                                                                : "PRAGMA synchronous = NORMAL"));
   DRILLBIF_RETURN_IF_ERROR(connection_.Exec("PRAGMA foreign_keys = ON"));
+  // Freed pages are not overwritten with zeros. Debian's SQLite is built with SECURE_DELETE,
+  // which zeroes every page a DELETE frees: dropping a result then writes as much to the WAL as
+  // the result took, so on a full disk a failed job's partial result could not be dropped, nor
+  // the job be marked FAILED in the same transaction (it stayed RUNNING). FAST zeroes only what
+  // costs no extra write; results are computed data, not secrets.
+  DRILLBIF_RETURN_IF_ERROR(connection_.Exec("PRAGMA secure_delete = FAST"));
   const std::string size_limit =
       "PRAGMA journal_size_limit = " + std::to_string(options_.wal_size_limit_bytes);
   DRILLBIF_RETURN_IF_ERROR(connection_.Exec(size_limit.c_str()));
@@ -890,6 +896,9 @@ Status SqliteJobStoreOptions::Validate() const {
     return InvalidArgument("default_page_size: must be in [1, max_page_size]");
   }
   if (wal_size_limit_bytes < 0) return InvalidArgument("wal_size_limit_bytes: must be >= 0");
+  if (min_free_bytes_after_full < 0) {
+    return InvalidArgument("min_free_bytes_after_full: must be >= 0");
+  }
   return Status::Ok();
 }
 

@@ -51,6 +51,12 @@ struct SqliteJobStoreOptions {
   // this size, so a burst of large writes does not keep its disk space. 16 MiB: the WAL is
   // checkpointed every 1000 pages (4 MiB), so normal use never truncates.
   int64_t wal_size_limit_bytes = 16 << 20;
+  // After a full disk, Probe() succeeds only once the file system holding the store has at least
+  // this many bytes free (statvfs): a write of a page or two fits in what the failed write left,
+  // so a probe that only writes would report recovery while the next result chunk still fails,
+  // and health would flap. 1 MiB: a result chunk of the worker pool
+  // (WorkerPoolOptions::chunk_bytes), the largest write the server makes routinely. 0: none.
+  int64_t min_free_bytes_after_full = 1 << 20;
   // Details of every SQLite error (statement, SQLite's message and code) and of faults and their
   // recovery, one line per call; empty: dropped. Status messages never hold them. Called with the
   // store's lock held: it must not call the store.

@@ -139,6 +139,9 @@ class SqliteStoreImpl final : public JobStore {
   StatusOr<std::vector<int64_t>> StreamItems(const std::string& run_id);
   // (page_count - freelist_count) * page_size.
   StatusOr<int64_t> UsedBytes();
+  // Bytes free for this process on the file system that holds the store (statvfs); -1 when
+  // unknown.
+  int64_t FreeDiskBytes() const;
   // The database file plus its WAL, in bytes (0 for missing files).
   int64_t DiskBytes() const;
   // Eviction steps; each takes mu_ per transaction, not for its whole duration.

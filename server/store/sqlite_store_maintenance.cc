@@ -1,6 +1,7 @@
 // The SQLite JobStore's maintenance: health and probe, the integrity check at open, deletion and
 // retention (docs/store.md, faults and retention).
 #include <sqlite3.h>
+#include <sys/statvfs.h>
 
 #include <cstdint>
 #include <filesystem>
@@ -89,8 +90,27 @@ Status CheckIntegrity(const std::string& path, const sqlite::LogFunction& log) {
 Status SqliteStoreImpl::Health() { return connection_.Fault(); }
 
 Status SqliteStoreImpl::Probe() {
+  if (connection_.Fault().code() == StatusCode::kResourceExhausted) {
+    // A full disk: first give back what deletions freed since (a failed job's partial result).
+    // Its pages are free in the file but still on the disk, and the WAL still holds them until a
+    // checkpoint, which cannot grow the file; the vacuum shortens the file first.
+    if (Status freed = FreeSpace(); !freed.ok()) {
+      std::lock_guard<std::mutex> lock(mu_);
+      connection_.Log("job store: probe could not give freed space back: " + freed.ToString());
+    }
+  }
   std::lock_guard<std::mutex> lock(mu_);
   const Status fault = connection_.Fault();
+  if (fault.code() == StatusCode::kResourceExhausted &&
+      fault.message() == "the job store's disk is full" && options_.min_free_bytes_after_full > 0) {
+    const int64_t free_bytes = FreeDiskBytes();
+    if (free_bytes >= 0 && free_bytes < options_.min_free_bytes_after_full) {
+      connection_.Log("job store: probe: " + std::to_string(free_bytes) +
+                      " bytes free on the store's disk, below " +
+                      std::to_string(options_.min_free_bytes_after_full));
+      return fault;
+    }
+  }
   {
     // A write that changes a page (a no-op UPDATE would commit nothing).
     DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
@@ -166,6 +186,13 @@ StatusOr<int64_t> SqliteStoreImpl::UsedBytes() {
   const std::optional<int64_t> bytes = CheckedMul(q.Int(0), q.Int(1));
   if (!bytes) return Internal("job store size beyond 2^63 - 1 bytes");
   return *bytes;
+}
+
+int64_t SqliteStoreImpl::FreeDiskBytes() const {
+  const std::filesystem::path dir = std::filesystem::absolute(path_).parent_path();
+  struct statvfs fs;
+  if (statvfs(dir.c_str(), &fs) != 0) return -1;
+  return static_cast<int64_t>(fs.f_bavail) * static_cast<int64_t>(fs.f_frsize);
 }
 
 int64_t SqliteStoreImpl::DiskBytes() const {
@@ -252,9 +279,15 @@ Status SqliteStoreImpl::FreeSpace() {
   // small; the checkpoint then shortens the file.
   while (auto_vacuum == 2) {
     std::lock_guard<std::mutex> lock(mu_);
-    DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA freelist_count"));
-    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-    if (!row || q.Int(0) == 0) break;
+    int64_t free_pages = 0;
+    {
+      // Scoped: a statement still open on the connection keeps the checkpoints below from
+      // running (SQLITE_LOCKED).
+      DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare("PRAGMA freelist_count"));
+      DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+      if (row) free_pages = q.Int(0);
+    }
+    if (free_pages == 0) break;
     const std::string step = "PRAGMA incremental_vacuum(" + std::to_string(kVacuumStepPages) + ")";
     Status vacuumed = connection_.Exec(step.c_str());
     connection_.CheckpointIfRequested();
