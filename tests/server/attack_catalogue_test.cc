@@ -44,6 +44,7 @@
 #include "server/grpc_calls.h"
 #include "server/server.h"
 #include "support/generic_call.h"
+#include "support/metrics_samples.h"
 #include "support/raw_http.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
@@ -812,19 +813,6 @@ std::string SweepBody(double min) {
   return json;
 }
 
-// The /metrics samples: "name{labels}" -> value.
-std::map<std::string, double> Samples(const std::string& text) {
-  std::map<std::string, double> samples;
-  std::istringstream in(text);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    const size_t space = line.rfind(' ');
-    samples[line.substr(0, space)] = std::stod(line.substr(space + 1));
-  }
-  return samples;
-}
-
 // Checks one REST case's answer; returns a one-line summary for the log.
 void CheckRestAnswer(const RestCase& c, const std::string& response, bool closed) {
   SCOPED_TRACE(c.group + " / " + c.name);
@@ -878,7 +866,7 @@ class AttackCatalogueTest : public ::testing::Test {
   }
 
   std::map<std::string, double> Metrics() {
-    return Samples(BodyOf(Exchange(port(), Get("/metrics", ""))));
+    return drillbif::testing::MetricsSamples(BodyOf(Exchange(port(), Get("/metrics", ""))));
   }
 
   std::unique_ptr<TempDir> dir_;

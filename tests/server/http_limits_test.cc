@@ -30,6 +30,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/server.h"
+#include "support/metrics_samples.h"
 #include "support/raw_http.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
@@ -71,19 +72,6 @@ std::string Json(const google::protobuf::Message& message) {
   std::string out;
   EXPECT_TRUE(google::protobuf::util::MessageToJsonString(message, &out).ok());
   return out;
-}
-
-// The /metrics samples: "name{labels}" -> value.
-std::map<std::string, double> Samples(const std::string& text) {
-  std::map<std::string, double> samples;
-  std::istringstream in(text);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    const size_t space = line.rfind(' ');
-    samples[line.substr(0, space)] = std::stod(line.substr(space + 1));
-  }
-  return samples;
 }
 
 ServerOptions TestServerOptions(const std::string& dir) {
@@ -147,7 +135,7 @@ class HttpLimitsTest : public ::testing::Test {
   static std::map<std::string, double> Metrics() {
     StatusOr<std::string> text = server_->MetricsText();
     EXPECT_TRUE(text.ok());
-    return text.ok() ? Samples(*text) : std::map<std::string, double>();
+    return text.ok() ? drillbif::testing::MetricsSamples(*text) : std::map<std::string, double>();
   }
 
   // Polls the drillbif_watchers gauge until it equals `expected` or `wait` passes.

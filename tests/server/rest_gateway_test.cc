@@ -33,6 +33,7 @@
 #include "jobs/sweep_job.h"
 #include "jobs/trace_job.h"
 #include "server/server.h"
+#include "support/metrics_samples.h"
 #include "support/operations.h"
 #include "support/same_result.h"
 #include "support/small_requests.h"
@@ -73,19 +74,6 @@ T Parse(const std::string& json) {
   auto status = google::protobuf::util::JsonStringToMessage(json, &message);
   EXPECT_TRUE(status.ok()) << status.ToString() << "\n" << json.substr(0, 500);
   return message;
-}
-
-// The samples of a /metrics text: "name{labels}" -> value, for lines that are samples.
-std::map<std::string, double> Samples(const std::string& text) {
-  std::map<std::string, double> samples;
-  std::istringstream in(text);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    const size_t space = line.rfind(' ');
-    samples[line.substr(0, space)] = std::stod(line.substr(space + 1));
-  }
-  return samples;
 }
 
 // One server per test process (ctest runs each test in its own process); requests differ
@@ -174,7 +162,7 @@ class RestGatewayTest : public ::testing::Test {
     httplib::Result result = Get("/metrics", nullptr);
     if (!result) return {};
     EXPECT_EQ(result->status, 200);
-    return Samples(result->body);
+    return drillbif::testing::MetricsSamples(result->body);
   }
 
   // Expects an error answer: the HTTP status and a body {"code", "message", "details"} with the
@@ -595,7 +583,7 @@ TEST_F(RestGatewayTest, MetricsParseAsPrometheusText) {
   EXPECT_EQ(types["drillbif_job_duration_seconds"], "histogram");
   EXPECT_EQ(types["drillbif_cache_hits_total"], "counter");
 
-  std::map<std::string, double> values = Samples(text);
+  std::map<std::string, double> values = drillbif::testing::MetricsSamples(text);
   EXPECT_GE(values[R"(drillbif_jobs{state="SUCCEEDED"})"], 1);
   EXPECT_EQ(values[not_found], not_found_before + 1) << "counted once";
   // The simulate histogram: cumulative buckets, the +Inf one equal to the count.
