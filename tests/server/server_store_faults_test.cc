@@ -31,6 +31,7 @@
 #include "support/operations.h"
 #include "support/raw_http.h"
 #include "support/small_tmpfs.h"
+#include "support/store_faults.h"
 #include "support/temp_dir.h"
 
 // Last: httplib.h includes <resolv.h>, whose macro _res breaks Eigen's headers (a parameter name)
@@ -39,6 +40,10 @@
 
 namespace drillbif::server {
 namespace {
+
+using drillbif::testing::ExpectNoSql;
+using drillbif::testing::FileSize;
+using drillbif::testing::OverwritePages;
 
 using Clock = std::chrono::steady_clock;
 using drillbif::testing::BodyOf;
@@ -61,15 +66,6 @@ constexpr int kProbeMs = 50;
 // Longest wait for health to follow the store (many probe intervals: on a loaded 2-core machine
 // a maintenance round can be late by a second or more; the server changes it within one).
 constexpr double kHealthWaitSeconds = 10;
-
-// Words that would betray SQL (or SQLite's own wording) in a message meant for clients: the
-// rule of store_faults_test.cc.
-void ExpectNoSql(const std::string& message) {
-  for (const char* word : {"SELECT", "INSERT", "UPDATE", "DELETE", "BEGIN", "PRAGMA", "sqlite",
-                           "SQLite", "result_chunks", "jobs", "malformed", "locked"}) {
-    EXPECT_THAT(message, Not(HasSubstr(word))) << message;
-  }
-}
 
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
@@ -196,26 +192,6 @@ v1::SimulateRequest LargeResultSimulate() {
   request.mutable_outputs()->set_poincare(true);
   request.mutable_outputs()->set_events(true);
   return request;
-}
-
-int64_t FileSize(const std::string& path) {
-  std::error_code error;
-  const auto size = std::filesystem::file_size(path, error);
-  return error ? -1 : static_cast<int64_t>(size);
-}
-
-// Overwrites pages [first, first + count) of the file with pseudo-random bytes (fixed seed),
-// behind the back of any connection that has it open.
-void OverwritePages(const std::string& path, int64_t page_size, int64_t first, int64_t count) {
-  std::mt19937 random(12345);
-  std::string garbage(static_cast<size_t>(page_size * count), '\0');
-  for (char& c : garbage) c = static_cast<char>(random());
-  const int fd = open(path.c_str(), O_WRONLY);
-  ASSERT_GE(fd, 0) << std::strerror(errno);
-  ASSERT_EQ(pwrite(fd, garbage.data(), garbage.size(), first * page_size),
-            static_cast<ssize_t>(garbage.size()));
-  ASSERT_EQ(fsync(fd), 0);
-  close(fd);
 }
 
 // A closed store file of about 6 MB: 20000 cancelled jobs finished now (so that no retention

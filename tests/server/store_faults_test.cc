@@ -2,6 +2,8 @@
 // namespace of the test process), a database file overwritten with garbage (closed, and under
 // an open store), a write lock held by another connection. Checks the codes and messages
 // clients see (no SQL text), the details in the log callback, Health() and Probe().
+#include "support/store_faults.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <gmock/gmock.h>
@@ -32,6 +34,10 @@
 namespace drillbif::server {
 namespace {
 
+using drillbif::testing::ExpectNoSql;
+using drillbif::testing::FileSize;
+using drillbif::testing::OverwritePages;
+
 using ::testing::HasSubstr;
 using ::testing::Not;
 using ::testing::StartsWith;
@@ -40,14 +46,6 @@ template <typename T>
 T Must(StatusOr<T> result) {
   EXPECT_TRUE(result.ok()) << result.status().ToString();
   return result.ok() ? std::move(result).value() : T{};
-}
-
-// Words that would betray SQL (or SQLite's own wording) in a message meant for clients.
-void ExpectNoSql(const std::string& message) {
-  for (const char* word : {"SELECT", "INSERT", "UPDATE", "DELETE", "BEGIN", "PRAGMA", "sqlite",
-                           "SQLite", "result_chunks", "jobs", "malformed", "locked"}) {
-    EXPECT_THAT(message, Not(HasSubstr(word))) << message;
-  }
 }
 
 // Collects the store's log lines (the callback runs under the store's lock; the test reads
@@ -71,28 +69,9 @@ struct Log {
   }
 };
 
-int64_t FileSize(const std::string& path) {
-  std::error_code error;
-  const auto size = std::filesystem::file_size(path, error);
-  return error ? -1 : static_cast<int64_t>(size);
-}
-
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-// Overwrites pages [first, first + count) of the file with pseudo-random bytes (fixed seed).
-void OverwritePages(const std::string& path, int64_t page_size, int64_t first, int64_t count) {
-  std::mt19937 random(12345);
-  std::string garbage(static_cast<size_t>(page_size * count), '\0');
-  for (char& c : garbage) c = static_cast<char>(random());
-  const int fd = open(path.c_str(), O_WRONLY);
-  ASSERT_GE(fd, 0) << std::strerror(errno);
-  ASSERT_EQ(pwrite(fd, garbage.data(), garbage.size(), first * page_size),
-            static_cast<ssize_t>(garbage.size()));
-  ASSERT_EQ(fsync(fd), 0);
-  close(fd);
 }
 
 void SqlExec(const std::string& path, const std::string& sql) {
