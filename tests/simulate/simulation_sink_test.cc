@@ -10,11 +10,13 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/simulate/simulator.h"
 #include "problems/drifting_reference.h"
+#include "support/same_bits.h"
 
 namespace drillbif {
 namespace {
 
 using DO = DriftingOscillator;
+using testing::SameBits;
 
 // Keeps everything it receives.
 class RecordingSink : public SimulationSink {
@@ -68,13 +70,6 @@ class CountingSink : public SimulationSink {
  private:
   int64_t stop_after_;
 };
-
-// Bitwise equality of two states (no tolerance: the same computation must give the same bits).
-bool SameBits(const StateVector& a, const StateVector& b) {
-  return a.size() == b.size() &&
-         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
-}
-bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 SimulationOptions AllOutputs(int64_t transient, int64_t samples) {
   SimulationOptions o;

@@ -16,6 +16,7 @@
 #include "drillbif/simulate/sweep.h"
 #include "problems/drifting_reference.h"
 #include "support/cancel_probe.h"
+#include "support/same_bits.h"
 
 namespace drillbif {
 namespace {
@@ -23,6 +24,7 @@ namespace {
 using DO = DriftingOscillator;
 using std::chrono::milliseconds;
 using testing::CancelProbe;
+using testing::SameBits;
 
 constexpr milliseconds kDelay(200);  // as in simulation_cancel_test.cc
 
@@ -97,23 +99,6 @@ TEST(SweepOverflow, TotalPeriodsBeyond64BitsAreRefused) {
   EXPECT_NE(s.message().find("chunk_start_transient_factor"), std::string::npos) << s.message();
   o.chunk_start_transient_factor = 4;  // 1e6 x 2 x (2^33 + 5) ~ 2^54: honoured
   EXPECT_TRUE(o.Validate().ok()) << o.Validate().ToString();
-}
-
-bool SameBits(const SweepPoint& a, const SweepPoint& b) {
-  if (std::memcmp(&a.value, &b.value, sizeof a.value) != 0 || a.termination != b.termination ||
-      a.message != b.message || a.start != b.start || a.transient_periods != b.transient_periods ||
-      a.samples.size() != b.samples.size()) {
-    return false;
-  }
-  for (size_t k = 0; k < a.samples.size(); ++k) {
-    const StateVector &x = a.samples[k].x, &y = b.samples[k].x;
-    if (a.samples[k].period != b.samples[k].period || a.samples[k].mode != b.samples[k].mode ||
-        x.size() != y.size() ||
-        std::memcmp(x.data(), y.data(), sizeof(double) * static_cast<size_t>(x.size())) != 0) {
-      return false;
-    }
-  }
-  return true;
 }
 
 // Streams the sweep `o` and compares with the same sweep accumulated.

@@ -12,11 +12,13 @@
 
 #include "drillbif/flow/exact_propagator.h"
 #include "problems/drifting_reference.h"
+#include "support/same_bits.h"
 
 namespace drillbif {
 namespace {
 
 using DO = DriftingOscillator;
+using testing::SameBits;
 
 PropagatorFactory Exact(const DO& model) {
   return [&model] { return std::make_unique<ExactPropagator>(model); };
@@ -90,23 +92,6 @@ TEST(Sweep, EachValueStartsFromTheLastState) {
               i == 0 ? SweepStart::kFromInitialState : SweepStart::kFromPreviousValue);
     EXPECT_EQ(r.up[i].transient_periods, o.transient_periods);
   }
-}
-
-bool SameBits(const SweepPoint& a, const SweepPoint& b) {
-  if (std::memcmp(&a.value, &b.value, sizeof a.value) != 0 || a.termination != b.termination ||
-      a.message != b.message || a.start != b.start || a.transient_periods != b.transient_periods ||
-      a.samples.size() != b.samples.size()) {
-    return false;
-  }
-  for (size_t k = 0; k < a.samples.size(); ++k) {
-    const StateVector &x = a.samples[k].x, &y = b.samples[k].x;
-    if (a.samples[k].period != b.samples[k].period || a.samples[k].mode != b.samples[k].mode ||
-        x.size() != y.size() ||
-        std::memcmp(x.data(), y.data(), sizeof(double) * static_cast<size_t>(x.size())) != 0) {
-      return false;
-    }
-  }
-  return true;
 }
 
 // More threads do not change a sweep: each direction still runs value after value from the last
