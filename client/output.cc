@@ -294,6 +294,15 @@ void AppendSpecialPoints(const google::protobuf::RepeatedPtrField<v1::SpecialPoi
     line.append(" stable=").append(sp.stable() ? "true" : "false");
     line.append(" signature=").append(sp.signature_text());
     if (!sp.detail().empty()) line.append(" detail=").append(sp.detail());
+    // At a grazing, each side's stability (the point's own `stable` needs both).
+    auto side = [&line](const char* name, const v1::SideStability& s) {
+      line.append(" stable_").append(name).append("=").append(s.stable() ? "true" : "false");
+      line.append(" mu_abs_max_").append(name).append("=");
+      AppendNumber(s.max_abs(), &line);
+    };
+    if (sp.has_stability_before()) side("before", sp.stability_before());
+    if (sp.has_stability_after()) side("after", sp.stability_after());
+    if (sp.stability_changes()) line.append(" stability_changes=true");
     AppendComment(line, out);
   }
 }

@@ -56,6 +56,9 @@ std::string SweepResultToCsv(const v1::SweepResult& result);
 // one row per branch point in branch order (mu_abs_max: the largest |multiplier|, 0 when all are
 // structural zeros), then one comment line per special point in the order found:
 //   # FOLD value=0.16715050... rop=... power=... stable=false signature=... [detail=...]
+// and at a grazing each side's stability at the end (the point's own stable needs both):
+//   ... [stable_before=... mu_abs_max_before=...] [stable_after=... mu_abs_max_after=...]
+//   [stability_changes=true]
 std::string ContinueResultToCsv(const v1::ContinueResult& result);
 
 // Trace result as CSV: "# status=..." lines when it did not complete, then

@@ -181,6 +181,14 @@ void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
   out->set_detail(in.detail);
   ToProto(pt.orbit.signature, out->mutable_signature());
   out->set_signature_text(SignatureString(model, pt.orbit.signature));
+  auto side = [](const SideStability& s, v1::SideStability* o) {
+    o->set_stable(s.stable);
+    o->set_max_abs(s.max_modulus);
+  };
+  if (in.before.known) side(in.before, out->mutable_stability_before());
+  if (in.after.known) side(in.after, out->mutable_stability_after());
+  out->set_stability_changes(in.before.known && in.after.known &&
+                             in.before.stable != in.after.stable);
 }
 
 // The result of a continuation; its branch points go to `points` when given (streamed), else

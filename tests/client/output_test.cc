@@ -179,6 +179,30 @@ TEST(Output, ContinueCsvHasOneRowPerPointThenTheSpecialPoints) {
   EXPECT_THAT(csv, HasSubstr("\n# ROP_MAX value=0.16381"));
 }
 
+// A grazing's line ends with each side's stability after the existing fields; a side the engine
+// did not compute is left out, and a change of stability across the grazing is named.
+TEST(Output, ContinueCsvGrazingLineEndsWithEachSidesStability) {
+  v1::ContinueResult r;
+  r.set_status("COMPLETED");
+  v1::SpecialPoint* both = r.add_special_points();
+  both->set_kind(v1::SpecialPoint::GRAZING_L1);
+  both->set_value(0.2048239);
+  both->set_detail("A -> B");
+  both->mutable_stability_before()->set_stable(true);
+  both->mutable_stability_before()->set_max_abs(0.5);
+  both->mutable_stability_after()->set_max_abs(2.0);
+  both->set_stability_changes(true);
+  v1::SpecialPoint* ends = r.add_special_points();
+  ends->set_kind(v1::SpecialPoint::GRAZING_PI);
+  ends->mutable_stability_before()->set_max_abs(1.5);
+  const std::string csv = ContinueResultToCsv(r);
+  EXPECT_THAT(csv, HasSubstr(" stable=false signature= detail=A -> B stable_before=true "
+                             "mu_abs_max_before=0.5 stable_after=false mu_abs_max_after=2 "
+                             "stability_changes=true\n"));
+  EXPECT_THAT(csv, HasSubstr("# GRAZING_PI value=0 rop=0 power=0 stable=false signature= "
+                             "stable_before=false mu_abs_max_before=1.5\n"));
+}
+
 TEST(Output, TraceCsvHasOneCommentLinePerUnverifiedEndAndCodim2Point) {
   v1::TraceResult r;
   r.set_status("COMPLETED");

@@ -514,5 +514,66 @@ TEST(Continuation, RunsInXiAndG) {
   }
 }
 
+// Stability at a grazing is each side's: on the period-2 a-branch at omega = 0.4644 (the attractor
+// at a = 0.19) a CwP phase vanishes at the GRAZING_L1 near a = 0.2048239, with the branch unstable
+// on both sides (|mu| 1.67 at the point before, 2.02 at the point after). The monodromy at the
+// grazing itself, with its zero-length segment, has one multiplier 0.215 and called the point
+// stable. The reference is the neighbouring branch points' multipliers, computed again here from
+// their orbits. This grazing removes a segment, across which the multipliers are continuous, so
+// each side's limit lies between the two neighbours' largest |mu|: the multipliers vary with
+// the square root of the distance to the grazing (the phase's duration), so the limit is not
+// close to either neighbour, but the neighbours bracket it.
+TEST(Continuation, GrazingReportsTheStabilityOfBothSides) {
+  DO model;
+  ExactPropagator prop(model);
+  Params prm = testing::ReferenceParams();
+  prm[DO::kOmega] = 0.4644;
+  prm[DO::kA] = 0.19;
+  const PeriodicOrbit start = StartOrbit(model, prop, prm);
+  ASSERT_EQ(start.signature.periods, 2);
+  ContinuationOptions opt;
+  opt.param = "a";
+  opt.min = 0.19;
+  opt.max = 0.21;
+  opt.direction = ContinuationDirection::kIncreasing;
+  const ContinuationResult r = Continue(model, prop, start, opt);
+  const SpecialPoint* graze = Find(r, SpecialPointKind::kGrazingL1, 0.2048, 0.2049);
+  ASSERT_NE(graze, nullptr) << r.summary.message;
+  // The grazing point in the branch's points, and its neighbours on either side.
+  size_t at = r.points.size();
+  for (size_t i = 0; i < r.points.size(); ++i) {
+    if (r.points[i].value == graze->point.value) at = i;
+  }
+  ASSERT_GT(at, 0u);
+  ASSERT_LT(at + 1, r.points.size());
+  const ContinuationPoint& before = r.points[at - 1];
+  const ContinuationPoint& after = r.points[at + 1];
+  ASSERT_LT(after.orbit.signature.segments.size(), before.orbit.signature.segments.size());
+  const Stability ref_before = OrbitStability(model, prop, before.orbit);
+  const Stability ref_after = OrbitStability(model, prop, after.orbit);
+  ASSERT_FALSE(ref_before.multipliers.empty());
+  ASSERT_FALSE(ref_after.multipliers.empty());
+  const double mu_before = std::abs(ref_before.multipliers.front());
+  const double mu_after = std::abs(ref_after.multipliers.front());
+  ASSERT_FALSE(ref_before.stable);
+  ASSERT_FALSE(ref_after.stable);
+
+  ASSERT_TRUE(graze->before.known);
+  ASSERT_TRUE(graze->after.known);
+  EXPECT_EQ(graze->before.stable, ref_before.stable);
+  EXPECT_EQ(graze->after.stable, ref_after.stable);
+  // Unstable on both sides: never reported stable.
+  EXPECT_FALSE(graze->point.stability.stable);
+  EXPECT_FALSE(r.points[at].stability.stable);
+  for (const double side : {graze->before.max_modulus, graze->after.max_modulus}) {
+    EXPECT_GE(side, std::min(mu_before, mu_after)) << mu_before << " .. " << mu_after;
+    EXPECT_LE(side, std::max(mu_before, mu_after)) << mu_before << " .. " << mu_after;
+  }
+  // The point's multipliers are the side before's: as many as its neighbour before, the largest
+  // as large as that side's limit.
+  ASSERT_EQ(graze->point.stability.multipliers.size(), ref_before.multipliers.size());
+  EXPECT_DOUBLE_EQ(std::abs(graze->point.stability.multipliers.front()), graze->before.max_modulus);
+}
+
 }  // namespace
 }  // namespace drillbif

@@ -262,6 +262,42 @@ TEST(RunContinue, WithoutSwitchingStopsAtTheL1Grazing) {
   EXPECT_NEAR(r->points(0).value(), kGrazingL1B, kPublishedTolerance);
   EXPECT_EQ(r->points(r->points_size() - 1).value(), 0.12);
   EXPECT_EQ(OfKind(*r, v1::SpecialPoint::PERIOD_DOUBLING).size(), 1u);
+  // The branch ends at the grazing: only the side before is known, so the point is not called
+  // stable whatever that side is.
+  EXPECT_TRUE(grazings[0].has_stability_before());
+  EXPECT_FALSE(grazings[0].has_stability_after());
+  EXPECT_FALSE(grazings[0].stable());
+  EXPECT_FALSE(grazings[0].stability_changes());
+}
+
+// The period-2 a-branch at omega = 0.4644 (the attractor at a = 0.19) loses its CwP phases at a
+// GRAZING_L1 near a = 0.2048239, unstable on both sides (|mu| 1.99 at the grazing from either
+// side): the result names both sides unstable and the point not stable.
+TEST(RunContinue, GrazingCarriesTheStabilityOfBothSides) {
+  v1::ContinueRequest request;
+  request.mutable_params()->set_omega(0.4644);
+  request.mutable_params()->set_a(0.19);
+  request.set_param("a");
+  request.set_min(0.19);
+  request.set_max(0.21);
+  request.set_direction(v1::ContinueRequest::INCREASING);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const std::vector<v1::SpecialPoint> grazings = OfKind(*r, v1::SpecialPoint::GRAZING_L1);
+  ASSERT_EQ(grazings.size(), 1u) << r->message();
+  const v1::SpecialPoint& g = grazings[0];
+  EXPECT_NEAR(g.value(), 0.2048239, 1e-7);
+  ASSERT_TRUE(g.has_stability_before());
+  ASSERT_TRUE(g.has_stability_after());
+  EXPECT_FALSE(g.stability_before().stable());
+  EXPECT_FALSE(g.stability_after().stable());
+  EXPECT_GT(g.stability_before().max_abs(), 1.0);
+  EXPECT_GT(g.stability_after().max_abs(), 1.0);
+  EXPECT_FALSE(g.stable());
+  EXPECT_FALSE(g.stability_changes());
+  // The point's multipliers are the side before's.
+  ASSERT_GT(g.multipliers_size(), 0);
+  EXPECT_DOUBLE_EQ(g.multipliers(0).abs(), g.stability_before().max_abs());
 }
 
 // Stopped once three points of the branch were accepted (on_value hears each): the result is

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "continuation/arclength.h"
 #include "continuation/signature_switch.h"
@@ -12,6 +13,16 @@ namespace drillbif::internal {
 namespace {
 
 double Sign(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
+
+SideStability SideOf(const Stability& stability) {
+  SideStability side;
+  side.known = true;
+  side.stable = stability.stable;
+  for (const std::complex<double>& mu : stability.multipliers) {
+    side.max_modulus = std::max(side.max_modulus, std::abs(mu));
+  }
+  return side;
+}
 
 }  // namespace
 
@@ -368,13 +379,22 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
       reported.period = kTwoPi * old.signature.periods / model_.ForcingFrequency(old.params);
     }
   }
-  if (options_.locate) {
+  // The old signature's branch just before the grazing point: the side before's stability, and
+  // the end of the interval searched for special points. The monodromy at the grazing point
+  // itself is degenerate (a zero-length segment, or a guard touching zero inside one) and in
+  // general has neither side's multipliers: the period-2 a-branch at omega = 0.4644 has
+  // |mu| = 1.67 just before its GRAZING_L1 at a = 0.2048239 and 2.02 just after, and 0.215 at it.
+  const double sigma_before = t_.dot(y_star - y_) * (1.0 - 1e-6);
+  Vec y_before;
+  std::optional<ContinuationPoint> before_point;
+  if (PointAt(sigma_before, &y_before)) before_point = MakePoint(y_before);
+  if (options_.locate && before_point.has_value()) {
     // Up to just before the grazing point.
-    const double sigma = t_.dot(y_star - y_) * (1.0 - 1e-6);
-    Vec y_before, t_before;
+    const double sigma = sigma_before;
+    Vec t_before;
     double det_before = 0.0;
-    if (PointAt(sigma, &y_before) && Tangent(y_before, t_, &t_before, &det_before)) {
-      TestValues before = Tests(y_before, t_before, det_before, MakePoint(y_before));
+    if (Tangent(y_before, t_, &t_before, &det_before)) {
+      TestValues before = Tests(y_before, t_before, det_before, *before_point);
       // The fixed-signature system degenerates at the grazing point (a fold of it, or a sign
       // change of its bordered determinant there): neither belongs to a physical orbit.
       before.fold = tests_.fold;
@@ -420,13 +440,24 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     sw = std::move(next);
   }
   if (propagator_.stopped()) return false;  // nothing computed after a stop is kept
-  if (!sw.representation_only) {
+  // The grazing point is reported with the side before's multipliers, and stable only once both
+  // sides are known stable (the side after is set below, when the new signature's branch starts).
+  size_t sp_index = result->special_points.size(), pt_index = result->points.size();
+  const bool recorded = !sw.representation_only;
+  if (recorded) {
     SpecialPoint sp;
     sp.kind = sw.kind;
     sp.point = reported;
+    if (before_point.has_value()) {
+      sp.before = SideOf(before_point->stability);
+      sp.point.stability = before_point->stability;
+    } else {
+      sp.point.stability = Stability();
+    }
+    sp.point.stability.stable = false;
     sp.detail = sw.detail;
     result->special_points.push_back(sp);
-    result->points.push_back(reported);
+    result->points.push_back(sp.point);
     NoteStop(sw.kind);
   }
   if (!options_.switch_signatures && !sw.representation_only) {
@@ -530,6 +561,14 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   point_ = MakePoint(y_);
   tests_ = Tests(y_, t_, det, point_);
   h_ = std::max(options_.min_step, std::min(h_, options_.initial_step));
+  if (recorded) {
+    // The side after: the first point of the new signature's branch (at the grazing point where a
+    // segment was removed, a step-off duration past it where one was inserted).
+    SpecialPoint& sp = result->special_points[sp_index];
+    sp.after = SideOf(point_.stability);
+    sp.point.stability.stable = sp.before.known && sp.before.stable && sp.after.stable;
+    result->points[pt_index].stability.stable = sp.point.stability.stable;
+  }
   return true;
 }
 

@@ -55,10 +55,25 @@ struct ContinuationPoint {
   double period = 0.0;           // 2 pi n / omega
 };
 
+// The stability of a branch on one side of a grazing: the limit of its multipliers there.
+struct SideStability {
+  bool known = false;        // false where that side was not computed (e.g. the branch ends)
+  bool stable = false;       // every nontrivial |mu| < 1 on that side
+  double max_modulus = 0.0;  // largest nontrivial |mu| on that side
+};
+
 struct SpecialPoint {
   SpecialPointKind kind = SpecialPointKind::kFold;
-  ContinuationPoint point;  // the orbit at the located point
-  std::string detail;       // e.g. the signature before and after a switch
+  // The orbit at the located point. At a grazing or signature change, point.stability holds the
+  // multipliers of the side before (the monodromy exactly at the grazing, with its zero-length
+  // segment or touching guard, is degenerate and in general has neither side's multipliers), and
+  // point.stability.stable is true only when both sides are known and stable.
+  ContinuationPoint point;
+  std::string detail;  // e.g. the signature before and after a switch
+  // At a grazing or signature change (else not known): the stability just before the point on the
+  // old signature (1e-6 of the step's arclength before it) and just after it on the new one (the
+  // first point of the new signature's branch).
+  SideStability before, after;
 };
 
 enum class ContinuationDirection { kIncreasing, kDecreasing, kBoth };
