@@ -64,8 +64,10 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
   }
   const double t_tolerance = 1e-15 * std::max(1.0, tau);
   // Each sampled local minimum of h, refined by Newton on h' kept inside its neighbouring samples.
+  bool refined[kSamples + 1] = {};
   for (int j = 1; j < kSamples; ++j) {
     if (!(g[j].h <= g[j - 1].h && g[j].h <= g[j + 1].h)) continue;
+    refined[j] = true;
     const double lo = tau * (j - 1) / kSamples, hi = tau * (j + 1) / kSamples;
     double t = tau * j / kSamples;
     GuardValue v = g[j];
@@ -84,8 +86,11 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
   // the first two samples 1.5 apart) has h[1] above the end's h[0] = 0. Such a minimum is located
   // by Newton on h' safeguarded by bisection inside the interval. The ends of the segment are
   // left out: the segment starts or ends on some guards, where h' may vanish by construction.
+  // Intervals next to a sampled minimum are left to its refinement above, so that a minimum both
+  // find is the same to the last bit (a touch time 1e-14 apart took the period-2 omega-branch
+  // onto another side of the branch point at the period-1 doubling near omega = 1.6258).
   for (int j = 0; j < kSamples; ++j) {
-    if (!(g[j].dh < 0.0 && g[j + 1].dh > 0.0)) continue;
+    if (!(g[j].dh < 0.0 && g[j + 1].dh > 0.0) || refined[j] || refined[j + 1]) continue;
     double lo = tau * j / kSamples, hi = tau * (j + 1) / kSamples;
     double t = 0.5 * (lo + hi);
     GuardValue v = at(t);
