@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <string>
 
@@ -359,6 +360,59 @@ TEST(RunContinue, FollowsThePeriodDoubledBranch) {
   EXPECT_TRUE(std::any_of(
       doubled.special_points().begin(), doubled.special_points().end(),
       [](const v1::SpecialPoint& s) { return std::abs(s.value() - 0.11001173) < 1e-6; }));
+}
+
+// The period-n windows of the b-sweep at a = 0.3, omega = 0.1 (MODEL.md: a reverse period-adding
+// cascade accumulating at b = 0): the attractor found by simulation at b inside a window, of
+// period n, is continued over b in [0, 0.2]. Both ends of the branch reach b = 0, where the orbit
+// degenerates (its free flight touches Pi at every maximum), and the run completes; every fold
+// has a multiplier at +1 and every period doubling one at -1. The folds are located to 1e-10 in b
+// and the multiplier moves like sqrt(b_fold - b), so about 1e-5 from +1 at worst; 1e-4 as in
+// FoldHasAMultiplierAtOne (a period doubling is a regular zero of mu + 1: ~1e-10). About 1 s each.
+void ExpectWindowBranchCompletes(double b, const std::string& period) {
+  SCOPED_TRACE("start at b = " + std::to_string(b));
+  v1::ContinueRequest request;
+  request.mutable_params()->set_b(b);
+  request.set_param("b");
+  request.set_min(0.0);
+  request.set_max(0.2);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->status(), "COMPLETED") << r->message();
+  EXPECT_THAT(r->message(), ::testing::Not(HasSubstr("could not")));
+  ASSERT_GT(r->points_size(), 2);
+  const auto start = std::find_if(r->points().begin(), r->points().end(),
+                                  [&](const v1::BranchPoint& p) { return p.value() == b; });
+  ASSERT_NE(start, r->points().end());
+  EXPECT_THAT(start->signature_text(), ::testing::EndsWith(period));
+  // Each end of the branch at an end of the range, to the tracer's "next to the bound" (1e-6 of
+  // the range).
+  constexpr double kNear = 1e-6 * 0.2;
+  for (const double end : {r->points(0).value(), r->points(r->points_size() - 1).value()}) {
+    EXPECT_TRUE(end <= kNear || end >= 0.2 - kNear) << "branch ends at b = " << end;
+  }
+  int folds = 0, doublings = 0;
+  for (const v1::SpecialPoint& sp : r->special_points()) {
+    const bool fold = sp.kind() == v1::SpecialPoint::FOLD;
+    if (!fold && sp.kind() != v1::SpecialPoint::PERIOD_DOUBLING) continue;
+    (fold ? folds : doublings)++;
+    const double target = fold ? 1.0 : -1.0;
+    double distance = std::numeric_limits<double>::infinity();
+    for (const v1::Multiplier& mu : sp.multipliers()) {
+      distance = std::min(distance, std::hypot(mu.re() - target, mu.im()));
+    }
+    EXPECT_LT(distance, 1e-4) << v1::SpecialPoint::Kind_Name(sp.kind()) << " at b = " << sp.value();
+  }
+  EXPECT_GT(folds, 0);
+  EXPECT_GT(doublings, 0);
+}
+
+TEST(RunContinue, PeriodTwoWindowBranchCompletesOverTheRange) {
+  ExpectWindowBranchCompletes(0.068, " x2");
+}
+
+TEST(RunContinue, PeriodThreeWindowBranchCompletesOverTheRange) {
+  ExpectWindowBranchCompletes(0.0443, " x3");
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <optional>
 
@@ -22,6 +23,13 @@ SideStability SideOf(const Stability& stability) {
     side.max_modulus = std::max(side.max_modulus, std::abs(mu));
   }
   return side;
+}
+
+// A short decimal form of a small positive number ("1.8e-13").
+std::string ShortNumber(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2g", x);
+  return buf;
 }
 
 }  // namespace
@@ -572,6 +580,24 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   return true;
 }
 
+bool BranchTracer::CollapsedSegment(const Vec& y1) const {
+  double period0 = 0.0, period1 = 0.0;
+  for (int j = 0; j < bvp_->segments(); ++j) {
+    period0 += std::abs(y_[bvp_->DurationIndex(j)]);
+    period1 += std::abs(y1[bvp_->DurationIndex(j)]);
+  }
+  // Rounding level of a duration, and a length clearly above it (a segment inserted at a
+  // switch starts at 1e-5 or more).
+  constexpr double kRounding = 1e-12, kClear = 1e-9;
+  for (int j = 0; j < bvp_->segments(); ++j) {
+    if (std::abs(y1[bvp_->DurationIndex(j)]) <= kRounding * period1 &&
+        y_[bvp_->DurationIndex(j)] > kClear * period0) {
+      return true;
+    }
+  }
+  return false;
+}
+
 void BranchTracer::NoteStop(SpecialPointKind kind) {
   const auto& stops = options_.stop_at;
   if (stop_kind_.empty() && std::find(stops.begin(), stops.end(), kind) != stops.end()) {
@@ -606,7 +632,8 @@ bool BranchTracer::Step(ContinuationResult* result) {
   while (true) {
     Vec y1;
     int iterations = 0;
-    if (!Correct(y_ + h_ * t_, t_, &y1, &iterations)) {
+    const bool corrected = Correct(y_ + h_ * t_, t_, &y1, &iterations);
+    if (!corrected || CollapsedSegment(y1)) {
       if (propagator_.stopped()) return cancelled();
       ++rejected_;
       h_ *= 0.5;
@@ -618,8 +645,10 @@ bool BranchTracer::Step(ContinuationResult* result) {
         if (std::isfinite(near) && to_bound <= near) {
           Finish(Termination::kCompleted,
                  "approached " + model_.param_names()[param_] + " = " +
-                     std::to_string(t_[m()] < 0.0 ? options_.min : options_.max) +
-                     " (the branch is unbounded there)");
+                     std::to_string(t_[m()] < 0.0 ? options_.min : options_.max) + " to " +
+                     ShortNumber(to_bound) +
+                     " (the corrector stalls next to the bound: the branch runs off or "
+                     "degenerates there)");
           return false;
         }
         Finish(Termination::kFailed, "the corrector failed down to min_step at " +
@@ -647,7 +676,25 @@ bool BranchTracer::Step(ContinuationResult* result) {
       if (!CrossGrazing(h, violations, result)) {
         if (propagator_.stopped()) return cancelled();
         if (termination_ == Termination::kCompleted && message_.empty()) {
-          Finish(Termination::kFailed, "could not locate or cross: " + adm.message);
+          // Next to the bound the branch heads for, a violation whose test function is at
+          // rounding level at the step's end is the orbit degenerating at the bound, not a
+          // grazing to cross: as b -> 0 the period-n orbits of the drifting oscillator become
+          // free flights whose every maximum touches Pi (their heights differ by ~b T^2), so
+          // their interior maxima reach Pi to 1e-13 at b ~ 1e-15.
+          const double near = 1e-6 * (options_.max - options_.min);
+          const double heading = Sign(t_[m()]);
+          const double to_bound = heading < 0.0 ? y_[m()] - options_.min : options_.max - y_[m()];
+          const double psi1 = ViolationTestFunction(model_, propagator_, p1.orbit, adm);
+          constexpr double kRoundingLevel = 1e-9;
+          if (std::isfinite(near) && to_bound <= near && std::abs(psi1) <= kRoundingLevel) {
+            Finish(Termination::kCompleted,
+                   "approached " + model_.param_names()[param_] + " = " +
+                       std::to_string(heading < 0.0 ? options_.min : options_.max) + " to " +
+                       ShortNumber(to_bound) + ", where the orbit degenerates: " + adm.message +
+                       " (within " + ShortNumber(std::abs(psi1)) + " of touching)");
+          } else {
+            Finish(Termination::kFailed, "could not locate or cross: " + adm.message);
+          }
         }
         return false;
       }
@@ -659,6 +706,16 @@ bool BranchTracer::Step(ContinuationResult* result) {
       if (Locate(
               h, y_[m()] - bound, value - bound, [&](const Vec& yy) { return yy[m()] - bound; },
               false, &y_b)) {
+        // The bracket stops at locate_tolerance in the parameter: solve once more with the
+        // parameter fixed at the bound (the branch crosses it transversally here), so that the
+        // point lies on the bound to rounding whatever the bracket's last iterate was.
+        Vec e = Vec::Zero(m() + 1), y_pred = y_b, y_fixed;
+        e[m()] = 1.0;
+        y_pred[m()] = bound;
+        int fixed_iterations = 0;
+        if (Correct(y_pred, e, &y_fixed, &fixed_iterations, /*accept_rounding_residual=*/true)) {
+          y_b = y_fixed;
+        }
         ContinuationPoint at_bound = MakePoint(y_b);
         if (propagator_.stopped()) return cancelled();
         result->points.push_back(std::move(at_bound));

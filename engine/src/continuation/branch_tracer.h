@@ -76,6 +76,14 @@ class BranchTracer {
   // Detects sign changes of the test functions between the current point and (y1, tests1) at
   // arclength h, and appends the located special points.
   void DetectSpecialPoints(double h, const TestValues& tests1, ContinuationResult* result);
+  // The corrected point y1 of a step has a segment of zero length (to rounding) that was clearly
+  // positive at the current point. A segment that starts and ends on the same surface (a CwP
+  // phase between two l1 events) has a degenerate family of zero-length solutions: for any
+  // parameter value its neighbours can end wherever the surface is crossed, so the corrector may
+  // land there instead of on the physical orbit, whose segment vanishes only at the grazing
+  // point. Such a step is retried shorter, so that the vanishing is bracketed (a negative
+  // duration) or the earlier events on the physical branch are seen.
+  bool CollapsedSegment(const Vec& y1) const;
   // Records a located special point (and whether the options stop at its kind).
   void AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
                   ContinuationResult* result);
