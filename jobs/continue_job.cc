@@ -189,6 +189,14 @@ void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
   if (in.after.known) side(in.after, out->mutable_stability_after());
   out->set_stability_changes(in.before.known && in.after.known &&
                              in.before.stable != in.after.stable);
+  if (in.near_grazing.near) {
+    v1::SpecialPoint::Kind graze = v1::SpecialPoint::KIND_UNSPECIFIED;
+    if (v1::SpecialPoint::Kind_Parse(SpecialPointKindName(in.near_grazing.kind), &graze)) {
+      out->set_near_grazing_kind(graze);
+      out->set_near_grazing_value(in.near_grazing.value);
+      out->set_near_grazing_distance(in.near_grazing.distance);
+    }
+  }
 }
 
 // The result of a continuation; its branch points go to `points` when given (streamed), else

@@ -203,6 +203,27 @@ TEST(Output, ContinueCsvGrazingLineEndsWithEachSidesStability) {
                              "stable_before=false mu_abs_max_before=1.5\n"));
 }
 
+// A bifurcation next to a grazing ends its line with the grazing's kind, value and distance,
+// after the existing fields; one that is not near a grazing has none of them.
+TEST(Output, ContinueCsvLineOfABifurcationNextToAGrazingEndsWithTheGrazing) {
+  v1::ContinueResult r;
+  r.set_status("COMPLETED");
+  v1::SpecialPoint* near = r.add_special_points();
+  near->set_kind(v1::SpecialPoint::PERIOD_DOUBLING);
+  near->set_value(0.25);
+  near->set_near_grazing_kind(v1::SpecialPoint::GRAZING_PI);
+  near->set_near_grazing_value(0.125);
+  near->set_near_grazing_distance(0.125);
+  v1::SpecialPoint* isolated = r.add_special_points();
+  isolated->set_kind(v1::SpecialPoint::FOLD);
+  isolated->set_value(0.5);
+  const std::string csv = ContinueResultToCsv(r);
+  EXPECT_THAT(csv, HasSubstr("# PERIOD_DOUBLING value=0.25 rop=0 power=0 stable=false signature= "
+                             "near_grazing=GRAZING_PI near_grazing_value=0.125 "
+                             "near_grazing_distance=0.125\n"));
+  EXPECT_THAT(csv, HasSubstr("# FOLD value=0.5 rop=0 power=0 stable=false signature=\n"));
+}
+
 TEST(Output, TraceCsvHasOneCommentLinePerUnverifiedEndAndCodim2Point) {
   v1::TraceResult r;
   r.set_status("COMPLETED");

@@ -304,6 +304,57 @@ TEST(RunContinue, GrazingCarriesTheStabilityOfBothSides) {
 // Stopped once three points of the branch were accepted (on_value hears each): the result is
 // CANCELLED with the points found until then, and the progress reported was monotone in [0, 1]
 // across the start orbit's search and the continuation.
+// The reference b-branch over [0, 0.2] (from b = 0.15): a period doubling and a fold located
+// 4.8e-7 and 3e-9 from Pi grazings, where the multipliers jump (|mu| 2.94 -> 0.73 and
+// 3.47 -> 1.36), are reported as part of those grazings' unfolding, with the grazing and the
+// distance; the fold at kFoldB, an isolated smooth fold, is not. The 8-digit values below are
+// located to 1e-10 and rounded (error <= 5e-9), so 1e-8 picks each point out; the two points'
+// distances to their grazings are computed here from the reported values.
+TEST(RunContinue, BifurcationsNextToAPiGrazingNameTheGrazingAndTheDistance) {
+  v1::ContinueRequest request;  // reference point, b = 0.15
+  request.set_param("b");
+  request.set_min(0.0);
+  request.set_max(0.2);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const std::vector<v1::SpecialPoint> grazings = OfKind(*r, v1::SpecialPoint::GRAZING_PI);
+  ASSERT_FALSE(grazings.empty());
+  // The nearest Pi grazing to b.
+  auto nearest = [&](double b) {
+    return *std::min_element(grazings.begin(), grazings.end(), [&](const auto& x, const auto& y) {
+      return std::abs(x.value() - b) < std::abs(y.value() - b);
+    });
+  };
+  auto find = [&](v1::SpecialPoint::Kind kind, double b) -> const v1::SpecialPoint* {
+    for (const v1::SpecialPoint& sp : r->special_points()) {
+      if (sp.kind() == kind && std::abs(sp.value() - b) < kPublishedTolerance) return &sp;
+    }
+    return nullptr;
+  };
+  // The engine's distance: 1e-6 x max(1, span of b) = 1e-6 on this branch (b in [0, 0.2]).
+  constexpr double kUnfoldingDistance = 1e-6;
+  for (const auto& [kind, b] : {std::pair{v1::SpecialPoint::PERIOD_DOUBLING, 0.15097798},
+                                std::pair{v1::SpecialPoint::FOLD, 0.17681741}}) {
+    SCOPED_TRACE(v1::SpecialPoint::Kind_Name(kind) + " at b = " + std::to_string(b));
+    const v1::SpecialPoint* sp = find(kind, b);
+    ASSERT_NE(sp, nullptr);
+    const v1::SpecialPoint g = nearest(sp->value());
+    const double distance = std::abs(sp->value() - g.value());
+    EXPECT_LT(distance, kUnfoldingDistance);
+    EXPECT_EQ(sp->near_grazing_kind(), v1::SpecialPoint::GRAZING_PI);
+    EXPECT_EQ(sp->near_grazing_value(), g.value());
+    EXPECT_DOUBLE_EQ(sp->near_grazing_distance(), distance);
+    // The multipliers on each side are on the grazing's own point, which has both sides.
+    EXPECT_TRUE(g.has_stability_before());
+    EXPECT_TRUE(g.has_stability_after());
+  }
+  const v1::SpecialPoint* fold = find(v1::SpecialPoint::FOLD, kFoldB);
+  ASSERT_NE(fold, nullptr);
+  EXPECT_GT(std::abs(fold->value() - nearest(fold->value()).value()), kUnfoldingDistance);
+  EXPECT_EQ(fold->near_grazing_kind(), v1::SpecialPoint::KIND_UNSPECIFIED);
+  EXPECT_EQ(fold->near_grazing_distance(), 0.0);
+}
+
 TEST(RunContinue, CancelledFromTheProgressCallback) {
   int points = 0;
   std::vector<double> fractions;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "common/phase_progress.h"
 #include "continuation/branch_tracer.h"
@@ -33,6 +34,52 @@ const char* SpecialPointKindName(SpecialPointKind kind) {
   }
   return "?";
 }
+
+namespace {
+
+bool IsGrazing(SpecialPointKind k) {
+  // Every change of signature: the monodromy on each side is a different product of segment
+  // flows and saltation matrices, so the multipliers jump across all of them (l1 and l2 as Pi).
+  return k == SpecialPointKind::kGrazingPi || k == SpecialPointKind::kGrazingL1 ||
+         k == SpecialPointKind::kGrazingL2 || k == SpecialPointKind::kSignatureChange;
+}
+
+bool IsSmoothBifurcation(SpecialPointKind k) {
+  return k == SpecialPointKind::kFold || k == SpecialPointKind::kPeriodDoubling ||
+         k == SpecialPointKind::kNeimarkSacker;
+}
+
+// Marks the folds, PDs and NS points of one branch that lie within kNearGrazingRelativeDistance
+// of its parameter scale from one of its grazings (the nearest one). Their test functions change
+// sign where the multipliers jump across the grazing (|mu| goes from below 1 to 2.9 on the
+// reference b-branch), not at an isolated smooth bifurcation: reported, they would be mistaken
+// for one.
+void MarkNearGrazings(const std::vector<ContinuationPoint>& points,
+                      std::vector<SpecialPoint>* specials) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const ContinuationPoint& p : points) {
+    lo = std::min(lo, p.value);
+    hi = std::max(hi, p.value);
+  }
+  for (const SpecialPoint& s : *specials) {
+    lo = std::min(lo, s.point.value);
+    hi = std::max(hi, s.point.value);
+  }
+  // Parameters are dimensionless and O(1): the scale is 1 unless the branch spans more.
+  const double scale = hi > lo ? std::max(1.0, hi - lo) : 1.0;
+  const double within = kNearGrazingRelativeDistance * scale;
+  for (SpecialPoint& s : *specials) {
+    if (!IsSmoothBifurcation(s.kind)) continue;
+    for (const SpecialPoint& g : *specials) {
+      if (!IsGrazing(g.kind)) continue;
+      const double d = std::abs(s.point.value - g.point.value);
+      if (d > within || (s.near_grazing.near && d >= s.near_grazing.distance)) continue;
+      s.near_grazing = NearGrazing{true, g.kind, g.point.value, d};
+    }
+  }
+}
+
+}  // namespace
 
 Status ContinuationOptions::Validate() const {
   if (param.empty()) return InvalidArgument("param: the continuation parameter must be named");
@@ -134,6 +181,7 @@ ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
   std::reverse(backward.begin(), backward.end());
   backward.insert(backward.end(), result.points.begin(), result.points.end());
   result.points = std::move(backward);
+  MarkNearGrazings(result.points, &result.special_points);
   for (const std::string& e : endings) sum.message += (sum.message.empty() ? "" : "; ") + e;
   if (cancelled) {
     sum.termination = Termination::kCancelled;
