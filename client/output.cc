@@ -304,12 +304,13 @@ void AppendSpecialPoints(const google::protobuf::RepeatedPtrField<v1::SpecialPoi
     if (sp.has_stability_after()) side("after", sp.stability_after());
     if (sp.stability_changes()) line.append(" stability_changes=true");
     // Part of a grazing's unfolding: the grazing's own line has each side's multipliers.
-    if (sp.near_grazing_kind() != v1::SpecialPoint::KIND_UNSPECIFIED) {
-      line.append(" near_grazing=").append(v1::SpecialPoint::Kind_Name(sp.near_grazing_kind()));
+    if (sp.has_near_grazing()) {
+      const v1::NearGrazing& near = sp.near_grazing();
+      line.append(" near_grazing=").append(v1::SpecialPoint::Kind_Name(near.kind()));
       line.append(" near_grazing_value=");
-      AppendNumber(sp.near_grazing_value(), &line);
+      AppendNumber(near.value(), &line);
       line.append(" near_grazing_distance=");
-      AppendNumber(sp.near_grazing_distance(), &line);
+      AppendNumber(near.distance(), &line);
     }
     AppendComment(line, out);
   }

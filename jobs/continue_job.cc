@@ -192,9 +192,10 @@ void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
   if (in.near_grazing.near) {
     v1::SpecialPoint::Kind graze = v1::SpecialPoint::KIND_UNSPECIFIED;
     if (v1::SpecialPoint::Kind_Parse(SpecialPointKindName(in.near_grazing.kind), &graze)) {
-      out->set_near_grazing_kind(graze);
-      out->set_near_grazing_value(in.near_grazing.value);
-      out->set_near_grazing_distance(in.near_grazing.distance);
+      v1::NearGrazing* near = out->mutable_near_grazing();
+      near->set_kind(graze);
+      near->set_value(in.near_grazing.value);
+      near->set_distance(in.near_grazing.distance);
     }
   }
 }

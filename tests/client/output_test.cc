@@ -211,9 +211,9 @@ TEST(Output, ContinueCsvLineOfABifurcationNextToAGrazingEndsWithTheGrazing) {
   v1::SpecialPoint* near = r.add_special_points();
   near->set_kind(v1::SpecialPoint::PERIOD_DOUBLING);
   near->set_value(0.25);
-  near->set_near_grazing_kind(v1::SpecialPoint::GRAZING_PI);
-  near->set_near_grazing_value(0.125);
-  near->set_near_grazing_distance(0.125);
+  near->mutable_near_grazing()->set_kind(v1::SpecialPoint::GRAZING_PI);
+  near->mutable_near_grazing()->set_value(0.125);
+  near->mutable_near_grazing()->set_distance(0.125);
   v1::SpecialPoint* isolated = r.add_special_points();
   isolated->set_kind(v1::SpecialPoint::FOLD);
   isolated->set_value(0.5);

@@ -341,9 +341,10 @@ TEST(RunContinue, BifurcationsNextToAPiGrazingNameTheGrazingAndTheDistance) {
     const v1::SpecialPoint g = nearest(sp->value());
     const double distance = std::abs(sp->value() - g.value());
     EXPECT_LT(distance, kUnfoldingDistance);
-    EXPECT_EQ(sp->near_grazing_kind(), v1::SpecialPoint::GRAZING_PI);
-    EXPECT_EQ(sp->near_grazing_value(), g.value());
-    EXPECT_DOUBLE_EQ(sp->near_grazing_distance(), distance);
+    ASSERT_TRUE(sp->has_near_grazing());
+    EXPECT_EQ(sp->near_grazing().kind(), v1::SpecialPoint::GRAZING_PI);
+    EXPECT_EQ(sp->near_grazing().value(), g.value());
+    EXPECT_DOUBLE_EQ(sp->near_grazing().distance(), distance);
     // The multipliers on each side are on the grazing's own point, which has both sides.
     EXPECT_TRUE(g.has_stability_before());
     EXPECT_TRUE(g.has_stability_after());
@@ -351,8 +352,7 @@ TEST(RunContinue, BifurcationsNextToAPiGrazingNameTheGrazingAndTheDistance) {
   const v1::SpecialPoint* fold = find(v1::SpecialPoint::FOLD, kFoldB);
   ASSERT_NE(fold, nullptr);
   EXPECT_GT(std::abs(fold->value() - nearest(fold->value()).value()), kUnfoldingDistance);
-  EXPECT_EQ(fold->near_grazing_kind(), v1::SpecialPoint::KIND_UNSPECIFIED);
-  EXPECT_EQ(fold->near_grazing_distance(), 0.0);
+  EXPECT_FALSE(fold->has_near_grazing());
 }
 
 TEST(RunContinue, CancelledFromTheProgressCallback) {
