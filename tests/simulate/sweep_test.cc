@@ -140,18 +140,23 @@ TEST(Sweep, MoreThreadsKeepEveryValueStartingFromThePreviousOne) {
   }
 }
 
+// b over [0, 0.2] in 11 values split explicitly into 3 chunks on 2 threads, 20 transient and 2
+// sampled periods a value.
+SweepResult ThreeChunksOfEleven(const DO& model, SweepDirection direction) {
+  SweepOptions o = Small(0.0, 0.2, 11, direction);
+  o.threads = 2;
+  o.chunks = 3;
+  o.transient_periods = 20;
+  o.sample_periods = 2;
+  return Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o);
+}
+
 // An explicitly chunked sweep: each chunk's first value starts from x0, the direction's first
 // with the plain transient and every later chunk's with the factor's; the others from the
 // previous value. Chunk c of 3 over 11 values starts at floor(c x 11 / 3) = 0, 3, 7.
 TEST(Sweep, ExplicitChunksStartEachChunkFromTheInitialState) {
   DO model;
-  SweepOptions o = Small(0.0, 0.2, 11, SweepDirection::kBoth);
-  o.threads = 2;
-  o.chunks = 3;
-  o.transient_periods = 20;
-  o.sample_periods = 2;
-  const SweepResult r =
-      Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o);
+  const SweepResult r = ThreeChunksOfEleven(model, SweepDirection::kBoth);
   ASSERT_EQ(r.termination, Termination::kCompleted);
   for (const std::vector<SweepPoint>* list : {&r.up, &r.down}) {
     ASSERT_EQ(list->size(), 11u);
@@ -171,13 +176,7 @@ TEST(Sweep, ExplicitChunksStartEachChunkFromTheInitialState) {
 
 TEST(Sweep, ChunksCoverTheGridInOrder) {
   DO model;
-  SweepOptions o = Small(0.0, 0.2, 11, SweepDirection::kUp);
-  o.threads = 2;
-  o.chunks = 3;
-  o.transient_periods = 20;
-  o.sample_periods = 2;
-  const SweepResult r =
-      Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o);
+  const SweepResult r = ThreeChunksOfEleven(model, SweepDirection::kUp);
   ASSERT_EQ(r.termination, Termination::kCompleted);
   ASSERT_EQ(r.up.size(), 11u);
   EXPECT_TRUE(r.down.empty());
