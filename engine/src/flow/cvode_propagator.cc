@@ -74,6 +74,10 @@ CvodePropagator::CvodePropagator(const HybridModel& model, CvodeOptions options)
 
 CvodePropagator::~CvodePropagator() = default;
 
+std::unique_ptr<Propagator> CvodePropagator::Clone() const {
+  return std::make_unique<CvodePropagator>(model_, options_);
+}
+
 FlowResult CvodePropagator::Impl::RunFlowMap(int mode, const StateVector& x0, double t,
                                              const Params& params, const FlowRequest& request) {
   FlowResult r;

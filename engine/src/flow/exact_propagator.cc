@@ -28,6 +28,10 @@ ExactPropagator::ExactPropagator(const HybridModel& model, ExactOptions options)
       closed_(options.use_closed_form ? dynamic_cast<const ClosedFormFlow*>(&model) : nullptr),
       options_(options) {}
 
+std::unique_ptr<Propagator> ExactPropagator::Clone() const {
+  return std::make_unique<ExactPropagator>(model_, options_);
+}
+
 bool ExactPropagator::Supports(const HybridModel& model) {
   return dynamic_cast<const LinearForm*>(&model) != nullptr;
 }

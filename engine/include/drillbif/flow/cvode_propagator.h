@@ -44,6 +44,7 @@ class CvodePropagator final : public Propagator {
   FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
                      const FlowRequest& request) override;
   AdvanceResult Advance(const AdvanceRequest& request, const Params& params) override;
+  std::unique_ptr<Propagator> Clone() const override;
 
   const CvodeOptions& options() const { return options_; }
 

@@ -95,6 +95,11 @@ class Propagator {
   virtual FlowResult FlowMap(int mode, const StateVector& x0, double t, const Params& params,
                              const FlowRequest& request) = 0;
   virtual AdvanceResult Advance(const AdvanceRequest& request, const Params& params) = 0;
+  // A new propagator of the same kind, model and options, with no throttle attached: one for
+  // each thread of a computation that runs tasks in parallel (a propagator is not thread-safe).
+  // Its results are those of this one, bit for bit, for the same calls. Null (the default) for a
+  // propagator that cannot be copied so: such a computation then runs on the calling thread.
+  virtual std::unique_ptr<Propagator> Clone() const { return nullptr; }
 
   // The throttle polled by this propagator's calls, or null (never cancelled).
   ProgressThrottle* progress() const { return progress_; }
