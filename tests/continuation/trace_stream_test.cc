@@ -1,6 +1,7 @@
 // TraceCurves: cancellation within the bound (support/cancel_probe.h) in its branches and curves
-// and while it switches at codimension-2 points, and the curves handed to on_curve (in order, as
-// the result holds them at the end, each once it is final).
+// and while it switches at codimension-2 points, on one thread and on several; the curves handed
+// to on_curve (in order, as the result holds them at the end, each once it is final); and the same
+// result whatever the number of threads the curve tasks run on.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -149,6 +150,80 @@ TEST_F(TraceStream, PeriodTwoCurvesAreHandedOverFinal) {
     }
   }
   EXPECT_GT(merged, 0);
+}
+
+// The curve tasks on 2 and 3 threads (on this 2-core machine, 3 also exercises more workers than
+// cores): the same curves, to the bit, in the same order, the same notes and the same streamed
+// order as on one thread. The small box has branch points, switching at a flip-grazing and edge
+// branches; period 2 adds the period-2 branches and the last pass over their ends.
+TEST_F(TraceStream, TheSameCurvesWhateverTheThreads) {
+  for (const int max_period : {1, 2}) {
+    TraceOptions o = SmallBox();
+    o.max_period = max_period;
+    if (max_period == 2) o.max1 = 0.45;
+    const TraceResult one = TraceCurves(model_, prop_, start_, o);
+    ASSERT_TRUE(one.summary.status.ok());
+    ASSERT_FALSE(one.summary.cancelled);
+    ASSERT_GE(one.curves.size(), 3u);
+    for (const int threads : {2, 3}) {
+      o.threads = threads;
+      std::vector<int> streamed;
+      const TraceResult many =
+          TraceCurves(model_, prop_, start_, o, {}, [&](int index, const TracedCurve&) {
+            streamed.push_back(index);
+            return true;
+          });
+      SCOPED_TRACE("max_period " + std::to_string(max_period) + ", " + std::to_string(threads) +
+                   " threads");
+      ASSERT_FALSE(many.summary.cancelled);
+      ASSERT_EQ(many.curves.size(), one.curves.size());
+      for (size_t k = 0; k < one.curves.size(); ++k) {
+        ExpectSameCurve(many.curves[k], one.curves[k], static_cast<int>(k));
+      }
+      EXPECT_EQ(many.summary.notes, one.summary.notes);
+      EXPECT_EQ(many.summary.branch_points, one.summary.branch_points);
+      ASSERT_EQ(streamed.size(), one.curves.size());
+      for (size_t k = 0; k < streamed.size(); ++k) EXPECT_EQ(streamed[k], static_cast<int>(k));
+    }
+  }
+}
+
+// On two threads, a stop while curves are traced (at the first report past 0.3: the branches take
+// the first tenth) ends the curve tasks running on the workers too.
+TEST_F(TraceStream, StopsPromptlyOnTwoThreads) {
+  TraceOptions o = testing::ReferenceBox();
+  o.threads = 2;
+  CancelProbe probe([](double fraction) { return fraction >= 0.3; });
+  const TraceResult r = TraceCurves(model_, prop_, start_, o, probe.Callback());
+  probe.Returned();
+  EXPECT_TRUE(r.summary.cancelled);
+  for (const TracedCurve& c : r.curves) {
+    for (const CurvePoint& p : c.curve.points) ASSERT_TRUE(p.stability.monodromy.allFinite());
+  }
+  probe.ExpectPrompt("trace on two threads: curves");
+}
+
+// Stopped on two threads at the first report of the switching rounds.
+TEST_F(TraceStream, StopsPromptlyWhileSwitchingOnTwoThreads) {
+  TraceOptions o = SmallBox();
+  o.threads = 2;
+  CancelProbe probe([](double fraction) { return fraction >= 0.99; });
+  const TraceResult r = TraceCurves(model_, prop_, start_, o, probe.Callback());
+  probe.Returned();
+  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_FALSE(r.curves.empty());
+  probe.ExpectPrompt("trace on two threads: switching at codimension-2 points");
+}
+
+// threads out of range are refused naming the field.
+TEST_F(TraceStream, ThreadsOutOfRangeAreRefused) {
+  for (const int threads : {-1, kMaxTraceThreads + 1}) {
+    TraceOptions o = SmallBox();
+    o.threads = threads;
+    const TraceResult r = TraceCurves(model_, prop_, start_, o);
+    EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument) << threads;
+    EXPECT_NE(r.summary.status.message().find("threads"), std::string::npos);
+  }
 }
 
 }  // namespace

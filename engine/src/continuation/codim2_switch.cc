@@ -3,12 +3,15 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <deque>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "common/format.h"
+#include "continuation/curve_tasks.h"
 #include "continuation/grazing_end.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
@@ -75,7 +78,194 @@ void TallyNotes(const SwitchTally& t, TraceSummary* sum) {
   }
 }
 
-bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const TraceOptions& options,
+namespace {
+
+// The curves to try from codimension-2 point `point` of a curve of kind `from_kind` (none where
+// no curve leaves it that switching starts).
+std::vector<SwitchCandidate> CandidatesAt(const HybridModel& model, Propagator& propagator,
+                                          CurveKind from_kind, const Codim2Point& point) {
+  const bool fold = point.kind == Codim2Kind::kFoldGrazing;
+  // The curves to try from this point.
+  std::vector<SwitchCandidate> candidates;
+  if (from_kind == CurveKind::kGrazing && point.kind == Codim2Kind::kDoubleGrazing) {
+    // A grazing curve's end solved with both touches as tangent ends: the grazing curve of
+    // each touch alone (the other tangent end merged away) passes; one of them is usually the
+    // curve it came from (known, below), the other the second boundary's (or the first
+    // touch's in the signature beyond the second boundary).
+    // (An end solved with a zero-length segment for its second grazing has one tangent end:
+    // merging it away leaves the corner, whose grazing curve starts there.)
+    const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
+    if (point.bracket != 0.0) return candidates;
+    // And the grazing curve of each touch beyond the other's boundary, where that touch
+    // has become a crossing (CrossingForm, stepped off as at a root of a grazing curve): the
+    // fourth half-curve through the point. (In the reference box: a grazing curve between two
+    // double grazings near (0.065, 0.166), which the a-branch at omega = 0.065 crosses, met
+    // neither other way.)
+    for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
+      if (!segs[j].tangent) continue;
+      StatusOr<PeriodicOrbit> single = MergedForm(point.point.orbit, j);
+      if (!single.ok()) continue;
+      const SpecialPointKind k = GrazingKind(model, *single);
+      candidates.push_back({std::move(single), k, CurveKind::kGrazing});
+      int inserted = -1;
+      StatusOr<PeriodicOrbit> crossed =
+          CrossingForm(model, propagator, point.point.orbit, &inserted, j);
+      if (crossed.ok()) {
+        candidates.push_back({std::move(crossed), k, CurveKind::kGrazing, inserted});
+      }
+    }
+  } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
+    return candidates;
+  } else if (from_kind == CurveKind::kGrazing && point.bracket == 0.0) {
+    // A root along a grazing curve: the orbit without the vanishing segment folds / doubles,
+    // and so does the orbit with it, whose curve ends here from the side where the touch has
+    // become a crossing (started from a point off the root, the segment's length stepped off
+    // from zero). Either may be known, traced from its other end; without the second the
+    // reference box lacks 174 curves (a PD curve between two flip-grazings, next to a hairpin
+    // of another PD curve of its signature, is found only where longer steps jump onto it).
+    const SpecialPointKind seed =
+        fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
+    const CurveKind kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
+    candidates.push_back({MergedForm(point.point.orbit), seed, kind});
+    int inserted = -1;
+    StatusOr<PeriodicOrbit> crossing =
+        CrossingForm(model, propagator, point.point.orbit, &inserted);
+    candidates.push_back({std::move(crossing), seed, kind, inserted});
+  } else if (from_kind != CurveKind::kGrazing) {
+    // A fold / PD curve's end where its orbit grazes: the grazing curve through it. An end
+    // solved in tangent form is its start as it is; else the tangent form at the segment the
+    // violation beyond the end says vanishes (between two of one mode), else the form found
+    // from the orbit alone.
+    const Admissibility& beyond = point.violation;
+    const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
+    const int i = beyond.segment;
+    StatusOr<PeriodicOrbit> tangent = Status(StatusCode::kUnimplemented, "");
+    const bool has_tangent =
+        std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; });
+    if (has_tangent) {
+      tangent = point.point.orbit;
+    } else if (point.bracket == 0.0) {
+      // Solved with a zero-length segment: the grazing curve of that corner (two events held
+      // at one point) starts from it as it is.
+      tangent = point.point.orbit;
+    } else if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
+               i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
+      tangent = TangentForm(point.point.orbit, i);
+    }
+    if (!tangent.ok()) {
+      tangent = GrazingTangentForm(model, propagator, point.point.orbit);
+    }
+    const SpecialPointKind k =
+        tangent.ok() ? GrazingKind(model, *tangent) : SpecialPointKind::kGrazingPi;
+    candidates.push_back({std::move(tangent), k, CurveKind::kGrazing});
+    // An end solved with a zero-length segment between events of two surfaces (a corner: a
+    // contact phase between an impact and progression vanishing, the impact going straight
+    // into progression) is no end of the fold / PD curve itself: past the corner its orbit
+    // goes on without that segment, as a one-parameter branch does through such a
+    // SIGNATURE_CHANGE, and so does the curve. (In the reference box: the PD curve through
+    // (omega, a) = (0.1, 0.45763) ended at such a corner at omega = 0.0931, and its
+    // continuation in the signature NC>Pi CwP>l1 CwoP>l2 NC, which the a-branches at
+    // omega = 0.065 .. 0.085 cross, was never traced.)
+    const bool fold_or_pd =
+        from_kind == CurveKind::kFold || from_kind == CurveKind::kPeriodDoubling;
+    if (fold_or_pd && !has_tangent && point.bracket == 0.0 && beyond.guard < 0 && i >= 0 &&
+        i < static_cast<int>(segs.size())) {
+      const SwitchedOrbit past = SwitchSignature(model, propagator, point.point.orbit, beyond);
+      if (past.new_segment < 0 && !past.representation_only &&
+          past.orbit.signature != point.point.orbit.signature) {
+        candidates.push_back({past.orbit,
+                              from_kind == CurveKind::kFold ? SpecialPointKind::kFold
+                                                            : SpecialPointKind::kPeriodDoubling,
+                              from_kind});
+      }
+    }
+  }  // else a bracketed root on a grazing curve: none
+
+  return candidates;
+}
+
+// What a candidate's task computed: the starts tried in turn, each with its curve; the last one
+// decides (a curve that failed, or one that got away from the point).
+struct CandidateRun {
+  bool deferred = false;  // no regular step-off length gave an admissible start
+  bool stopped = false;   // the last try was cut short by a stop
+  std::vector<std::pair<SpecialPoint, CurveResult>> tries;
+};
+
+// Whether every point of the curve lies within `distance` (box-scaled) of (u, v).
+bool StaysAt(const CurveResult& curve, double u, double v, double w1, double w2, double distance) {
+  return std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {
+    return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2) <= distance;
+  });
+}
+
+// The orbits to start a candidate's curve from and the curves from them, on a worker's
+// propagator: the candidate itself, or stepped off its zero-length segment at the first of
+// kStepOffLengths that gives an admissible orbit (the same lengths as a one-parameter branch's
+// step off an inserted segment), else, in the last round (`last_resort`), at each
+// kLastResortStepOffs length in turn. Next to a contact phase vanishing between flights the
+// fixed-length system can stagnate or leave the flows' domain down to 1e-5 and solve shorter (in
+// the reference box: a PD curve of 253 points between two flip-grazings near (0.062, 0.17),
+// crossed by the omega-branch at a = 0.17, was not traced without it; with longer steps its start
+// needed 1e-7). Last, because a curve started so close to its root is traced coarsely there (its
+// first steps long against the square-root scale of the orbit's change) and, traced first, it
+// hid the same curve traced from its other end, and that curve's crossing with the a-branch at
+// omega = 0.09.
+CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
+                          const TraceOptions& options, const CurveOptions& co, int i1, int i2,
+                          const Codim2Point& point, const SwitchCandidate& candidate,
+                          bool last_resort) {
+  CandidateRun run;
+  const PeriodicOrbit& orbit = *candidate.orbit;
+  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const double u = orbit.params[i1], v = orbit.params[i2];
+  std::vector<PeriodicOrbit> starts;
+  if (candidate.step_off < 0) {
+    starts.push_back(orbit);
+  } else {
+    auto step_off = [&](double length) {
+      StatusOr<PeriodicOrbit> off = SolveSegmentLength(model, propagator, orbit, candidate.step_off,
+                                                       length, candidate.kind, i1, i2);
+      if (!off.ok() || !CheckAdmissible(model, propagator, *off).admissible) return false;
+      if (propagator.stopped()) return false;
+      starts.push_back(*std::move(off));
+      return true;
+    };
+    if (!last_resort) {
+      for (const double length : kStepOffLengths) {
+        if (step_off(length)) break;
+      }
+      if (starts.empty()) {
+        run.deferred = true;
+        return run;
+      }
+    } else {
+      for (const double length : kLastResortStepOffs) step_off(length);
+    }
+  }
+  SpecialPoint seed;
+  seed.kind = candidate.seed_kind;
+  seed.point.value = point.point.value1;
+  for (PeriodicOrbit& start : starts) {
+    seed.point.orbit = std::move(start);
+    seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
+    CurveResult curve = ContinueCurve(model, propagator, seed, co);
+    run.stopped = propagator.stopped();
+    // Started at a last-resort length but never away from the point: the next length is tried
+    // (see ApplyRun).
+    const bool next = !run.stopped && last_resort &&
+                      curve.summary.termination != Termination::kFailed &&
+                      StaysAt(curve, u, v, w1, w2, options.duplicate_distance);
+    run.tries.emplace_back(seed, std::move(curve));
+    if (!next) break;
+  }
+  return run;
+}
+
+}  // namespace
+
+bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerPropagators& workers,
+                    const std::function<void()>& wait, const TraceOptions& options,
                     const std::function<bool(double)>& report, size_t first_curve,
                     SwitchTally* tally, TraceResult* result, bool last_resort) {
   TraceSummary& sum = result->summary;
@@ -86,111 +276,81 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
   co.param1 = options.param1, co.min1 = options.min1, co.max1 = options.max1;
   co.param2 = options.param2, co.min2 = options.min2, co.max2 = options.max2;
   int& added = tally->added;
-  // Tries one candidate from point q of curve c (-1: one of its unverified ends): skipped when
-  // known, else traced from its start (appended to result->curves) or counted among the failures;
-  // a step-off no regular length starts is deferred to the last round. False when
-  // max_switched_curves is reached.
-  auto process = [&](size_t c, int q, const Codim2Point& point, const SwitchCandidate& candidate) {
-    const StatusOr<PeriodicOrbit>& orbit = candidate.orbit;
-    const CurveKind kind = candidate.kind;
-    if (!orbit.ok()) {
+  // Whether a candidate's curve is known: on a traced curve of the same kind and signature, by
+  // its polyline or by one of its codimension-2 points (which lie between its vertices, off the
+  // chords by up to the chord error). The signature tells curves through one point apart: at a
+  // fold-grazing the fold curves of the orbits with and without the vanishing segment both pass,
+  // at a double grazing the grazing curves of either touch. (Grazing candidates compared by kind
+  // only were hidden by a grazing curve ending at a double grazing 4.5e-7 away.)
+  auto known = [&](const SwitchCandidate& candidate) {
+    const PeriodicOrbit& orbit = *candidate.orbit;
+    const Signature& curve_signature = orbit.signature;
+    const double u = orbit.params[i1], v = orbit.params[i2];
+    return std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+      // A curve's signature rotates where it crosses the Poincare section: any of its points'
+      // signatures counts.
+      if (t.curve.kind != candidate.kind) return false;
+      const CurvePoint* nearest = nullptr;
+      double nearest_distance = std::numeric_limits<double>::infinity();
+      for (const CurvePoint& p : t.curve.points) {
+        if (p.orbit.signature != curve_signature) continue;
+        const double d = std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
+        if (d < nearest_distance) nearest_distance = d, nearest = &p;
+      }
+      if (nearest == nullptr) return false;
+      // Nor does it always tell which touch: where one contact phase touches its guard twice
+      // (two tangent ends in a row at a double grazing), the curves of either touch alone have
+      // the same signature and differ in how long the tangent segment is (5.5 and 24.5 at
+      // (0.0628, 0.1813) in the reference box, where the one was taken for the other and the
+      // second touch's curve, crossed by the omega-branch at a = 0.18, was not traced). So a
+      // curve whose point of that signature next to this one (within 1e-2 of the box) has other
+      // durations, beyond a longest step and 10%, is another curve.
+      if (nearest_distance <= 1e-2) {
+        const std::vector<double>& d0 = nearest->orbit.durations;
+        const std::vector<double>& d1 = orbit.durations;
+        for (size_t i = 0; i < d0.size() && i < d1.size(); ++i) {
+          if (std::abs(d0[i] - d1[i]) > co.max_step + 0.1 * std::abs(d1[i])) return false;
+        }
+      }
+      if (OnCurve(t.curve, u, v, w1, w2, options.duplicate_distance)) return true;
+      return std::any_of(t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
+        return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
+               options.duplicate_distance;
+      });
+    });
+  };
+  // Whether a candidate needs its task: its orbit was found and its curve is not known.
+  auto needs_task = [&](const SwitchCandidate& candidate) {
+    return candidate.orbit.ok() && !known(candidate);
+  };
+  // Applies what a candidate from point q of curve c (-1: one of its unverified ends) gave:
+  // nothing when its curve is known (`is_known`), else the curve traced from its start (appended
+  // to result->curves) or counted among the failures; a step-off no regular length starts is
+  // deferred to the last round. `take` gives the task's run. False when max_switched_curves is
+  // reached or a stop cut the run.
+  auto apply = [&](size_t c, int q, const Codim2Point& point, const SwitchCandidate& candidate,
+                   bool is_known, const std::function<CandidateRun()>& take) {
+    if (!candidate.orbit.ok()) {
       // An unverified end is no located point: counted apart, whatever its bracket.
       ++(q < 0 ? tally->unverified_no_form : point.bracket > 1e-6 ? tally->wide : tally->no_form);
       return true;
     }
-    const Signature& curve_signature = orbit->signature;
-    SpecialPoint seed;
-    seed.kind = candidate.seed_kind;
-    seed.point.value = point.point.value1;
-    const double u = orbit->params[i1], v = orbit->params[i2];
-    // Known: on a traced curve of the same kind and signature, by its polyline or by one of
-    // its codimension-2 points (which lie between its vertices, off the chords by up to the
-    // chord error). The signature tells curves through one point apart: at a fold-grazing the
-    // fold curves of the orbits with and without the vanishing segment both pass, at a double
-    // grazing the grazing curves of either touch. (Grazing candidates compared by kind only
-    // were hidden by a grazing curve ending at a double grazing 4.5e-7 away.)
-    const bool known =
-        std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
-          // A curve's signature rotates where it crosses the Poincare section: any of its
-          // points' signatures counts.
-          if (t.curve.kind != kind) return false;
-          const CurvePoint* nearest = nullptr;
-          double nearest_distance = std::numeric_limits<double>::infinity();
-          for (const CurvePoint& p : t.curve.points) {
-            if (p.orbit.signature != curve_signature) continue;
-            const double d = std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
-            if (d < nearest_distance) nearest_distance = d, nearest = &p;
-          }
-          if (nearest == nullptr) return false;
-          // Nor does it always tell which touch: where one contact phase touches its guard
-          // twice (two tangent ends in a row at a double grazing), the curves of either
-          // touch alone have the same signature and differ in how long the tangent segment
-          // is (5.5 and 24.5 at (0.0628, 0.1813) in the reference box, where the one was taken
-          // for the other and the second touch's curve, crossed by the omega-branch at
-          // a = 0.18, was not traced). So a curve whose point of that signature next to this
-          // one (within 1e-2 of the box) has other durations, beyond a longest step and 10%,
-          // is another curve.
-          if (nearest_distance <= 1e-2) {
-            const std::vector<double>& d0 = nearest->orbit.durations;
-            const std::vector<double>& d1 = orbit->durations;
-            for (size_t i = 0; i < d0.size() && i < d1.size(); ++i) {
-              if (std::abs(d0[i] - d1[i]) > co.max_step + 0.1 * std::abs(d1[i])) return false;
-            }
-          }
-          if (OnCurve(t.curve, u, v, w1, w2, options.duplicate_distance)) return true;
-          return std::any_of(
-              t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
-                return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
-                       options.duplicate_distance;
-              });
-        });
-    if (known) return true;
-    // The orbits to start from: the candidate itself, or stepped off its zero-length
-    // segment at the first of kStepOffLengths that gives an admissible orbit (the same
-    // lengths as a one-parameter branch's step off an inserted segment), else, in the last
-    // round (`last_resort`), at each kLastResortStepOffs length in turn. Next to a contact
-    // phase vanishing between flights the fixed-length system can stagnate or leave the
-    // flows' domain down to 1e-5 and solve shorter (in the reference box: a PD curve of 253 points
-    // between two flip-grazings near (0.062, 0.17), crossed by the omega-branch at a = 0.17,
-    // was not traced without it; with longer steps its start needed 1e-7). Last, because a
-    // curve started so close to its root is traced coarsely there (its first steps long
-    // against the square-root scale of the orbit's change) and, traced first, it hid the same
-    // curve traced from its other end, and that curve's crossing with the a-branch at
-    // omega = 0.09.
-    std::vector<PeriodicOrbit> starts;
-    if (candidate.step_off < 0) {
-      starts.push_back(*orbit);
-    } else {
-      auto step_off = [&](double length, std::vector<PeriodicOrbit>* to) {
-        StatusOr<PeriodicOrbit> off =
-            SolveSegmentLength(model, propagator, *orbit, candidate.step_off, length, kind, i1, i2);
-        if (!off.ok() || !CheckAdmissible(model, propagator, *off).admissible) return false;
-        if (propagator.stopped()) return false;
-        to->push_back(*std::move(off));
-        return true;
-      };
-      if (!last_resort) {
-        for (const double length : kStepOffLengths) {
-          if (step_off(length, &starts)) break;
-        }
-        if (starts.empty()) {
-          tally->deferred.push_back({c, q, point, candidate});
-          return true;
-        }
-      } else {
-        for (const double length : kLastResortStepOffs) step_off(length, &starts);
-      }
+    if (is_known) return true;
+    const CandidateRun run = take();
+    if (run.deferred) {
+      tally->deferred.push_back({c, q, point, candidate});
+      return true;
     }
+    const double u = candidate.orbit->params[i1], v = candidate.orbit->params[i2];
     bool started = false;
-    for (size_t s = 0; s < starts.size() && !started; ++s) {
-      seed.point.orbit = std::move(starts[s]);
-      seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
+    for (size_t t = 0; t < run.tries.size() && !started; ++t) {
+      const SpecialPoint& seed = run.tries[t].first;
+      CurveResult curve = run.tries[t].second;
       if (added == options.max_switched_curves) {
         tally->capped = true;
         return false;
       }
-      CurveResult curve = ContinueCurve(model, propagator, seed, co);
-      if (propagator.stopped()) {
+      if (run.stopped && t + 1 == run.tries.size()) {
         // Cut short by a stop: kept with what it has (termination kCancelled), if anything.
         if (!curve.points.empty()) {
           result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c), q});
@@ -205,160 +365,128 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const Trac
         sum.notes.push_back(PeriodPrefix(point.point.orbit.signature.periods) + what + " at " +
                             options.param1 + " = " + std::to_string(u) + ", " + options.param2 +
                             " = " + std::to_string(v) + ": the " +
-                            PeriodPrefix(orbit->signature.periods) + CurveKindName(kind) +
+                            PeriodPrefix(candidate.orbit->signature.periods) +
+                            CurveKindName(candidate.kind) +
                             " curve leaving it not traced: " + curve.summary.message);
         started = true;  // named in the note, not counted as a failed step-off
         break;
       }
-      // Started at a last-resort length but never away from the point: from most such
-      // starts the curve ends at once both ways, back at the root and where its corrector
-      // fails at the first step (in the reference box: nine curves at 1e-6, each within 1e-9 of its
-      // root, seven with their second end bracketed only to 5 .. 7 in arclength). Kept,
-      // such a curve would also hide the real curve of its signature through the point from
-      // a later start (it hid two, of 11 and 80 points). The next length is tried.
-      if (last_resort &&
-          std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {
-            return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2) <=
-                   options.duplicate_distance;
-          })) {
-        continue;
-      }
+      // Started at a last-resort length but never away from the point: from most such starts
+      // the curve ends at once both ways, back at the root and where its corrector fails at the
+      // first step (in the reference box: nine curves at 1e-6, each within 1e-9 of its root,
+      // seven with their second end bracketed only to 5 .. 7 in arclength). Kept, such a curve
+      // would also hide the real curve of its signature through the point from a later start
+      // (it hid two, of 11 and 80 points). The next length is tried.
+      if (last_resort && StaysAt(curve, u, v, w1, w2, options.duplicate_distance)) continue;
       result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c), q});
       ++added;
       started = true;
     }
     if (!started) {
-      ++(kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
+      ++(candidate.kind == CurveKind::kGrazing ? tally->no_step_off_grazing : tally->no_step_off);
     }
     return true;
   };
+
+  // The work, in the order one thread does it: per point, its candidates (a task), then each
+  // candidate's step-offs and curves (a task each, queued when the candidates are applied).
+  struct Item {
+    bool candidates;  // a point's candidates, else one candidate's run
+    size_t c;
+    int q;  // the point: codim2[q] of curve c, -1 for unverified_ends[e - located]
+    Codim2Point point;
+    SwitchCandidate candidate{Status(StatusCode::kUnimplemented, ""), SpecialPointKind::kFold,
+                              CurveKind::kFold};
+    bool queued = false;  // a task was queued for it
+  };
+  struct Work {
+    std::vector<SwitchCandidate> candidates;
+    CandidateRun run;
+  };
+  TaskStage<Work> stage(workers);
+  OrderedTasks<Work>& tasks = stage.tasks();
+  std::deque<Item> items;
+  auto run_task = [&](const Item& item) {
+    return [&, point = item.point, candidate = item.candidate](int worker) {
+      Work w;
+      w.run = RunCandidate(model, workers.at(worker), options, co, i1, i2, point, candidate,
+                           last_resort);
+      return w;
+    };
+  };
+  auto take_run = [&] { return std::move(tasks.TakeFront(wait)->run); };
+  // Applies the first item; false when the round ends (cap, stop).
+  auto apply_front = [&]() {
+    Item item = std::move(items.front());
+    items.pop_front();
+    if (!item.candidates) {
+      // A candidate known when its task was queued is known now (the curves only grow): a task
+      // was queued for each one that was not.
+      const bool is_known = !item.queued || known(item.candidate);
+      if (item.queued && is_known) tasks.DropFront();
+      return apply(item.c, item.q, item.point, item.candidate, is_known, take_run);
+    }
+    std::vector<SwitchCandidate> candidates = std::move(tasks.TakeFront(wait)->candidates);
+    if (propagator.stopped()) return false;  // the candidates are not to be trusted
+    std::vector<Item> runs;
+    std::vector<OrderedTasks<Work>::Task> queued;
+    for (SwitchCandidate& candidate : candidates) {
+      Item run{false, item.c, item.q, item.point, std::move(candidate)};
+      run.queued = needs_task(run.candidate);
+      if (run.queued) queued.push_back(run_task(run));
+      runs.push_back(std::move(run));
+    }
+    tasks.PushFront(std::move(queued));
+    items.insert(items.begin(), std::make_move_iterator(runs.begin()),
+                 std::make_move_iterator(runs.end()));
+    return true;
+  };
+
   if (last_resort) {
     std::vector<DeferredStepOff> deferred;
     deferred.swap(tally->deferred);
-    for (const DeferredStepOff& d : deferred) {
+    size_t next = 0;
+    for (size_t k = 0; k < deferred.size(); ++k) {
+      for (; next < deferred.size() && items.size() < stage.window(); ++next) {
+        const DeferredStepOff& d = deferred[next];
+        Item item{false, d.curve, d.codim2, d.point, d.candidate};
+        item.queued = needs_task(item.candidate);
+        if (item.queued) tasks.Push(run_task(item));
+        items.push_back(std::move(item));
+      }
       if (!report(0.99)) return false;
-      if (!process(d.curve, d.codim2, d.point, d.candidate)) return !propagator.stopped();
+      if (!apply_front()) return !propagator.stopped();
     }
     return !propagator.stopped();
   }
-  // result->curves grows while it is walked: index, not iterator.
-  for (size_t c = first_curve; c < result->curves.size(); ++c) {
-    // After its codimension-2 points the curve's unverified ends (CurveResult::unverified_ends):
-    // not located, but the curves that may leave there are tried as from a located end (in
-    // the reference box with max_period 2 that adds 413 curves and 11 period-2 codimension-2
-    // points, located to 1e-8, that no other curve reaches).
-    const size_t located = result->curves[c].curve.codim2.size();
-    const size_t ends = located + result->curves[c].curve.unverified_ends.size();
-    for (size_t e = 0; e < ends; ++e) {
-      if (!report(0.99)) return false;
-      // Copies: result->curves grows below (references into it would dangle).
-      const CurveKind from_kind = result->curves[c].curve.kind;
-      const Codim2Point point = e < located ? result->curves[c].curve.codim2[e]
-                                            : result->curves[c].curve.unverified_ends[e - located];
-      const int q = e < located ? static_cast<int>(e) : -1;
-      const bool fold = point.kind == Codim2Kind::kFoldGrazing;
-      // The curves to try from this point.
-      std::vector<SwitchCandidate> candidates;
-      if (from_kind == CurveKind::kGrazing && point.kind == Codim2Kind::kDoubleGrazing) {
-        // A grazing curve's end solved with both touches as tangent ends: the grazing curve of
-        // each touch alone (the other tangent end merged away) passes; one of them is usually the
-        // curve it came from (known, below), the other the second boundary's (or the first
-        // touch's in the signature beyond the second boundary).
-        // (An end solved with a zero-length segment for its second grazing has one tangent end:
-        // merging it away leaves the corner, whose grazing curve starts there.)
-        const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
-        if (point.bracket != 0.0) continue;
-        // And the grazing curve of each touch beyond the other's boundary, where that touch
-        // has become a crossing (CrossingForm, stepped off as at a root of a grazing curve): the
-        // fourth half-curve through the point. (In the reference box: a grazing curve between two
-        // double grazings near (0.065, 0.166), which the a-branch at omega = 0.065 crosses, met
-        // neither other way.)
-        for (int j = 0; j < static_cast<int>(segs.size()); ++j) {
-          if (!segs[j].tangent) continue;
-          StatusOr<PeriodicOrbit> single = MergedForm(point.point.orbit, j);
-          if (!single.ok()) continue;
-          const SpecialPointKind k = GrazingKind(model, *single);
-          candidates.push_back({std::move(single), k, CurveKind::kGrazing});
-          int inserted = -1;
-          StatusOr<PeriodicOrbit> crossed =
-              CrossingForm(model, propagator, point.point.orbit, &inserted, j);
-          if (crossed.ok()) {
-            candidates.push_back({std::move(crossed), k, CurveKind::kGrazing, inserted});
-          }
-        }
-      } else if (!fold && point.kind != Codim2Kind::kFlipGrazing) {
+  // result->curves grows while it is walked: index, not iterator. After its codimension-2 points
+  // a curve's unverified ends (CurveResult::unverified_ends): not located, but the curves that
+  // may leave there are tried as from a located end (in the reference box with max_period 2 that
+  // adds 413 curves and 11 period-2 codimension-2 points, located to 1e-8, that no other curve
+  // reaches).
+  size_t c = first_curve, e = 0;
+  auto queue_points = [&] {
+    while (c < result->curves.size() && items.size() < stage.window()) {
+      const CurveResult& curve = result->curves[c].curve;
+      const size_t located = curve.codim2.size();
+      if (e >= located + curve.unverified_ends.size()) {
+        ++c, e = 0;
         continue;
-      } else if (from_kind == CurveKind::kGrazing && point.bracket == 0.0) {
-        // A root along a grazing curve: the orbit without the vanishing segment folds / doubles,
-        // and so does the orbit with it, whose curve ends here from the side where the touch has
-        // become a crossing (started from a point off the root, the segment's length stepped off
-        // from zero). Either may be known, traced from its other end; without the second the
-        // reference box lacks 174 curves (a PD curve between two flip-grazings, next to a hairpin
-        // of another PD curve of its signature, is found only where longer steps jump onto it).
-        const SpecialPointKind seed =
-            fold ? SpecialPointKind::kFold : SpecialPointKind::kPeriodDoubling;
-        const CurveKind kind = fold ? CurveKind::kFold : CurveKind::kPeriodDoubling;
-        candidates.push_back({MergedForm(point.point.orbit), seed, kind});
-        int inserted = -1;
-        StatusOr<PeriodicOrbit> crossing =
-            CrossingForm(model, propagator, point.point.orbit, &inserted);
-        candidates.push_back({std::move(crossing), seed, kind, inserted});
-      } else if (from_kind != CurveKind::kGrazing) {
-        // A fold / PD curve's end where its orbit grazes: the grazing curve through it. An end
-        // solved in tangent form is its start as it is; else the tangent form at the segment the
-        // violation beyond the end says vanishes (between two of one mode), else the form found
-        // from the orbit alone.
-        const Admissibility& beyond = point.violation;
-        const std::vector<SegmentSpec>& segs = point.point.orbit.signature.segments;
-        const int i = beyond.segment;
-        StatusOr<PeriodicOrbit> tangent = Status(StatusCode::kUnimplemented, "");
-        const bool has_tangent =
-            std::any_of(segs.begin(), segs.end(), [](const SegmentSpec& s) { return s.tangent; });
-        if (has_tangent) {
-          tangent = point.point.orbit;
-        } else if (point.bracket == 0.0) {
-          // Solved with a zero-length segment: the grazing curve of that corner (two events held
-          // at one point) starts from it as it is.
-          tangent = point.point.orbit;
-        } else if (!beyond.admissible && beyond.guard < 0 && i > 0 &&
-                   i + 1 < static_cast<int>(segs.size()) && segs[i - 1].mode == segs[i + 1].mode) {
-          tangent = TangentForm(point.point.orbit, i);
-        }
-        if (!tangent.ok()) {
-          tangent = GrazingTangentForm(model, propagator, point.point.orbit);
-        }
-        const SpecialPointKind k =
-            tangent.ok() ? GrazingKind(model, *tangent) : SpecialPointKind::kGrazingPi;
-        candidates.push_back({std::move(tangent), k, CurveKind::kGrazing});
-        // An end solved with a zero-length segment between events of two surfaces (a corner: a
-        // contact phase between an impact and progression vanishing, the impact going straight
-        // into progression) is no end of the fold / PD curve itself: past the corner its orbit
-        // goes on without that segment, as a one-parameter branch does through such a
-        // SIGNATURE_CHANGE, and so does the curve. (In the reference box: the PD curve through
-        // (omega, a) = (0.1, 0.45763) ended at such a corner at omega = 0.0931, and its
-        // continuation in the signature NC>Pi CwP>l1 CwoP>l2 NC, which the a-branches at
-        // omega = 0.065 .. 0.085 cross, was never traced.)
-        const bool fold_or_pd =
-            from_kind == CurveKind::kFold || from_kind == CurveKind::kPeriodDoubling;
-        if (fold_or_pd && !has_tangent && point.bracket == 0.0 && beyond.guard < 0 && i >= 0 &&
-            i < static_cast<int>(segs.size())) {
-          const SwitchedOrbit past = SwitchSignature(model, propagator, point.point.orbit, beyond);
-          if (past.new_segment < 0 && !past.representation_only &&
-              past.orbit.signature != point.point.orbit.signature) {
-            candidates.push_back({past.orbit,
-                                  from_kind == CurveKind::kFold ? SpecialPointKind::kFold
-                                                                : SpecialPointKind::kPeriodDoubling,
-                                  from_kind});
-          }
-        }
-      } else {
-        continue;  // a bracketed root on a grazing curve
       }
-      if (propagator.stopped()) return false;  // the candidates are not to be trusted
-      for (const SwitchCandidate& candidate : candidates) {
-        if (!process(c, q, point, candidate)) return !propagator.stopped();
-      }
+      Item item{true, c, e < located ? static_cast<int>(e) : -1,
+                e < located ? curve.codim2[e] : curve.unverified_ends[e - located]};
+      tasks.Push([&, kind = curve.kind, point = item.point](int worker) {
+        Work w;
+        w.candidates = CandidatesAt(model, workers.at(worker), kind, point);
+        return w;
+      });
+      items.push_back(std::move(item));
+      ++e;
     }
+  };
+  for (queue_points(); !items.empty(); queue_points()) {
+    if (items.front().candidates && !report(0.99)) return false;
+    if (!apply_front()) return !propagator.stopped();
   }
   return !propagator.stopped();
 }

@@ -2,14 +2,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <functional>
 #include <limits>
 #include <map>
+#include <optional>
+#include <thread>
 #include <unordered_set>
 #include <utility>
 #include <vector>
 
 #include "common/phase_progress.h"
+#include "continuation/curve_tasks.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
 #include "drillbif/simulate/simulator.h"
@@ -36,6 +40,10 @@ Status TraceOptions::Validate() const {
                              std::to_string(min1) + ", " + std::to_string(max1) + "], got " +
                              std::to_string(s));
     }
+  }
+  if (threads < 0 || threads > kMaxTraceThreads) {
+    return InvalidArgument("threads: need 0 (every core) .. " + std::to_string(kMaxTraceThreads) +
+                           ", got " + std::to_string(threads));
   }
   if (max_period < 1 || max_period > 16 || (max_period & (max_period - 1)) != 0) {
     return InvalidArgument(
@@ -133,6 +141,12 @@ using internal::SwitchAtCodim2;
 using internal::SwitchTally;
 using internal::TallyNotes;
 
+// The threads of the curve tasks: TraceOptions::threads, 0 meaning every core.
+int ThreadsOf(const TraceOptions& options) {
+  if (options.threads > 0) return options.threads;
+  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
 // Whether ContinueCurve starts from a point of this kind.
 bool Traceable(SpecialPointKind kind) {
   return kind == SpecialPointKind::kFold || kind == SpecialPointKind::kPeriodDoubling ||
@@ -175,6 +189,12 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
   // The trace's throttle, attached to the propagator: every flow of every branch, curve and
   // switch polls it.
   internal::PhaseProgress phase(propagator, progress);
+  // The curve tasks' threads; while the calling thread waits for one, it polls the trace's
+  // throttle and abandons the tasks at a stop.
+  internal::WorkerPropagators workers(propagator, ThreadsOf(options));
+  const std::function<void()> wait = [&] {
+    if (!phase.Continue()) workers.Abandon();
+  };
 
   if (Status s = options.Validate(); !s.ok()) {
     sum.status = s;
@@ -373,49 +393,83 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
     }
   }
   // The curves through starts[first..], progress from `from` to `to`; false when cancelled.
+  // Each start's curve is a task on the workers; each is applied in the order of the starts:
+  // a start on a curve traced already (from an earlier start) is named in a note, its curve
+  // dropped if it was computed meanwhile.
+  auto where_of = [&](const SpecialPoint& s) {
+    return PeriodPrefix(s.point.orbit.signature.periods) +
+           std::string(SpecialPointKindName(s.kind)) + " at " + options.param1 + " = " +
+           std::to_string(s.point.orbit.params[*i1]) + ", " + options.param2 + " = " +
+           std::to_string(s.point.orbit.params[*i2]);
+  };
+  // The curve traced already that the start lies on, or null.
+  auto known_curve = [&](const SpecialPoint& s) -> const TracedCurve* {
+    const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
+    const auto it =
+        std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
+          return c.start.kind == s.kind &&
+                 c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
+                 DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
+        });
+    return it == result.curves.end() ? nullptr : &*it;
+  };
+  // The curve through a start, on a worker's propagator (values in the start axis' order).
+  auto curve_from = [&](const SpecialPoint& s, int axis, Propagator& p) {
+    CurveOptions co = options.curve;
+    const Axis& a = axes[axis];
+    const Axis& other = axes[1 - axis];
+    co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
+    co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
+    // The options' crossings1 / crossings2 are values of param1 / param2 of the trace.
+    if (axis == 1) std::swap(co.crossings1, co.crossings2);
+    return ContinueCurve(model, p, s, co);
+  };
   auto trace_starts = [&](size_t first, double from, double to) {
+    internal::TaskStage<CurveResult> stage(workers);
+    internal::OrderedTasks<CurveResult>& tasks = stage.tasks();
+    struct Queued {
+      size_t start;
+      bool computed;  // false: on a traced curve when queued, no task
+    };
+    std::deque<Queued> queued;
+    size_t next = first;
     for (size_t k = first; k < starts.size(); ++k) {
+      // Queue the starts up to the window, each unless it is on a curve applied already.
+      for (; next < starts.size() && queued.size() < stage.window(); ++next) {
+        const bool known = known_curve(starts[next].second) != nullptr;
+        queued.push_back({next, !known});
+        if (known) continue;
+        tasks.Push([&, next](int worker) {
+          return curve_from(starts[next].second, starts[next].first, workers.at(worker));
+        });
+      }
       if (!report(from + (to - from) * static_cast<double>(k - first) /
                              static_cast<double>(starts.size() - first))) {
         return false;
       }
-      // Named references, not a structured binding: Clang 14 (the fuzz build) cannot capture a
-      // binding in a lambda.
+      const Queued q = queued.front();
+      queued.pop_front();
       const int axis = starts[k].first;
       const SpecialPoint& s = starts[k].second;
-      const Axis& a = axes[axis];
-      const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
-      const auto on_traced =
-          std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
-            return c.start.kind == s.kind &&
-                   c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
-                   DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
-          });
-      const std::string where = PeriodPrefix(s.point.orbit.signature.periods) +
-                                std::string(SpecialPointKindName(s.kind)) + " at " +
-                                options.param1 + " = " + std::to_string(u) + ", " + options.param2 +
-                                " = " + std::to_string(v);
-      if (on_traced != result.curves.end()) {
-        sum.notes.push_back(where + ": on the curve traced from " +
-                            SpecialPointKindName(on_traced->start.kind) + " already");
+      // (A start on a traced curve when queued is on it now: the curves only grow.)
+      if (const TracedCurve* on = known_curve(s); on != nullptr) {
+        if (q.computed) tasks.DropFront();
+        sum.notes.push_back(where_of(s) + ": on the curve traced from " +
+                            SpecialPointKindName(on->start.kind) + " already");
         continue;
       }
-      CurveOptions co = options.curve;
-      const Axis& other = axes[1 - axis];
-      co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
-      co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
-      // The options' crossings1 / crossings2 are values of param1 / param2 of the trace.
-      if (axis == 1) std::swap(co.crossings1, co.crossings2);
-      CurveResult curve = ContinueCurve(model, propagator, s, co);
+      CurveResult curve = *tasks.TakeFront(wait);
       if (curve.summary.termination == Termination::kFailed) {
-        sum.notes.push_back(where + ": not traced: " + curve.summary.message);
+        sum.notes.push_back(where_of(s) + ": not traced: " + curve.summary.message);
         continue;
       }
       if (axis == 1) SwapValues(&curve);
       // Cut short by a stop: kept with what it has (termination kCancelled), if anything, and the
       // trace ends cancelled (stopped() records it; `cut ||` before it would skip the record).
       const bool cut = curve.summary.termination == Termination::kCancelled;
-      if (!cut || !curve.points.empty()) result.curves.push_back({s, *a.name, std::move(curve)});
+      if (!cut || !curve.points.empty()) {
+        result.curves.push_back({s, *axes[axis].name, std::move(curve)});
+      }
       if (cut) sum.cancelled = true;
       if (stopped()) return false;
     }
@@ -426,7 +480,8 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
   SwitchTally tally;
   auto switch_from = [&](size_t first_curve) {
     if (!options.switch_at_codim2) return true;
-    if (!SwitchAtCodim2(model, propagator, options, report, first_curve, &tally, &result)) {
+    if (!SwitchAtCodim2(model, propagator, workers, wait, options, report, first_curve, &tally,
+                        &result)) {
       return false;
     }
     return options.max_period == 1 || internal::GrazingCurvesAtFlipGrazings(
@@ -501,7 +556,8 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
   // (SwitchAtCodim2), and the curves leaving the codimension-2 points of the curves they add.
   while (!tally.deferred.empty()) {
     const size_t before = result.curves.size();
-    if (!SwitchAtCodim2(model, propagator, options, report, before, &tally, &result, true) ||
+    if (!SwitchAtCodim2(model, propagator, workers, wait, options, report, before, &tally, &result,
+                        true) ||
         !switch_from(before) || stopped()) {
       return;
     }

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "continuation/curve_tasks.h"
 #include "drillbif/continuation/trace.h"
 
 namespace drillbif::internal {
@@ -81,10 +82,13 @@ SpecialPointKind GrazingKind(const HybridModel& model, const PeriodicOrbit& tang
 
 // The curves that leave the codimension-2 points of the traced curves from first_curve on
 // (TraceOptions::switch_at_codim2), appended to result->curves until none is new or the cap is
-// reached; *tally accumulates over calls. Step-offs that no regular length starts are kept in
-// tally->deferred; with `last_resort` only those are tried (shorter lengths), and the curves
-// they start appended. False when cancelled.
-bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, const TraceOptions& options,
+// reached; *tally accumulates over calls. The candidates at each point and the curves from them
+// are tasks on `workers` (continuation/curve_tasks.h), applied in the order one thread computes
+// them; `wait` is called while the calling thread waits for one. Step-offs that no regular length
+// starts are kept in tally->deferred; with `last_resort` only those are tried (shorter lengths),
+// and the curves they start appended. False when cancelled.
+bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerPropagators& workers,
+                    const std::function<void()>& wait, const TraceOptions& options,
                     const std::function<bool(double)>& report, size_t first_curve,
                     SwitchTally* tally, TraceResult* result, bool last_resort = false);
 

@@ -24,6 +24,9 @@
 
 namespace drillbif {
 
+// The most threads a trace may ask for: more than any machine it runs on has cores.
+constexpr int kMaxTraceThreads = 256;
+
 struct TraceOptions {
   std::string param1, param2;                             // e.g. "omega", "a"
   double min1 = 0.0, max1 = 0.0, min2 = 0.0, max2 = 0.0;  // the box, finite, min < max
@@ -79,6 +82,10 @@ struct TraceOptions {
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
   // what the reference box needs (436 curves in all; 2884 with max_period 2, which 2000 cut short).
   int max_switched_curves = 5000;
+  // The threads on which the curves are traced (each curve a task; see TraceCurves): 0 means
+  // every core. The result is the same whatever the number (the tasks' results are applied in
+  // the order one thread computes them).
+  int threads = 1;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
   // param1 / param2 of these options, whichever order a curve is traced in.

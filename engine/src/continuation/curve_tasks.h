@@ -1,0 +1,100 @@
+// The threads on which TraceCurves (continuation/trace.h) runs its curve tasks, and their
+// propagators.
+//
+// A stage of the trace (the curves from the located starts, switching at codimension-2 points)
+// queues its tasks (a curve from one start; the candidates at one codimension-2 point; the
+// step-offs and the curve of one candidate) in the order the trace would compute them one after
+// the other, and applies each result in that order on the calling thread: the check against the
+// curves known so far, the append, the notes. A task reads only its own inputs, never the
+// curves traced so far, so the result is the same whatever the number of threads and the
+// schedule. A task queued while an earlier one runs may turn out to be a duplicate of that one's
+// curve when it is applied: it is dropped then (its work wasted, the result unchanged); with one
+// thread each task is queued after the one before was applied, so nothing is wasted.
+#ifndef DRILLBIF_CONTINUATION_CURVE_TASKS_H_
+#define DRILLBIF_CONTINUATION_CURVE_TASKS_H_
+
+#include <atomic>
+#include <memory>
+#include <vector>
+
+#include "common/ordered_tasks.h"
+#include "drillbif/common/progress.h"
+#include "drillbif/flow/propagator.h"
+
+namespace drillbif::internal {
+
+// With one thread, the trace's own propagator (tasks run on the calling thread, under its
+// throttle). With more, a clone of it per worker, each polling a throttle of its own that
+// Abandon() stops: so that a stop of the trace, or the end of a stage, ends the tasks running
+// within a poll interval (~5 ms).
+class WorkerPropagators {
+ public:
+  // `threads` (>= 1; the propagator's Clone() returning null means 1).
+  WorkerPropagators(Propagator& own, int threads) : own_(own) {
+    for (int w = 0; w < threads && threads > 1; ++w) {
+      std::unique_ptr<Propagator> clone = own.Clone();
+      if (clone == nullptr) {
+        clones_.clear();
+        break;
+      }
+      clones_.push_back(std::move(clone));
+    }
+    Resume();
+  }
+  WorkerPropagators(const WorkerPropagators&) = delete;
+  WorkerPropagators& operator=(const WorkerPropagators&) = delete;
+  ~WorkerPropagators() {
+    for (const std::unique_ptr<Propagator>& p : clones_) p->set_progress(nullptr);
+  }
+
+  int threads() const { return clones_.empty() ? 1 : static_cast<int>(clones_.size()); }
+  Propagator& at(int worker) { return clones_.empty() ? own_ : *clones_[worker]; }
+
+  // Ends the workers' running tasks at their next poll (their results are not to be used).
+  void Abandon() { abandon_ = true; }
+  // Fresh throttles, not stopped, once no task runs.
+  void Resume() {
+    abandon_ = false;
+    throttles_.clear();
+    for (const std::unique_ptr<Propagator>& p : clones_) {
+      throttles_.push_back(std::make_unique<ProgressThrottle>(
+          [this](double) { return !abandon_.load(std::memory_order_relaxed); }));
+      p->set_progress(throttles_.back().get());
+    }
+  }
+
+ private:
+  Propagator& own_;
+  std::vector<std::unique_ptr<Propagator>> clones_;
+  std::vector<std::unique_ptr<ProgressThrottle>> throttles_;
+  std::atomic<bool> abandon_{false};
+};
+
+// One stage's queue of tasks on the workers. At its end (scope exit) the tasks still running are
+// abandoned and waited for, and the workers made ready for the next stage.
+template <class Result>
+class TaskStage {
+ public:
+  explicit TaskStage(WorkerPropagators& workers)
+      : workers_(workers), tasks_(std::make_unique<OrderedTasks<Result>>(workers.threads())) {}
+  ~TaskStage() {
+    workers_.Abandon();
+    tasks_.reset();
+    workers_.Resume();
+  }
+  TaskStage(const TaskStage&) = delete;
+  TaskStage& operator=(const TaskStage&) = delete;
+
+  OrderedTasks<Result>& tasks() { return *tasks_; }
+  // How many tasks may be queued and not applied: one with one thread (each task queued after
+  // the one before was applied, as a plain loop computes them), else two per worker.
+  size_t window() const { return workers_.threads() == 1 ? 1 : 2 * workers_.threads(); }
+
+ private:
+  WorkerPropagators& workers_;
+  std::unique_ptr<OrderedTasks<Result>> tasks_;
+};
+
+}  // namespace drillbif::internal
+
+#endif  // DRILLBIF_CONTINUATION_CURVE_TASKS_H_
