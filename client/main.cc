@@ -174,6 +174,7 @@ struct TraceFlags {
   std::string curve_steps;    // "": not given
   std::vector<double> seeds;  // values of the first parameter
   bool no_edge_branches = false;
+  int threads = 0;  // 0: every core
 };
 
 struct OptimumFlags {
@@ -513,6 +514,7 @@ v1::TraceRequest ToTraceRequest(const ModelFlags& m, const TraceFlags& f) {
   for (double v : f.max) request.add_max(v);
   for (double v : f.seeds) request.add_seeds(v);
   request.set_no_edge_branches(f.no_edge_branches);
+  request.set_threads(f.threads);
   return request;
 }
 
@@ -578,6 +580,11 @@ void AddBoxFlags(CLI::App* cmd, TraceFlags* f) {
                 "Do not continue the branches along the box's edges through the curve ends on "
                 "them (by default they start more curves: those crossing the edge on a branch "
                 "a traced curve ends on)")
+      ->group(g);
+  cmd->add_option("--threads", f->threads,
+                  "Threads the curves are traced on (0: every core; a server uses at most its "
+                  "cores); the result is the same for any number")
+      ->check(CLI::Range(0, 256))
       ->group(g);
 }
 

@@ -8,6 +8,7 @@
 #include <new>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "drillbif/common/checked.h"
 #include "drillbif/continuation/trace.h"
@@ -88,6 +89,13 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     opt.seeds1.push_back(seed);
   }
   opt.edge_branches = !request.no_edge_branches();
+  if (request.threads() < 0 || request.threads() > kMaxTraceThreads) {
+    return InvalidArgument("threads: need 0 (every core) .. " + std::to_string(kMaxTraceThreads) +
+                           ", got " + std::to_string(request.threads()));
+  }
+  // More threads than cores would only hold more curves in flight (memory) for no speed.
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  opt.threads = request.threads() == 0 ? cores : std::min(request.threads(), cores);
   switch (request.curve_steps()) {
     case v1::CURVE_STEPS_UNSPECIFIED:
     case v1::CURVE_STEPS_FINE:

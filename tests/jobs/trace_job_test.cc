@@ -75,6 +75,30 @@ TEST(RunTrace, InvalidRequestsNameTheField) {
   v1::TraceRequest nan_seed = SmallBox();
   nan_seed.add_seeds(std::nan(""));
   ExpectInvalid(nan_seed, "seeds");
+  for (const int threads : {-1, kMaxTraceThreads + 1}) {
+    v1::TraceRequest bad_threads = SmallBox();
+    bad_threads.set_threads(threads);
+    ExpectInvalid(bad_threads, "threads");
+  }
+}
+
+// The threads asked for change nothing in the result but its wall time: one thread against the
+// default (every core) and more threads than cores.
+TEST(RunTrace, TheResultIsTheSameWhateverTheThreads) {
+  v1::TraceRequest one = SmallBox();
+  one.set_threads(1);
+  StatusOr<v1::TraceResult> reference = RunTrace(one);
+  ASSERT_TRUE(reference.ok()) << reference.status().ToString();
+  ASSERT_EQ(reference->status(), "COMPLETED");
+  reference->clear_wall_seconds();
+  for (const int threads : {0, 8}) {
+    v1::TraceRequest request = SmallBox();
+    request.set_threads(threads);
+    StatusOr<v1::TraceResult> r = RunTrace(request);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    r->clear_wall_seconds();
+    EXPECT_EQ(r->SerializeAsString(), reference->SerializeAsString()) << threads << " threads";
+  }
 }
 
 // COARSE curve steps: fewer vertices, the same codimension-2 points (kind and position, to
