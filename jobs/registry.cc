@@ -5,10 +5,12 @@
 
 #include <cmath>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "jobs/continue_job.h"
 #include "jobs/optimum_job.h"
+#include "jobs/request_bytes.h"
 #include "jobs/simulate_job.h"
 #include "jobs/sweep_job.h"
 #include "jobs/trace_job.h"
@@ -63,6 +65,7 @@ std::vector<JobKindSpec> BuildKinds() {
   kinds.push_back(
       Entry(v1::SWEEP, "sweep", "SubmitSweep", {"up", "down"}, PlanSweep, SweepCost, RunSweep));
   kinds.back().default_limits = Limits(1800);
+  kinds.back().key_neutral_fields = {"threads"};  // continuity does not depend on them (chunks do)
   kinds.push_back(Entry(v1::CONTINUE, "continue", "SubmitContinue", {"points"}, PlanContinue,
                         ContinueCost, RunContinue));
   kinds.back().first_page_fields = {"period_doubled_branch"};
@@ -71,10 +74,33 @@ std::vector<JobKindSpec> BuildKinds() {
       Entry(v1::TRACE, "trace", "SubmitTrace", {"curves"}, PlanTrace, TraceCost, RunTrace));
   kinds.back().first_page_fields = {"region"};
   kinds.back().default_limits = Limits(1800);
+  kinds.back().key_neutral_fields = {"threads"};  // the same curves on any number
   kinds.push_back(
       Entry(v1::OPTIMUM, "optimum", "SubmitOptimum", {}, PlanOptimum, OptimumCost, RunOptimum));
   kinds.back().default_limits = Limits(1800);
+  kinds.back().key_neutral_fields = {"trace.threads"};
   return kinds;
+}
+
+// Clears the field at a dotted path of `message` (nothing when a message on the way is unset).
+void ClearPath(Message* message, std::string_view path) {
+  for (;;) {
+    const size_t dot = path.find('.');
+    const FieldDescriptor* field =
+        message->GetDescriptor()->FindFieldByName(std::string(path.substr(0, dot)));
+    if (field == nullptr) return;
+    const Reflection* reflection = message->GetReflection();
+    if (dot == std::string_view::npos) {
+      reflection->ClearField(message, field);
+      return;
+    }
+    if (field->is_repeated() || field->cpp_type() != FieldDescriptor::CPPTYPE_MESSAGE ||
+        !reflection->HasField(*message, field)) {
+      return;
+    }
+    message = reflection->MutableMessage(message, field);
+    path.remove_prefix(dot + 1);
+  }
 }
 
 const std::vector<JobKindSpec>& Kinds() {
@@ -219,6 +245,14 @@ StatusOr<JobOutput> RunJob(const JobKindSpec& kind, std::string_view request_byt
   const FieldDescriptor* status = out.result->GetDescriptor()->FindFieldByName("status");
   if (status != nullptr) out.status = out.result->GetReflection()->GetString(*out.result, status);
   return out;
+}
+
+std::string CacheKeyOf(const JobKindSpec& spec, const Message& request) {
+  if (spec.key_neutral_fields.empty()) return CacheKey(spec.name, DeterministicBytes(request));
+  std::unique_ptr<Message> keyed(request.New());
+  keyed->CopyFrom(request);
+  for (const std::string& path : spec.key_neutral_fields) ClearPath(keyed.get(), path);
+  return CacheKey(spec.name, DeterministicBytes(*keyed));
 }
 
 }  // namespace drillbif::jobs

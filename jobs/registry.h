@@ -60,11 +60,20 @@ struct JobKindSpec {
       const google::protobuf::Message& request, const RunContext& context)>
       run;
 
+  // Fields of the request (dotted paths) that do not change the result, such as the threads it
+  // runs on: cleared in its cache key (CacheKeyOf), so that the same computation asked for on
+  // other threads is found in the cache.
+  std::vector<std::string> key_neutral_fields;
+
   std::unique_ptr<google::protobuf::Message> NewRequest() const;
   std::unique_ptr<google::protobuf::Message> NewResult() const;
   // Items of the paged fields in `result` (a message of result_type).
   int64_t ItemsOf(const google::protobuf::Message& result) const;
 };
+
+// The content address of a request's result (request_bytes.h, CacheKey): its deterministic bytes
+// without the kind's key_neutral_fields. `request` is of the kind's request_type.
+std::string CacheKeyOf(const JobKindSpec& spec, const google::protobuf::Message& request);
 
 // Every kind, in JobKind order.
 const std::vector<const JobKindSpec*>& AllKinds();

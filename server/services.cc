@@ -156,7 +156,7 @@ grpc::Status Submit(ServiceState& state, v1::JobKind kind, const google::protobu
   SubmitRequest submit;
   submit.kind = spec.name;
   submit.request = jobs::DeterministicBytes(request);
-  submit.cache_key = jobs::CacheKey(spec.name, submit.request);
+  submit.cache_key = jobs::CacheKeyOf(spec, request);
   submit.request_id = request_id;
   submit.client = client;
   submit.lane = cost->seconds.amount <= state.options.short_job_seconds ? kLaneShort : kLaneLong;
@@ -538,7 +538,7 @@ void JobsService::QueryOptimum(QueryOptimumCall* call) {
   const jobs::JobKindSpec& optimum = *jobs::FindKind(v1::OPTIMUM);
   StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request.request());
   if (!cost.ok()) return call->Finish(ToGrpc(cost.status()));
-  const std::string key = jobs::CacheKey(optimum.name, jobs::DeterministicBytes(request.request()));
+  const std::string key = jobs::CacheKeyOf(optimum, request.request());
   std::string id;
   std::shared_ptr<const v1::OptimumResult> cached;
   const bool known = state_->optimum_index.Find(key, &id, &cached);

@@ -1,0 +1,68 @@
+// The cache key of a request (CacheKeyOf): the threads a computation runs on do not change its
+// result, so they do not change its key; every other field does.
+#include <gtest/gtest.h>
+
+#include "drillbif/v1/optimum.pb.h"
+#include "drillbif/v1/sweep.pb.h"
+#include "drillbif/v1/trace.pb.h"
+#include "jobs/registry.h"
+#include "jobs/request_bytes.h"
+
+namespace drillbif::jobs {
+namespace {
+
+v1::TraceRequest Box() {
+  v1::TraceRequest r;
+  r.add_trace_params(std::string("omega"));
+  r.add_trace_params(std::string("a"));
+  r.add_min(0.05);
+  r.add_min(0.27);
+  r.add_max(0.2);
+  r.add_max(0.32);
+  return r;
+}
+
+TEST(CacheKey, ATraceOnOtherThreadsHasTheSameKeyAndAnotherBoxAnother) {
+  const JobKindSpec& trace = *FindKind(v1::TRACE);
+  v1::TraceRequest one = Box(), four = Box(), wider = Box();
+  one.set_threads(1);
+  four.set_threads(4);
+  wider.set_max(0, 0.3);
+  EXPECT_EQ(CacheKeyOf(trace, one), CacheKeyOf(trace, four));
+  EXPECT_EQ(CacheKeyOf(trace, one), CacheKeyOf(trace, Box()));  // threads unset
+  EXPECT_NE(CacheKeyOf(trace, one), CacheKeyOf(trace, wider));
+  EXPECT_EQ(four.threads(), 4);  // the request itself keeps them
+  // Without the neutral field the key is the plain one of the request's bytes.
+  EXPECT_EQ(CacheKeyOf(trace, Box()), CacheKey("trace", DeterministicBytes(Box())));
+}
+
+TEST(CacheKey, AnOptimumOnOtherThreadsHasTheSameKey) {
+  const JobKindSpec& optimum = *FindKind(v1::OPTIMUM);
+  v1::OptimumRequest one, two, other_margin;
+  *one.mutable_trace() = Box();
+  one.mutable_trace()->set_threads(1);
+  *two.mutable_trace() = Box();
+  two.mutable_trace()->set_threads(2);
+  other_margin = one;
+  other_margin.add_margin(0.05);
+  EXPECT_EQ(CacheKeyOf(optimum, one), CacheKeyOf(optimum, two));
+  EXPECT_NE(CacheKeyOf(optimum, one), CacheKeyOf(optimum, other_margin));
+  // No trace message at all: nothing to clear, a key all the same.
+  EXPECT_EQ(CacheKeyOf(optimum, v1::OptimumRequest()).size(), 64u);
+}
+
+TEST(CacheKey, ASweepOnOtherThreadsHasTheSameKeyButNotInOtherChunks) {
+  const JobKindSpec& sweep = *FindKind(v1::SWEEP);
+  v1::SweepRequest one, two, chunked;
+  one.set_param("b");
+  one.set_threads(1);
+  two = one;
+  two.set_threads(2);
+  chunked = two;
+  chunked.set_chunks(2);  // chunks start afresh: another result
+  EXPECT_EQ(CacheKeyOf(sweep, one), CacheKeyOf(sweep, two));
+  EXPECT_NE(CacheKeyOf(sweep, two), CacheKeyOf(sweep, chunked));
+}
+
+}  // namespace
+}  // namespace drillbif::jobs
