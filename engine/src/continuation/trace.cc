@@ -153,29 +153,53 @@ bool Traceable(SpecialPointKind kind) {
          kind == SpecialPointKind::kNeimarkSacker || internal::IsGrazing(kind);
 }
 
-// Hands the curves to TraceCurves' on_curve in order, each once it is final.
+// Releases what the trace no longer needs of a curve handed over: the section states, stability
+// and measures of its interior points (TracedCurveCallback). Kept: every point's parameters,
+// signature and durations (the tests for known curves), the first and last points whole (edge
+// branches start from them), the codimension-2 points and unverified ends whole (switching), and
+// the whole of a period-n PD curve with 2n <= max_period (the period-2n grazing curves leaving its
+// flip-grazings start from its vertices).
+void ReleasePointDetail(int max_period, TracedCurve* c) {
+  std::vector<CurvePoint>& points = c->curve.points;
+  if (points.size() < 3) return;
+  if (c->curve.kind == CurveKind::kPeriodDoubling &&
+      2 * points.front().orbit.signature.periods <= max_period) {
+    return;
+  }
+  for (size_t k = 1; k + 1 < points.size(); ++k) {
+    CurvePoint& p = points[k];
+    std::vector<StateVector>().swap(p.orbit.starts);
+    std::vector<double>().swap(p.measures);
+    p.stability = Stability{};
+  }
+}
+
+// Hands the curves to TraceCurves' on_curve in order, each once it is final, and then releases
+// their points' detail (ReleasePointDetail).
 class CurveStream {
  public:
-  CurveStream(const TracedCurveCallback& on_curve, const TraceResult& result)
-      : on_curve_(on_curve), result_(result) {}
+  CurveStream(const TracedCurveCallback& on_curve, int max_period, TraceResult& result)
+      : on_curve_(on_curve), max_period_(max_period), result_(result) {}
   // Hands over the curves from the next one on while they are final (`all`: every one, the
   // trace having ended). False when on_curve asked to stop.
   bool Flush(bool all) {
     if (!on_curve_ || stopped_) return !stopped_;
     for (; next_ < result_.curves.size(); ++next_) {
-      const TracedCurve& c = result_.curves[next_];
+      TracedCurve& c = result_.curves[next_];
       if (!all && internal::MayMergeAtFlipGrazing(c)) return true;
       if (!on_curve_(static_cast<int>(next_), c)) {
         stopped_ = true;  // called no more
         return false;
       }
+      ReleasePointDetail(max_period_, &c);
     }
     return true;
   }
 
  private:
   const TracedCurveCallback& on_curve_;
-  const TraceResult& result_;
+  const int max_period_;
+  TraceResult& result_;
   size_t next_ = 0;
   bool stopped_ = false;
 };
@@ -603,7 +627,7 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         const PeriodicOrbit& start, const TraceOptions& options,
                         const TraceProgress& progress, const TracedCurveCallback& on_curve) {
   TraceResult result;
-  CurveStream stream(on_curve, result);
+  CurveStream stream(on_curve, options.max_period, result);
   TraceAll(model, propagator, start, options, progress, &stream, &result);
   // However the trace ended, the curves not handed over yet are final now.
   if (!stream.Flush(true)) result.summary.cancelled = true;

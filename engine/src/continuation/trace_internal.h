@@ -7,10 +7,11 @@
 #include <string>
 #include <vector>
 
-#include "continuation/curve_tasks.h"
 #include "drillbif/continuation/trace.h"
 
 namespace drillbif::internal {
+
+class WorkerPropagators;  // continuation/curve_tasks.h
 
 // Distance from (u, v) to the polyline of the curve, coordinates scaled by the box's widths.
 double DistanceToCurve(const CurveResult& c, double u, double v, double w1, double w2);

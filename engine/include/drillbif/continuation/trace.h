@@ -134,7 +134,12 @@ using TraceProgress = std::function<bool(double fraction)>;
 // trace's last pass may report that end as the period-n FLIP_GRAZING its orbit merges into
 // (internal::EndsAtFlipGrazings), so it is handed over at the end, and the curves after it with
 // it (index order). With max_period 1 every curve is handed over as soon as it is traced. The
-// curves are kept in the result as well (the trace needs them to skip duplicates and switch).
+// curves are kept in the result as well (the trace needs them to skip duplicates and switch), but
+// once handed over without what the trace no longer needs, so that memory grows with the
+// network's vertices (~0.1 KB each) rather than with their orbits: the interior points of a curve
+// keep their parameters, signature and durations only (no section states, stability or
+// measures); its first and last points, its codimension-2 points and unverified ends stay whole,
+// and so do the period-n PD curves with 2n <= max_period (switching starts from their vertices).
 using TracedCurveCallback = std::function<bool(int index, const TracedCurve& curve)>;
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
