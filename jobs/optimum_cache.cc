@@ -85,6 +85,7 @@ std::shared_ptr<const OptimumCurves> OptimumCurvesOf(const PeriodicOrbit& start,
 std::string OptimumCache::KeyOf(const v1::TraceRequest& request) {
   v1::TraceRequest curves_only = request;
   curves_only.clear_region();
+  curves_only.clear_threads();  // the same curves on any number
   std::string bytes;
   {
     google::protobuf::io::StringOutputStream stream(&bytes);

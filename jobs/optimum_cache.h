@@ -64,7 +64,7 @@ class OptimumCache {
   int64_t bytes() const;
 
   // The cache's key of a trace request: its deterministic serialization without `region` (which
-  // does not change the curves; an optimum's trace has none).
+  // does not change the curves; an optimum's trace has none) and `threads` (nor do they).
   static std::string KeyOf(const v1::TraceRequest& request);
 
   // Null when not held.

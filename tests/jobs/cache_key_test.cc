@@ -5,6 +5,7 @@
 #include "drillbif/v1/optimum.pb.h"
 #include "drillbif/v1/sweep.pb.h"
 #include "drillbif/v1/trace.pb.h"
+#include "jobs/optimum_cache.h"
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 
@@ -49,6 +50,16 @@ TEST(CacheKey, AnOptimumOnOtherThreadsHasTheSameKey) {
   EXPECT_NE(CacheKeyOf(optimum, one), CacheKeyOf(optimum, other_margin));
   // No trace message at all: nothing to clear, a key all the same.
   EXPECT_EQ(CacheKeyOf(optimum, v1::OptimumRequest()).size(), 64u);
+}
+
+// The worker's cache of curves for optimum jobs: a trace on any threads serves an optimum.
+TEST(CacheKey, TheOptimumCacheKeysCurvesWithoutThreads) {
+  v1::TraceRequest one = Box(), two = Box(), wider = Box();
+  one.set_threads(1);
+  two.set_threads(2);
+  wider.set_max(0, 0.3);
+  EXPECT_EQ(OptimumCache::KeyOf(one), OptimumCache::KeyOf(two));
+  EXPECT_NE(OptimumCache::KeyOf(one), OptimumCache::KeyOf(wider));
 }
 
 TEST(CacheKey, ASweepOnOtherThreadsHasTheSameKeyButNotInOtherChunks) {
