@@ -1,11 +1,16 @@
 // Two-parameter curve cost (docs/performance.md): tracing every fold, PD and grazing curve
 // through the reference orbit's branches in the reference (omega, a) box (omega in [0.05, 2], a in
-// [0.01, 8] at b = 0.15, problems/reference_box.h), with their codimension-2 points; and one
-// curve alone. Run (medians of 3; the trace takes seconds):
-//   build/bench/curve_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
-// Counters: curves, points (on all curves), codim2 (codimension-2 points found).
+// [0.01, 8] at b = 0.15, problems/reference_box.h), with their codimension-2 points, on 1 and 2
+// threads; the same with the period-2 curves (minutes: run alone with
+// --benchmark_filter=BM_TracePeriodTwoBox); and one curve alone. Run (medians of 3; the trace
+// takes seconds):
+//   build/bench/curve_bench --benchmark_filter='BM_TraceReferenceBox|BM_GrazingCurveL1'
+//     --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+// Counters: curves, points (on all curves), codim2 (codimension-2 points found); for the period-2
+// box also peak_rss_mb (the process' VmHWM after the trace, curves streamed and dropped).
 #include <benchmark/benchmark.h>
 
+#include <fstream>
 #include <string>
 
 #include "drillbif/continuation/trace.h"
@@ -27,6 +32,7 @@ void BM_TraceReferenceBox(benchmark::State& state) {
       *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   TraceOptions options = testing::ReferenceBox();
   options.curve.target_iterations = static_cast<int>(state.range(0));
+  options.threads = static_cast<int>(state.range(1));
   TraceResult r;
   for (auto _ : state) {
     r = TraceCurves(model, prop, start, options);
@@ -42,7 +48,61 @@ void BM_TraceReferenceBox(benchmark::State& state) {
   state.counters["codim2"] = codim2;
   if (!r.summary.status.ok()) state.SkipWithError("trace failed");
 }
-BENCHMARK(BM_TraceReferenceBox)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
+// Args: target iterations (3: FINE, 4: COARSE), threads.
+BENCHMARK(BM_TraceReferenceBox)
+    ->Args({3, 1})
+    ->Args({3, 2})
+    ->Args({4, 1})
+    ->Args({4, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
+
+// The process' peak resident set (VmHWM) in MB, 0 if unknown.
+double PeakRssMb() {
+  std::ifstream status("/proc/self/status");
+  for (std::string line; std::getline(status, line);) {
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  }
+  return 0.0;
+}
+
+// The reference box with max_period 2 (the period-2 branches' curves and the period-2 grazing
+// curves leaving the flip-grazings), the curves handed to a callback that counts and drops them,
+// as the trace job streams them: the memory the trace itself holds. Arg: threads.
+void BM_TracePeriodTwoBox(benchmark::State& state) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start =
+      *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  TraceOptions options = testing::ReferenceBox();
+  options.max_period = 2;
+  options.threads = static_cast<int>(state.range(0));
+  double curves = 0.0, points = 0.0, codim2 = 0.0;
+  bool ok = true;
+  for (auto _ : state) {
+    curves = points = codim2 = 0.0;
+    const TraceResult r =
+        TraceCurves(model, prop, start, options, {}, [&](int, const TracedCurve& c) {
+          curves += 1.0;
+          points += static_cast<double>(c.curve.points.size());
+          codim2 += static_cast<double>(c.curve.codim2.size());
+          return true;
+        });
+    ok = r.summary.status.ok() && !r.summary.cancelled;
+  }
+  state.counters["curves"] = curves;
+  state.counters["points"] = points;
+  state.counters["codim2"] = codim2;
+  state.counters["peak_rss_mb"] = PeakRssMb();
+  if (!ok) state.SkipWithError("trace failed");
+}
+BENCHMARK(BM_TracePeriodTwoBox)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
 
 // One curve: the l1 grazing curve from the omega-branch grazing at 0.5088 (a = 0.3), 688 points
 // and four codimension-2 points (two flip-, one fold-, one double grazing); the cost per point of
