@@ -204,183 +204,259 @@ class CurveStream {
   bool stopped_ = false;
 };
 
-// TraceCurves without its notes' last pass and the last curves' hand-over, into *out.
-void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& start,
+// One trace, in named stages: the branches through the start (StartBranches), the seeds'
+// (Seeds), the period-2n branches (DoubledBranches), the curves from their located points
+// (TraceStarts), switching at codimension-2 points (SwitchFrom), the edge rounds (EdgeRounds), the
+// last-resort step-offs (LastResortStepOffs) and the notes (Notes). Each stage returns false when
+// the trace was cancelled. The curves and switching run as tasks on the workers
+// (continuation/curve_tasks.h); the rest on the calling thread.
+class TraceDriver {
+ public:
+  TraceDriver(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& start,
               const TraceOptions& options, const TraceProgress& progress, CurveStream* stream,
-              TraceResult* out) {
-  TraceResult& result = *out;
-  TraceSummary& sum = result.summary;
-  // The trace's throttle, attached to the propagator: every flow of every branch, curve and
-  // switch polls it.
-  internal::PhaseProgress phase(propagator, progress);
-  // The curve tasks' threads; while the calling thread waits for one, it polls the trace's
-  // throttle and abandons the tasks at a stop.
-  internal::WorkerPropagators workers(propagator, ThreadsOf(options));
-  const std::function<void()> wait = [&] {
-    if (!phase.Continue()) workers.Abandon();
-  };
+              TraceResult* result)
+      : model_(model),
+        propagator_(propagator),
+        start_(start),
+        options_(options),
+        phase_(propagator, progress),
+        stream_(*stream),
+        result_(*result),
+        sum_(result->summary) {}
 
-  if (Status s = options.Validate(); !s.ok()) {
-    sum.status = s;
-    return;
+  // TraceCurves without its notes' last pass and the last curves' hand-over.
+  void Run() {
+    if (!Validate()) return;
+    // The curve tasks' threads; while the calling thread waits for one, it polls the trace's
+    // throttle and abandons the tasks at a stop.
+    workers_.emplace(propagator_, ThreadsOf(options_));
+    wait_ = [this] {
+      if (!phase_.Continue()) workers_->Abandon();
+    };
+    if (!StartBranches() || !Seeds() || !DoubledBranches()) return;
+    if (!TraceStarts(0, options_.max_period > 1 ? 0.2 : 0.1, 1.0) || !SwitchFrom(0) || Stopped()) {
+      return;
+    }
+    if (!EdgeRounds() || !LastResortStepOffs()) return;
+    Notes();
   }
-  const StatusOr<int> i1 = model.ParamIndex(options.param1);
-  const StatusOr<int> i2 = model.ParamIndex(options.param2);
-  if (!i1.ok() || !i2.ok()) {
-    sum.status = InvalidArgument((!i1.ok() ? i1 : i2).status().message());
-    return;
-  }
-  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+
+ private:
   struct Axis {
     const std::string* name;
     int index;
     double min, max;
   };
-  const Axis axes[2] = {{&options.param1, *i1, options.min1, options.max1},
-                        {&options.param2, *i2, options.min2, options.max2}};
-  for (const Axis& a : axes) {
-    const double v0 = start.params[a.index];
-    if (v0 < a.min || v0 > a.max) {
-      sum.status = InvalidArgument("the start orbit's " + *a.name + " lies outside the box");
-      return;
-    }
-  }
-  sum.status = Status::Ok();
+  // A located point on a branch along an edge (EdgeRounds).
+  struct EdgePoint {
+    int edge;  // 0 / 1: param1 at min1 / max1; 2 / 3: param2 at min2 / max2
+    SpecialPointKind kind;
+    int periods;
+    double value;  // of the parameter along the edge
+  };
+
+  bool Validate();
   // Progress: the two branches take the first tenth, the curves the rest (one share each); the
   // edge rounds (their work not known ahead) stay where switching left it. Never backwards.
-  // Also hands over the curves final by now (stream).
-  double reported = 0.0;
-  auto report = [&](double fraction) {
-    reported = std::max(reported, fraction);
-    if (!sum.cancelled && (!phase.Continue(reported) || !stream->Flush(false))) {
-      sum.cancelled = true;
+  // Also hands over the curves final by now (stream). False once cancelled.
+  bool Report(double fraction) {
+    reported_ = std::max(reported_, fraction);
+    if (!sum_.cancelled && (!phase_.Continue(reported_) || !stream_.Flush(false))) {
+      sum_.cancelled = true;
     }
-    return !sum.cancelled;
-  };
+    return !sum_.cancelled;
+  }
   // Whether the trace was stopped (meanwhile, by a flow's poll); then nothing since is kept.
-  auto stopped = [&] {
-    if (phase.stopped()) sum.cancelled = true;
-    return sum.cancelled;
-  };
-  std::vector<std::pair<int, SpecialPoint>> starts;  // (axis, located point)
-  // The branch through `orbit` in the axis' parameter over the box; its traceable points are
-  // appended to `starts`. False when cancelled.
-  // `edge`: where an edge branch starts ("" for the others), for its note if it stops early.
-  auto branch_starts = [&](const PeriodicOrbit& orbit, int axis, double from, double to,
-                           ContinuationDirection direction, const std::string& edge = "") {
-    const Axis& a = axes[axis];
-    ContinuationOptions branch = options.branch;
-    branch.direction = direction;
-    // Only the branches' bifurcations start curves: no ROP / Pc maxima, no measures kept.
-    branch.locate_measure_maxima = false;
-    branch.point_measures = 0u;
-    branch.param = *a.name;
-    branch.min = a.min;
-    branch.max = a.max;
-    // A period-2 branch that reaches a branch point has met the doubled period-1 branch at
-    // another doubling; beyond it run the same orbits shifted by one period: stop there.
-    const bool doubled = orbit.signature.periods > 1;
-    if (doubled) branch.stop_at.push_back(SpecialPointKind::kBranchPoint);
-    const ContinuationResult r = Continue(
-        model, propagator, orbit, branch,
-        [&](const ContinuationPoint&, double f) { return report(from + (to - from) * f); });
-    if (stopped()) return false;
-    sum.branch_points += static_cast<int>(r.points.size());
-    if (r.summary.termination == Termination::kFailed && edge.empty()) {
-      sum.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
-                          "-branch failed: " + r.summary.message);
-    } else if (r.summary.termination == Termination::kFailed) {
-      // An edge branch searches for more curves; where it stops, the curves crossing the edge
-      // beyond are found only if another edge branch or switching reaches them (in the
-      // reference box one period-2 edge branch stops with max_period 2; two period-1 ones did at
-      // omega = 0.05, a = 0.2153, before branch_tracer.cc's CrossGrazing saw a touch hidden
-      // behind a vanishing segment). Not a failure of the curves asked for.
-      sum.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
-                          "-branch along the box's edge from " + edge +
-                          " stopped early: " + r.summary.message);
-    }
-    for (const SpecialPoint& s : r.special_points) {
-      // At that branch point the period-2 branch's parameter turns (its two halves meet): the
-      // fold located there is that turn, not a fold of the orbits.
-      const bool turn =
-          doubled && s.kind == SpecialPointKind::kFold &&
-          std::any_of(r.special_points.begin(), r.special_points.end(), [&](const SpecialPoint& b) {
-            return b.kind == SpecialPointKind::kBranchPoint &&
-                   std::abs(b.point.value - s.point.value) <=
-                       1e-6 * (1.0 + std::abs(b.point.value));
-          });
-      if (turn) continue;
-      // A fold of the period-2n system on the period-n orbit traversed twice is that orbit's
-      // doubling (multiplier -1, squared): the period-2 omega-branch from the doubling at
-      // omega = 0.2698 (a = 0.3) ran on through its other birth at 1.6258 onto the doubled
-      // branch and located a fold at 1.62585, 8e-5 from the branch point (so not the turn
-      // above); its "fold curve" was the period-1 PD curve, one point each way.
-      if (doubled && s.kind == SpecialPointKind::kFold &&
-          internal::TraversedTwice(model, propagator, s.point.orbit)) {
-        if (stopped()) return false;
-        sum.notes.push_back(PeriodPrefix(orbit.signature.periods) + "FOLD at " + *a.name + " = " +
-                            std::to_string(s.point.value) + " on the period-" +
-                            std::to_string(orbit.signature.periods / 2) +
-                            " orbit traversed twice (its period doubling): not traced");
-        continue;
-      }
-      if (Traceable(s.kind)) {
-        starts.emplace_back(axis, s);
-      } else if (s.kind == SpecialPointKind::kSignatureChange &&
-                 internal::CornerSegment(model, s.point.orbit) >= 0) {
-        // A signature change at a corner (a segment vanishing between events of two surfaces,
-        // e.g. an impact going straight into progression) is a grazing: its corner's curve.
-        SpecialPoint corner = s;
-        corner.kind = GrazingKind(model, s.point.orbit);
-        starts.emplace_back(axis, std::move(corner));
-      }
-    }
-    return true;
-  };
-  for (int axis = 0; axis < 2; ++axis) {
-    if (!branch_starts(start, axis, 0.05 * axis, 0.05 * (axis + 1), options.branch.direction)) {
-      return;
+  bool Stopped() {
+    if (phase_.stopped()) sum_.cancelled = true;
+    return sum_.cancelled;
+  }
+  bool Branch(const PeriodicOrbit& orbit, int axis, double from, double to,
+              ContinuationDirection direction, const std::string& edge = "");
+  bool StartBranches();
+  bool Seeds();
+  bool DoubledBranches();
+  std::string WhereOf(const SpecialPoint& s) const;
+  const TracedCurve* KnownCurve(const SpecialPoint& s) const;
+  CurveResult CurveFrom(const SpecialPoint& s, int axis, Propagator& p) const;
+  bool TraceStarts(size_t first, double from, double to);
+  bool SwitchFrom(size_t first_curve);
+  bool EdgeRounds();
+  bool LastResortStepOffs();
+  void Notes();
+
+  const HybridModel& model_;
+  Propagator& propagator_;
+  const PeriodicOrbit& start_;
+  const TraceOptions& options_;
+  internal::PhaseProgress phase_;
+  CurveStream& stream_;
+  TraceResult& result_;
+  TraceSummary& sum_;
+  int i1_ = 0, i2_ = 0;
+  double w1_ = 0.0, w2_ = 0.0;  // the box's widths
+  Axis axes_[2] = {};
+  double reported_ = 0.0;
+  std::optional<internal::WorkerPropagators> workers_;
+  std::function<void()> wait_;
+  std::vector<std::pair<int, SpecialPoint>> starts_;  // (axis, located point)
+  SwitchTally tally_;
+  int edge_runs_ = 0;
+};
+
+bool TraceDriver::Validate() {
+  if (Status s = options_.Validate(); !s.ok()) {
+    sum_.status = s;
+    return false;
+  }
+  const StatusOr<int> i1 = model_.ParamIndex(options_.param1);
+  const StatusOr<int> i2 = model_.ParamIndex(options_.param2);
+  if (!i1.ok() || !i2.ok()) {
+    sum_.status = InvalidArgument((!i1.ok() ? i1 : i2).status().message());
+    return false;
+  }
+  i1_ = *i1, i2_ = *i2;
+  w1_ = options_.max1 - options_.min1, w2_ = options_.max2 - options_.min2;
+  axes_[0] = {&options_.param1, i1_, options_.min1, options_.max1};
+  axes_[1] = {&options_.param2, i2_, options_.min2, options_.max2};
+  for (const Axis& a : axes_) {
+    const double v0 = start_.params[a.index];
+    if (v0 < a.min || v0 > a.max) {
+      sum_.status = InvalidArgument("the start orbit's " + *a.name + " lies outside the box");
+      return false;
     }
   }
+  sum_.status = Status::Ok();
+  return true;
+}
+
+// The branch through `orbit` in the axis' parameter over the box; its traceable points are
+// appended to starts_. `edge`: where an edge branch starts ("" for the others), for its note if it
+// stops early.
+bool TraceDriver::Branch(const PeriodicOrbit& orbit, int axis, double from, double to,
+                         ContinuationDirection direction, const std::string& edge) {
+  const Axis& a = axes_[axis];
+  ContinuationOptions branch = options_.branch;
+  branch.direction = direction;
+  // Only the branches' bifurcations start curves: no ROP / Pc maxima, no measures kept.
+  branch.locate_measure_maxima = false;
+  branch.point_measures = 0u;
+  branch.param = *a.name;
+  branch.min = a.min;
+  branch.max = a.max;
+  // A period-2 branch that reaches a branch point has met the doubled period-1 branch at
+  // another doubling; beyond it run the same orbits shifted by one period: stop there.
+  const bool doubled = orbit.signature.periods > 1;
+  if (doubled) branch.stop_at.push_back(SpecialPointKind::kBranchPoint);
+  const ContinuationResult r =
+      Continue(model_, propagator_, orbit, branch,
+               [&](const ContinuationPoint&, double f) { return Report(from + (to - from) * f); });
+  if (Stopped()) return false;
+  sum_.branch_points += static_cast<int>(r.points.size());
+  if (r.summary.termination == Termination::kFailed && edge.empty()) {
+    sum_.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
+                         "-branch failed: " + r.summary.message);
+  } else if (r.summary.termination == Termination::kFailed) {
+    // An edge branch searches for more curves; where it stops, the curves crossing the edge
+    // beyond are found only if another edge branch or switching reaches them (in the
+    // reference box one period-2 edge branch stops with max_period 2; two period-1 ones did at
+    // omega = 0.05, a = 0.2153, before branch_tracer.cc's CrossGrazing saw a touch hidden
+    // behind a vanishing segment). Not a failure of the curves asked for.
+    sum_.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
+                         "-branch along the box's edge from " + edge +
+                         " stopped early: " + r.summary.message);
+  }
+  for (const SpecialPoint& s : r.special_points) {
+    // At that branch point the period-2 branch's parameter turns (its two halves meet): the
+    // fold located there is that turn, not a fold of the orbits.
+    const bool turn =
+        doubled && s.kind == SpecialPointKind::kFold &&
+        std::any_of(r.special_points.begin(), r.special_points.end(), [&](const SpecialPoint& b) {
+          return b.kind == SpecialPointKind::kBranchPoint &&
+                 std::abs(b.point.value - s.point.value) <= 1e-6 * (1.0 + std::abs(b.point.value));
+        });
+    if (turn) continue;
+    // A fold of the period-2n system on the period-n orbit traversed twice is that orbit's
+    // doubling (multiplier -1, squared): the period-2 omega-branch from the doubling at
+    // omega = 0.2698 (a = 0.3) ran on through its other birth at 1.6258 onto the doubled
+    // branch and located a fold at 1.62585, 8e-5 from the branch point (so not the turn
+    // above); its "fold curve" was the period-1 PD curve, one point each way.
+    if (doubled && s.kind == SpecialPointKind::kFold &&
+        internal::TraversedTwice(model_, propagator_, s.point.orbit)) {
+      if (Stopped()) return false;
+      sum_.notes.push_back(PeriodPrefix(orbit.signature.periods) + "FOLD at " + *a.name + " = " +
+                           std::to_string(s.point.value) + " on the period-" +
+                           std::to_string(orbit.signature.periods / 2) +
+                           " orbit traversed twice (its period doubling): not traced");
+      continue;
+    }
+    if (Traceable(s.kind)) {
+      starts_.emplace_back(axis, s);
+    } else if (s.kind == SpecialPointKind::kSignatureChange &&
+               internal::CornerSegment(model_, s.point.orbit) >= 0) {
+      // A signature change at a corner (a segment vanishing between events of two surfaces,
+      // e.g. an impact going straight into progression) is a grazing: its corner's curve.
+      SpecialPoint corner = s;
+      corner.kind = GrazingKind(model_, s.point.orbit);
+      starts_.emplace_back(axis, std::move(corner));
+    }
+  }
+  return true;
+}
+
+bool TraceDriver::StartBranches() {
+  for (int axis = 0; axis < 2; ++axis) {
+    if (!Branch(start_, axis, 0.05 * axis, 0.05 * (axis + 1), options_.branch.direction)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+bool TraceDriver::Seeds() {
   // The seeds' attractors and their branches (progress stays at the tenth meanwhile).
-  for (const double seed : options.seeds1) {
-    Params params = start.params;
-    params[*i1] = seed;
+  for (const double seed : options_.seeds1) {
+    Params params = start_.params;
+    params[i1_] = seed;
     const StateVector x0 =
-        options.seed_state.size() > 0 ? options.seed_state : DefaultInitialState(model);
-    StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model, propagator, params, x0);
-    if (stopped()) return;
-    const std::string where = "seed " + options.param1 + " = " + std::to_string(seed) + ": ";
+        options_.seed_state.size() > 0 ? options_.seed_state : DefaultInitialState(model_);
+    StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, propagator_, params, x0);
+    if (Stopped()) return false;
+    const std::string where = "seed " + options_.param1 + " = " + std::to_string(seed) + ": ";
     if (!found.ok()) {
-      sum.notes.push_back(where + found.status().message());
+      sum_.notes.push_back(where + found.status().message());
       continue;
     }
     PeriodicOrbit attractor = *found;
-    const OrbitSolveSummary solved = SolveOrbit(model, propagator, {}, &attractor);
-    if (stopped()) return;
+    const OrbitSolveSummary solved = SolveOrbit(model_, propagator_, {}, &attractor);
+    if (Stopped()) return false;
     if (solved.status != SolveStatus::kConverged) {
-      sum.notes.push_back(where + "the attractor's orbit did not solve: " + solved.message);
+      sum_.notes.push_back(where + "the attractor's orbit did not solve: " + solved.message);
       continue;
     }
-    if (attractor.signature.periods > options.max_period) {
-      sum.notes.push_back(where + "the attractor has period " +
-                          std::to_string(attractor.signature.periods) + " > max_period");
+    if (attractor.signature.periods > options_.max_period) {
+      sum_.notes.push_back(where + "the attractor has period " +
+                           std::to_string(attractor.signature.periods) + " > max_period");
       continue;
     }
     for (int axis = 0; axis < 2; ++axis) {
-      if (!branch_starts(attractor, axis, 0.1, 0.1, options.branch.direction)) return;
+      if (!Branch(attractor, axis, 0.1, 0.1, options_.branch.direction)) return false;
     }
   }
+  return true;
+}
+
+bool TraceDriver::DoubledBranches() {
   // The period-2p branches born at the period-p branches' doublings, p = 1, 2, ... while
   // 2p <= max_period; each level's doublings are those of the branches the level before added.
   size_t level_begin = 0;
   int levels = 0;
-  for (int p = 1; 2 * p <= options.max_period; p *= 2) ++levels;
+  for (int p = 1; 2 * p <= options_.max_period; p *= 2) ++levels;
   int level = 0;
-  for (int period = 1; 2 * period <= options.max_period; period *= 2, ++level) {
-    const std::vector<std::pair<int, SpecialPoint>> parents(starts.begin() + level_begin,
-                                                            starts.end());
-    level_begin = starts.size();
+  for (int period = 1; 2 * period <= options_.max_period; period *= 2, ++level) {
+    const std::vector<std::pair<int, SpecialPoint>> parents(starts_.begin() + level_begin,
+                                                            starts_.end());
+    level_begin = starts_.size();
     for (size_t k = 0; k < parents.size(); ++k) {
       const auto& [axis, s] = parents[k];
       if (s.kind != SpecialPointKind::kPeriodDoubling ||
@@ -391,147 +467,142 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
       // From the algebraic switch's orbit (next to the branch point) the branch is continued
       // away from the doubling only: towards it, it runs through the branch point (where its
       // parameter turns, a spurious fold) onto the same orbits shifted by one period.
-      const int p = axes[axis].index;
-      ContinuationDirection direction = options.branch.direction;
+      const int p = axes_[axis].index;
+      ContinuationDirection direction = options_.branch.direction;
       StatusOr<PeriodicOrbit> doubled =
-          SwitchAtPeriodDoublingAlgebraic(model, propagator, s.point.orbit, *axes[axis].name);
+          SwitchAtPeriodDoublingAlgebraic(model_, propagator_, s.point.orbit, *axes_[axis].name);
       if (doubled.ok()) {
         direction = doubled->params[p] > s.point.orbit.params[p]
                         ? ContinuationDirection::kIncreasing
                         : ContinuationDirection::kDecreasing;
       } else {
-        doubled = SwitchAtPeriodDoubling(model, propagator, s, *axes[axis].name);
+        doubled = SwitchAtPeriodDoubling(model_, propagator_, s, *axes_[axis].name);
       }
-      if (stopped()) return;
+      if (Stopped()) return false;
       if (!doubled.ok()) {
-        sum.notes.push_back(PeriodPrefix(period) + "PERIOD_DOUBLING at " + options.param1 + " = " +
-                            std::to_string(s.point.orbit.params[*i1]) + ", " + options.param2 +
-                            " = " + std::to_string(s.point.orbit.params[*i2]) + ": no period-" +
-                            std::to_string(2 * period) + " branch: " + doubled.status().message());
+        sum_.notes.push_back(PeriodPrefix(period) + "PERIOD_DOUBLING at " + options_.param1 +
+                             " = " + std::to_string(s.point.orbit.params[i1_]) + ", " +
+                             options_.param2 + " = " + std::to_string(s.point.orbit.params[i2_]) +
+                             ": no period-" + std::to_string(2 * period) +
+                             " branch: " + doubled.status().message());
         continue;
       }
       const double share = 0.1 / levels;
       const double from = 0.1 + share * (level + static_cast<double>(k) / parents.size());
       const double to = 0.1 + share * (level + static_cast<double>(k + 1) / parents.size());
-      if (!branch_starts(*doubled, axis, from, to, direction)) return;
+      if (!Branch(*doubled, axis, from, to, direction)) return false;
     }
   }
-  // The curves through starts[first..], progress from `from` to `to`; false when cancelled.
-  // Each start's curve is a task on the workers; each is applied in the order of the starts:
-  // a start on a curve traced already (from an earlier start) is named in a note, its curve
-  // dropped if it was computed meanwhile.
-  auto where_of = [&](const SpecialPoint& s) {
-    return PeriodPrefix(s.point.orbit.signature.periods) +
-           std::string(SpecialPointKindName(s.kind)) + " at " + options.param1 + " = " +
-           std::to_string(s.point.orbit.params[*i1]) + ", " + options.param2 + " = " +
-           std::to_string(s.point.orbit.params[*i2]);
-  };
-  // The curve traced already that the start lies on, or null.
-  auto known_curve = [&](const SpecialPoint& s) -> const TracedCurve* {
-    const double u = s.point.orbit.params[*i1], v = s.point.orbit.params[*i2];
-    const auto it =
-        std::find_if(result.curves.begin(), result.curves.end(), [&](const TracedCurve& c) {
-          return c.start.kind == s.kind &&
-                 c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
-                 DistanceToCurve(c.curve, u, v, w1, w2) <= options.duplicate_distance;
-        });
-    return it == result.curves.end() ? nullptr : &*it;
-  };
-  // The curve through a start, on a worker's propagator (values in the start axis' order).
-  auto curve_from = [&](const SpecialPoint& s, int axis, Propagator& p) {
-    CurveOptions co = options.curve;
-    const Axis& a = axes[axis];
-    const Axis& other = axes[1 - axis];
-    co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
-    co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
-    // The options' crossings1 / crossings2 are values of param1 / param2 of the trace.
-    if (axis == 1) std::swap(co.crossings1, co.crossings2);
-    return ContinueCurve(model, p, s, co);
-  };
-  auto trace_starts = [&](size_t first, double from, double to) {
-    internal::TaskStage<CurveResult> stage(workers);
-    internal::OrderedTasks<CurveResult>& tasks = stage.tasks();
-    struct Queued {
-      size_t start;
-      bool computed;  // false: on a traced curve when queued, no task
-    };
-    std::deque<Queued> queued;
-    size_t next = first;
-    for (size_t k = first; k < starts.size(); ++k) {
-      // Queue the starts up to the window, each unless it is on a curve applied already.
-      for (; next < starts.size() && queued.size() < stage.window(); ++next) {
-        const bool known = known_curve(starts[next].second) != nullptr;
-        queued.push_back({next, !known});
-        if (known) continue;
-        tasks.Push([&, next](int worker) {
-          return curve_from(starts[next].second, starts[next].first, workers.at(worker));
-        });
-      }
-      if (!report(from + (to - from) * static_cast<double>(k - first) /
-                             static_cast<double>(starts.size() - first))) {
-        return false;
-      }
-      const Queued q = queued.front();
-      queued.pop_front();
-      const int axis = starts[k].first;
-      const SpecialPoint& s = starts[k].second;
-      // (A start on a traced curve when queued is on it now: the curves only grow.)
-      if (const TracedCurve* on = known_curve(s); on != nullptr) {
-        if (q.computed) tasks.DropFront();
-        sum.notes.push_back(where_of(s) + ": on the curve traced from " +
-                            SpecialPointKindName(on->start.kind) + " already");
-        continue;
-      }
-      CurveResult curve = *tasks.TakeFront(wait);
-      if (curve.summary.termination == Termination::kFailed) {
-        sum.notes.push_back(where_of(s) + ": not traced: " + curve.summary.message);
-        continue;
-      }
-      if (axis == 1) SwapValues(&curve);
-      // Cut short by a stop: kept with what it has (termination kCancelled), if anything, and the
-      // trace ends cancelled (stopped() records it; `cut ||` before it would skip the record).
-      const bool cut = curve.summary.termination == Termination::kCancelled;
-      if (!cut || !curve.points.empty()) {
-        result.curves.push_back({s, *axes[axis].name, std::move(curve)});
-      }
-      if (cut) sum.cancelled = true;
-      if (stopped()) return false;
+  return true;
+}
+
+std::string TraceDriver::WhereOf(const SpecialPoint& s) const {
+  return PeriodPrefix(s.point.orbit.signature.periods) + std::string(SpecialPointKindName(s.kind)) +
+         " at " + options_.param1 + " = " + std::to_string(s.point.orbit.params[i1_]) + ", " +
+         options_.param2 + " = " + std::to_string(s.point.orbit.params[i2_]);
+}
+
+// The curve traced already that the start lies on, or null.
+const TracedCurve* TraceDriver::KnownCurve(const SpecialPoint& s) const {
+  const double u = s.point.orbit.params[i1_], v = s.point.orbit.params[i2_];
+  const auto it =
+      std::find_if(result_.curves.begin(), result_.curves.end(), [&](const TracedCurve& c) {
+        return c.start.kind == s.kind &&
+               c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
+               DistanceToCurve(c.curve, u, v, w1_, w2_) <= options_.duplicate_distance;
+      });
+  return it == result_.curves.end() ? nullptr : &*it;
+}
+
+// The curve through a start, on a worker's propagator (values in the start axis' order).
+CurveResult TraceDriver::CurveFrom(const SpecialPoint& s, int axis, Propagator& p) const {
+  CurveOptions co = options_.curve;
+  const Axis& a = axes_[axis];
+  const Axis& other = axes_[1 - axis];
+  co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
+  co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
+  // The options' crossings1 / crossings2 are values of param1 / param2 of the trace.
+  if (axis == 1) std::swap(co.crossings1, co.crossings2);
+  return ContinueCurve(model_, p, s, co);
+}
+
+// The curves through starts_[first..], progress from `from` to `to`. Each start's curve is a task
+// on the workers; each is applied in the order of the starts: a start on a curve traced already
+// (from an earlier start) is named in a note, its curve dropped if it was computed meanwhile.
+bool TraceDriver::TraceStarts(size_t first, double from, double to) {
+  internal::TaskStage<CurveResult> stage(*workers_);
+  internal::OrderedTasks<CurveResult>& tasks = stage.tasks();
+  std::deque<bool> queued;  // per start queued: whether a task computes its curve (false: it was
+                            // on a traced curve when queued)
+  size_t next = first;
+  for (size_t k = first; k < starts_.size(); ++k) {
+    // Queue the starts up to the window, each unless it is on a curve applied already.
+    for (; next < starts_.size() && queued.size() < stage.window(); ++next) {
+      const bool known = KnownCurve(starts_[next].second) != nullptr;
+      queued.push_back(!known);
+      if (known) continue;
+      tasks.Push([this, next](int worker) {
+        return CurveFrom(starts_[next].second, starts_[next].first, workers_->at(worker));
+      });
     }
-    return true;
-  };
-  // The curves leaving the codimension-2 points of the curves from first_curve on; false when
-  // cancelled.
-  SwitchTally tally;
-  auto switch_from = [&](size_t first_curve) {
-    if (!options.switch_at_codim2) return true;
-    if (!SwitchAtCodim2(model, propagator, workers, wait, options, report, first_curve, &tally,
-                        &result)) {
+    if (!Report(from + (to - from) * static_cast<double>(k - first) /
+                           static_cast<double>(starts_.size() - first))) {
       return false;
     }
-    return options.max_period == 1 || internal::GrazingCurvesAtFlipGrazings(
-                                          model, propagator, options, report, first_curve, &result);
-  };
-  if (!trace_starts(0, options.max_period > 1 ? 0.2 : 0.1, 1.0) || !switch_from(0) || stopped()) {
-    return;
+    const bool computed = queued.front();
+    queued.pop_front();
+    const int axis = starts_[k].first;
+    const SpecialPoint& s = starts_[k].second;
+    // (A start on a traced curve when queued is on it now: the curves only grow.)
+    if (const TracedCurve* on = KnownCurve(s); on != nullptr) {
+      if (computed) tasks.DropFront();
+      sum_.notes.push_back(WhereOf(s) + ": on the curve traced from " +
+                           SpecialPointKindName(on->start.kind) + " already");
+      continue;
+    }
+    CurveResult curve = *tasks.TakeFront(wait_);
+    if (curve.summary.termination == Termination::kFailed) {
+      sum_.notes.push_back(WhereOf(s) + ": not traced: " + curve.summary.message);
+      continue;
+    }
+    if (axis == 1) SwapValues(&curve);
+    // Cut short by a stop: kept with what it has (termination kCancelled), if anything, and the
+    // trace ends cancelled (Stopped() records it; `cut ||` before it would skip the record).
+    const bool cut = curve.summary.termination == Termination::kCancelled;
+    if (!cut || !curve.points.empty()) {
+      result_.curves.push_back({s, *axes_[axis].name, std::move(curve)});
+    }
+    if (cut) sum_.cancelled = true;
+    if (Stopped()) return false;
   }
-  // Edge rounds (TraceOptions::edge_branches): the branch along the box's edge through each fold /
-  // PD / NS curve's end on it, unless a branch run along that edge located that end's point
-  // already; the curves of their points, and the curves leaving those curves' codimension-2
-  // points; again for the ends of the curves added, until no end is new.
-  struct EdgePoint {
-    int edge;  // 0 / 1: param1 at min1 / max1; 2 / 3: param2 at min2 / max2
-    SpecialPointKind kind;
-    int periods;
-    double value;  // of the parameter along the edge
-  };
+  return true;
+}
+
+// The curves leaving the codimension-2 points of the curves from first_curve on.
+bool TraceDriver::SwitchFrom(size_t first_curve) {
+  if (!options_.switch_at_codim2) return true;
+  const std::function<bool(double)> report = [this](double f) { return Report(f); };
+  if (!SwitchAtCodim2(model_, propagator_, *workers_, wait_, options_, report, first_curve, &tally_,
+                      &result_)) {
+    return false;
+  }
+  return options_.max_period == 1 ||
+         internal::GrazingCurvesAtFlipGrazings(model_, propagator_, options_, report, first_curve,
+                                               &result_);
+}
+
+// Edge rounds (TraceOptions::edge_branches): the branch along the box's edge through each fold /
+// PD / NS curve's end on it, unless a branch run along that edge located that end's point already;
+// the curves of their points, and the curves leaving those curves' codimension-2 points; again for
+// the ends of the curves added, until no end is new.
+bool TraceDriver::EdgeRounds() {
   std::vector<EdgePoint> on_edge_branches;
-  const double bounds[4] = {options.min1, options.max1, options.min2, options.max2};
+  const double bounds[4] = {options_.min1, options_.max1, options_.min2, options_.max2};
   size_t ends_from = 0;
-  int edge_runs = 0;
-  while (options.edge_branches) {
-    const size_t starts_before = starts.size(), curves_before = result.curves.size();
+  while (options_.edge_branches) {
+    const size_t starts_before = starts_.size(), curves_before = result_.curves.size();
     for (size_t c = ends_from; c < curves_before; ++c) {
-      const CurveResult& curve = result.curves[c].curve;
+      const CurveResult& curve = result_.curves[c].curve;
       if (curve.kind == CurveKind::kGrazing || curve.points.empty()) continue;
       const SpecialPointKind kind = curve.kind == CurveKind::kFold ? SpecialPointKind::kFold
                                     : curve.kind == CurveKind::kPeriodDoubling
@@ -544,7 +615,7 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
           const int along = edge < 2 ? 1 : 0;
           const double value = along == 0 ? end->value1 : end->value2;
           const int periods = end->orbit.signature.periods;
-          const double tol = 1e-6 * (axes[along].max - axes[along].min);
+          const double tol = 1e-6 * (axes_[along].max - axes_[along].min);
           if (std::any_of(on_edge_branches.begin(), on_edge_branches.end(),
                           [&](const EdgePoint& e) {
                             return e.edge == edge && e.kind == kind && e.periods == periods &&
@@ -552,18 +623,17 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
                           })) {
             continue;
           }
-          const size_t located = starts.size();
-          ++edge_runs;
+          const size_t located = starts_.size();
+          ++edge_runs_;
           const std::string from_end = std::string(CurveKindName(curve.kind)) + " curve's end at " +
-                                       options.param1 + " = " + std::to_string(end->value1) + ", " +
-                                       options.param2 + " = " + std::to_string(end->value2);
-          if (!branch_starts(end->orbit, along, 0.99, 0.99, ContinuationDirection::kBoth,
-                             from_end)) {
-            return;
+                                       options_.param1 + " = " + std::to_string(end->value1) +
+                                       ", " + options_.param2 + " = " + std::to_string(end->value2);
+          if (!Branch(end->orbit, along, 0.99, 0.99, ContinuationDirection::kBoth, from_end)) {
+            return false;
           }
           on_edge_branches.push_back({edge, kind, periods, value});
-          for (size_t k = located; k < starts.size(); ++k) {
-            const SpecialPoint& s = starts[k].second;
+          for (size_t k = located; k < starts_.size(); ++k) {
+            const SpecialPoint& s = starts_[k].second;
             on_edge_branches.push_back(
                 {edge, s.kind, s.point.orbit.signature.periods, s.point.value});
           }
@@ -571,35 +641,44 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
       }
     }
     ends_from = curves_before;
-    if (starts.size() == starts_before) break;
-    if (!trace_starts(starts_before, 0.99, 0.99) || !switch_from(curves_before) || stopped()) {
-      return;
+    if (starts_.size() == starts_before) break;
+    if (!TraceStarts(starts_before, 0.99, 0.99) || !SwitchFrom(curves_before) || Stopped()) {
+      return false;
     }
   }
-  // Last, the step-offs at codimension-2 roots that only a last-resort length starts
-  // (SwitchAtCodim2), and the curves leaving the codimension-2 points of the curves they add.
-  while (!tally.deferred.empty()) {
-    const size_t before = result.curves.size();
-    if (!SwitchAtCodim2(model, propagator, workers, wait, options, report, before, &tally, &result,
-                        true) ||
-        !switch_from(before) || stopped()) {
-      return;
+  return true;
+}
+
+bool TraceDriver::LastResortStepOffs() {
+  // The step-offs at codimension-2 roots that only a last-resort length starts (SwitchAtCodim2),
+  // and the curves leaving the codimension-2 points of the curves they add.
+  while (!tally_.deferred.empty()) {
+    const size_t before = result_.curves.size();
+    if (!SwitchAtCodim2(
+            model_, propagator_, *workers_, wait_, options_, [this](double f) { return Report(f); },
+            before, &tally_, &result_, true) ||
+        !SwitchFrom(before) || Stopped()) {
+      return false;
     }
   }
-  if (edge_runs > 0) {
-    sum.notes.push_back(std::to_string(edge_runs) + " branches run along the box's edges from " +
-                        "curve ends on them");
+  return true;
+}
+
+void TraceDriver::Notes() {
+  if (edge_runs_ > 0) {
+    sum_.notes.push_back(std::to_string(edge_runs_) + " branches run along the box's edges from " +
+                         "curve ends on them");
   }
-  TallyNotes(tally, &sum);
-  if (const int merged = internal::EndsAtFlipGrazings(model, options, &result); merged > 0) {
-    sum.notes.push_back(std::to_string(merged) +
-                        " curve ends where a period-2n orbit becomes the period-n orbit traversed "
-                        "twice, reported as that period-n FLIP_GRAZING");
+  TallyNotes(tally_, &sum_);
+  if (const int merged = internal::EndsAtFlipGrazings(model_, options_, &result_); merged > 0) {
+    sum_.notes.push_back(std::to_string(merged) +
+                         " curve ends where a period-2n orbit becomes the period-n orbit traversed "
+                         "twice, reported as that period-n FLIP_GRAZING");
   }
   // Points the required 1e-8 does not cover: their `bracket` says how far they are known.
   // Per period: codimension-2 points with bracket > 1e-8, and curve ends not claimed as points.
   std::map<int, int> wide, unverified;
-  for (const TracedCurve& c : result.curves) {
+  for (const TracedCurve& c : result_.curves) {
     for (const Codim2Point& q : c.curve.codim2) {
       if (q.bracket > 1e-8) ++wide[q.point.orbit.signature.periods];
     }
@@ -608,17 +687,17 @@ void TraceAll(const HybridModel& model, Propagator& propagator, const PeriodicOr
     }
   }
   for (const auto& [period, count] : wide) {
-    sum.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
-                        "codimension-2 points located only to a bracket above 1e-8 (see each "
-                        "one's bracket: the corrector failed next to the curve's end)");
+    sum_.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
+                         "codimension-2 points located only to a bracket above 1e-8 (see each "
+                         "one's bracket: the corrector failed next to the curve's end)");
   }
   for (const auto& [period, count] : unverified) {
-    sum.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
-                        "curve ends not located: the steps failed or collapsed next to them and "
-                        "only a prediction beyond, not a solved orbit, is inadmissible (no point "
-                        "claimed; named in the curves' messages)");
+    sum_.notes.push_back(std::to_string(count) + " " + PeriodPrefix(period) +
+                         "curve ends not located: the steps failed or collapsed next to them and "
+                         "only a prediction beyond, not a solved orbit, is inadmissible (no point "
+                         "claimed; named in the curves' messages)");
   }
-  report(1.0);
+  Report(1.0);
 }
 
 }  // namespace
@@ -628,7 +707,7 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         const TraceProgress& progress, const TracedCurveCallback& on_curve) {
   TraceResult result;
   CurveStream stream(on_curve, options.max_period, result);
-  TraceAll(model, propagator, start, options, progress, &stream, &result);
+  TraceDriver(model, propagator, start, options, progress, &stream, &result).Run();
   // However the trace ended, the curves not handed over yet are final now.
   if (!stream.Flush(true)) result.summary.cancelled = true;
   // Each note once, in the order first written: a located point met from both directions of a
