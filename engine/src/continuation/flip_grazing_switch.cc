@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -321,7 +322,7 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
       if (!copy) flips.push_back({c, i, q});
     }
   }
-  int merged = 0;
+  int merged = 0, merged_roots = 0;
   std::set<const Codim2Point*> done;  // merged entries
   // Merges z into the flip-grazing f (d: their box-scaled distance).
   auto merge = [&](const Flip& f, double d, Codim2Point* z, std::string* message) {
@@ -344,7 +345,7 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
     z->point = f.point.point;
     z->bracket = f.point.bracket;
     if (!root) RenameEnd(before, *z, message);
-    ++merged;
+    ++(root ? merged_roots : merged);
   };
   // The flip-grazing of half the period within `radius` of z, nearest (the first of equals),
   // whose section state z's is within the passes' split of; nullptr if none.
@@ -392,6 +393,8 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
     // kIndistinct of a flip-grazing.
     for (Codim2Point& z : t.curve.codim2) {
       if (!MergeCandidate(z) || !IsRoot(z)) continue;
+      // FOLD_FLIP is det(M - I)'s root on a PD curve only (det(M + I)'s on a fold curve).
+      if (z.kind == Codim2Kind::kFoldFlip && t.curve.kind != CurveKind::kPeriodDoubling) continue;
       const MergedEnd* at_end = nullptr;
       for (const MergedEnd& e : ends) {
         if (std::hypot(z.point.value1 - e.last.value1, z.point.value2 - e.last.value2) <=
@@ -406,6 +409,12 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
       if (at_end != nullptr) d = distance(f->point, z);
       merge(*f, d, &z, &message);
     }
+  }
+  if (merged_roots > 0) {
+    result->summary.notes.push_back(
+        std::to_string(merged_roots) +
+        " roots of det(M - I) on period-2n curves where the orbit is the period-n orbit traversed "
+        "twice, reported as that period-n FLIP_GRAZING");
   }
   // A switched curve of even period that made no step either way (its start, corrected onto the
   // curve, is next to the point it leaves, where the period-2n system is singular: the period-n
@@ -442,29 +451,38 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
   }
   // Each point once: an entry of the same kind and period as one before it in curve order (and
   // in its curve's list), within kCopy, refers to that one.
+  // The reported entries in curve order, looked up by their scaled param1 (O(log n) per entry:
+  // the period-2 box has ~12600 entries).
   struct Reported {
     int curve, index;
+    Codim2Kind kind;
+    int periods;
+    double u, v;  // box-scaled
   };
   std::vector<Reported> reported;
+  std::multimap<double, size_t> by_u;  // u -> index in `reported`
   int repeated = 0;
   for (size_t c = 0; c < result->curves.size(); ++c) {
     std::vector<Codim2Point>& codim2 = result->curves[c].curve.codim2;
     for (size_t i = 0; i < codim2.size(); ++i) {
       Codim2Point& z = codim2[i];
-      z.same_as_curve = z.same_as_index = -1;
-      for (const Reported& r : reported) {
-        const Codim2Point& e = result->curves[r.curve].curve.codim2[r.index];
-        if (e.kind == z.kind &&
-            e.point.orbit.signature.periods == z.point.orbit.signature.periods &&
-            distance(e, z) <= kCopy) {
-          z.same_as_curve = r.curve, z.same_as_index = r.index;
-          break;
+      const double u = z.point.value1 / w1, v = z.point.value2 / w2;
+      const int periods = z.point.orbit.signature.periods;
+      size_t first = reported.size();  // the earliest copy, if any
+      for (auto it = by_u.lower_bound(u - kCopy); it != by_u.end() && it->first <= u + kCopy;
+           ++it) {
+        const Reported& r = reported[it->second];
+        if (r.kind == z.kind && r.periods == periods && std::hypot(r.u - u, r.v - v) <= kCopy) {
+          first = std::min(first, it->second);
         }
       }
-      if (z.same_as_curve >= 0) {
+      if (first < reported.size()) {
+        z.same_as_curve = reported[first].curve, z.same_as_index = reported[first].index;
         ++repeated;
       } else {
-        reported.push_back({static_cast<int>(c), static_cast<int>(i)});
+        z.same_as_curve = z.same_as_index = -1;
+        by_u.emplace(u, reported.size());
+        reported.push_back({static_cast<int>(c), static_cast<int>(i), z.kind, periods, u, v});
       }
     }
   }

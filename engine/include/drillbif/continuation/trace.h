@@ -128,6 +128,9 @@ using TraceProgress = std::function<bool(double fraction)>;
 // (internal::EndsAtFlipGrazings), so it is handed over at the end, and the curves after it with
 // it (index order). With max_period 1 every curve is handed over as soon as it is traced. The
 // curves are kept in the result as well (the trace needs them to skip duplicates and switch).
+// Exception: the same_as_curve / same_as_index fields of codimension-2 entries (a point met from
+// several curves, Codim2Point) are set by that last pass, after the hand-over; read them in the
+// result.
 using TracedCurveCallback = std::function<bool(int index, const TracedCurve& curve)>;
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
