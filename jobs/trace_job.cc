@@ -133,7 +133,8 @@ void ToProto(const TracedCurve& c, v1::Curve* curve) {
 }
 
 // The trace as the proto result: its curves too unless `with_curves` is false (they were
-// streamed), its codimension-2 points (each with its curve's index) and notes.
+// streamed), its codimension-2 points (each once, with the index of the first curve that has it)
+// and notes.
 v1::TraceResult ToProto(const TraceResult& r, bool with_curves) {
   v1::TraceResult out;
   for (const std::string& note : r.summary.notes) out.add_notes(note);
@@ -141,6 +142,8 @@ v1::TraceResult ToProto(const TraceResult& r, bool with_curves) {
     const TracedCurve& c = r.curves[i];
     if (with_curves) ToProto(c, out.add_curves());
     for (const Codim2Point& q : c.curve.codim2) {
+      // A point met from several curves is listed once, with the first curve that has it.
+      if (q.same_as_curve >= 0) continue;
       v1::Codim2Point* cp = out.add_codim2_points();
       cp->set_kind(Codim2KindName(q.kind));
       *cp->mutable_params() = internal::ToProtoParams(q.point.orbit.params);

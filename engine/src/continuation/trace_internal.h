@@ -102,20 +102,30 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
                                  const std::function<bool(double)>& report, size_t first_curve,
                                  TraceResult* result);
 
-// Curve ends of period 2n that are the period-n flip-grazing their orbit merges into. A period-2n
-// curve leaving a period-n flip-grazing (above), or a period-2n fold curve ending at one, meets
-// there the period-n orbit traversed twice: the period-2n system is singular at that end (its
-// multiplier -1 squared is a second +1), Newton fails next to it and the end keeps a wide
-// bracket (1e-5 .. 10 in arclength in the reference box) although its parameters lie within ~1e-5
-// of the period-n point. Each such end (bracket above 1e-8, within 1e-4 (box-scaled) of a
-// located period-n FLIP_GRAZING, its section state that point's to the O(sqrt(distance)) by which
-// the passes of a period-2n orbit next to its birth at a PD differ) is reported as that point: kind
-// FLIP_GRAZING, its orbit, parameters and bracket, `detail` naming the merge and the violation
-// beyond. Returns how many.
+// The trace's last pass over the codimension-2 entries. First, entries of period 2n that are the
+// period-n flip-grazing their orbit merges into. A period-2n curve leaving a period-n
+// flip-grazing (above), or a period-2n fold curve ending at one, meets there the period-n orbit
+// traversed twice: the period-2n system is singular at that end (its multiplier -1 squared is a
+// second +1), Newton fails next to it and the end keeps a wide bracket (1e-5 .. 10 in arclength
+// in the reference box) although its parameters lie within ~1e-5 of the period-n point. Each such
+// end (bracket above 1e-8, within 1e-4 (box-scaled) of a located period-n FLIP_GRAZING, its
+// section state that point's to the O(sqrt(distance)) by which the passes of a period-2n orbit
+// next to its birth at a PD differ) is reported as that point: kind FLIP_GRAZING, its orbit,
+// parameters and bracket, `detail` naming the merge and the violation beyond, and the curve's
+// message saying so. Likewise, within 3e-7 of such a point (and with the same passes' test), an
+// end bisected but not solved as the point it is, and a root of det(M - I) (FOLD_GRAZING on a
+// grazing curve, FOLD_FLIP on a PD curve), or such a root within the bracket of an end merged so
+// on its curve: the +1 it found is that -1 squared. Then the ends (bisected, not solved) of a
+// switched period-2n curve that made no step either way are reported as the point it leaves.
+// Last, each point once: an entry of the same kind and period as an entry before it (curve order,
+// then list order), within 1e-9 of the box, gets that entry's same_as_curve / same_as_index.
+// Returns how many curve ends were reported as a flip-grazing (notes count the roots so reported,
+// the ends of curves without steps and the copies).
 int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, TraceResult* result);
 
-// Whether EndsAtFlipGrazings may change the curve: it has a codimension-2 end of even period
-// bracketed above 1e-8.
+// Whether EndsAtFlipGrazings may change the curve's message or its entries other than their
+// same_as fields: a curve of even period with an end bracketed above 1e-8, an end bisected but not
+// solved or a root of det(M - I), or a switched one that made no step.
 bool MayMergeAtFlipGrazing(const TracedCurve& curve);
 
 }  // namespace drillbif::internal

@@ -123,6 +123,12 @@ struct Codim2Point {
   // At a curve's end: the violation just beyond it (`detail` is its message), e.g. which segment
   // vanishes; at roots of test functions not set.
   Admissibility violation;
+  // Set by the trace's last pass (TraceCurves, continuation/trace.h) where the same point (kind,
+  // period, parameters within 1e-9 of the box) is already an entry of a curve before this one,
+  // or earlier in this curve's list: that entry's curve index and its index in that curve's
+  // codim2. The point is reported there (the service's result lists it once); -1: reported here.
+  int same_as_curve = -1;
+  int same_as_index = -1;
 };
 
 struct CurveResult {

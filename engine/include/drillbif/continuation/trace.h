@@ -140,6 +140,9 @@ using TraceProgress = std::function<bool(double fraction)>;
 // keep their parameters, signature and durations only (no section states, stability or
 // measures); its first and last points, its codimension-2 points and unverified ends stay whole,
 // and so do the period-n PD curves with 2n <= max_period (switching starts from their vertices).
+// Exception: the same_as_curve / same_as_index fields of codimension-2 entries (a point met from
+// several curves, Codim2Point) are set by that last pass, after the hand-over; read them in the
+// result.
 using TracedCurveCallback = std::function<bool(int index, const TracedCurve& curve)>;
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
