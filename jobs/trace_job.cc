@@ -89,6 +89,7 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     opt.seeds1.push_back(seed);
   }
   opt.edge_branches = !request.no_edge_branches();
+  opt.vertex_states = false;  // the results carry a vertex's parameters, ROP and stability only
   if (request.threads() < 0 || request.threads() > kMaxTraceThreads) {
     return InvalidArgument("threads: need 0 (every core) .. " + std::to_string(kMaxTraceThreads) +
                            ", got " + std::to_string(request.threads()));

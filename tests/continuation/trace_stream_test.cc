@@ -226,5 +226,43 @@ TEST_F(TraceStream, ThreadsOutOfRangeAreRefused) {
   }
 }
 
+// Without vertex states (TraceOptions::vertex_states false, as the trace job asks): the same
+// curves, codimension-2 points and notes; the interior vertices hold no section states and no
+// monodromy, but their parameters, signature, durations and measures, except on the period-1 PD
+// curves (switching starts period-2 grazing curves from their vertices); every curve's first and
+// last vertex is whole.
+TEST_F(TraceStream, CurvesWithoutVertexStatesAreTheSameCurves) {
+  TraceOptions o = SmallBox();
+  o.max1 = 0.45;
+  o.max_period = 2;
+  const TraceResult whole = TraceCurves(model_, prop_, start_, o);
+  o.vertex_states = false;
+  const TraceResult lean = TraceCurves(model_, prop_, start_, o);
+  ASSERT_FALSE(whole.summary.cancelled);
+  ASSERT_EQ(lean.curves.size(), whole.curves.size());
+  EXPECT_EQ(lean.summary.notes, whole.summary.notes);
+  int lean_curves = 0;
+  for (size_t k = 0; k < whole.curves.size(); ++k) {
+    ExpectSameCurve(lean.curves[k], whole.curves[k], static_cast<int>(k));
+    const std::vector<CurvePoint>& points = lean.curves[k].curve.points;
+    if (points.empty()) continue;
+    EXPECT_FALSE(points.front().orbit.starts.empty()) << k;
+    EXPECT_FALSE(points.back().orbit.starts.empty()) << k;
+    const bool kept = lean.curves[k].curve.kind == CurveKind::kPeriodDoubling &&
+                      points.front().orbit.signature.periods == 1;
+    for (size_t i = 1; i + 1 < points.size(); ++i) {
+      const CurvePoint& full = whole.curves[k].curve.points[i];
+      EXPECT_EQ(points[i].orbit.starts.empty(), !kept) << k << " " << i;
+      EXPECT_EQ(points[i].stability.monodromy.size() == 0, !kept) << k << " " << i;
+      EXPECT_EQ(points[i].orbit.signature, full.orbit.signature) << k << " " << i;
+      EXPECT_EQ(points[i].orbit.durations, full.orbit.durations) << k << " " << i;
+      EXPECT_EQ(points[i].measures, full.measures) << k << " " << i;
+      EXPECT_EQ(points[i].stability.stable, full.stability.stable) << k << " " << i;
+    }
+    if (!kept && points.size() > 2) ++lean_curves;
+  }
+  EXPECT_GT(lean_curves, 0);
+}
+
 }  // namespace
 }  // namespace drillbif

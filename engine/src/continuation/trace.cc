@@ -153,13 +153,12 @@ bool Traceable(SpecialPointKind kind) {
          kind == SpecialPointKind::kNeimarkSacker || internal::IsGrazing(kind);
 }
 
-// Releases what the trace no longer needs of a curve handed over: the section states, stability
-// and measures of its interior points (TracedCurveCallback). Kept: every point's parameters,
-// signature and durations (the tests for known curves), the first and last points whole (edge
-// branches start from them), the codimension-2 points and unverified ends whole (switching), and
-// the whole of a period-n PD curve with 2n <= max_period (the period-2n grazing curves leaving its
-// flip-grazings start from its vertices).
-void ReleasePointDetail(int max_period, TracedCurve* c) {
+// Drops the section states (PeriodicOrbit::starts) and monodromy of a curve's interior vertices
+// (TraceOptions::vertex_states false). The trace reads no more of them: its tests for known curves
+// read parameters, signatures and durations; edge branches start from a curve's first and last
+// vertices; switching from codimension-2 points and unverified ends, and the period-2n grazing
+// curves from the vertices of the period-n PD curves with 2n <= max_period, which are kept whole.
+void DropVertexStates(int max_period, TracedCurve* c) {
   std::vector<CurvePoint>& points = c->curve.points;
   if (points.size() < 3) return;
   if (c->curve.kind == CurveKind::kPeriodDoubling &&
@@ -167,40 +166,42 @@ void ReleasePointDetail(int max_period, TracedCurve* c) {
     return;
   }
   for (size_t k = 1; k + 1 < points.size(); ++k) {
-    CurvePoint& p = points[k];
-    std::vector<StateVector>().swap(p.orbit.starts);
-    std::vector<double>().swap(p.measures);
-    p.stability = Stability{};
+    std::vector<StateVector>().swap(points[k].orbit.starts);
+    points[k].stability.monodromy.resize(0, 0);
   }
 }
 
-// Hands the curves to TraceCurves' on_curve in order, each once it is final, and then releases
-// their points' detail (ReleasePointDetail).
+// Hands the curves to TraceCurves' on_curve in order, each once it is final; first, without
+// TraceOptions::vertex_states, drops the vertex states of the curves appended since the last call
+// (DropVertexStates), so that memory does not hold them for the curves kept until the trace's end.
 class CurveStream {
  public:
-  CurveStream(const TracedCurveCallback& on_curve, int max_period, TraceResult& result)
-      : on_curve_(on_curve), max_period_(max_period), result_(result) {}
+  CurveStream(const TracedCurveCallback& on_curve, const TraceOptions& options, TraceResult& result)
+      : on_curve_(on_curve), options_(options), result_(result) {}
   // Hands over the curves from the next one on while they are final (`all`: every one, the
   // trace having ended). False when on_curve asked to stop.
   bool Flush(bool all) {
+    for (; !options_.vertex_states && dropped_ < result_.curves.size(); ++dropped_) {
+      DropVertexStates(options_.max_period, &result_.curves[dropped_]);
+    }
     if (!on_curve_ || stopped_) return !stopped_;
     for (; next_ < result_.curves.size(); ++next_) {
-      TracedCurve& c = result_.curves[next_];
+      const TracedCurve& c = result_.curves[next_];
       if (!all && internal::MayMergeAtFlipGrazing(c)) return true;
       if (!on_curve_(static_cast<int>(next_), c)) {
         stopped_ = true;  // called no more
         return false;
       }
-      ReleasePointDetail(max_period_, &c);
     }
     return true;
   }
 
  private:
   const TracedCurveCallback& on_curve_;
-  const int max_period_;
+  const TraceOptions& options_;
   TraceResult& result_;
   size_t next_ = 0;
+  size_t dropped_ = 0;  // curves whose vertex states are dropped (vertex_states false)
   bool stopped_ = false;
 };
 
@@ -706,7 +707,7 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         const PeriodicOrbit& start, const TraceOptions& options,
                         const TraceProgress& progress, const TracedCurveCallback& on_curve) {
   TraceResult result;
-  CurveStream stream(on_curve, options.max_period, result);
+  CurveStream stream(on_curve, options, result);
   TraceDriver(model, propagator, start, options, progress, &stream, &result).Run();
   // However the trace ended, the curves not handed over yet are final now.
   if (!stream.Flush(true)) result.summary.cancelled = true;

@@ -79,6 +79,14 @@ struct TraceOptions {
   // each touch alone (one is the curve it came from). A candidate on a curve already traced with
   // the same kind and signature is skipped.
   bool switch_at_codim2 = true;
+  // Whether every curve vertex keeps its section states (PeriodicOrbit::starts) and monodromy
+  // (Stability::monodromy). False: a curve's interior vertices keep their parameters, signature,
+  // durations, measures and multipliers only (its first and last vertices, codimension-2 points,
+  // unverified ends, and the period-n PD curves with 2n <= max_period stay whole: the trace starts
+  // branches and curves from them), from when the curve is appended; the section states are most
+  // of a vertex's memory (a period-2 orbit's ~20 segments: ~1.6 of its ~2.4 KB). For callers that
+  // read no more of a vertex, such as the trace job.
+  bool vertex_states = true;
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
   // what the reference box needs (436 curves in all; 2884 with max_period 2, which 2000 cut short).
   int max_switched_curves = 5000;
@@ -134,15 +142,10 @@ using TraceProgress = std::function<bool(double fraction)>;
 // trace's last pass may report that end as the period-n FLIP_GRAZING its orbit merges into
 // (internal::EndsAtFlipGrazings), so it is handed over at the end, and the curves after it with
 // it (index order). With max_period 1 every curve is handed over as soon as it is traced. The
-// curves are kept in the result as well (the trace needs them to skip duplicates and switch), but
-// once handed over without what the trace no longer needs, so that memory grows with the
-// network's vertices (~0.1 KB each) rather than with their orbits: the interior points of a curve
-// keep their parameters, signature and durations only (no section states, stability or
-// measures); its first and last points, its codimension-2 points and unverified ends stay whole,
-// and so do the period-n PD curves with 2n <= max_period (switching starts from their vertices).
-// Exception: the same_as_curve / same_as_index fields of codimension-2 entries (a point met from
-// several curves, Codim2Point) are set by that last pass, after the hand-over; read them in the
-// result.
+// curves are kept in the result as well (the trace needs them to skip duplicates and switch; see
+// TraceOptions::vertex_states for their size). Exception: the same_as_curve / same_as_index fields
+// of codimension-2 entries (a point met from several curves, Codim2Point) are set by that last
+// pass, after the hand-over; read them in the result.
 using TracedCurveCallback = std::function<bool(int index, const TracedCurve& curve)>;
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
