@@ -19,14 +19,17 @@ namespace {
 
 // The whole trace: both one-parameter branches and every curve (the start orbit excluded), with
 // the corrector aiming at state.range(0) Newton iterations per curve step (3: the default, the
-// FINE curve steps of a trace request; 4: COARSE).
-void BM_TraceReferenceBox(benchmark::State& state) {
+// FINE curve steps of a trace request; 4: COARSE); `condensed`: the correctors solve their Newton
+// systems by condensing (ContinuationOptions / CurveOptions::condensed_solve).
+void TraceReferenceBox(benchmark::State& state, bool condensed) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   const PeriodicOrbit start =
       *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   TraceOptions options = testing::ReferenceBox();
   options.curve.target_iterations = static_cast<int>(state.range(0));
+  options.curve.condensed_solve = condensed;
+  options.branch.condensed_solve = condensed;
   TraceResult r;
   for (auto _ : state) {
     r = TraceCurves(model, prop, start, options);
@@ -42,7 +45,15 @@ void BM_TraceReferenceBox(benchmark::State& state) {
   state.counters["codim2"] = codim2;
   if (!r.summary.status.ok()) state.SkipWithError("trace failed");
 }
+void BM_TraceReferenceBox(benchmark::State& state) { TraceReferenceBox(state, false); }
 BENCHMARK(BM_TraceReferenceBox)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
+// The same with condensed correctors (docs/performance.md compares the two).
+void BM_TraceReferenceBoxCondensed(benchmark::State& state) { TraceReferenceBox(state, true); }
+BENCHMARK(BM_TraceReferenceBoxCondensed)
+    ->Arg(3)
+    ->Arg(4)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 
 // One curve: the l1 grazing curve from the omega-branch grazing at 0.5088 (a = 0.3), 688 points
 // and four codimension-2 points (two flip-, one fold-, one double grazing); the cost per point of

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "drillbif/continuation/continuation.h"
+#include "drillbif/continuation/curve.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "orbit_bvp.h"
 #include "problems/drifting_reference.h"
@@ -210,6 +211,87 @@ TEST(CondensedLu, FallsBackToDenseLuAboveTheGrowthBoundOrWithoutTheStructure) {
   internal::CondensedLu dense_mode(s.segments, s.block, CondensedMode::kDense);
   EXPECT_FALSE(dense_mode.Compute(s.a));
   EXPECT_EQ(dense_mode.Solve(s.b), dense);
+}
+
+// The same special points, of the same kinds at the same parameter values (each located to
+// 1e-10; 1e-8 allowed for the rounding differences of the two solves, the bound the trace
+// comparison uses), on the b-branch of the reference orbit over [0, 0.2] both ways with the
+// condensed corrector as with the dense one.
+TEST(CondensedSolve, BranchFindsTheSameSpecialPointsAsTheDenseCorrector) {
+  DO model;
+  ExactPropagator prop(model);
+  ContinuationOptions opt;
+  opt.param = "b";
+  opt.min = 0.0;
+  opt.max = 0.2;
+  const ContinuationResult dense = Continue(model, prop, TestOrbits().reference, opt);
+  opt.condensed_solve = true;
+  const ContinuationResult condensed = Continue(model, prop, TestOrbits().reference, opt);
+  ASSERT_EQ(dense.summary.termination, Termination::kCompleted);
+  EXPECT_EQ(condensed.summary.termination, Termination::kCompleted) << condensed.summary.message;
+  ASSERT_GE(dense.special_points.size(), 4u);
+  ASSERT_EQ(condensed.special_points.size(), dense.special_points.size());
+  for (size_t i = 0; i < dense.special_points.size(); ++i) {
+    EXPECT_EQ(condensed.special_points[i].kind, dense.special_points[i].kind) << i;
+    EXPECT_NEAR(condensed.special_points[i].point.value, dense.special_points[i].point.value, 1e-8)
+        << SpecialPointKindName(dense.special_points[i].kind);
+  }
+}
+
+// Likewise the l1 grazing curve from the omega-branch's grazing above omega = 0.4 (a = 0.3): the
+// same codimension-2 points in (omega, a) to 1e-8.
+TEST(CondensedSolve, CurveFindsTheSameCodimensionTwoPointsAsTheDenseCorrector) {
+  DO model;
+  ExactPropagator prop(model);
+  ContinuationOptions branch;
+  branch.param = "omega";
+  branch.min = 0.05, branch.max = 2.0;
+  const ContinuationResult omega = Continue(model, prop, TestOrbits().reference, branch);
+  const SpecialPoint* graze = nullptr;
+  for (const SpecialPoint& s : omega.special_points) {
+    if (s.kind == SpecialPointKind::kGrazingL1 && s.point.value > 0.4) graze = &s;
+  }
+  ASSERT_NE(graze, nullptr);
+  CurveOptions opt;
+  opt.param1 = "omega";
+  opt.param2 = "a";
+  opt.min1 = 0.05, opt.max1 = 2.0, opt.min2 = 0.01, opt.max2 = 8.0;
+  const CurveResult dense = ContinueCurve(model, prop, *graze, opt);
+  opt.condensed_solve = true;
+  const CurveResult condensed = ContinueCurve(model, prop, *graze, opt);
+  ASSERT_GE(dense.codim2.size(), 2u);
+  ASSERT_EQ(condensed.codim2.size(), dense.codim2.size());
+  for (size_t i = 0; i < dense.codim2.size(); ++i) {
+    EXPECT_EQ(condensed.codim2[i].kind, dense.codim2[i].kind) << i;
+    EXPECT_NEAR(condensed.codim2[i].point.value1, dense.codim2[i].point.value1, 1e-8);
+    EXPECT_NEAR(condensed.codim2[i].point.value2, dense.codim2[i].point.value2, 1e-8);
+  }
+}
+
+// The orbit solver's Newton with condensed steps reaches the orbit the QR steps reach, to the
+// solver's tolerance (1e-11 of the unknowns' size; 1e-10 asserted).
+TEST(CondensedSolve, OrbitSolverConvergesToTheSameOrbit) {
+  DO model;
+  ExactPropagator prop(model);
+  for (const PeriodicOrbit* solved : {&TestOrbits().reference, &TestOrbits().unstable}) {
+    PeriodicOrbit qr = *solved, condensed = *solved;
+    for (PeriodicOrbit* o : {&qr, &condensed}) {
+      o->starts[0][DO::kY] += 1e-3;  // a start off the orbit
+      o->durations[0] *= 1.001;
+    }
+    OrbitSolverOptions opt;
+    const OrbitSolveSummary by_qr = SolveOrbit(model, prop, opt, &qr);
+    opt.condensed_solve = true;
+    const OrbitSolveSummary by_condensing = SolveOrbit(model, prop, opt, &condensed);
+    ASSERT_EQ(by_qr.status, SolveStatus::kConverged);
+    ASSERT_EQ(by_condensing.status, SolveStatus::kConverged);
+    EXPECT_GE(by_condensing.iterations, 2);  // Newton steps were taken
+    for (size_t i = 0; i < qr.durations.size(); ++i) {
+      EXPECT_NEAR(condensed.durations[i], qr.durations[i], 1e-10 * (1.0 + qr.durations[i]));
+      EXPECT_LE((condensed.starts[i] - qr.starts[i]).lpNorm<Eigen::Infinity>(),
+                1e-10 * (1.0 + qr.starts[i].lpNorm<Eigen::Infinity>()));
+    }
+  }
 }
 
 }  // namespace
