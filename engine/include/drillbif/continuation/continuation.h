@@ -122,7 +122,7 @@ struct ContinuationOptions {
   bool switch_signatures = true;  // at grazing, switch and go on (else stop there)
   // The corrector's Newton systems solved by condensing the segments' unknowns (orbit/condensed.h)
   // instead of a dense LU: the same iterates up to rounding, faster, but rounding-sensitive
-  // outcomes of a trace move (docs/engine.md, the corrector), so off by default.
+  // outcomes of a trace move (docs/engine.md, periodic orbits), so off by default.
   bool condensed_solve = false;
   // Stop a direction at the first special point of one of these kinds (e.g. {kFold}: up to the
   // fold, for the stable part of a branch).
