@@ -24,8 +24,9 @@ namespace {
 
 // The whole trace: both one-parameter branches and every curve (the start orbit excluded), with
 // the corrector aiming at state.range(0) Newton iterations per curve step (3: the default, the
-// FINE curve steps of a trace request; 4: COARSE).
-void BM_TraceReferenceBox(benchmark::State& state) {
+// FINE curve steps of a trace request; 4: COARSE); `condensed`: the correctors solve their Newton
+// systems by condensing (ContinuationOptions / CurveOptions::condensed_solve).
+void TraceReferenceBox(benchmark::State& state, bool condensed) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   const PeriodicOrbit start =
@@ -33,6 +34,8 @@ void BM_TraceReferenceBox(benchmark::State& state) {
   TraceOptions options = testing::ReferenceBox();
   options.curve.target_iterations = static_cast<int>(state.range(0));
   options.threads = static_cast<int>(state.range(1));
+  options.curve.condensed_solve = condensed;
+  options.branch.condensed_solve = condensed;
   TraceResult r;
   for (auto _ : state) {
     r = TraceCurves(model, prop, start, options);
@@ -49,11 +52,20 @@ void BM_TraceReferenceBox(benchmark::State& state) {
   if (!r.summary.status.ok()) state.SkipWithError("trace failed");
 }
 // Args: target iterations (3: FINE, 4: COARSE), threads.
+void BM_TraceReferenceBox(benchmark::State& state) { TraceReferenceBox(state, false); }
 BENCHMARK(BM_TraceReferenceBox)
     ->Args({3, 1})
     ->Args({3, 2})
     ->Args({4, 1})
     ->Args({4, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
+// The same with condensed correctors (docs/performance.md compares the two).
+void BM_TraceReferenceBoxCondensed(benchmark::State& state) { TraceReferenceBox(state, true); }
+BENCHMARK(BM_TraceReferenceBoxCondensed)
+    ->Args({3, 1})
+    ->Args({4, 1})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1)
     ->UseRealTime();

@@ -36,7 +36,11 @@ std::string ShortNumber(double x) {
 
 BranchTracer::BranchTracer(const HybridModel& model, Propagator& propagator,
                            const ContinuationOptions& options, int param)
-    : model_(model), propagator_(propagator), options_(options), param_(param) {}
+    : model_(model),
+      propagator_(propagator),
+      options_(options),
+      param_(param),
+      lu_(0, 0, options.condensed_solve ? CondensedMode::kAuto : CondensedMode::kDense) {}
 
 Params BranchTracer::ParamsAt(double value) const {
   Params p = base_;
@@ -90,8 +94,9 @@ bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* itera
       *iterations = it;
       return model_.ValidateParams(ParamsAt((*y)[m()])).ok();
     }
-    lu_.compute(a);
-    const Vec step = lu_.solve(-r);
+    lu_.Reshape(bvp_->segments(), m() / bvp_->segments());
+    lu_.Compute(a);
+    const Vec step = lu_.Solve(-r);
     if (!step.allFinite()) return false;
     *y += step;
     ++newton_;
@@ -119,10 +124,10 @@ bool BranchTracer::Tangent(const Vec& y, const Vec& prev, Vec* t, double* det) {
 bool BranchTracer::TangentFromCorrector(Vec* t, double* det) const {
   Vec e = Vec::Zero(m() + 1);
   e[m()] = 1.0;
-  *t = lu_.solve(e);
+  *t = lu_.Solve(e);
   if (!t->allFinite() || t->norm() == 0.0) return false;
   t->normalize();
-  *det = Sign(lu_.determinant());
+  *det = lu_.DeterminantSign();
   return true;
 }
 

@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "drillbif/continuation/continuation.h"
+#include "orbit/condensed.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif::internal {
@@ -105,8 +106,8 @@ class BranchTracer {
   Vec start_y_;  // the start point, to notice a closed branch
   Signature start_signature_;
   bool closed_ = false;
-  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;  // the last corrector iteration's bordered matrix
-  double h_ = 0.0;                           // next step length
+  CondensedLu lu_;  // the last corrector iteration's bordered matrix (dense unless condensed_solve)
+  double h_ = 0.0;  // next step length
   ContinuationPoint point_;
   TestValues tests_;
   int steps_ = 0, rejected_ = 0, newton_ = 0;

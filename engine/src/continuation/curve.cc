@@ -18,6 +18,7 @@
 #include "continuation/grazing_end.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
+#include "orbit/condensed.h"
 #include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
@@ -332,11 +333,13 @@ class CurveTracer {
     Vec f;
     Mat jac, a(n(), n());
     Vec r(n());
-    Eigen::PartialPivLU<Mat> lu(n());
+    internal::CondensedLu lu(bvp1_.segments(), m() / bvp1_.segments(),
+                             options_.condensed_solve ? internal::CondensedMode::kAuto
+                                                      : internal::CondensedMode::kDense);
     double last_norm = std::numeric_limits<double>::infinity();
     auto accept = [&]() {
       if (!tangent) return true;
-      *tangent = lu.solve(Vec::Unit(n(), n() - 1));
+      *tangent = lu.Solve(Vec::Unit(n(), n() - 1));
       if (!tangent->allFinite() || tangent->norm() == 0.0) return false;
       tangent->normalize();
       if (tangent->dot(dir) < 0.0) *tangent = -*tangent;
@@ -379,11 +382,11 @@ class CurveTracer {
       if (!chord) {
         a.topRows(n() - 1) = jac;
         a.bottomRows(1) = dir.transpose();
-        lu.compute(a);
+        lu.Compute(a);
       }
       r.head(n() - 1) = f;
       r[n() - 1] = dir.dot(*y - y_pred);
-      const Vec step = lu.solve(-r);
+      const Vec step = lu.Solve(-r);
       if (!step.allFinite()) return chord && settle(true);
       y_before = *y;
       *y += step;

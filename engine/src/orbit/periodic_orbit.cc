@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "common/phase_progress.h"
+#include "orbit/condensed.h"
 #include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
@@ -52,6 +53,7 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
   internal::OrbitBvp bvp(model, propagator, orbit->signature, -1);
   Eigen::VectorXd x = bvp.Pack(*orbit), g;
   Eigen::MatrixXd gx;
+  internal::CondensedLu lu(bvp.segments(), bvp.size() / bvp.segments());
   for (summary.iterations = 1; summary.iterations <= options.max_iterations; ++summary.iterations) {
     if (!phase.Continue(static_cast<double>(summary.iterations - 1) / options.max_iterations)) {
       return cancelled();
@@ -67,7 +69,11 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
         g.lpNorm<Eigen::Infinity>() <= 1e-13 * (1.0 + x.lpNorm<Eigen::Infinity>())) {
       break;
     }
-    const Eigen::VectorXd step = gx.colPivHouseholderQr().solve(-g);
+    // Condensed (orbit/condensed.h) when asked for and its growth allows, else (and where that
+    // step is not finite: a singular reduced system) a rank-revealing QR of the whole system.
+    Eigen::VectorXd step;
+    if (options.condensed_solve && lu.Compute(gx)) step = lu.Solve(-g);
+    if (!lu.condensed() || !step.allFinite()) step = gx.colPivHouseholderQr().solve(-g);
     if (!step.allFinite()) {
       summary.message = "singular Newton system";
       return summary;

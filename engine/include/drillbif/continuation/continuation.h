@@ -120,6 +120,10 @@ struct ContinuationOptions {
   // Pc; the others are 0). Pc costs ~20 times ROP (quadrature of the contact power).
   unsigned point_measures = kAllMeasures;
   bool switch_signatures = true;  // at grazing, switch and go on (else stop there)
+  // The corrector's Newton systems solved by condensing the segments' unknowns (orbit/condensed.h)
+  // instead of a dense LU: the same iterates up to rounding, faster, but rounding-sensitive
+  // outcomes of a trace move (docs/engine.md, periodic orbits), so off by default.
+  bool condensed_solve = false;
   // Stop a direction at the first special point of one of these kinds (e.g. {kFold}: up to the
   // fold, for the stable part of a branch).
   std::vector<SpecialPointKind> stop_at;

@@ -64,6 +64,8 @@ struct CurveOptions {
   // one-parameter continuation at that value.
   std::vector<double> crossings2;
   std::vector<double> crossings1;  // likewise for lambda1
+  // The corrector's Newton systems solved by condensing (as ContinuationOptions::condensed_solve).
+  bool condensed_solve = false;
 
   Status Validate() const;
 };

@@ -68,6 +68,9 @@ struct Admissibility {
 struct OrbitSolverOptions {
   double tolerance = 1e-11;  // Newton stops when the scaled step and residual are below this
   int max_iterations = 20;   // Newton iterations
+  // Newton steps by condensing (orbit/condensed.h) instead of a rank-revealing QR of the whole
+  // system (as ContinuationOptions::condensed_solve; off by default).
+  bool condensed_solve = false;
   Status Validate() const;
 };
 
