@@ -54,7 +54,7 @@ ContinuationOptions Options(double locate_tolerance, double max_step) {
   o.max = 0.2;
   o.stop_at = {SpecialPointKind::kFold};
   o.locate_tolerance = locate_tolerance;
-  o.max_step = max_step;
+  o.steps.max_step = max_step;
   return o;
 }
 
@@ -109,7 +109,7 @@ void Measure(benchmark::State& state, Propagator& prop, const ContinuationOption
   state.counters["model_abs_err"] = std::max(
       {std::abs(l.fold - kModelFold), std::abs(l.pd - kModelPd), std::abs(l.graze - kModelGraze)});
   state.counters["points"] = static_cast<double>(r.points.size());
-  state.counters["max_step"] = o.max_step;
+  state.counters["max_step"] = o.steps.max_step;
 }
 
 // Arguments: -log10(locate_tolerance), index into kMaxSteps.
@@ -131,7 +131,7 @@ void BM_BBranchCorrector(benchmark::State& state) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   ContinuationOptions o = Options(ContinuationOptions().locate_tolerance, kMaxSteps[0]);
-  o.tolerance = std::pow(10.0, -static_cast<double>(state.range(0)));
+  o.steps.tolerance = std::pow(10.0, -static_cast<double>(state.range(0)));
   Measure(state, prop, o);
 }
 BENCHMARK(BM_BBranchCorrector)

@@ -53,8 +53,8 @@ CurveOptions Options(double tolerance, double max_step) {
   o.param2 = std::string("a");
   o.min1 = 0.0, o.max1 = 1.0;
   o.min2 = 0.25, o.max2 = 0.35;
-  o.tolerance = tolerance;
-  o.max_step = max_step;
+  o.steps.tolerance = tolerance;
+  o.steps.max_step = max_step;
   o.crossings2 = {kCrossA};
   return o;
 }
@@ -103,7 +103,7 @@ void BM_PdCurve(benchmark::State& state) {
   state.counters["cross_rel_err"] = std::abs(b - Reference()) / std::abs(Reference());
   state.counters["cross_b"] = b;
   state.counters["points"] = static_cast<double>(c.points.size());
-  state.counters["max_step"] = o.max_step;
+  state.counters["max_step"] = o.steps.max_step;
 }
 BENCHMARK(BM_PdCurve)
     ->ArgsProduct({{4, 6, 8, 10, 12}, {0, 1, 2}})

@@ -32,10 +32,10 @@ void TraceReferenceBox(benchmark::State& state, bool condensed) {
   const PeriodicOrbit start =
       *testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
   TraceOptions options = testing::ReferenceBox();
-  options.curve.target_iterations = static_cast<int>(state.range(0));
+  options.curve.steps.target_iterations = static_cast<int>(state.range(0));
   options.threads = static_cast<int>(state.range(1));
-  options.curve.condensed_solve = condensed;
-  options.branch.condensed_solve = condensed;
+  options.curve.steps.condensed_solve = condensed;
+  options.branch.steps.condensed_solve = condensed;
   TraceResult r;
   for (auto _ : state) {
     r = TraceCurves(model, prop, start, options);

@@ -153,11 +153,11 @@ struct ContinueFlags {
   double min = 0.0, max = 0.0;
   std::string direction = "both";
   ContinuationOptions defaults;
-  double initial_step = defaults.initial_step;
-  double min_step = defaults.min_step;
-  double max_step = defaults.max_step;
-  int max_steps = defaults.max_steps;
-  int target_iterations = defaults.target_iterations;
+  double initial_step = defaults.steps.initial_step;
+  double min_step = defaults.steps.min_step;
+  double max_step = defaults.steps.max_step;
+  int max_steps = defaults.steps.max_steps;
+  int target_iterations = defaults.steps.target_iterations;
   double locate_tolerance = defaults.locate_tolerance;
   bool no_switch = false;
   std::vector<std::string> stop_at;
@@ -868,7 +868,7 @@ int Main(int argc, char** argv) {
       ->group(c);
   cont->add_option("--target-iterations", co.target_iterations,
                    "Corrector iterations the step length adapts to")
-      ->check(CLI::Range(1, co.defaults.max_iterations))
+      ->check(CLI::Range(1, co.defaults.steps.max_iterations))
       ->capture_default_str()
       ->group(c);
   cont->add_option("--locate-tolerance", co.locate_tolerance,

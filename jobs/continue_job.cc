@@ -70,11 +70,12 @@ StatusOr<ContinuationOptions> ToContinuationOptions(const v1::ContinueRequest& r
     default:
       return InvalidArgument("direction: unknown value " + std::to_string(request.direction()));
   }
-  if (request.has_initial_step()) options.initial_step = request.initial_step();
-  if (request.has_min_step()) options.min_step = request.min_step();
-  if (request.has_max_step()) options.max_step = request.max_step();
-  if (request.has_max_steps()) options.max_steps = request.max_steps();
-  if (request.has_target_iterations()) options.target_iterations = request.target_iterations();
+  if (request.has_initial_step()) options.steps.initial_step = request.initial_step();
+  if (request.has_min_step()) options.steps.min_step = request.min_step();
+  if (request.has_max_step()) options.steps.max_step = request.max_step();
+  if (request.has_max_steps()) options.steps.max_steps = request.max_steps();
+  if (request.has_target_iterations())
+    options.steps.target_iterations = request.target_iterations();
   if (request.has_locate_tolerance()) options.locate_tolerance = request.locate_tolerance();
   if (request.has_switch_signatures()) options.switch_signatures = request.switch_signatures();
   for (int k : request.stop_at()) {
@@ -99,21 +100,23 @@ StatusOr<ContinuationOptions> ToContinuationOptions(const v1::ContinueRequest& r
     return InvalidArgument("the range [min, max] is empty: max must be > min (got min = " +
                            Num(options.min) + ", max = " + Num(options.max) + ")");
   }
-  if (Status s = CheckPositive("initial_step", options.initial_step); !s.ok()) return s;
-  if (Status s = CheckPositive("min_step", options.min_step); !s.ok()) return s;
-  if (Status s = CheckPositive("max_step", options.max_step); !s.ok()) return s;
-  if (options.max_step < options.min_step) {
-    return InvalidArgument("max_step must be >= min_step (got max_step = " + Num(options.max_step) +
-                           ", min_step = " + Num(options.min_step) + ")");
+  if (Status s = CheckPositive("initial_step", options.steps.initial_step); !s.ok()) return s;
+  if (Status s = CheckPositive("min_step", options.steps.min_step); !s.ok()) return s;
+  if (Status s = CheckPositive("max_step", options.steps.max_step); !s.ok()) return s;
+  if (options.steps.max_step < options.steps.min_step) {
+    return InvalidArgument(
+        "max_step must be >= min_step (got max_step = " + Num(options.steps.max_step) +
+        ", min_step = " + Num(options.steps.min_step) + ")");
   }
-  if (options.max_steps < 1 || options.max_steps > kMaxContinuationSteps) {
+  if (options.steps.max_steps < 1 || options.steps.max_steps > kMaxContinuationSteps) {
     return InvalidArgument("max_steps must be in [1, " + std::to_string(kMaxContinuationSteps) +
-                           "], got " + std::to_string(options.max_steps));
+                           "], got " + std::to_string(options.steps.max_steps));
   }
-  if (options.target_iterations < 1 || options.target_iterations > options.max_iterations) {
+  if (options.steps.target_iterations < 1 ||
+      options.steps.target_iterations > options.steps.max_iterations) {
     return InvalidArgument("target_iterations must be in [1, " +
-                           std::to_string(options.max_iterations) + "], got " +
-                           std::to_string(options.target_iterations));
+                           std::to_string(options.steps.max_iterations) + "], got " +
+                           std::to_string(options.steps.target_iterations));
   }
   if (Status s = CheckPositive("locate_tolerance", options.locate_tolerance); !s.ok()) return s;
   // Whatever else the engine requires.
@@ -260,8 +263,8 @@ JobCost ContinueCost(const ContinuePlan& plan) {
   // The period-doubled branch, when followed, has the same budget.
   const int64_t branches = plan.follow_period_doubling ? 2 : 1;
   const double steps = CountOrInfinity(
-      CheckedMul(CheckedMul(int64_t{plan.options.max_steps}, directions), branches));
-  const std::string driver = "request.max_steps = " + std::to_string(plan.options.max_steps) +
+      CheckedMul(CheckedMul(int64_t{plan.options.steps.max_steps}, directions), branches));
+  const std::string driver = "request.max_steps = " + std::to_string(plan.options.steps.max_steps) +
                              " per direction" + (directions == 2 ? ", both directions" : "") +
                              (branches == 2 ? ", and the period-doubled branch" : "");
   JobCost cost;

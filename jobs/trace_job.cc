@@ -102,7 +102,7 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
     case v1::CURVE_STEPS_FINE:
       break;
     case v1::CURVE_STEPS_COARSE:
-      opt.curve.target_iterations = 4;
+      opt.curve.steps.target_iterations = 4;
       break;
     default:
       return InvalidArgument("curve_steps: unknown value " +

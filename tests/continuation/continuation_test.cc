@@ -366,7 +366,7 @@ TEST(Continuation, HardParametersCompleteWithAdmissiblePoints) {
     opt.param = "b";
     opt.min = 0.1;
     opt.max = 0.3;
-    opt.max_steps = 300;
+    opt.steps.max_steps = 300;
     const ContinuationResult r = Continue(model, prop, start, opt);
     EXPECT_EQ(r.summary.termination, Termination::kCompleted)
         << model.param_names()[index] << ": " << r.summary.message;

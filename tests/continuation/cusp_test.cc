@@ -57,9 +57,9 @@ class CuspTest : public ::testing::Test {
     opt.min = lo, opt.max = hi;
     // Steps short enough not to pass both folds at once (they are ~1e-6 apart in a here); were
     // one stepped over, the fold expected below would be missing and the test would fail.
-    opt.initial_step = 1e-4;
-    opt.max_step = 1e-3;
-    opt.max_steps = 2000;
+    opt.steps.initial_step = 1e-4;
+    opt.steps.max_step = 1e-3;
+    opt.steps.max_steps = 2000;
     const ContinuationResult r = Continue(model_, prop_, orbit, opt);
     EXPECT_NE(r.summary.termination, Termination::kFailed) << r.summary.message;
     std::vector<double> folds;

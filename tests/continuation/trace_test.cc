@@ -133,7 +133,7 @@ class TraceSteps : public testing::ReferenceOrbitTest, public ::testing::WithPar
 
 TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   TraceOptions opt = testing::ReferenceBox();
-  opt.curve.target_iterations = GetParam();
+  opt.curve.steps.target_iterations = GetParam();
   // Crossings of the lines through the start, omega = 0.1 and a = 0.3 (the acceptance lines),
   // and of the lines of the completeness check below: (omega, a of the attractor whose a-branch
   // is checked; at a = 0.3 the attractor is of period 2 at omega = 0.3 and chaotic at 0.5, 0.8
@@ -630,7 +630,7 @@ INSTANTIATE_TEST_SUITE_P(DefaultAndLongerSteps, TraceSteps, ::testing::Values(3,
 TEST_F(Trace, DefaultAndLongerStepsFindTheSamePoints) {
   auto trace = [&](int target_iterations) {
     TraceOptions opt = testing::ReferenceBox();
-    opt.curve.target_iterations = target_iterations;
+    opt.curve.steps.target_iterations = target_iterations;
     return TraceCurves(model_, prop_, start_, opt);
   };
   const TraceResult dflt = trace(3), longer = trace(4);

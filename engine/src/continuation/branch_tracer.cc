@@ -40,7 +40,7 @@ BranchTracer::BranchTracer(const HybridModel& model, Propagator& propagator,
       propagator_(propagator),
       options_(options),
       param_(param),
-      lu_(0, 0, options.condensed_solve ? CondensedMode::kAuto : CondensedMode::kDense) {}
+      lu_(0, 0, options.steps.condensed_solve ? CondensedMode::kAuto : CondensedMode::kDense) {}
 
 Params BranchTracer::ParamsAt(double value) const {
   Params p = base_;
@@ -63,7 +63,7 @@ Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_star
   if (!Tangent(y_, prev, &t_, &det)) return Internal("no tangent at the start orbit");
   point_ = MakePoint(y_);
   tests_ = Tests(y_, t_, det, point_);
-  h_ = options_.initial_step;
+  h_ = options_.steps.initial_step;
   if (propagator_.stopped()) return Cancelled("cancelled at the start orbit");
   if (record_start) result->points.push_back(point_);
   return Status::Ok();
@@ -75,7 +75,7 @@ bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* itera
   Vec g, gp;
   Eigen::MatrixXd gx, a(m() + 1, m() + 1);
   Vec r(m() + 1);
-  for (int it = 1; it <= options_.max_iterations; ++it) {
+  for (int it = 1; it <= options_.steps.max_iterations; ++it) {
     if (propagator_.stopped()) return false;
     const Params prm = ParamsAt((*y)[m()]);
     if (!model_.ValidateParams(prm).ok()) return false;
@@ -101,7 +101,7 @@ bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* itera
     *y += step;
     ++newton_;
     if (step.lpNorm<Eigen::Infinity>() <=
-        options_.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>())) {
+        options_.steps.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>())) {
       *iterations = it;
       return model_.ValidateParams(ParamsAt((*y)[m()])).ok();
     }
@@ -565,7 +565,8 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
       bvp_->Unpack(y_try.head(m()), ParamsAt(y_try[m()]), &o);
       return CheckAdmissible(model_, propagator_, o).admissible;
     };
-    const double trial = std::max(options_.min_step, std::min(h_, options_.initial_step));
+    const double trial =
+        std::max(options_.steps.min_step, std::min(h_, options_.steps.initial_step));
     if (!admissible_at(trial) && admissible_at(-trial)) {
       t_ = -t_;
       det = -det;
@@ -573,7 +574,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   }
   point_ = MakePoint(y_);
   tests_ = Tests(y_, t_, det, point_);
-  h_ = std::max(options_.min_step, std::min(h_, options_.initial_step));
+  h_ = std::max(options_.steps.min_step, std::min(h_, options_.steps.initial_step));
   if (recorded) {
     // The side after: the first point of the new signature's branch (at the grazing point where a
     // segment was removed, a step-off duration past it where one was inserted).
@@ -624,7 +625,7 @@ bool BranchTracer::Step(ContinuationResult* result) {
     Finish(Termination::kCompleted, "stopped at " + stop_kind_);
     return false;
   }
-  if (steps_ >= options_.max_steps) {
+  if (steps_ >= options_.steps.max_steps) {
     Finish(Termination::kCompleted, "reached max_steps");
     return false;
   }
@@ -642,7 +643,7 @@ bool BranchTracer::Step(ContinuationResult* result) {
       if (propagator_.stopped()) return cancelled();
       ++rejected_;
       h_ *= 0.5;
-      if (h_ < options_.min_step) {
+      if (h_ < options_.steps.min_step) {
         // A branch that runs off to infinity as the parameter tends to a bound (the drifting
         // oscillator's period-1 orbit as b -> 0) stalls next to it: count that as reaching it.
         const double near = 1e-6 * (options_.max - options_.min);
@@ -665,8 +666,8 @@ bool BranchTracer::Step(ContinuationResult* result) {
     }
     const double h = h_;
     // Adapt the next step to the corrector's effort.
-    h_ = std::clamp(h_ * StepFactor(iterations, options_.target_iterations), options_.min_step,
-                    options_.max_step);
+    h_ = std::clamp(h_ * StepFactor(iterations, options_.steps.target_iterations),
+                    options_.steps.min_step, options_.steps.max_step);
     ++steps_;
 
     const double value = y1[m()];

@@ -309,7 +309,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
         const std::vector<double>& d0 = nearest->orbit.durations;
         const std::vector<double>& d1 = orbit.durations;
         for (size_t i = 0; i < d0.size() && i < d1.size(); ++i) {
-          if (std::abs(d0[i] - d1[i]) > co.max_step + 0.1 * std::abs(d1[i])) return false;
+          if (std::abs(d0[i] - d1[i]) > co.steps.max_step + 0.1 * std::abs(d1[i])) return false;
         }
       }
       if (OnCurve(t.curve, u, v, w1, w2, options.duplicate_distance)) return true;

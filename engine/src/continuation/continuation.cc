@@ -81,22 +81,26 @@ void MarkNearGrazings(const std::vector<ContinuationPoint>& points,
 
 }  // namespace
 
+Status StepControl::Validate() const {
+  if (!(initial_step > 0.0 && min_step > 0.0 && max_step >= min_step && std::isfinite(max_step))) {
+    return InvalidArgument("steps: need 0 < min_step <= max_step < inf and initial_step > 0");
+  }
+  if (target_iterations < 1 || max_iterations < target_iterations) {
+    return InvalidArgument("steps: need 1 <= target_iterations <= max_iterations");
+  }
+  if (max_steps < 1) return InvalidArgument("steps: max_steps must be >= 1");
+  if (!(tolerance > 0.0)) return InvalidArgument("steps: tolerance must be > 0");
+  return Status::Ok();
+}
+
 Status ContinuationOptions::Validate() const {
   if (param.empty()) return InvalidArgument("param: the continuation parameter must be named");
   if (std::isnan(min) || std::isnan(max) || !(max > min)) {
     return InvalidArgument("the parameter range is empty: need min < max (got min = " +
                            std::to_string(min) + ", max = " + std::to_string(max) + ")");
   }
-  if (!(initial_step > 0.0 && min_step > 0.0 && max_step >= min_step && std::isfinite(max_step))) {
-    return InvalidArgument("steps: need 0 < min_step <= max_step < inf and initial_step > 0");
-  }
-  if (target_iterations < 1 || max_iterations < target_iterations) {
-    return InvalidArgument("need 1 <= target_iterations <= max_iterations");
-  }
-  if (max_steps < 1) return InvalidArgument("max_steps must be >= 1");
-  if (!(tolerance > 0.0) || !(locate_tolerance > 0.0)) {
-    return InvalidArgument("tolerance and locate_tolerance must be > 0");
-  }
+  if (Status s = steps.Validate(); !s.ok()) return s;
+  if (!(locate_tolerance > 0.0)) return InvalidArgument("locate_tolerance must be > 0");
   return Status::Ok();
 }
 
@@ -155,7 +159,7 @@ ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
       return fail(s);
     }
     while (tracer.Step(&part)) {
-      const double fraction = (d + double(tracer.steps()) / options.max_steps) / signs.size();
+      const double fraction = (d + double(tracer.steps()) / options.steps.max_steps) / signs.size();
       if ((callback && !callback(part.points.back(), fraction)) || !phase.Continue(fraction)) {
         cancelled = true;
         break;

@@ -72,14 +72,7 @@ Status CurveOptions::Validate() const {
       std::isnan(max2) || !(max2 > min2)) {
     return InvalidArgument("the box is empty: need min1 < max1 and min2 < max2");
   }
-  if (!(initial_step > 0.0 && min_step > 0.0 && max_step >= min_step && std::isfinite(max_step))) {
-    return InvalidArgument("steps: need 0 < min_step <= max_step < inf and initial_step > 0");
-  }
-  if (target_iterations < 1 || max_iterations < target_iterations || max_steps < 1) {
-    return InvalidArgument("need 1 <= target_iterations <= max_iterations and max_steps >= 1");
-  }
-  if (!(tolerance > 0.0)) return InvalidArgument("tolerance must be > 0");
-  return Status::Ok();
+  return steps.Validate();
 }
 
 namespace {
@@ -334,8 +327,8 @@ class CurveTracer {
     Mat jac, a(n(), n());
     Vec r(n());
     internal::CondensedLu lu(bvp1_.segments(), m() / bvp1_.segments(),
-                             options_.condensed_solve ? internal::CondensedMode::kAuto
-                                                      : internal::CondensedMode::kDense);
+                             options_.steps.condensed_solve ? internal::CondensedMode::kAuto
+                                                            : internal::CondensedMode::kDense);
     double last_norm = std::numeric_limits<double>::infinity();
     auto accept = [&]() {
       if (!tangent) return true;
@@ -369,7 +362,7 @@ class CurveTracer {
       *iterations = converged_at;
       return accept();
     };
-    for (int it = 1; it <= options_.max_iterations; ++it) {
+    for (int it = 1; it <= options_.steps.max_iterations; ++it) {
       if (Stopped()) return false;
       // After convergence, chord steps: the residual alone (one monodromy, not one per unknown)
       // and the last factorization (the Jacobian moves by O(the step), ~1e-10).
@@ -396,7 +389,7 @@ class CurveTracer {
         continue;
       }
       const double norm = step.lpNorm<Eigen::Infinity>();
-      const double tol = options_.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>());
+      const double tol = options_.steps.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>());
       // Converged: this step is below the tolerance, or the contraction seen (theta, the ratio
       // of the last two steps; Newton's is quadratic, the difference row makes it at worst linear
       // with a tiny rate) bounds what the steps still to come would add, theta / (1 - theta)
@@ -1027,7 +1020,7 @@ class CurveTracer {
     prev[m()] = dir[0] * w1_;
     prev[m() + 1] = dir[1] * w2_;
     if (!Tangent(y, prev, &t)) return "no tangent at the start point";
-    double h = options_.initial_step;
+    double h = options_.steps.initial_step;
     const auto tests = Codim2Tests();
     std::vector<double> dets;
     for (const Codim2Test& test : tests) dets.push_back(TestValue(test, y));
@@ -1059,7 +1052,7 @@ class CurveTracer {
       }
       return std::nullopt;
     };
-    for (int step = 0; step < options_.max_steps; ++step) {
+    for (int step = 0; step < options_.steps.max_steps; ++step) {
       if (Stopped()) return kCancelledEnd;
       Vec y1;
       int iterations = 0;
@@ -1071,7 +1064,7 @@ class CurveTracer {
         ++sum->rejected_steps;
         h *= 0.5;
         if (Stopped()) return kCancelledEnd;
-        if (h < options_.min_step) {
+        if (h < options_.steps.min_step) {
           // Newton failed on every step from y down to min_step: next to a boundary where the
           // curve's own system degenerates (a segment vanishing like a square root) no
           // prediction beyond it corrects.
@@ -1083,8 +1076,8 @@ class CurveTracer {
       }
       sum->newton_iterations += iterations;
       ++sum->steps;
-      h = std::clamp(h * internal::StepFactor(iterations, options_.target_iterations),
-                     options_.min_step, options_.max_step);
+      h = std::clamp(h * internal::StepFactor(iterations, options_.steps.target_iterations),
+                     options_.steps.min_step, options_.steps.max_step);
       const double v1 = y1[m()], v2 = y1[m() + 1];
       if (v1 < options_.min1 || v1 > options_.max1 || v2 < options_.min2 || v2 > options_.max2) {
         EndOnBox(y, y1, points);

@@ -159,8 +159,8 @@ TEST_F(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
   };
   for (const Steps& steps : {Steps{0.02, 1.0, 3}, Steps{0.013, 0.3, 3}, Steps{0.02, 1.0, 4}}) {
     CurveOptions opt = Box();
-    opt.initial_step = steps.initial, opt.max_step = steps.longest;
-    opt.target_iterations = steps.target_iterations;
+    opt.steps.initial_step = steps.initial, opt.steps.max_step = steps.longest;
+    opt.steps.target_iterations = steps.target_iterations;
     const CurveResult curve = ContinueCurve(model_, prop_, *pd, opt);
     ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
     const Codim2Point* end = FindCodim2(curve, Codim2Kind::kFlipGrazing, [](const Codim2Point& q) {

@@ -226,7 +226,7 @@ TEST(CondensedSolve, BranchFindsTheSameSpecialPointsAsTheDenseCorrector) {
   opt.min = 0.0;
   opt.max = 0.2;
   const ContinuationResult dense = Continue(model, prop, TestOrbits().reference, opt);
-  opt.condensed_solve = true;
+  opt.steps.condensed_solve = true;
   const ContinuationResult condensed = Continue(model, prop, TestOrbits().reference, opt);
   ASSERT_EQ(dense.summary.termination, Termination::kCompleted);
   EXPECT_EQ(condensed.summary.termination, Termination::kCompleted) << condensed.summary.message;
@@ -258,7 +258,7 @@ TEST(CondensedSolve, CurveFindsTheSameCodimensionTwoPointsAsTheDenseCorrector) {
   opt.param2 = "a";
   opt.min1 = 0.05, opt.max1 = 2.0, opt.min2 = 0.01, opt.max2 = 8.0;
   const CurveResult dense = ContinueCurve(model, prop, *graze, opt);
-  opt.condensed_solve = true;
+  opt.steps.condensed_solve = true;
   const CurveResult condensed = ContinueCurve(model, prop, *graze, opt);
   ASSERT_GE(dense.codim2.size(), 2u);
   ASSERT_EQ(condensed.codim2.size(), dense.codim2.size());

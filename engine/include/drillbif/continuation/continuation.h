@@ -99,18 +99,34 @@ struct SpecialPoint {
 
 enum class ContinuationDirection { kIncreasing, kDecreasing, kBoth };
 
+// How a pseudo-arclength continuation steps and corrects: the same controls for one-parameter
+// branches (ContinuationOptions::steps) and two-parameter curves (CurveOptions::steps), each with
+// defaults of its own. Arclength is measured in the units of the unknowns and the parameters.
+struct StepControl {
+  double initial_step = 0.05;  // arclength of the first step
+  double min_step = 1e-7;      // a step that must shrink below this ends the direction
+  double max_step = 2.0;       // longest step
+  int target_iterations = 3;   // corrector iterations aimed for; the step adapts
+  int max_iterations = 8;      // more fails the step (it is retried shorter)
+  int max_steps = 10000;       // per direction
+  double tolerance = 1e-11;    // corrector: scaled Newton step
+  // The corrector's Newton systems solved by condensing the segments' unknowns (orbit/condensed.h)
+  // instead of a dense LU: the same iterates up to rounding, faster, but rounding-sensitive
+  // outcomes of a trace move (docs/engine.md, periodic orbits), so off by default.
+  bool condensed_solve = false;
+
+  // INVALID_ARGUMENT naming the field for steps that are not positive and ordered, iterations
+  // not 1 <= target <= max, max_steps < 1 or a tolerance not > 0.
+  Status Validate() const;
+};
+
 struct ContinuationOptions {
   std::string param;                                      // name of the continuation parameter
   double min = -std::numeric_limits<double>::infinity();  // parameter bounds: stop there
   double max = std::numeric_limits<double>::infinity();
   ContinuationDirection direction = ContinuationDirection::kBoth;
-  double initial_step = 0.05;       // arclength of the first step (units of X and lambda)
-  double min_step = 1e-7;           // a step that must shrink below this fails the branch
-  double max_step = 2.0;            // longest step
-  int target_iterations = 3;        // corrector iterations aimed for; the step adapts
-  int max_iterations = 8;           // more fails the step (it is retried shorter)
-  int max_steps = 10000;            // per direction (the a-branch of MODEL.md takes ~2000)
-  double tolerance = 1e-11;         // corrector: scaled Newton step
+  // max_steps per direction: the a-branch of MODEL.md takes ~2000.
+  StepControl steps;
   double locate_tolerance = 1e-10;  // special points: parameter bracket width
   bool locate = true;               // detect and locate special points
   // Also ROP_MAX / POWER_MAX (the slope test: four measure evaluations per point); off where only
@@ -120,10 +136,6 @@ struct ContinuationOptions {
   // Pc; the others are 0). Pc costs ~20 times ROP (quadrature of the contact power).
   unsigned point_measures = kAllMeasures;
   bool switch_signatures = true;  // at grazing, switch and go on (else stop there)
-  // The corrector's Newton systems solved by condensing the segments' unknowns (orbit/condensed.h)
-  // instead of a dense LU: the same iterates up to rounding, faster, but rounding-sensitive
-  // outcomes of a trace move (docs/engine.md, periodic orbits), so off by default.
-  bool condensed_solve = false;
   // Stop a direction at the first special point of one of these kinds (e.g. {kFold}: up to the
   // fold, for the stable part of a branch).
   std::vector<SpecialPointKind> stop_at;

@@ -48,13 +48,7 @@ struct CurveOptions {
   double max1 = std::numeric_limits<double>::infinity();
   double min2 = -std::numeric_limits<double>::infinity();
   double max2 = std::numeric_limits<double>::infinity();
-  double initial_step = 0.02;  // arclength of the first step (units of X and the parameters)
-  double min_step = 1e-8;      // a step that must shrink below this ends the direction
-  double max_step = 1.0;       // longest step
-  int target_iterations = 3;   // corrector iterations aimed for
-  int max_iterations = 8;      // more fails the step (retried shorter)
-  int max_steps = 10000;       // per direction (see below)
-  double tolerance = 1e-10;    // corrector: scaled Newton step
+  // Shorter steps than a branch's: a first step of 0.02, 1e-8 to 1.0, a tolerance of 1e-10.
   // max_steps: curves of long orbits are long in the unknowns (at omega ~ 0.1 a period-2 orbit's
   // drift coordinate moves ~6000 times as far as omega along its PD curve): in the reference
   // (omega, a) box (omega in [0.05, 2], a in [0.01, 8] at b = 0.15) with period 2, 12 of the
@@ -64,8 +58,7 @@ struct CurveOptions {
   // one-parameter continuation at that value.
   std::vector<double> crossings2;
   std::vector<double> crossings1;  // likewise for lambda1
-  // The corrector's Newton systems solved by condensing (as ContinuationOptions::condensed_solve).
-  bool condensed_solve = false;
+  StepControl steps{0.02, 1e-8, 1.0, 3, 8, 10000, 1e-10, false};
 
   Status Validate() const;
 };
