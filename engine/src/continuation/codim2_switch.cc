@@ -2,10 +2,12 @@
 // traced curves (TraceOptions::switch_at_codim2; continuation/trace_internal.h).
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <deque>
 #include <iterator>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,6 +25,10 @@ namespace {
 // The segment's lengths at a root's step-off when none of kStepOffLengths gives an admissible
 // orbit, each tried in turn until a curve gets away from the point.
 constexpr std::array<double, 4> kLastResortStepOffs = {1e-6, 3e-7, 1e-7, 3e-8};
+// The most curves a switching round reserves room for so that its tasks can read the curves
+// applied meanwhile (SwitchAtCodim2): above it (a max_switched_curves far beyond any box's need),
+// the runs are computed when applied, on the calling thread.
+constexpr size_t kMaxReservedCurves = 100000;
 
 }  // namespace
 
@@ -282,11 +288,12 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   // fold-grazing the fold curves of the orbits with and without the vanishing segment both pass,
   // at a double grazing the grazing curves of either touch. (Grazing candidates compared by kind
   // only were hidden by a grazing curve ending at a double grazing 4.5e-7 away.)
-  auto known = [&](const SwitchCandidate& candidate) {
+  // Reads curves[0, n) only: the workers call it on the curves applied so far (below).
+  auto known_in = [&](const TracedCurve* curves, size_t n, const SwitchCandidate& candidate) {
     const PeriodicOrbit& orbit = *candidate.orbit;
     const Signature& curve_signature = orbit.signature;
     const double u = orbit.params[i1], v = orbit.params[i2];
-    return std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
+    return std::any_of(curves, curves + n, [&](const TracedCurve& t) {
       // A curve's signature rotates where it crosses the Poincare section: any of its points'
       // signatures counts.
       if (t.curve.kind != candidate.kind) return false;
@@ -319,10 +326,20 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       });
     });
   };
-  // Whether a candidate needs its task: its orbit was found and its curve is not known.
-  auto needs_task = [&](const SwitchCandidate& candidate) {
-    return candidate.orbit.ok() && !known(candidate);
+  auto known = [&](const SwitchCandidate& candidate) {
+    return known_in(result->curves.data(), result->curves.size(), candidate);
   };
+  // With more than one thread a point's task computes its candidates' runs too, each unless its
+  // curve is known among the curves applied so far: `published` of them, at addresses that do
+  // not move while the stage runs (the room reserved for every curve it may append: up to the
+  // cap, and one cut short by a stop). A candidate known then is known when applied (the curves
+  // only grow); one not known then may be known when applied, its run dropped. With one thread
+  // the runs are computed when applied, as a plain loop would.
+  const size_t room = static_cast<size_t>(std::max(0, options.max_switched_curves - added)) + 1;
+  const bool speculate = workers.threads() > 1 && room <= kMaxReservedCurves;
+  if (speculate) result->curves.reserve(result->curves.size() + room);
+  const TracedCurve* const applied = result->curves.data();
+  std::atomic<size_t> published{result->curves.size()};
   // Applies what a candidate from point q of curve c (-1: one of its unverified ends) gave:
   // nothing when its curve is known (`is_known`), else the curve traced from its start (appended
   // to result->curves) or counted among the failures; a step-off no regular length starts is
@@ -379,6 +396,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       // (it hid two, of 11 and 80 points). The next length is tried.
       if (last_resort && StaysAt(curve, u, v, w1, w2, options.duplicate_distance)) continue;
       result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c), q});
+      published.store(result->curves.size(), std::memory_order_release);
       ++added;
       started = true;
     }
@@ -388,57 +406,66 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     return true;
   };
 
-  // The work, in the order one thread does it: per point, its candidates (a task), then each
-  // candidate's step-offs and curves (a task each, queued when the candidates are applied).
+  // The work, in the order one thread does it: per point, its candidates and their runs (one
+  // task; see `speculate`), applied in order; in the last round, one task per deferred
+  // candidate's run.
+  struct Work {
+    std::vector<SwitchCandidate> candidates;
+    std::vector<std::optional<CandidateRun>> runs;  // per candidate, if computed by the task
+  };
   struct Item {
-    bool candidates;  // a point's candidates, else one candidate's run
     size_t c;
     int q;  // the point: codim2[q] of curve c, -1 for unverified_ends[e - located]
     Codim2Point point;
-    SwitchCandidate candidate{Status(StatusCode::kUnimplemented, ""), SpecialPointKind::kFold,
-                              CurveKind::kFold};
-    bool queued = false;  // a task was queued for it
-  };
-  struct Work {
-    std::vector<SwitchCandidate> candidates;
-    CandidateRun run;
+    std::optional<SwitchCandidate> candidate;  // the last round's deferred candidate
   };
   TaskStage<Work> stage(workers);
   OrderedTasks<Work>& tasks = stage.tasks();
   std::deque<Item> items;
-  auto run_task = [&](const Item& item) {
-    return [&, point = item.point, candidate = item.candidate](int worker) {
-      Work w;
-      w.run = RunCandidate(model, workers.at(worker), options, co, i1, i2, point, candidate,
-                           last_resort);
-      return w;
-    };
+  // The runs of `w`'s candidates not known among the curves applied so far (`speculate`).
+  auto run_unknown = [&](Propagator& p, const Codim2Point& point, Work* w) {
+    w->runs.resize(w->candidates.size());
+    for (size_t i = 0; i < w->candidates.size() && !p.stopped(); ++i) {
+      const SwitchCandidate& candidate = w->candidates[i];
+      if (!candidate.orbit.ok() ||
+          known_in(applied, published.load(std::memory_order_acquire), candidate)) {
+        continue;
+      }
+      w->runs[i] = RunCandidate(model, p, options, co, i1, i2, point, candidate, last_resort);
+    }
   };
-  auto take_run = [&] { return std::move(tasks.TakeFront(wait)->run); };
-  // Applies the first item; false when the round ends (cap, stop).
+  auto queue = [&](Item item, CurveKind from_kind) {
+    tasks.Push([&, from_kind, point = item.point, fixed = item.candidate](int worker) {
+      Propagator& p = workers.at(worker);
+      Work w;
+      if (fixed.has_value()) {
+        w.candidates = {*fixed};
+      } else {
+        w.candidates = CandidatesAt(model, p, from_kind, point);
+      }
+      if (speculate) run_unknown(p, point, &w);
+      return w;
+    });
+    items.push_back(std::move(item));
+  };
+  // Applies the first item: its candidates in order, each from its run (computed by the task,
+  // else now on the calling thread's propagator). False when the round ends (cap, stop).
   auto apply_front = [&]() {
-    Item item = std::move(items.front());
+    const Item item = std::move(items.front());
     items.pop_front();
-    if (!item.candidates) {
-      // A candidate known when its task was queued is known now (the curves only grow): a task
-      // was queued for each one that was not.
-      const bool is_known = !item.queued || known(item.candidate);
-      if (item.queued && is_known) tasks.DropFront();
-      return apply(item.c, item.q, item.point, item.candidate, is_known, take_run);
-    }
-    std::vector<SwitchCandidate> candidates = std::move(tasks.TakeFront(wait)->candidates);
+    Work w = *tasks.TakeFront(wait);
     if (propagator.stopped()) return false;  // the candidates are not to be trusted
-    std::vector<Item> runs;
-    std::vector<OrderedTasks<Work>::Task> queued;
-    for (SwitchCandidate& candidate : candidates) {
-      Item run{false, item.c, item.q, item.point, std::move(candidate)};
-      run.queued = needs_task(run.candidate);
-      if (run.queued) queued.push_back(run_task(run));
-      runs.push_back(std::move(run));
+    w.runs.resize(w.candidates.size());
+    for (size_t i = 0; i < w.candidates.size(); ++i) {
+      const SwitchCandidate& candidate = w.candidates[i];
+      const bool is_known = candidate.orbit.ok() && known(candidate);
+      auto take = [&]() -> CandidateRun {
+        if (w.runs[i].has_value()) return *std::move(w.runs[i]);
+        return RunCandidate(model, propagator, options, co, i1, i2, item.point, candidate,
+                            last_resort);
+      };
+      if (!apply(item.c, item.q, item.point, candidate, is_known, take)) return false;
     }
-    tasks.PushFront(std::move(queued));
-    items.insert(items.begin(), std::make_move_iterator(runs.begin()),
-                 std::make_move_iterator(runs.end()));
     return true;
   };
 
@@ -449,10 +476,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     for (size_t k = 0; k < deferred.size(); ++k) {
       for (; next < deferred.size() && items.size() < stage.window(); ++next) {
         const DeferredStepOff& d = deferred[next];
-        Item item{false, d.curve, d.codim2, d.point, d.candidate};
-        item.queued = needs_task(item.candidate);
-        if (item.queued) tasks.Push(run_task(item));
-        items.push_back(std::move(item));
+        queue({d.curve, d.codim2, d.point, d.candidate}, d.candidate.kind);
       }
       if (!report(0.99)) return false;
       if (!apply_front()) return !propagator.stopped();
@@ -473,19 +497,14 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
         ++c, e = 0;
         continue;
       }
-      Item item{true, c, e < located ? static_cast<int>(e) : -1,
-                e < located ? curve.codim2[e] : curve.unverified_ends[e - located]};
-      tasks.Push([&, kind = curve.kind, point = item.point](int worker) {
-        Work w;
-        w.candidates = CandidatesAt(model, workers.at(worker), kind, point);
-        return w;
-      });
-      items.push_back(std::move(item));
+      queue({c, e < located ? static_cast<int>(e) : -1,
+             e < located ? curve.codim2[e] : curve.unverified_ends[e - located], std::nullopt},
+            curve.kind);
       ++e;
     }
   };
   for (queue_points(); !items.empty(); queue_points()) {
-    if (items.front().candidates && !report(0.99)) return false;
+    if (!report(0.99)) return false;
     if (!apply_front()) return !propagator.stopped();
   }
   return !propagator.stopped();
