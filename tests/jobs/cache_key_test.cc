@@ -8,41 +8,34 @@
 #include "jobs/optimum_cache.h"
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
+#include "support/small_requests.h"
 
 namespace drillbif::jobs {
 namespace {
 
-v1::TraceRequest Box() {
-  v1::TraceRequest r;
-  r.add_trace_params(std::string("omega"));
-  r.add_trace_params(std::string("a"));
-  r.add_min(0.05);
-  r.add_min(0.27);
-  r.add_max(0.2);
-  r.add_max(0.32);
-  return r;
-}
+using testing::SmallBoxTrace;
 
 TEST(CacheKey, ATraceOnOtherThreadsHasTheSameKeyAndAnotherBoxAnother) {
   const JobKindSpec& trace = *FindKind(v1::TRACE);
-  v1::TraceRequest one = Box(), four = Box(), wider = Box();
+  v1::TraceRequest one = SmallBoxTrace(), four = SmallBoxTrace(), wider = SmallBoxTrace();
   one.set_threads(1);
   four.set_threads(4);
   wider.set_max(0, 0.3);
   EXPECT_EQ(CacheKeyOf(trace, one), CacheKeyOf(trace, four));
-  EXPECT_EQ(CacheKeyOf(trace, one), CacheKeyOf(trace, Box()));  // threads unset
+  EXPECT_EQ(CacheKeyOf(trace, one), CacheKeyOf(trace, SmallBoxTrace()));  // threads unset
   EXPECT_NE(CacheKeyOf(trace, one), CacheKeyOf(trace, wider));
   EXPECT_EQ(four.threads(), 4);  // the request itself keeps them
   // Without the neutral field the key is the plain one of the request's bytes.
-  EXPECT_EQ(CacheKeyOf(trace, Box()), CacheKey("trace", DeterministicBytes(Box())));
+  EXPECT_EQ(CacheKeyOf(trace, SmallBoxTrace()),
+            CacheKey("trace", DeterministicBytes(SmallBoxTrace())));
 }
 
 TEST(CacheKey, AnOptimumOnOtherThreadsHasTheSameKey) {
   const JobKindSpec& optimum = *FindKind(v1::OPTIMUM);
   v1::OptimumRequest one, two, other_margin;
-  *one.mutable_trace() = Box();
+  *one.mutable_trace() = SmallBoxTrace();
   one.mutable_trace()->set_threads(1);
-  *two.mutable_trace() = Box();
+  *two.mutable_trace() = SmallBoxTrace();
   two.mutable_trace()->set_threads(2);
   other_margin = one;
   other_margin.add_margin(0.05);
@@ -54,7 +47,7 @@ TEST(CacheKey, AnOptimumOnOtherThreadsHasTheSameKey) {
 
 // The worker's cache of curves for optimum jobs: a trace on any threads serves an optimum.
 TEST(CacheKey, TheOptimumCacheKeysCurvesWithoutThreads) {
-  v1::TraceRequest one = Box(), two = Box(), wider = Box();
+  v1::TraceRequest one = SmallBoxTrace(), two = SmallBoxTrace(), wider = SmallBoxTrace();
   one.set_threads(1);
   two.set_threads(2);
   wider.set_max(0, 0.3);
