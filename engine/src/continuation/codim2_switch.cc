@@ -419,10 +419,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     Codim2Point point;
     std::optional<SwitchCandidate> candidate;  // the last round's deferred candidate
   };
-  TaskStage<Work> stage(workers);
-  OrderedTasks<Work>& tasks = stage.tasks();
-  std::deque<Item> items;
   // The runs of `w`'s candidates not known among the curves applied so far (`speculate`).
+  // (Declared before the stage, as is everything its tasks refer to: the stage's end waits for
+  // the tasks still running, e.g. after a stop.)
   auto run_unknown = [&](Propagator& p, const Codim2Point& point, Work* w) {
     w->runs.resize(w->candidates.size());
     for (size_t i = 0; i < w->candidates.size() && !p.stopped(); ++i) {
@@ -434,6 +433,9 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       w->runs[i] = RunCandidate(model, p, options, co, i1, i2, point, candidate, last_resort);
     }
   };
+  TaskStage<Work> stage(workers);
+  OrderedTasks<Work>& tasks = stage.tasks();
+  std::deque<Item> items;
   auto queue = [&](Item item, CurveKind from_kind) {
     tasks.Push([&, from_kind, point = item.point, fixed = item.candidate](int worker) {
       Propagator& p = workers.at(worker);
