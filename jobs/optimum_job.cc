@@ -58,7 +58,7 @@ StatusOr<OptimumOptions> ToOptimumOptions(const v1::OptimumRequest& request) {
 std::pair<int, int> GridFor(const v1::OptimumRequest& request, const OptimumOptions& o,
                             const TraceOptions& box) {
   if (request.grid_size() == 2) return {request.grid(0), request.grid(1)};
-  const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
+  const double w1 = box.width1(), w2 = box.width2();
   const double h1 = 0.5 * (o.scaled ? o.margin[0] * w1 : o.margin.front());
   const double h2 = 0.5 * (o.scaled ? o.margin[0] * w2 : o.margin.back());
   auto nodes = [](double width, double h) {
@@ -190,8 +190,8 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   out.set_region_seconds(Seconds(region_start));
   out.add_grid(n1);
   out.add_grid(n2);
-  out.add_spacing((region.max1 - region.min1) / (n1 - 1));
-  out.add_spacing((region.max2 - region.min2) / (n2 - 1));
+  out.add_spacing(region.width1() / (n1 - 1));
+  out.add_spacing(region.width2() / (n2 - 1));
   out.set_inside_nodes(region.summary.inside_nodes);
   if (region.summary.cancelled) {
     out.set_status("CANCELLED");

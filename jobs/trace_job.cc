@@ -278,8 +278,7 @@ StatusOr<TracePlan> PlanTrace(const v1::TraceRequest& request) {
 
 JobCost TraceCost(const TracePlan& plan) {
   const TraceOptions& o = plan.options;
-  const double area =
-      (o.max1 - o.min1) / ReferenceSpan(o.param1) * ((o.max2 - o.min2) / ReferenceSpan(o.param2));
+  const double area = o.width1() / ReferenceSpan(o.param1) * (o.width2() / ReferenceSpan(o.param2));
   const double periods = std::pow(kPeriodFactor, std::max(0, o.max_period - 1));
   const std::string box = "the box " + o.param1 + " in [" + Num(o.min1) + ", " + Num(o.max1) +
                           "], " + o.param2 + " in [" + Num(o.min2) + ", " + Num(o.max2) + "]";
@@ -353,10 +352,7 @@ bool TraceFailed(const TraceResult& trace) {
 
 RegionOptions RegionOptionsFor(const TraceOptions& trace, int n1, int n2) {
   RegionOptions o;
-  o.param1 = trace.param1;
-  o.param2 = trace.param2;
-  o.min1 = trace.min1, o.max1 = trace.max1;
-  o.min2 = trace.min2, o.max2 = trace.max2;
+  o.box() = trace.box();
   o.n1 = n1, o.n2 = n2;
   return o;
 }

@@ -223,7 +223,7 @@ CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
                           bool last_resort) {
   CandidateRun run;
   const PeriodicOrbit& orbit = *candidate.orbit;
-  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const double w1 = options.width1(), w2 = options.width2();
   const double u = orbit.params[i1], v = orbit.params[i2];
   std::vector<PeriodicOrbit> starts;
   if (candidate.step_off < 0) {
@@ -275,12 +275,11 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
                     const std::function<bool(double)>& report, size_t first_curve,
                     SwitchTally* tally, TraceResult* result, bool last_resort) {
   TraceSummary& sum = result->summary;
-  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const double w1 = options.width1(), w2 = options.width2();
   const int i1 = model.ParamIndex(options.param1).value();
   const int i2 = model.ParamIndex(options.param2).value();
   CurveOptions co = options.curve;
-  co.param1 = options.param1, co.min1 = options.min1, co.max1 = options.max1;
-  co.param2 = options.param2, co.min2 = options.min2, co.max2 = options.max2;
+  co.box() = options.box();
   int& added = tally->added;
   // Whether a candidate's curve is known: on a traced curve of the same kind and signature, by
   // its polyline or by one of its codimension-2 points (which lie between its vertices, off the

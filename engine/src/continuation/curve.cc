@@ -119,8 +119,8 @@ class CurveTracer {
     start_.head(m()) = bvp1_.Pack(start);
     start_[m()] = start.params[index1];
     start_[m() + 1] = start.params[index2];
-    if (std::isfinite(options.max1 - options.min1)) w1_ = options.max1 - options.min1;
-    if (std::isfinite(options.max2 - options.min2)) w2_ = options.max2 - options.min2;
+    if (std::isfinite(options.width1())) w1_ = options.width1();
+    if (std::isfinite(options.width2())) w2_ = options.width2();
     if (kind_ == CurveKind::kGrazing) {
       corner_ = internal::CornerSegment(model_, start);
       return;

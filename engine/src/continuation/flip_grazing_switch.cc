@@ -83,7 +83,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
                                  const TraceOptions& options,
                                  const std::function<bool(double)>& report, size_t first_curve,
                                  TraceResult* result) {
-  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const double w1 = options.width1(), w2 = options.width2();
   const std::string* names[2] = {&options.param1, &options.param2};
   const double lo[2] = {options.min1, options.min2}, hi[2] = {options.max1, options.max2};
   const double width[2] = {w1, w2};
@@ -298,7 +298,7 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
   // the period-2n ends that are not such merges lie 2e-4 or more from any period-n
   // flip-grazing. kPassSplit = 10 allows for the constant of other orbits; 1e-9 for the
   // corrector's rounding.
-  const double w1 = options.max1 - options.min1, w2 = options.max2 - options.min2;
+  const double w1 = options.width1(), w2 = options.width2();
   auto distance = [&](const Codim2Point& a, const Codim2Point& b) {
     return std::hypot((a.point.value1 - b.point.value1) / w1,
                       (a.point.value2 - b.point.value2) / w2);

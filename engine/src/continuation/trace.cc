@@ -317,7 +317,7 @@ bool TraceDriver::Validate() {
     return false;
   }
   i1_ = *i1, i2_ = *i2;
-  w1_ = options_.max1 - options_.min1, w2_ = options_.max2 - options_.min2;
+  w1_ = options_.width1(), w2_ = options_.width2();
   axes_[0] = {&options_.param1, i1_, options_.min1, options_.max1};
   axes_[1] = {&options_.param2, i2_, options_.min2, options_.max2};
   for (const Axis& a : axes_) {

@@ -98,7 +98,7 @@ RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOpti
     best.status = InvalidArgument("region: no grid");
     return best;
   }
-  const Eigen::Vector2d width(region.max1 - region.min1, region.max2 - region.min2);
+  const Eigen::Vector2d width(region.width1(), region.width2());
   Metric metric;
   metric.min = Eigen::Vector2d(region.min1, region.min2);
   if (options.scaled) {

@@ -25,8 +25,8 @@ RegionGrid MakeGrid(const RegionOptions& o) {
   RegionGrid g;
   g.n1 = o.n1;
   g.n2 = o.n2;
-  for (int i = 0; i < o.n1; ++i) g.values1.push_back(o.min1 + (o.max1 - o.min1) * i / (o.n1 - 1));
-  for (int j = 0; j < o.n2; ++j) g.values2.push_back(o.min2 + (o.max2 - o.min2) * j / (o.n2 - 1));
+  for (int i = 0; i < o.n1; ++i) g.values1.push_back(o.min1 + o.width1() * i / (o.n1 - 1));
+  for (int j = 0; j < o.n2; ++j) g.values2.push_back(o.min2 + o.width2() * j / (o.n2 - 1));
   g.values1.back() = o.max1;  // exactly: box edges are recognised by equality
   g.values2.back() = o.max2;
   g.label.assign(static_cast<size_t>(o.n1) * o.n2, RegionGrid::kOutside);
@@ -119,8 +119,8 @@ class RegionBuilder {
   bool Fill(const PeriodicOrbit& start) {
     region_.signatures = {start.signature};
     std::deque<int> queue;
-    const double f1 = (start.params[k1_] - options_.min1) / (options_.max1 - options_.min1);
-    const double f2 = (start.params[k2_] - options_.min2) / (options_.max2 - options_.min2);
+    const double f1 = (start.params[k1_] - options_.min1) / options_.width1();
+    const double f2 = (start.params[k2_] - options_.min2) / options_.width2();
     const int i0 = std::min(static_cast<int>(f1 * (grid_.n1 - 1)), grid_.n1 - 2);
     const int j0 = std::min(static_cast<int>(f2 * (grid_.n2 - 1)), grid_.n2 - 2);
     for (int dj = 0; dj < 2; ++dj) {
@@ -327,12 +327,7 @@ StabilityRegion ComputeStabilityRegion(const HybridModel& model, Propagator& pro
                                        const RegionOptions& options,
                                        const RegionProgress& progress) {
   StabilityRegion region;
-  region.param1 = options.param1;
-  region.param2 = options.param2;
-  region.min1 = options.min1;
-  region.max1 = options.max1;
-  region.min2 = options.min2;
-  region.max2 = options.max2;
+  region.box() = options.box();
   RegionSummary& summary = region.summary;
   if (Status s = options.Validate(); !s.ok()) {
     summary.status = s;

@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "drillbif/common/parameter_box.h"
 #include "drillbif/continuation/continuation.h"
 
 namespace drillbif {
@@ -41,13 +42,9 @@ namespace drillbif {
 enum class CurveKind { kFold, kPeriodDoubling, kGrazing, kNeimarkSacker };
 const char* CurveKindName(CurveKind kind);
 
-struct CurveOptions {
-  std::string param1;  // the parameter of the one-parameter continuation that found the point
-  std::string param2;  // the second parameter
-  double min1 = -std::numeric_limits<double>::infinity();  // the box: stop at its edges
-  double max1 = std::numeric_limits<double>::infinity();
-  double min2 = -std::numeric_limits<double>::infinity();
-  double max2 = std::numeric_limits<double>::infinity();
+// The box (ParameterBox): param1 is the parameter of the one-parameter continuation that found
+// the point, param2 the second; the curve stops at the box's edges (none unless set).
+struct CurveOptions : ParameterBox {
   // Shorter steps than a branch's: a first step of 0.02, 1e-8 to 1.0, a tolerance of 1e-10.
   // max_steps: curves of long orbits are long in the unknowns (at omega ~ 0.1 a period-2 orbit's
   // drift coordinate moves ~6000 times as far as omega along its PD curve): in the reference

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "drillbif/common/parameter_box.h"
 #include "drillbif/continuation/curve.h"
 
 namespace drillbif {
@@ -27,9 +28,8 @@ namespace drillbif {
 // The most threads a trace may ask for: more than any machine it runs on has cores.
 constexpr int kMaxTraceThreads = 256;
 
-struct TraceOptions {
-  std::string param1, param2;                             // e.g. "omega", "a"
-  double min1 = 0.0, max1 = 0.0, min2 = 0.0, max2 = 0.0;  // the box, finite, min < max
+// The box (ParameterBox): finite, min < max, the start orbit inside.
+struct TraceOptions : ParameterBox {
   // A located point within this distance of the polyline of an already traced curve started from
   // a point of the same kind (coordinates scaled by the box's widths) is taken as on it. Small on
   // purpose: near omega = 0.1, a = 0.16 distinct curves lie 1e-3 of the box apart, and a curve

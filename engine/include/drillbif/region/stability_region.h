@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "drillbif/common/parameter_box.h"
 #include "drillbif/common/status.h"
 #include "drillbif/continuation/trace.h"
 #include "drillbif/orbit/periodic_orbit.h"
@@ -48,9 +49,8 @@ struct RegionCurve {
 // one would be taken for the boundary.
 std::vector<RegionCurve> RegionCurvesOf(const std::vector<TracedCurve>& curves);
 
-struct RegionOptions {
-  std::string param1, param2;                             // e.g. "omega", "a"
-  double min1 = 0.0, max1 = 0.0, min2 = 0.0, max2 = 0.0;  // the box, finite, min < max
+// The box (ParameterBox): finite, min < max.
+struct RegionOptions : ParameterBox {
   // Grid nodes per parameter, >= 3 each. The region and the optimum are resolved to one spacing
   // (box width / (n - 1)); the cost grows with n1 * n2 (one Newton solve per node inside, plus
   // the failed ones around it). 101 resolves the reference (omega, a) box (omega in [0.05, 2],
@@ -117,9 +117,8 @@ struct RegionSummary {
   std::string message;
 };
 
-struct StabilityRegion {
-  std::string param1, param2;
-  double min1 = 0.0, max1 = 0.0, min2 = 0.0, max2 = 0.0;
+// The box (ParameterBox) is the options'.
+struct StabilityRegion : ParameterBox {
   std::vector<Signature> signatures;  // of the orbits inside; [0] is the start's
   RegionGrid grid;
   std::vector<RegionPolygon> polygons;
