@@ -8,8 +8,7 @@
 //
 // With one thread no thread is started: a task runs on the calling thread when its result is
 // taken, so a caller that queues one task at a time computes exactly what a plain loop would.
-// With more, workers take the first task in queue order that no worker has started (tasks queued
-// at the front, e.g. follow-ups of the task just taken, run first).
+// With more, workers take the first task in queue order that no worker has started.
 #ifndef DRILLBIF_COMMON_ORDERED_TASKS_H_
 #define DRILLBIF_COMMON_ORDERED_TASKS_H_
 
@@ -67,17 +66,6 @@ class OrderedTasks {
     }
     work_.notify_one();
   }
-  // Queues tasks before the others, in the given order.
-  void PushFront(std::vector<Task> tasks) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      for (auto it = tasks.rbegin(); it != tasks.rend(); ++it) {
-        queue_.push_front(std::make_shared<Slot>(std::move(*it)));
-      }
-    }
-    work_.notify_all();
-  }
-
   // Removes the first task queued without its result (not run if it has not started; if it runs,
   // its result is dropped when it ends).
   void DropFront() {

@@ -1,5 +1,5 @@
-// OrderedTasks: results in queue order whatever the schedule; tasks at the front first; one
-// thread computing only when a result is taken; two threads computing at once.
+// OrderedTasks: results in queue order whatever the schedule; one thread computing only when a
+// result is taken; two threads computing at once.
 #include "ordered_tasks.h"
 
 #include <gtest/gtest.h>
@@ -28,17 +28,6 @@ TEST(OrderedTasks, ResultsComeInQueueOrderWhateverOrderTheyFinishIn) {
   }
   for (int k = 0; k < 4; ++k) EXPECT_EQ(tasks.TakeFront(), k);
   EXPECT_FALSE(tasks.TakeFront().has_value());
-}
-
-TEST(OrderedTasks, TasksQueuedAtTheFrontComeFirstInTheirOrder) {
-  for (const int threads : {1, 2}) {
-    OrderedTasks<int> tasks(threads);
-    tasks.Push([](int) { return 3; });
-    tasks.PushFront({[](int) { return 1; }, [](int) { return 2; }});
-    EXPECT_EQ(tasks.TakeFront(), 1) << threads << " threads";
-    EXPECT_EQ(tasks.TakeFront(), 2) << threads << " threads";
-    EXPECT_EQ(tasks.TakeFront(), 3) << threads << " threads";
-  }
 }
 
 TEST(OrderedTasks, OneThreadRunsATaskOnlyWhenItsResultIsTaken) {
