@@ -228,7 +228,10 @@ std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Pro
     AdvanceRequest req;
     req.mode = seg.mode, req.x0 = orbit.starts[i], req.t_max = tau;
     const AdvanceResult r = propagator.Advance(req, orbit.params);
-    const bool own_end = r.guard == seg.guard && IsOwnEnd(model, propagator, orbit, i, r.duration);
+    // (Only an event has a guard: a failed or cancelled advance ends with guard -1, as does the
+    // segment ending at the section.)
+    const bool own_end = r.end == AdvanceEnd::kEvent && r.guard == seg.guard &&
+                         IsOwnEnd(model, propagator, orbit, i, r.duration);
     if (r.end == AdvanceEnd::kEvent && !own_end) {
       found.push_back({false, static_cast<int>(i), r.guard, r.duration == 0.0,
                        "segment " + std::to_string(i) + " (" +
