@@ -12,11 +12,9 @@
 #include <vector>
 
 #include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
 #include "problems/reference_box.h"
-#include "problems/reference_orbit.h"
 #include "support/multipliers.h"
-#include "support/special_point_near.h"
+#include "support/pd_curve_to_flip_grazings.h"
 #include "support/tangent_end.h"
 #include "trace_internal.h"
 
@@ -26,26 +24,15 @@ namespace {
 class FlipGrazingEntries : public ::testing::Test {
  protected:
   void SetUp() override {
-    const StatusOr<PeriodicOrbit> start =
-        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
-    ASSERT_TRUE(start.ok());
     opt_ = testing::ReferenceBox();
     opt_.max_period = 2;
-    ContinuationOptions branch;
-    branch.param = "omega";
-    branch.min = opt_.min1, branch.max = opt_.max1;
-    const ContinuationResult omega = Continue(model_, prop_, *start, branch);
-    const SpecialPoint* pd =
-        testing::SpecialPointNear(omega, SpecialPointKind::kPeriodDoubling, 1.6258, 1e-3);
-    ASSERT_NE(pd, nullptr);
-    CurveOptions co = opt_.curve;
-    co.param1 = opt_.param1, co.min1 = opt_.min1, co.max1 = opt_.max1;
-    co.param2 = opt_.param2, co.min2 = opt_.min2, co.max2 = opt_.max2;
-    result_.curves.push_back({*pd, "omega", ContinueCurve(model_, prop_, *pd, co)});
+    TracedCurve pd_curve;
+    ASSERT_TRUE(testing::PdCurveToFlipGrazings(model_, prop_, opt_, &pd_curve));
+    result_.curves.push_back(std::move(pd_curve));
     ASSERT_TRUE(GrazingCurvesAtFlipGrazings(
         model_, prop_, opt_, [](double) { return true; }, 0, &result_));
     ASSERT_GE(result_.curves.size(), 3u);
-    w1_ = opt_.max1 - opt_.min1, w2_ = opt_.max2 - opt_.min2;
+    w1_ = opt_.width1(), w2_ = opt_.width2();
   }
 
   // Box-scaled distance of two entries' parameters.

@@ -15,11 +15,9 @@
 #include <vector>
 
 #include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
 #include "problems/reference_box.h"
-#include "problems/reference_orbit.h"
+#include "support/pd_curve_to_flip_grazings.h"
 #include "support/period_two.h"
-#include "support/special_point_near.h"
 #include "support/tangent_end.h"
 #include "trace_internal.h"
 
@@ -29,22 +27,10 @@ namespace {
 TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   DriftingOscillator model;
   ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok());
   const TraceOptions box = testing::ReferenceBox();
-  ContinuationOptions branch;
-  branch.param = "omega";
-  branch.min = box.min1, branch.max = box.max1;
-  const ContinuationResult omega = Continue(model, prop, *start, branch);
-  const SpecialPoint* pd =
-      testing::SpecialPointNear(omega, SpecialPointKind::kPeriodDoubling, 1.6258, 1e-3);
-  ASSERT_NE(pd, nullptr);
-  CurveOptions co = box.curve;
-  co.param1 = box.param1, co.min1 = box.min1, co.max1 = box.max1;
-  co.param2 = box.param2, co.min2 = box.min2, co.max2 = box.max2;
   TraceResult result;
-  result.curves.push_back({*pd, "omega", ContinueCurve(model, prop, *pd, co)});
+  result.curves.emplace_back();
+  ASSERT_TRUE(testing::PdCurveToFlipGrazings(model, prop, box, &result.curves[0]));
   int flips = 0;
   for (const Codim2Point& q : result.curves[0].curve.codim2) {
     flips += q.kind == Codim2Kind::kFlipGrazing;
