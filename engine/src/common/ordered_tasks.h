@@ -51,7 +51,6 @@ class OrderedTasks {
   OrderedTasks(const OrderedTasks&) = delete;
   OrderedTasks& operator=(const OrderedTasks&) = delete;
 
-  int threads() const { return threads_; }
   // Tasks queued and not taken yet.
   size_t pending() const {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -112,24 +111,20 @@ class OrderedTasks {
     std::exception_ptr error;
   };
 
+  // The first task in queue order that no worker has started, or null. Under the lock.
+  std::shared_ptr<Slot> FirstNotStarted() const {
+    for (const std::shared_ptr<Slot>& s : queue_) {
+      if (!s->started) return s;
+    }
+    return nullptr;
+  }
+
   void Work(int worker) {
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
       std::shared_ptr<Slot> slot;
-      work_.wait(lock, [&] {
-        if (closing_) return true;
-        for (const std::shared_ptr<Slot>& s : queue_) {
-          if (!s->started) return true;
-        }
-        return false;
-      });
+      work_.wait(lock, [&] { return closing_ || (slot = FirstNotStarted()) != nullptr; });
       if (closing_) return;
-      for (const std::shared_ptr<Slot>& s : queue_) {
-        if (!s->started) {
-          slot = s;
-          break;
-        }
-      }
       slot->started = true;
       lock.unlock();
       try {

@@ -43,9 +43,6 @@ class WorkerPropagators {
   }
   WorkerPropagators(const WorkerPropagators&) = delete;
   WorkerPropagators& operator=(const WorkerPropagators&) = delete;
-  ~WorkerPropagators() {
-    for (const std::unique_ptr<Propagator>& p : clones_) p->set_progress(nullptr);
-  }
 
   int threads() const { return clones_.empty() ? 1 : static_cast<int>(clones_.size()); }
   Propagator& at(int worker) { return clones_.empty() ? own_ : *clones_[worker]; }
@@ -65,9 +62,10 @@ class WorkerPropagators {
 
  private:
   Propagator& own_;
-  std::vector<std::unique_ptr<Propagator>> clones_;
-  std::vector<std::unique_ptr<ProgressThrottle>> throttles_;
   std::atomic<bool> abandon_{false};
+  // Declared before the clones, so destroyed after them: a clone never points to a freed one.
+  std::vector<std::unique_ptr<ProgressThrottle>> throttles_;
+  std::vector<std::unique_ptr<Propagator>> clones_;
 };
 
 // One stage's queue of tasks on the workers. At its end (scope exit) the tasks still running are
