@@ -117,8 +117,8 @@ struct TraceSummary {
   Status status;           // OK, or why the trace could not start
   bool cancelled = false;  // progress returned false: curves are those traced until then
   // Starts skipped (duplicates, unsupported), with why; switching tallies; and, per period, how
-  // many codimension-2 points are known only to a bracket above 1e-8 (none of period 1 in issue
-  // 4's box).
+  // many codimension-2 points are known only to a bracket above 1e-8 (none of period 1 in the
+  // reference (omega, a) box).
   std::vector<std::string> notes;
   int branch_points = 0;  // points of the one-parameter runs
 };
