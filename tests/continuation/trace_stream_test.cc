@@ -1,9 +1,11 @@
 // TraceCurves: cancellation within the bound (support/cancel_probe.h) in its branches and curves
 // and while it switches at codimension-2 points, on one thread and on several; the curves handed
-// to on_curve (in order, as the result holds them at the end, each once it is final); and the same
+// to on_curve (each once it is final, as the result holds them at the end; the result keeping
+// only the ends and outline of a handed-over curve's vertices without vertex_states); and the same
 // result whatever the number of threads the curve tasks run on.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <string>
@@ -122,27 +124,55 @@ TEST_F(TraceStream, CurvesAreHandedOverInOrderAsTraced) {
   EXPECT_LT(stopped.curves.size(), full.curves.size());
 }
 
+// The indices in the order handed over: each curve once, in index order but for the curves held
+// back to the end (their end may merge at a flip-grazing: curves of even period), themselves in
+// index order.
+void ExpectHeldBackLast(const std::vector<int>& order, const TraceResult& r) {
+  std::vector<int> sorted = order;
+  std::sort(sorted.begin(), sorted.end());
+  ASSERT_EQ(sorted.size(), r.curves.size());
+  for (size_t k = 0; k < sorted.size(); ++k) ASSERT_EQ(sorted[k], static_cast<int>(k));
+  size_t held = 1;  // where the held-back curves start: after the last descent
+  for (size_t k = 1; k < order.size(); ++k) {
+    if (order[k] < order[k - 1]) held = k;
+  }
+  if (held == 1 && std::is_sorted(order.begin(), order.end())) return;
+  EXPECT_TRUE(std::is_sorted(order.begin(), order.begin() + held));
+  EXPECT_TRUE(std::is_sorted(order.begin() + held, order.end()));
+  for (size_t k = held; k < order.size(); ++k) {
+    const TracedCurve& c = r.curves[order[k]];
+    ASSERT_FALSE(c.curve.points.empty());
+    EXPECT_EQ(c.curve.points.front().orbit.signature.periods % 2, 0) << order[k];
+  }
+}
+
 // Period 2 (a box where period-2 curves end next to period-1 flip-grazings, which the trace's
-// last pass reports as those points): curves handed over in index order, each equal to what the
-// result holds at the end, so after that pass.
+// last pass reports as those points): each curve handed over once, equal to what the result holds
+// at the end, so after that pass; the curves held back for it handed over at the end, those after
+// them without waiting. With vertex_states false the same curves are handed over, and the result
+// keeps of a handed-over curve its ends and its outline (every vertex's parameters).
 TEST_F(TraceStream, PeriodTwoCurvesAreHandedOverFinal) {
   TraceOptions o = testing::ReferenceBox();
   o.max1 = 0.45;
   o.min2 = 0.27, o.max2 = 0.32;
   o.max_period = 2;
   std::vector<TracedCurve> seen;
-  const TraceResult r =
-      TraceCurves(model_, prop_, start_, o, {}, [&](int index, const TracedCurve& c) {
-        EXPECT_EQ(index, static_cast<int>(seen.size()));
-        seen.push_back(c);
-        return true;
-      });
+  std::vector<int> order;
+  auto keep = [&](int index, const TracedCurve& c) {
+    if (seen.size() <= static_cast<size_t>(index)) seen.resize(index + 1);
+    seen[index] = c;
+    order.push_back(index);
+    return true;
+  };
+  const TraceResult r = TraceCurves(model_, prop_, start_, o, {}, keep);
   ASSERT_FALSE(r.summary.cancelled);
   ASSERT_EQ(seen.size(), r.curves.size());
-  for (size_t k = 0; k < seen.size(); ++k)
+  for (size_t k = 0; k < seen.size(); ++k) {
     ExpectSameCurve(seen[k], r.curves[k], static_cast<int>(k));
+  }
+  ExpectHeldBackLast(order, r);
   // The last pass did change curves here (else the check above would not see a curve handed
-  // over too early).
+  // over too early), and a curve after a held one was handed over before it.
   int merged = 0;
   for (const TracedCurve& c : r.curves) {
     for (const Codim2Point& q : c.curve.codim2) {
@@ -150,27 +180,66 @@ TEST_F(TraceStream, PeriodTwoCurvesAreHandedOverFinal) {
     }
   }
   EXPECT_GT(merged, 0);
+  EXPECT_FALSE(std::is_sorted(order.begin(), order.end()));
+
+  const std::vector<TracedCurve> whole = std::move(seen);
+  seen.clear(), order.clear();
+  o.vertex_states = false;
+  const TraceResult released = TraceCurves(model_, prop_, start_, o, {}, keep);
+  ASSERT_EQ(seen.size(), whole.size());
+  ASSERT_EQ(released.curves.size(), whole.size());
+  EXPECT_EQ(released.summary.notes, r.summary.notes);
+  int thinned = 0;
+  for (size_t k = 0; k < whole.size(); ++k) {
+    ExpectSameCurve(seen[k], whole[k], static_cast<int>(k));
+    const std::vector<CurvePoint>& all = whole[k].curve.points;
+    const TracedCurve& kept = released.curves[k];
+    const CurveOutline& line = kept.outline;
+    ASSERT_EQ(line.size(), all.size()) << k;
+    for (size_t v = 0; v < all.size(); ++v) {
+      EXPECT_TRUE(SameBits(line.values1[v], all[v].value1) &&
+                  SameBits(line.values2[v], all[v].value2))
+          << k << " " << v;
+      EXPECT_EQ(line.SignatureAt(v), all[v].orbit.signature) << k << " " << v;
+    }
+    if (kept.curve.points.size() == all.size()) continue;  // kept whole (a PD curve seeding)
+    ++thinned;
+    ASSERT_EQ(kept.curve.points.size(), 2u) << k;
+    EXPECT_TRUE(SameBits(kept.curve.points.back().value1, all.back().value1)) << k;
+    EXPECT_EQ(kept.curve.points.back().orbit.starts.size(), all.back().orbit.starts.size()) << k;
+  }
+  EXPECT_GT(thinned, 0);
 }
 
 // The curve tasks on 2 and 3 threads (on this 2-core machine, 3 also exercises more workers than
 // cores): the same curves, to the bit, in the same order, the same notes and the same streamed
 // order as on one thread. The small box has branch points, switching at a flip-grazing and edge
-// branches; period 2 adds the period-2 branches and the last pass over their ends.
+// branches; period 2 adds the period-2 branches and the last pass over their ends. On 2 threads
+// without vertex_states (the trace job's setting): the curves as handed over, while the switching
+// tasks read the outlines of curves whose vertices are released meanwhile.
 TEST_F(TraceStream, TheSameCurvesWhateverTheThreads) {
   for (const int max_period : {1, 2}) {
     TraceOptions o = SmallBox();
     o.max_period = max_period;
     if (max_period == 2) o.max1 = 0.45;
-    const TraceResult one = TraceCurves(model_, prop_, start_, o);
+    std::vector<int> streamed_one;
+    const TraceResult one =
+        TraceCurves(model_, prop_, start_, o, {}, [&](int index, const TracedCurve&) {
+          streamed_one.push_back(index);
+          return true;
+        });
     ASSERT_TRUE(one.summary.status.ok());
     ASSERT_FALSE(one.summary.cancelled);
     ASSERT_GE(one.curves.size(), 3u);
     for (const int threads : {2, 3}) {
       o.threads = threads;
+      o.vertex_states = threads != 2;
       std::vector<int> streamed;
+      std::vector<TracedCurve> seen(one.curves.size());
       const TraceResult many =
-          TraceCurves(model_, prop_, start_, o, {}, [&](int index, const TracedCurve&) {
+          TraceCurves(model_, prop_, start_, o, {}, [&](int index, const TracedCurve& c) {
             streamed.push_back(index);
+            if (index < static_cast<int>(seen.size())) seen[index] = c;
             return true;
           });
       SCOPED_TRACE("max_period " + std::to_string(max_period) + ", " + std::to_string(threads) +
@@ -178,12 +247,13 @@ TEST_F(TraceStream, TheSameCurvesWhateverTheThreads) {
       ASSERT_FALSE(many.summary.cancelled);
       ASSERT_EQ(many.curves.size(), one.curves.size());
       for (size_t k = 0; k < one.curves.size(); ++k) {
-        ExpectSameCurve(many.curves[k], one.curves[k], static_cast<int>(k));
+        ExpectSameCurve(seen[k], one.curves[k], static_cast<int>(k));
+        if (o.vertex_states) ExpectSameCurve(many.curves[k], one.curves[k], static_cast<int>(k));
       }
       EXPECT_EQ(many.summary.notes, one.summary.notes);
       EXPECT_EQ(many.summary.branch_points, one.summary.branch_points);
-      ASSERT_EQ(streamed.size(), one.curves.size());
-      for (size_t k = 0; k < streamed.size(); ++k) EXPECT_EQ(streamed[k], static_cast<int>(k));
+      EXPECT_EQ(streamed, streamed_one);
+      ExpectHeldBackLast(streamed, many);
     }
   }
 }

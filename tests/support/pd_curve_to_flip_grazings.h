@@ -17,7 +17,8 @@
 namespace drillbif::testing {
 
 // That curve, traced with the box's and curve options of `box`, as a traced curve started from
-// the omega-branch; a failure when the reference orbit or the doubling is not found.
+// the omega-branch (its outline left to the caller: internal::OutlineOf); a failure when the
+// reference orbit or the doubling is not found.
 inline ::testing::AssertionResult PdCurveToFlipGrazings(const DriftingOscillator& model,
                                                         Propagator& prop, const TraceOptions& box,
                                                         TracedCurve* out) {
@@ -33,7 +34,9 @@ inline ::testing::AssertionResult PdCurveToFlipGrazings(const DriftingOscillator
   }
   CurveOptions co = box.curve;
   co.box() = box.box();
-  *out = {*pd, "omega", ContinueCurve(model, prop, *pd, co)};
+  out->start = *pd;
+  out->start_param = "omega";
+  out->curve = ContinueCurve(model, prop, *pd, co);
   return ::testing::AssertionSuccess();
 }
 

@@ -296,14 +296,17 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       // A curve's signature rotates where it crosses the Poincare section: any of its points'
       // signatures counts.
       if (t.curve.kind != candidate.kind) return false;
-      const CurvePoint* nearest = nullptr;
+      const CurveOutline& line = t.outline;
+      const auto same = std::find(line.signatures.begin(), line.signatures.end(), curve_signature);
+      if (same == line.signatures.end()) return false;
+      const int signature = static_cast<int>(same - line.signatures.begin());
+      size_t nearest = 0;
       double nearest_distance = std::numeric_limits<double>::infinity();
-      for (const CurvePoint& p : t.curve.points) {
-        if (p.orbit.signature != curve_signature) continue;
-        const double d = std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2);
-        if (d < nearest_distance) nearest_distance = d, nearest = &p;
+      for (size_t k = 0; k < line.size(); ++k) {
+        if (line.signature[k] != signature) continue;
+        const double d = std::hypot((line.values1[k] - u) / w1, (line.values2[k] - v) / w2);
+        if (d < nearest_distance) nearest_distance = d, nearest = k;
       }
-      if (nearest == nullptr) return false;
       // Nor does it always tell which touch: where one contact phase touches its guard twice
       // (two tangent ends in a row at a double grazing), the curves of either touch alone have
       // the same signature and differ in how long the tangent segment is (5.5 and 24.5 at
@@ -312,13 +315,14 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       // curve whose point of that signature next to this one (within 1e-2 of the box) has other
       // durations, beyond a longest step and 10%, is another curve.
       if (nearest_distance <= 1e-2) {
-        const std::vector<double>& d0 = nearest->orbit.durations;
+        const double* d0 = line.durations.data() + line.durations_from[nearest];
+        const size_t n0 = line.durations_from[nearest + 1] - line.durations_from[nearest];
         const std::vector<double>& d1 = orbit.durations;
-        for (size_t i = 0; i < d0.size() && i < d1.size(); ++i) {
+        for (size_t i = 0; i < n0 && i < d1.size(); ++i) {
           if (std::abs(d0[i] - d1[i]) > co.steps.max_step + 0.1 * std::abs(d1[i])) return false;
         }
       }
-      if (OnCurve(t.curve, u, v, w1, w2, options.duplicate_distance)) return true;
+      if (OnCurve(line, u, v, w1, w2, options.duplicate_distance)) return true;
       return std::any_of(t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
         return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
                options.duplicate_distance;
@@ -369,7 +373,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       if (run.stopped && t + 1 == run.tries.size()) {
         // Cut short by a stop: kept with what it has (termination kCancelled), if anything.
         if (!curve.points.empty()) {
-          result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c), q});
+          AppendCurve(seed, "", std::move(curve), result, static_cast<int>(c), q);
         }
         return false;
       }
@@ -394,7 +398,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       // would also hide the real curve of its signature through the point from a later start
       // (it hid two, of 11 and 80 points). The next length is tried.
       if (last_resort && StaysAt(curve, u, v, w1, w2, options.duplicate_distance)) continue;
-      result->curves.push_back({seed, "", std::move(curve), static_cast<int>(c), q});
+      AppendCurve(seed, "", std::move(curve), result, static_cast<int>(c), q);
       published.store(result->curves.size(), std::memory_order_release);
       ++added;
       started = true;

@@ -28,6 +28,7 @@ class FlipGrazingEntries : public ::testing::Test {
     opt_.max_period = 2;
     TracedCurve pd_curve;
     ASSERT_TRUE(testing::PdCurveToFlipGrazings(model_, prop_, opt_, &pd_curve));
+    pd_curve.outline = OutlineOf(pd_curve.curve);
     result_.curves.push_back(std::move(pd_curve));
     ASSERT_TRUE(GrazingCurvesAtFlipGrazings(
         model_, prop_, opt_, [](double) { return true; }, 0, &result_));

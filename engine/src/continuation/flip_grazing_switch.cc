@@ -161,7 +161,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
               std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
                 return t.curve.kind == CurveKind::kGrazing && !t.curve.points.empty() &&
                        t.curve.points.front().orbit.signature.periods == 2 * n &&
-                       DistanceToCurve(t.curve, gu, gv, w1, w2) <= options.duplicate_distance;
+                       DistanceToCurve(t.outline, gu, gv, w1, w2) <= options.duplicate_distance;
               });
           if (known) {
             done = true;
@@ -177,8 +177,8 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
             // Cut short by a stop: kept with what it has (termination kCancelled), if anything.
             if (a == 1) SwapValues(&curve);
             if (!curve.points.empty()) {
-              result->curves.push_back(
-                  {*graze, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
+              AppendCurve(*graze, "", std::move(curve), result, static_cast<int>(c),
+                          static_cast<int>(q));
             }
             return false;
           }
@@ -187,7 +187,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
             continue;
           }
           if (a == 1) SwapValues(&curve);
-          double closest = DistanceToCurve(curve, u, v, w1, w2);
+          double closest = DistanceToCurve(OutlineOf(curve), u, v, w1, w2);
           for (const Codim2Point& z : curve.codim2) {
             closest =
                 std::min(closest, std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2));
@@ -196,8 +196,8 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
             why = "the grazing curve found does not approach it";
             continue;
           }
-          result->curves.push_back(
-              {*graze, "", std::move(curve), static_cast<int>(c), static_cast<int>(q)});
+          AppendCurve(*graze, "", std::move(curve), result, static_cast<int>(c),
+                      static_cast<int>(q));
           done = true;
           break;
         }

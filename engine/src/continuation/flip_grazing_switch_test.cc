@@ -31,6 +31,7 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
   TraceResult result;
   result.curves.emplace_back();
   ASSERT_TRUE(testing::PdCurveToFlipGrazings(model, prop, box, &result.curves[0]));
+  result.curves[0].outline = OutlineOf(result.curves[0].curve);
   int flips = 0;
   for (const Codim2Point& q : result.curves[0].curve.codim2) {
     flips += q.kind == Codim2Kind::kFlipGrazing;
@@ -104,7 +105,8 @@ TEST(FlipGrazingSwitch, GrazingCurveOfPeriodTwoLeavesEachFlipGrazing) {
     EXPECT_LT(back[0], 1e-5);
     EXPECT_EQ(leaving->curve.kind, CurveKind::kGrazing);
     EXPECT_EQ(leaving->from_curve, 0);
-    EXPECT_LE(DistanceToCurve(leaving->curve, q.point.value1, q.point.value2, w1, w2), 1e-2);
+    EXPECT_LE(DistanceToCurve(OutlineOf(leaving->curve), q.point.value1, q.point.value2, w1, w2),
+              1e-2);
     for (const CurvePoint& p : leaving->curve.points) {
       ASSERT_EQ(p.orbit.signature.periods, 2);
       EXPECT_TRUE(CheckAdmissible(model, prop, p.orbit).admissible);

@@ -55,24 +55,56 @@ Status TraceOptions::Validate() const {
 
 namespace internal {
 
-double DistanceToCurve(const CurveResult& c, double u, double v, double w1, double w2) {
-  const Eigen::Vector2d x(u / w1, v / w2);
-  double best = std::numeric_limits<double>::infinity();
-  for (size_t k = 0; k < c.points.size(); ++k) {
-    const CurvePoint& a = c.points[k];
-    const CurvePoint& b = c.points[k + 1 < c.points.size() ? k + 1 : k];
-    best = std::min(best,
-                    DistanceL2(x, {a.value1 / w1, a.value2 / w2}, {b.value1 / w1, b.value2 / w2}));
+CurveOutline OutlineOf(const CurveResult& c) {
+  CurveOutline o;
+  const size_t n = c.points.size();
+  o.values1.reserve(n), o.values2.reserve(n), o.signature.reserve(n);
+  o.durations_from.reserve(n + 1);
+  o.durations_from.push_back(0);
+  for (const CurvePoint& p : c.points) {
+    o.values1.push_back(p.value1);
+    o.values2.push_back(p.value2);
+    // A curve's signature changes only at its switches: the last one first.
+    const Signature& s = p.orbit.signature;
+    int k = static_cast<int>(o.signatures.size()) - 1;
+    for (; k >= 0 && !(o.signatures[k] == s); --k) {
+    }
+    if (k < 0) {
+      k = static_cast<int>(o.signatures.size());
+      o.signatures.push_back(s);
+    }
+    o.signature.push_back(k);
+    o.durations.insert(o.durations.end(), p.orbit.durations.begin(), p.orbit.durations.end());
+    o.durations_from.push_back(o.durations.size());
   }
+  return o;
+}
+
+void AppendCurve(const SpecialPoint& start, std::string start_param, CurveResult curve,
+                 TraceResult* result, int from_curve, int from_codim2) {
+  TracedCurve& t = result->curves.emplace_back();
+  t.start = start;
+  t.start_param = std::move(start_param);
+  t.outline = OutlineOf(curve);
+  t.curve = std::move(curve);
+  t.from_curve = from_curve;
+  t.from_codim2 = from_codim2;
+}
+
+double DistanceToCurve(const CurveOutline& c, double u, double v, double w1, double w2) {
+  const Eigen::Vector2d x(u / w1, v / w2);
+  const size_t n = c.size();
+  auto at = [&](size_t k) { return Eigen::Vector2d(c.values1[k] / w1, c.values2[k] / w2); };
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < n; ++k)
+    best = std::min(best, DistanceL2(x, at(k), at(k + 1 < n ? k + 1 : k)));
   return best;
 }
 
-bool OnCurve(const CurveResult& c, double u, double v, double w1, double w2, double tol) {
+bool OnCurve(const CurveOutline& c, double u, double v, double w1, double w2, double tol) {
   const Eigen::Vector2d x(u / w1, v / w2);
-  const size_t n = c.points.size();
-  auto at = [&](size_t k) {
-    return Eigen::Vector2d(c.points[k].value1 / w1, c.points[k].value2 / w2);
-  };
+  const size_t n = c.size();
+  auto at = [&](size_t k) { return Eigen::Vector2d(c.values1[k] / w1, c.values2[k] / w2); };
   // The turning angle at vertex k (0 at the ends).
   auto turn = [&](size_t k) {
     if (k == 0 || k + 1 >= n) return 0.0;
@@ -153,55 +185,83 @@ bool Traceable(SpecialPointKind kind) {
          kind == SpecialPointKind::kNeimarkSacker || internal::IsGrazing(kind);
 }
 
+// Whether the trace may read a curve's vertices whole after it is appended: the period-n PD
+// curves with 2n <= max_period, from whose vertices the period-2n grazing curves start.
+bool KeptWhole(int max_period, const TracedCurve& c) {
+  return c.curve.kind == CurveKind::kPeriodDoubling && !c.curve.points.empty() &&
+         2 * c.curve.points.front().orbit.signature.periods <= max_period;
+}
+
 // Drops the section states (PeriodicOrbit::starts) and monodromy of a curve's interior vertices
 // (TraceOptions::vertex_states false). The trace reads no more of them: its tests for known curves
-// read parameters, signatures and durations; edge branches start from a curve's first and last
-// vertices; switching from codimension-2 points and unverified ends, and the period-2n grazing
-// curves from the vertices of the period-n PD curves with 2n <= max_period, which are kept whole.
+// read the outline; edge branches start from a curve's first and last vertices; switching from
+// codimension-2 points and unverified ends.
 void DropVertexStates(int max_period, TracedCurve* c) {
   std::vector<CurvePoint>& points = c->curve.points;
-  if (points.size() < 3) return;
-  if (c->curve.kind == CurveKind::kPeriodDoubling &&
-      2 * points.front().orbit.signature.periods <= max_period) {
-    return;
-  }
+  if (points.size() < 3 || KeptWhole(max_period, *c)) return;
   for (size_t k = 1; k + 1 < points.size(); ++k) {
     std::vector<StateVector>().swap(points[k].orbit.starts);
     points[k].stability.monodromy.resize(0, 0);
   }
 }
 
-// Hands the curves to TraceCurves' on_curve in order, each once it is final; first, without
-// TraceOptions::vertex_states, drops the vertex states of the curves appended since the last call
-// (DropVertexStates), so that memory does not hold them for the curves kept until the trace's end.
+// Releases a handed-over curve's interior vertices (TraceOptions::vertex_states false): `points`
+// keeps its first and last.
+void ReleaseInterior(int max_period, TracedCurve* c) {
+  std::vector<CurvePoint>& points = c->curve.points;
+  if (points.size() < 3 || KeptWhole(max_period, *c)) return;
+  points.erase(points.begin() + 1, points.end() - 1);
+  points.shrink_to_fit();
+}
+
+// Hands the curves to TraceCurves' on_curve, each once it is final (the held-back ones at the
+// end); without TraceOptions::vertex_states, first drops the vertex states of the curves appended
+// since the last call (DropVertexStates), and releases the interior vertices of those handed over
+// (ReleaseInterior), so that memory does not hold them until the trace's end.
 class CurveStream {
  public:
   CurveStream(const TracedCurveCallback& on_curve, const TraceOptions& options, TraceResult& result)
       : on_curve_(on_curve), options_(options), result_(result) {}
-  // Hands over the curves from the next one on while they are final (`all`: every one, the
-  // trace having ended). False when on_curve asked to stop.
+  // Hands over the curves final by now (`all`: every one, the trace having ended). False when
+  // on_curve asked to stop.
   bool Flush(bool all) {
-    for (; !options_.vertex_states && dropped_ < result_.curves.size(); ++dropped_) {
-      DropVertexStates(options_.max_period, &result_.curves[dropped_]);
+    std::vector<TracedCurve>& curves = result_.curves;
+    for (; !options_.vertex_states && dropped_ < curves.size(); ++dropped_) {
+      DropVertexStates(options_.max_period, &curves[dropped_]);
     }
     if (!on_curve_ || stopped_) return !stopped_;
-    for (; next_ < result_.curves.size(); ++next_) {
-      const TracedCurve& c = result_.curves[next_];
-      if (!all && internal::MayMergeAtFlipGrazing(c)) return true;
-      if (!on_curve_(static_cast<int>(next_), c)) {
-        stopped_ = true;  // called no more
+    for (; next_ < curves.size(); ++next_) {
+      if (!all && internal::MayMergeAtFlipGrazing(curves[next_])) {
+        held_.push_back(next_);
+      } else if (!HandOver(next_)) {
         return false;
       }
+    }
+    if (all) {
+      for (const size_t c : held_) {
+        if (!HandOver(c)) return false;
+      }
+      held_.clear();
     }
     return true;
   }
 
  private:
+  bool HandOver(size_t c) {
+    if (!on_curve_(static_cast<int>(c), result_.curves[c])) {
+      stopped_ = true;  // called no more
+      return false;
+    }
+    if (!options_.vertex_states) ReleaseInterior(options_.max_period, &result_.curves[c]);
+    return true;
+  }
+
   const TracedCurveCallback& on_curve_;
   const TraceOptions& options_;
   TraceResult& result_;
-  size_t next_ = 0;
-  size_t dropped_ = 0;  // curves whose vertex states are dropped (vertex_states false)
+  size_t next_ = 0;           // curves from here on not looked at yet
+  std::vector<size_t> held_;  // curves held back until the end (index order)
+  size_t dropped_ = 0;        // curves whose vertex states are dropped (vertex_states false)
   bool stopped_ = false;
 };
 
@@ -510,7 +570,7 @@ const TracedCurve* TraceDriver::KnownCurve(const SpecialPoint& s) const {
       std::find_if(result_.curves.begin(), result_.curves.end(), [&](const TracedCurve& c) {
         return c.start.kind == s.kind &&
                c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
-               DistanceToCurve(c.curve, u, v, w1_, w2_) <= options_.duplicate_distance;
+               DistanceToCurve(c.outline, u, v, w1_, w2_) <= options_.duplicate_distance;
       });
   return it == result_.curves.end() ? nullptr : &*it;
 }
@@ -571,7 +631,7 @@ bool TraceDriver::TraceStarts(size_t first, double from, double to) {
     // trace ends cancelled (Stopped() records it; `cut ||` before it would skip the record).
     const bool cut = curve.summary.termination == Termination::kCancelled;
     if (!cut || !curve.points.empty()) {
-      result_.curves.push_back({s, *axes_[axis].name, std::move(curve)});
+      internal::AppendCurve(s, *axes_[axis].name, std::move(curve), &result_);
     }
     if (cut) sum_.cancelled = true;
     if (Stopped()) return false;

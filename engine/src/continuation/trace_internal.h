@@ -13,8 +13,15 @@ namespace drillbif::internal {
 
 class WorkerPropagators;  // continuation/curve_tasks.h
 
+// The outline of a curve's vertices (TracedCurve::outline).
+CurveOutline OutlineOf(const CurveResult& c);
+
+// Appends the curve traced from `start` to the result, with its outline (TracedCurve's fields).
+void AppendCurve(const SpecialPoint& start, std::string start_param, CurveResult curve,
+                 TraceResult* result, int from_curve = -1, int from_codim2 = -1);
+
 // Distance from (u, v) to the polyline of the curve, coordinates scaled by the box's widths.
-double DistanceToCurve(const CurveResult& c, double u, double v, double w1, double w2);
+double DistanceToCurve(const CurveOutline& c, double u, double v, double w1, double w2);
 
 // Whether (u, v) lies on the curve: within `tol` of its polyline plus, at each chord, an estimate
 // of how far the curve bows away from it between the vertices (chord length times the turning
@@ -22,7 +29,7 @@ double DistanceToCurve(const CurveResult& c, double u, double v, double w1, doub
 // beyond which the estimate means nothing). Coordinates scaled by the box's widths. For points
 // solved on a curve of the same kind and signature: a polyline's chord error (~1e-4 of the box
 // with COARSE steps) can exceed any fixed tolerance small enough to keep curves 1e-3 apart apart.
-bool OnCurve(const CurveResult& c, double u, double v, double w1, double w2, double tol);
+bool OnCurve(const CurveOutline& c, double u, double v, double w1, double w2, double tol);
 
 // The curve with (value1, value2) swapped, for a curve traced with the parameters in the other
 // order.

@@ -287,10 +287,8 @@ std::vector<RegionCurve> RegionCurvesOf(const std::vector<TracedCurve>& curves) 
   for (const TracedCurve& c : curves) {
     RegionCurve& rc = out.emplace_back();
     if (c.start.point.orbit.signature.periods != 1) continue;
-    for (const CurvePoint& p : c.curve.points) {
-      rc.values1.push_back(p.value1);
-      rc.values2.push_back(p.value2);
-    }
+    rc.values1 = c.outline.values1;
+    rc.values2 = c.outline.values2;
   }
   return out;
 }

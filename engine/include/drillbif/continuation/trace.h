@@ -79,13 +79,14 @@ struct TraceOptions : ParameterBox {
   // each touch alone (one is the curve it came from). A candidate on a curve already traced with
   // the same kind and signature is skipped.
   bool switch_at_codim2 = true;
-  // Whether every curve vertex keeps its section states (PeriodicOrbit::starts) and monodromy
-  // (Stability::monodromy). False: a curve's interior vertices keep their parameters, signature,
-  // durations, measures and multipliers only (its first and last vertices, codimension-2 points,
-  // unverified ends, and the period-n PD curves with 2n <= max_period stay whole: the trace starts
-  // branches and curves from them), from when the curve is appended; the section states are most
-  // of a vertex's memory (a period-2 orbit's ~20 segments: ~1.6 of its ~2.4 KB). For callers that
-  // read no more of a vertex, such as the trace job.
+  // Whether every curve vertex stays in the result whole. False, for callers that read a curve's
+  // vertices from TraceCurves' on_curve only (the trace job): a curve's interior vertices drop
+  // their section states (PeriodicOrbit::starts) and monodromy (Stability::monodromy) when it is
+  // appended, and are released from `points` once it is handed over to on_curve, its outline
+  // (TracedCurve::outline) keeping what the trace reads of them. The first and last vertices,
+  // codimension-2 points, unverified ends, and the period-n PD curves with 2n <= max_period stay
+  // whole (the trace starts branches and curves from them). A period-2 vertex holds ~2.4 KB whole,
+  // ~0.75 KB without its states, ~0.2 KB in the outline.
   bool vertex_states = true;
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
   // what the reference box needs (436 curves in all; 2884 with max_period 2, which 2000 cut short).
@@ -102,6 +103,21 @@ struct TraceOptions : ParameterBox {
   Status Validate() const;
 };
 
+// What the trace reads of a curve's vertices once they may be released (TraceOptions::
+// vertex_states): its polyline, and each vertex's signature and durations (the tests for known
+// curves tell curves through one point apart by them). A period-2 vertex takes ~200 bytes here
+// against ~750 as a CurvePoint.
+struct CurveOutline {
+  std::vector<double> values1, values2;  // each vertex's (lambda1, lambda2)
+  std::vector<Signature> signatures;     // the distinct signatures, in the order first met
+  std::vector<int> signature;            // each vertex's, an index into `signatures`
+  std::vector<double> durations;         // every vertex's durations, one vertex after another
+  std::vector<size_t> durations_from;    // vertex k's are [durations_from[k], [k + 1]) of them
+
+  size_t size() const { return values1.size(); }
+  const Signature& SignatureAt(size_t k) const { return signatures[signature[k]]; }
+};
+
 // Where a traced curve came from.
 struct TracedCurve {
   SpecialPoint start;       // the located point it was traced from
@@ -111,6 +127,7 @@ struct TracedCurve {
   int from_codim2 = -1;     // and that point's index in its codim2, -1 for one of its
                             // unverified_ends (`start` is the point the curve was continued
                             // from: that point, or one stepped off it)
+  CurveOutline outline;     // of curve.points, set when the trace appends the curve
 };
 
 struct TraceSummary {
@@ -137,15 +154,15 @@ using TraceProgress = std::function<bool(double fraction)>;
 
 // Receives a traced curve when it is final, with its index in TraceResult::curves (the curve is
 // valid during the call only); returning false stops the trace as the progress callback does.
-// Called once per curve, in index order, on the calling thread. A curve is final when it is
-// appended, except a period-2n curve with a codimension-2 end bracketed only above 1e-8: the
-// trace's last pass may report that end as the period-n FLIP_GRAZING its orbit merges into
-// (internal::EndsAtFlipGrazings), so it is handed over at the end, and the curves after it with
-// it (index order). With max_period 1 every curve is handed over as soon as it is traced. The
-// curves are kept in the result as well (the trace needs them to skip duplicates and switch; see
-// TraceOptions::vertex_states for their size). Exception: the same_as_curve / same_as_index fields
-// of codimension-2 entries (a point met from several curves, Codim2Point) are set by that last
-// pass, after the hand-over; read them in the result.
+// Called once per curve, on the calling thread, in index order but for the curves held back: a
+// curve is final when it is appended, except a period-2n curve with a codimension-2 end bracketed
+// only above 1e-8, whose end the trace's last pass may report as the period-n FLIP_GRAZING its
+// orbit merges into (internal::EndsAtFlipGrazings); those are handed over at the end, in index
+// order, and the curves after them do not wait. With max_period 1 every curve is handed over as
+// soon as it is traced. The curves are kept in the result as well (the trace needs them to skip
+// duplicates and switch; see TraceOptions::vertex_states for their size). Exception: the
+// same_as_curve / same_as_index fields of codimension-2 entries (a point met from several curves,
+// Codim2Point) are set by that last pass, after the hand-over; read them in the result.
 using TracedCurveCallback = std::function<bool(int index, const TracedCurve& curve)>;
 
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,

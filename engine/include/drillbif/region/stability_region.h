@@ -44,9 +44,9 @@ struct RegionCurve {
   std::vector<double> values1, values2;  // vertices in order, same length
 };
 
-// The traced curves' polylines, in the same order (so a vertex's `curve` indexes both); curves of
-// period-n orbits (n > 1) are left empty: they do not bound period-1 motion, and a crossing of
-// one would be taken for the boundary.
+// The traced curves' polylines (their outlines, TracedCurve::outline), in the same order (so a
+// vertex's `curve` indexes both); curves of period-n orbits (n > 1) are left empty: they do not
+// bound period-1 motion, and a crossing of one would be taken for the boundary.
 std::vector<RegionCurve> RegionCurvesOf(const std::vector<TracedCurve>& curves);
 
 // The box (ParameterBox): finite, min < max.
