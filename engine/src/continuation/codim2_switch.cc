@@ -300,12 +300,15 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       const auto same = std::find(line.signatures.begin(), line.signatures.end(), curve_signature);
       if (same == line.signatures.end()) return false;
       const int signature = static_cast<int>(same - line.signatures.begin());
-      size_t nearest = 0;
+      size_t nearest = 0;  // the nearest vertex's durations, from line.durations[nearest]
       double nearest_distance = std::numeric_limits<double>::infinity();
-      for (size_t k = 0; k < line.size(); ++k) {
-        if (line.signature[k] != signature) continue;
-        const double d = std::hypot((line.values1[k] - u) / w1, (line.values2[k] - v) / w2);
-        if (d < nearest_distance) nearest_distance = d, nearest = k;
+      for (size_t k = 0, from = 0; k < line.size(); ++k) {
+        const size_t count = line.SignatureAt(k).segments.size();
+        if (line.signature[k] == signature) {
+          const double d = std::hypot((line.values1[k] - u) / w1, (line.values2[k] - v) / w2);
+          if (d < nearest_distance) nearest_distance = d, nearest = from;
+        }
+        from += count;
       }
       // Nor does it always tell which touch: where one contact phase touches its guard twice
       // (two tangent ends in a row at a double grazing), the curves of either touch alone have
@@ -315,8 +318,8 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       // curve whose point of that signature next to this one (within 1e-2 of the box) has other
       // durations, beyond a longest step and 10%, is another curve.
       if (nearest_distance <= 1e-2) {
-        const double* d0 = line.durations.data() + line.durations_from[nearest];
-        const size_t n0 = line.durations_from[nearest + 1] - line.durations_from[nearest];
+        const float* d0 = line.durations.data() + nearest;
+        const size_t n0 = curve_signature.segments.size();
         const std::vector<double>& d1 = orbit.durations;
         for (size_t i = 0; i < n0 && i < d1.size(); ++i) {
           if (std::abs(d0[i] - d1[i]) > co.steps.max_step + 0.1 * std::abs(d1[i])) return false;

@@ -59,8 +59,6 @@ CurveOutline OutlineOf(const CurveResult& c) {
   CurveOutline o;
   const size_t n = c.points.size();
   o.values1.reserve(n), o.values2.reserve(n), o.signature.reserve(n);
-  o.durations_from.reserve(n + 1);
-  o.durations_from.push_back(0);
   for (const CurvePoint& p : c.points) {
     o.values1.push_back(p.value1);
     o.values2.push_back(p.value2);
@@ -75,8 +73,8 @@ CurveOutline OutlineOf(const CurveResult& c) {
     }
     o.signature.push_back(k);
     o.durations.insert(o.durations.end(), p.orbit.durations.begin(), p.orbit.durations.end());
-    o.durations_from.push_back(o.durations.size());
   }
+  o.durations.shrink_to_fit();
   return o;
 }
 
