@@ -5,7 +5,6 @@
 #include <cmath>
 #include <complex>
 #include <functional>
-#include <memory>
 #include <vector>
 
 #include "continuation/bordered_sigma.h"
