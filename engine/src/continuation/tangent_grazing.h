@@ -124,9 +124,10 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
 // recomputing only the monodromy factors (orbit/monodromy.h) an unknown moves: a start's
 // component moves its own factor (for a model with a LinearForm only its saltation, from the
 // segment's flow), a duration its own and, through the later segments' phases, every later one,
-// taken to first order as suffix dF_l / ds_l prefix summed once per segment (4k factors per row
-// instead of k^2; the second-order terms left out are even in the step and cancel in the central
-// difference to O(h^2), its own truncation). `base` and `flows` are MonodromyFactors(orbit) and
+// taken to first order as suffix dF_l / ds_l prefix summed once per segment (the durations'
+// columns flow 4k factors instead of k^2, the starts' none with a LinearForm; the second-order
+// terms left out are even in the step and cancel in the central difference to O(h^2), its own
+// truncation). `base` and `flows` are MonodromyFactors(orbit) and
 // the flows they were made from. The scheme of the fold / PD curves' condition row (CurveTracer),
 // centred.
 void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
