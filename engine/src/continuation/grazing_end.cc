@@ -5,7 +5,6 @@
 #include <cmath>
 #include <complex>
 #include <functional>
-#include <memory>
 #include <vector>
 
 #include "continuation/bordered_sigma.h"
@@ -16,29 +15,19 @@ namespace drillbif::internal {
 
 namespace {
 
-// The curve's own defining condition as a function of an orbit near `guess`: sigma of the
-// shifted monodromy (bordered at `guess`) on a fold / PD / NS curve, h' at the (first) tangent end
-// on a grazing curve.
-std::function<double(const PeriodicOrbit&)> OwnCondition(const HybridModel& model,
-                                                         Propagator& propagator,
-                                                         const PeriodicOrbit& guess,
-                                                         CurveKind kind) {
+// The curve's own defining condition near `guess`: sigma of the shifted monodromy (bordered at
+// `guess`) on a fold / PD / NS curve, h' at the (first) tangent end on a grazing curve.
+ExtraCondition OwnCondition(const HybridModel& model, Propagator& propagator,
+                            const PeriodicOrbit& guess, CurveKind kind) {
   if (kind == CurveKind::kGrazing) {
-    return [&model, &propagator](const PeriodicOrbit& o) {
+    return ExtraCondition::OfOrbit([&model, &propagator](const PeriodicOrbit& o) {
       return TangentEndRate(model, propagator, o);
-    };
+    });
   }
-  // The monodromy alone (Stability::monodromy without the multipliers): the fixed-length and
-  // codimension-2 solves evaluate this 2n + 1 times per Newton iteration (central differences),
-  // each difference moving one unknown, and so few of the factors.
-  auto factors = std::make_shared<FactorCache>();
-  auto monodromy = [&model, &propagator, factors](const PeriodicOrbit& o) {
-    return ReducedMonodromy(model, factors->Of(model, propagator, o));
-  };
-  const BorderedSigma sigma(ShiftedMonodromy(kind, monodromy(guess)));
-  return [kind, sigma, monodromy](const PeriodicOrbit& o) {
-    return sigma(ShiftedMonodromy(kind, monodromy(o)));
-  };
+  const BorderedSigma sigma(
+      ShiftedMonodromy(kind, ReducedMonodromy(model, MonodromyFactors(model, propagator, guess))));
+  return ExtraCondition::OfMonodromy(
+      [kind, sigma](const Eigen::MatrixXd& m) { return sigma(ShiftedMonodromy(kind, m)); });
 }
 
 }  // namespace
@@ -55,13 +44,12 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
   }
   // h' at the last tangent end, and the curve's own condition: on a grazing curve h' at the
   // first, so that both touches count, whichever of them is the new one.
-  const auto own = OwnCondition(model, propagator, guess, kind);
-  return SolveWithConditions(
-      model, propagator, guess, {index1, index2},
-      [&](const PeriodicOrbit& o) {
-        return Eigen::Vector2d(TangentEndRates(model, propagator, o).back(), own(o)).eval();
-      },
-      tolerance, "codimension-2 system");
+  return SolveWithConditions(model, propagator, guess, {index1, index2},
+                             {ExtraCondition::OfOrbit([&](const PeriodicOrbit& o) {
+                                return TangentEndRates(model, propagator, o).back();
+                              }),
+                              OwnCondition(model, propagator, guess, kind)},
+                             tolerance, "codimension-2 system");
 }
 
 StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator& propagator,
@@ -84,16 +72,19 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
   // Newton on the orbit, both parameters and the curve's condition (bordered at `from`), with the
   // segment held at `length`.
   auto solve_from = [&](const PeriodicOrbit& from) {
-    const auto own = OwnCondition(model, propagator, from, kind);
     return SolveWithConditions(
         model, propagator, from, {index1, index2},
-        [&](const PeriodicOrbit& o) {
-          return Eigen::Vector2d(o.durations[segment] - length, own(o)).eval();
-        },
+        {ExtraCondition::Duration(segment, length), OwnCondition(model, propagator, from, kind)},
         tolerance, length == 0.0 ? "zero-length segment system" : "fixed segment-length system");
   };
   const int next = segment + 1;
-  if (length > 0.0 && guess.durations[segment] == 0.0 &&
+  // Not for a grazing curve: its orbit's tangent end, held only by h = 0 with one parameter free
+  // (its h' = 0 is the curve's condition, left out there), is where that system's two crossings
+  // of the guard merge, a double root: Newton halves its step towards it and stagnates at
+  // rounding's floor (in the reference box 99% of these solves failed, most after 16 to 30
+  // iterations, and every grazing step-off but one that succeeded did so from the root itself,
+  // the whole system's h' = 0 making it regular).
+  if (kind != CurveKind::kGrazing && length > 0.0 && guess.durations[segment] == 0.0 &&
       next < static_cast<int>(guess.durations.size()) && guess.durations[next] > length) {
     // Stepped off a zero-length segment whose ends lie on one guard (CrossingForm's: the touch
     // become a crossing there and back). At length zero the two ends' guard rows coincide and
@@ -111,11 +102,8 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
     g.durations[next] -= length;
     for (const int free : {index1, index2}) {
       const StatusOr<PeriodicOrbit> consistent = SolveWithConditions(
-          model, propagator, g, {free},
-          [&](const PeriodicOrbit& o) {
-            return Eigen::VectorXd::Constant(1, o.durations[segment] - length);
-          },
-          tolerance, "fixed segment-length orbit");
+          model, propagator, g, {free}, {ExtraCondition::Duration(segment, length)}, tolerance,
+          "fixed segment-length orbit");
       if (!consistent.ok()) continue;
       StatusOr<PeriodicOrbit> solved = solve_from(*consistent);
       if (solved.ok()) return solved;
@@ -189,15 +177,16 @@ StatusOr<PeriodicOrbit> SolveMergedTouchEnd(const HybridModel& model, Propagator
     const StatusOr<PeriodicOrbit> merged = MergedForm(guess, j - 1);
     if (!merged.ok()) return merged.status();
     const int e = j - 1;
+    auto at_end = [&model, &propagator, e](const PeriodicOrbit& o) {
+      const SegmentSpec& s = o.signature.segments[e];
+      const StateVector end =
+          propagator.FlowMap(s.mode, o.starts[e], o.durations[e], o.params, {}).x;
+      return model.Guard(s.mode, s.guard, end, o.params);
+    };
     return SolveWithConditions(
         model, propagator, *merged, {index1, index2},
-        [&model, &propagator, e](const PeriodicOrbit& o) {
-          const SegmentSpec& s = o.signature.segments[e];
-          const StateVector end =
-              propagator.FlowMap(s.mode, o.starts[e], o.durations[e], o.params, {}).x;
-          const GuardValue g = model.Guard(s.mode, s.guard, end, o.params);
-          return Eigen::Vector2d(g.dh, g.ddh).eval();
-        },
+        {ExtraCondition::OfOrbit([at_end](const PeriodicOrbit& o) { return at_end(o).dh; }),
+         ExtraCondition::OfOrbit([at_end](const PeriodicOrbit& o) { return at_end(o).ddh; })},
         tolerance, "merged touch system");
   }
   if (!(segs[j].tangent && j + 1 < k && segs[j + 1].mode == segs[j].mode)) {
@@ -215,18 +204,22 @@ StatusOr<PeriodicOrbit> SolveMergedTouchEnd(const HybridModel& model, Propagator
   const GuardValue g0 = at(guess, 0.0);
   const double scale = 1.0 + guess.starts[j].lpNorm<Eigen::Infinity>();
   const bool structural = std::abs(g0.h) <= 1e-12 * scale && std::abs(g0.dh) <= 1e-12 * scale;
-  return SolveWithConditions(
-      model, propagator, *merged, {index1, index2},
-      [&at, structural](const PeriodicOrbit& o) {
-        const GuardValue g = at(o, 0.0);
-        if (!structural) return Eigen::Vector2d(g.h, g.dh).eval();
-        // h''' by the one-sided second-order difference of h'' (exact, from the model) along
-        // the flow: truncation ~ dt^2 |h^(5)| / 3, rounding ~ eps |h''| / dt.
-        constexpr double dt = 1e-5;
-        const double d3 = (-3.0 * g.ddh + 4.0 * at(o, dt).ddh - at(o, 2.0 * dt).ddh) / (2.0 * dt);
-        return Eigen::Vector2d(g.ddh, d3).eval();
-      },
-      tolerance, "merged touch system");
+  // (h, h') at the start, or (h'', h''') with h''' by the one-sided second-order difference of
+  // h'' (exact, from the model) along the flow: truncation ~ dt^2 |h^(5)| / 3, rounding
+  // ~ eps |h''| / dt.
+  auto first = [&at, structural](const PeriodicOrbit& o) {
+    const GuardValue g = at(o, 0.0);
+    return structural ? g.ddh : g.h;
+  };
+  auto second = [&at, structural](const PeriodicOrbit& o) {
+    const GuardValue g = at(o, 0.0);
+    if (!structural) return g.dh;
+    constexpr double dt = 1e-5;
+    return (-3.0 * g.ddh + 4.0 * at(o, dt).ddh - at(o, 2.0 * dt).ddh) / (2.0 * dt);
+  };
+  return SolveWithConditions(model, propagator, *merged, {index1, index2},
+                             {ExtraCondition::OfOrbit(first), ExtraCondition::OfOrbit(second)},
+                             tolerance, "merged touch system");
 }
 
 bool TouchesAtStart(const HybridModel& model, const PeriodicOrbit& orbit, int segment, int guard) {

@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "continuation/signature_switch.h"
+#include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif::internal {
@@ -201,37 +203,178 @@ StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator
   if (std::isnan(TangentEndRate(model, propagator, guess))) {
     return InvalidArgument("the guess has no tangent end");
   }
-  return SolveWithConditions(
-      model, propagator, guess, {param},
-      [&](const PeriodicOrbit& o) {
-        return Eigen::VectorXd::Constant(1, TangentEndRate(model, propagator, o));
-      },
-      tolerance, "tangency system");
+  return SolveWithConditions(model, propagator, guess, {param},
+                             {ExtraCondition::OfOrbit([&](const PeriodicOrbit& o) {
+                               return TangentEndRate(model, propagator, o);
+                             })},
+                             tolerance, "tangency system");
 }
 
-StatusOr<PeriodicOrbit> SolveWithConditions(
-    const HybridModel& model, Propagator& propagator, const PeriodicOrbit& guess,
-    const std::vector<int>& free,
-    const std::function<Eigen::VectorXd(const PeriodicOrbit&)>& conditions, double tolerance,
-    const std::string& what) {
+ExtraCondition ExtraCondition::Duration(int segment, double length) {
+  ExtraCondition c;
+  c.kind = Kind::kDuration;
+  c.segment = segment;
+  c.length = length;
+  return c;
+}
+
+ExtraCondition ExtraCondition::OfMonodromy(std::function<double(const Eigen::MatrixXd&)> f) {
+  ExtraCondition c;
+  c.kind = Kind::kMonodromy;
+  c.of_monodromy = std::move(f);
+  return c;
+}
+
+ExtraCondition ExtraCondition::OfOrbit(std::function<double(const PeriodicOrbit&)> f) {
+  ExtraCondition c;
+  c.kind = Kind::kOrbit;
+  c.of_orbit = std::move(f);
+  return c;
+}
+
+double ConditionValue(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+                      const ExtraCondition& condition) {
+  switch (condition.kind) {
+    case ExtraCondition::Kind::kDuration:
+      return orbit.durations[condition.segment] - condition.length;
+    case ExtraCondition::Kind::kMonodromy:
+      return condition.of_monodromy(
+          ReducedMonodromy(model, MonodromyFactors(model, propagator, orbit)));
+    case ExtraCondition::Kind::kOrbit:
+      break;
+  }
+  return condition.of_orbit(orbit);
+}
+
+namespace {
+
+// The difference step of an unknown of value v (ConditionRow).
+double Step(double v) { return 1e-6 * (1.0 + std::abs(v)); }
+
+// The orbit at y = (X of `bvp`, the free parameters' values), the other parameters from `params`.
+PeriodicOrbit UnpackWithParams(const OrbitBvp& bvp, const std::vector<int>& free,
+                               const Params& params, const Eigen::VectorXd& y) {
+  const int m = bvp.size();
+  Params p = params;
+  for (size_t l = 0; l < free.size(); ++l) p[free[l]] = y[m + static_cast<int>(l)];
+  PeriodicOrbit o;
+  bvp.Unpack(y.head(m), p, &o);
+  return o;
+}
+
+}  // namespace
+
+void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+                  const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
+                  const std::function<double(const Eigen::MatrixXd&)>& f,
+                  Eigen::Ref<Eigen::RowVectorXd> row) {
+  const int k = static_cast<int>(base.size()), d = model.state_dim() - 1;
+  const int ps = model.phase_index();
+  const double omega = model.ForcingFrequency(orbit.params);
+  // prefix[i] = F_{i-1} ... F_0, suffix[i] = F_{k-1} ... F_i.
+  std::vector<StateMatrix> prefix(k + 1), suffix(k + 1);
+  prefix[0] = suffix[k] = StateMatrix::Identity(d + 1, d + 1);
+  for (int i = 0; i < k; ++i) prefix[i + 1] = base[i] * prefix[i];
+  for (int i = k - 1; i >= 0; --i) suffix[i] = suffix[i + 1] * base[i];
+  PeriodicOrbit op = orbit;  // perturbed in place, restored after each use
+  // F_l with the input `value` (a start's component or a duration of op) moved by `by`.
+  auto moved = [&](int l, double& value, double by) {
+    const double v0 = value;
+    value += by;
+    StateMatrix out = SegmentFactor(model, propagator, op, l);
+    value = v0;
+    return out;
+  };
+  // later[i] = sum over l > i of suffix[l + 1] (dF_l / ds_l) prefix[l]: d M per unit phase shift
+  // of every segment after i (a duration moves the later phases by omega per unit).
+  std::vector<StateMatrix> later(k);
+  later[k - 1] = StateMatrix::Zero(d + 1, d + 1);
+  for (int l = k - 1; l >= 1; --l) {
+    double& s = op.starts[l][ps];
+    const double h = Step(s);
+    const StateMatrix dfl = (moved(l, s, h) - moved(l, s, -h)) / (2.0 * h);
+    later[l - 1] = later[l] + suffix[l + 1] * dfl * prefix[l];
+  }
+  // With a LinearForm the flow is affine in the start's non-phase part: moving it moves the end
+  // by Phi dx and leaves Phi, so only the saltation is recomputed, from the segment's flow.
+  const bool affine = dynamic_cast<const LinearForm*>(&model) != nullptr;
+  for (int i = 0; i < k; ++i) {
+    const FlowResult& flow = flows[i];
+    for (int r = 0; r <= d; ++r) {
+      const int state = r < ps ? r : r + 1;  // the start's component X holds at this position
+      double h;
+      // M with this unknown moved by sign * h.
+      auto full = [&](double sign) -> StateMatrix {
+        if (r < d && affine) {
+          const StateVector x_end = flow.x + (sign * h) * flow.state_jacobian.col(state);
+          return suffix[i + 1] * FactorFromFlow(model, orbit, i, x_end, flow.state_jacobian) *
+                 prefix[i];
+        }
+        if (r < d) return suffix[i + 1] * moved(i, op.starts[i][state], sign * h) * prefix[i];
+        return prefix[k] +
+               suffix[i + 1] * (moved(i, op.durations[i], sign * h) - base[i]) * prefix[i] +
+               (sign * omega * h) * later[i];
+      };
+      h = Step(r < d ? orbit.starts[i][state] : orbit.durations[i]);
+      row[i * (d + 1) + r] =
+          (f(WithoutPhase(model, full(1.0))) - f(WithoutPhase(model, full(-1.0)))) / (2.0 * h);
+    }
+  }
+}
+
+double ConditionRow(const HybridModel& model, Propagator& propagator, const OrbitBvp& bvp,
+                    const std::vector<int>& free, const Params& params, const Eigen::VectorXd& y,
+                    const ExtraCondition& condition, Eigen::RowVectorXd* row) {
+  const int m = bvp.size(), n = static_cast<int>(y.size());
+  const PeriodicOrbit o = UnpackWithParams(bvp, free, params, y);
+  row->setZero(n);
+  if (condition.kind == ExtraCondition::Kind::kDuration) {
+    (*row)[bvp.DurationIndex(condition.segment)] = 1.0;
+    return ConditionValue(model, propagator, o, condition);
+  }
+  double c0;
+  int first = 0;  // the first column by whole evaluations
+  if (condition.kind == ExtraCondition::Kind::kMonodromy) {
+    std::vector<FlowResult> flows;
+    const std::vector<StateMatrix> factors = MonodromyFactors(model, propagator, o, &flows);
+    c0 = condition.of_monodromy(ReducedMonodromy(model, factors));
+    MonodromyRow(model, propagator, o, factors, flows, condition.of_monodromy, row->head(m));
+    first = m;
+  } else {
+    c0 = condition.of_orbit(o);
+  }
+  for (int j = first; j < n; ++j) {
+    const double h = Step(y[j]);
+    Eigen::VectorXd yp = y, ym = y;
+    yp[j] += h;
+    ym[j] -= h;
+    (*row)[j] =
+        (ConditionValue(model, propagator, UnpackWithParams(bvp, free, params, yp), condition) -
+         ConditionValue(model, propagator, UnpackWithParams(bvp, free, params, ym), condition)) /
+        (2.0 * h);
+  }
+  return c0;
+}
+
+StatusOr<PeriodicOrbit> SolveWithConditions(const HybridModel& model, Propagator& propagator,
+                                            const PeriodicOrbit& guess,
+                                            const std::vector<int>& free,
+                                            const std::vector<ExtraCondition>& conditions,
+                                            double tolerance, const std::string& what) {
   const int q = static_cast<int>(free.size());
   if (q < 1 || q > 2) return InvalidArgument("one or two free parameters");
+  if (static_cast<int>(conditions.size()) != q) {
+    return InvalidArgument("the conditions must have one row per free parameter");
+  }
   OrbitBvp bvp(model, propagator, guess.signature, free[0], q > 1 ? free[1] : -1);
   const int m = bvp.size(), n = m + q;
   Params params = guess.params;
   Eigen::VectorXd y(n);
   y.head(m) = bvp.Pack(guess);
   for (int l = 0; l < q; ++l) y[m + l] = params[free[l]];
-  auto unpack = [&](const Eigen::VectorXd& yy) {
-    Params p = params;
-    for (int l = 0; l < q; ++l) p[free[l]] = yy[m + l];
-    PeriodicOrbit o;
-    bvp.Unpack(yy.head(m), p, &o);
-    return o;
-  };
-  auto c = [&](const Eigen::VectorXd& yy) { return conditions(unpack(yy)); };
   Eigen::VectorXd g, gp[2], f(n);
   Eigen::MatrixXd gx, jac(n, n);
+  Eigen::RowVectorXd row;
   std::vector<double> steps;  // scaled step norms, for the stagnation test below
   for (int it = 0; it < 30; ++it) {
     for (int l = 0; l < q; ++l) params[free[l]] = y[m + l];
@@ -240,33 +383,27 @@ StatusOr<PeriodicOrbit> SolveWithConditions(
         !s.ok()) {
       return s;
     }
-    const Eigen::VectorXd c0 = c(y);
-    if (c0.size() != q)
-      return InvalidArgument("the conditions must have one row per free parameter");
     f.head(m) = g;
-    f.tail(q) = c0;
     jac.setZero();
     jac.topLeftCorner(m, m) = gx;
     for (int l = 0; l < q; ++l) jac.col(m + l).head(m) = gp[l];
-    for (int j = 0; j < n; ++j) {
-      const double h = 1e-6 * (1.0 + std::abs(y[j]));
-      Eigen::VectorXd yp = y, ym = y;
-      yp[j] += h, ym[j] -= h;
-      jac.block(m, j, q, 1) = (c(yp) - c(ym)) / (2.0 * h);
+    for (int l = 0; l < q; ++l) {
+      f[m + l] = ConditionRow(model, propagator, bvp, free, params, y, conditions[l], &row);
+      jac.row(m + l) = row;
     }
     if (!f.allFinite() || !jac.allFinite()) return Internal("non-finite " + what);
     const Eigen::VectorXd step = jac.partialPivLu().solve(-f);
     if (!step.allFinite()) return Internal("singular " + what);
     y += step;
     const double scaled = step.lpNorm<Eigen::Infinity>() / (1.0 + y.lpNorm<Eigen::Infinity>());
-    if (scaled <= tolerance) return unpack(y);
+    if (scaled <= tolerance) return UnpackWithParams(bvp, free, params, y);
     // Stagnation: Newton that has not shrunk its smallest step tenfold over the last 8
     // iterations (after 16) is not converging, even linearly (a contraction of 0.75 per step
-    // would): stop rather than spend the remaining iterations, each 2n evaluations of the
-    // conditions. Without this test the failing step-offs take about a quarter of the reference
-    // box's trace time; with it the step-offs that succeed are the same, and so are the
-    // codimension-2 points found (plus a double grazing that COARSE steps find either way). (A
-    // window of 6 after 12 loses a slowly converging step-off.)
+    // would): stop rather than spend the remaining iterations. Without this test the failing
+    // step-offs take about a quarter of the reference box's trace time; with it the step-offs
+    // that succeed are the same, and so are the codimension-2 points found (plus a double
+    // grazing that COARSE steps find either way). (A window of 6 after 12 loses a slowly
+    // converging step-off.)
     steps.push_back(scaled);
     const int k = static_cast<int>(steps.size());
     if (k >= 16 && *std::min_element(steps.end() - 8, steps.end()) >

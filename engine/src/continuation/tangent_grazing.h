@@ -16,6 +16,8 @@
 
 namespace drillbif::internal {
 
+class OrbitBvp;  // orbit/orbit_bvp.h
+
 // The orbit `orbit` re-expressed with segment i dropped and segment i - 1 ending tangentially;
 // INVALID_ARGUMENT unless 0 < i < k - 1 and segments i - 1 and i + 1 share their mode.
 StatusOr<PeriodicOrbit> TangentForm(const PeriodicOrbit& orbit, int i);
@@ -78,17 +80,71 @@ StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator
                                             const PeriodicOrbit& guess, int param,
                                             double tolerance = 1e-12);
 
+// One extra condition of SolveWithConditions: its value at an orbit and how its row of Newton's
+// matrix (its derivative in the orbit's unknowns X and the free parameters) is made.
+struct ExtraCondition {
+  enum class Kind {
+    kDuration,   // durations[segment] - length: a duration is one of X, its row a unit row
+    kMonodromy,  // of_monodromy(reduced monodromy): MonodromyRow, then the parameters' columns
+    kOrbit,      // of_orbit(orbit): differences of whole evaluations
+  };
+  // Segment `segment` held at `length`; exact row.
+  static ExtraCondition Duration(int segment, double length);
+  // A function of the orbit's monodromy without its phase row and column (sigma of the shifted
+  // monodromy on a fold / PD / NS curve).
+  static ExtraCondition OfMonodromy(std::function<double(const Eigen::MatrixXd&)> f);
+  // Any other function of the orbit.
+  static ExtraCondition OfOrbit(std::function<double(const PeriodicOrbit&)> f);
+
+  Kind kind = Kind::kOrbit;
+  int segment = -1;                                            // kDuration: the held segment
+  double length = 0.0;                                         // kDuration: its length
+  std::function<double(const Eigen::MatrixXd&)> of_monodromy;  // kMonodromy: the function
+  std::function<double(const PeriodicOrbit&)> of_orbit;        // kOrbit: the function
+};
+
+// The condition's value at `orbit`.
+double ConditionValue(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+                      const ExtraCondition& condition);
+
+// The condition's value at y = (X of `bvp`, then params[free[0]], params[free[1]]) with the other
+// parameters from `params`, and its row of Newton's matrix there (*row, y.size() long): exact for
+// kDuration, else central differences of step h = 1e-6 (1 + |y_j|) (truncation h^2 |c'''| / 6,
+// 2e-13 |c'''|, and rounding eps |c| / h, 2e-10 |c|; forward differences, with their error
+// h |c''| / 2, left Newton stagnating on the fixed-length systems a few 1e-6 from a contact phase
+// vanishing between flights, where the condition's derivatives grow like powers of 1 / length),
+// for kMonodromy by MonodromyRow over X and whole evaluations for the parameters (every factor
+// moves with them). The row only steers Newton; the residual is exact.
+double ConditionRow(const HybridModel& model, Propagator& propagator, const OrbitBvp& bvp,
+                    const std::vector<int>& free, const Params& params, const Eigen::VectorXd& y,
+                    const ExtraCondition& condition, Eigen::RowVectorXd* row);
+
+// Central differences of f(M) over the orbit's unknowns X (OrbitBvp's order: each segment's start
+// without its phase, then its duration; ConditionRow's step), M the reduced monodromy,
+// recomputing only the monodromy factors (orbit/monodromy.h) an unknown moves: a start's
+// component moves its own factor (for a model with a LinearForm only its saltation, from the
+// segment's flow), a duration its own and, through the later segments' phases, every later one,
+// taken to first order as suffix dF_l / ds_l prefix summed once per segment (the durations'
+// columns flow 4k factors instead of k^2, the starts' none with a LinearForm; the second-order
+// terms left out are even in the step and cancel in the central difference to O(h^2), its own
+// truncation). `base` and `flows` are MonodromyFactors(orbit) and
+// the flows they were made from. The scheme of the fold / PD curves' condition row (CurveTracer),
+// centred.
+void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+                  const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
+                  const std::function<double(const Eigen::MatrixXd&)>& f,
+                  Eigen::Ref<Eigen::RowVectorXd> row);
+
 // Newton on (G = 0, c = 0) from `guess` in its signature, with the unknowns X and the parameters
-// `free` (one or two); c = conditions(orbit) has free.size() components, so the system is square.
-// G's Jacobian is exact, c's rows central differences (step 1e-6 (1 + |y_j|): truncation and
-// rounding both ~1e-12 for O(1) conditions; they only steer Newton, the residual is exact).
-// Stops at a scaled step <= tolerance; INTERNAL when Newton fails or stagnates (no tenfold
+// `free` (one or two), one condition per free parameter so that the system is square. G's
+// Jacobian is exact, the conditions' rows ConditionRow's (they only steer Newton, the residual is
+// exact). Stops at a scaled step <= tolerance; INTERNAL when Newton fails or stagnates (no tenfold
 // shrinking of the step over 8 iterations, after 16) (`what` names the system).
-StatusOr<PeriodicOrbit> SolveWithConditions(
-    const HybridModel& model, Propagator& propagator, const PeriodicOrbit& guess,
-    const std::vector<int>& free,
-    const std::function<Eigen::VectorXd(const PeriodicOrbit&)>& conditions, double tolerance,
-    const std::string& what);
+StatusOr<PeriodicOrbit> SolveWithConditions(const HybridModel& model, Propagator& propagator,
+                                            const PeriodicOrbit& guess,
+                                            const std::vector<int>& free,
+                                            const std::vector<ExtraCondition>& conditions,
+                                            double tolerance, const std::string& what);
 
 }  // namespace drillbif::internal
 

@@ -1,0 +1,174 @@
+// The rows of SolveWithConditions' extra conditions (tangent_grazing.h: ConditionRow), each
+// checked against central differences of the condition's value.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "../orbit/monodromy.h"  // the engine's internal headers, by their path from here
+#include "../orbit/orbit_bvp.h"
+#include "bordered_sigma.h"
+#include "support/reference_orbit_test.h"
+#include "tangent_grazing.h"
+
+namespace drillbif {
+namespace {
+
+using internal::ExtraCondition;
+
+// The reference orbit with omega and a free (the two-parameter trace's parameters).
+class ExtraConditionRows : public testing::ReferenceOrbitTest {
+ protected:
+  void SetUp() override {
+    ReferenceOrbitTest::SetUp();
+    if (HasFatalFailure()) return;
+    free_ = {model_.ParamIndex("omega").value(), model_.ParamIndex("a").value()};
+    ASSERT_GE(start_.durations.size(), 3u) << "the check wants events between segments";
+  }
+
+  internal::OrbitBvp Bvp() {
+    return internal::OrbitBvp(model_, prop_, start_.signature, free_[0], free_[1]);
+  }
+
+  // y = (X, omega, a) of the reference orbit.
+  Eigen::VectorXd Unknowns(const internal::OrbitBvp& bvp) const {
+    const int m = bvp.size();
+    Eigen::VectorXd y(m + 2);
+    y.head(m) = bvp.Pack(start_);
+    y[m] = start_.params[free_[0]];
+    y[m + 1] = start_.params[free_[1]];
+    return y;
+  }
+
+  // The condition's value at y.
+  double ValueAt(const internal::OrbitBvp& bvp, const Eigen::VectorXd& y,
+                 const ExtraCondition& condition) {
+    const int m = bvp.size();
+    Params p = start_.params;
+    p[free_[0]] = y[m];
+    p[free_[1]] = y[m + 1];
+    PeriodicOrbit o;
+    bvp.Unpack(y.head(m), p, &o);
+    return internal::ConditionValue(model_, prop_, o, condition);
+  }
+
+  // Central differences of the condition's value, step h (1 + |y_j|).
+  Eigen::RowVectorXd CentralRow(const internal::OrbitBvp& bvp, const Eigen::VectorXd& y,
+                                const ExtraCondition& condition, double h) {
+    Eigen::RowVectorXd row(y.size());
+    for (int j = 0; j < y.size(); ++j) {
+      const double step = h * (1.0 + std::abs(y[j]));
+      Eigen::VectorXd yp = y, ym = y;
+      yp[j] += step;
+      ym[j] -= step;
+      row[j] = (ValueAt(bvp, yp, condition) - ValueAt(bvp, ym, condition)) / (2.0 * step);
+    }
+    return row;
+  }
+
+  // Expects `row` (ConditionRow's, central differences of step h_j = 1e-6 (1 + |y_j|)) to be the
+  // condition's derivative at y, two ways. The truncation of central differences of step H,
+  // ~H^2 |c'''| / 6, is estimated by Richardson's D(2 H) - D(H) = 3 H^2 c''' / 6 + O(H^4) at
+  // H = 1e-5 (1 + |y_j|) as T = |D(2 H) - D(H)| / 3 (fourfold margin below: the estimate's own
+  // O(H^4) and rounding). (1) Against central differences of whole evaluations of the row's own
+  // step, the quotient the row stands for: they differ by rounding (each value of c is a product
+  // of the k segments' factors, in another order, then sigma: k eps (1 + |c|) each, so
+  // k eps (1 + |c|) / h over the quotient; twofold margin) and, in the durations' columns, by the
+  // second-order terms MonodromyRow leaves out, which cancel to O(h^2) like the truncation:
+  // 4 T (h / H)^2. (2) Against the derivative, central differences of step H: that bound plus the
+  // reference's own truncation 4 T and rounding eps (1 + |c|) / H. A wrong row (a missing term, a
+  // misplaced column) errs by the size of its entries, far above either.
+  void ExpectCentralRow(const internal::OrbitBvp& bvp, const Eigen::VectorXd& y,
+                        const ExtraCondition& condition, double c0, const Eigen::RowVectorXd& row) {
+    constexpr double kEps = 2.2e-16, kStep = 1e-6, kReference = 1e-5;
+    ASSERT_EQ(row.size(), y.size());
+    const double k = static_cast<double>(start_.durations.size());
+    const Eigen::RowVectorXd same = CentralRow(bvp, y, condition, kStep);
+    const Eigen::RowVectorXd d1 = CentralRow(bvp, y, condition, kReference);
+    const Eigen::RowVectorXd d2 = CentralRow(bvp, y, condition, 2.0 * kReference);
+    double worst_same = 0.0, worst_reference = 0.0;  // the largest errors relative to bounds
+    for (int j = 0; j < y.size(); ++j) {
+      const double h = kStep * (1.0 + std::abs(y[j]));
+      const double h_ref = kReference * (1.0 + std::abs(y[j]));
+      const double truncation = 4.0 * std::abs(d2[j] - d1[j]) / 3.0;  // 4 T at H
+      const double same_bound =
+          2.0 * k * kEps * (1.0 + std::abs(c0)) / h + truncation * (h / h_ref) * (h / h_ref);
+      EXPECT_LE(std::abs(row[j] - same[j]), same_bound)
+          << "column " << j << " of " << y.size() << ": " << row[j] << " against " << same[j];
+      const double bound = truncation + same_bound + kEps * (1.0 + std::abs(c0)) / h_ref;
+      EXPECT_LE(std::abs(row[j] - d1[j]), bound)
+          << "column " << j << " of " << y.size() << ": " << row[j] << " against " << d1[j];
+      worst_same = std::max(worst_same, std::abs(row[j] - same[j]) / same_bound);
+      worst_reference = std::max(worst_reference, std::abs(row[j] - d1[j]) / bound);
+    }
+    std::printf("largest error / bound: %.3f (same step), %.3f (derivative)\n", worst_same,
+                worst_reference);
+  }
+
+  std::vector<int> free_;
+};
+
+TEST_F(ExtraConditionRows, DurationRowIsTheUnitRowOfThatDuration) {
+  const internal::OrbitBvp bvp = Bvp();
+  const Eigen::VectorXd y = Unknowns(bvp);
+  const int segment = 1;
+  const double length = 1e-3;
+  const ExtraCondition condition = ExtraCondition::Duration(segment, length);
+  Eigen::RowVectorXd row;
+  const double value =
+      internal::ConditionRow(model_, prop_, bvp, free_, start_.params, y, condition, &row);
+  EXPECT_EQ(value, start_.durations[segment] - length);
+  ASSERT_EQ(row.size(), y.size());
+  // The condition is linear in y: central differences are exact but for rounding, eps |y_j| / h
+  // with h = 1e-4 (1 + |y_j|): below 1e-11.
+  const Eigen::RowVectorXd fd = CentralRow(bvp, y, condition, 1e-4);
+  EXPECT_LE((row - fd).lpNorm<Eigen::Infinity>(), 1e-11);
+  EXPECT_EQ(row[bvp.DurationIndex(segment)], 1.0);
+  EXPECT_EQ(row.cwiseAbs().sum(), 1.0);
+}
+
+// sigma of the shifted monodromy, bordered at the reference orbit, for a fold and a period
+// doubling: the row reusing the monodromy factors (MonodromyRow; its durations' columns take the
+// later factors' phase shift to first order) against central differences of whole evaluations.
+TEST_F(ExtraConditionRows, MonodromyRowMatchesCentralDifferences) {
+  const internal::OrbitBvp bvp = Bvp();
+  const Eigen::VectorXd y = Unknowns(bvp);
+  const Eigen::MatrixXd m0 =
+      internal::ReducedMonodromy(model_, internal::MonodromyFactors(model_, prop_, start_));
+  for (const CurveKind kind : {CurveKind::kFold, CurveKind::kPeriodDoubling}) {
+    SCOPED_TRACE(CurveKindName(kind));
+    const internal::BorderedSigma sigma(internal::ShiftedMonodromy(kind, m0));
+    const ExtraCondition condition =
+        ExtraCondition::OfMonodromy([kind, sigma](const Eigen::MatrixXd& m) {
+          return sigma(internal::ShiftedMonodromy(kind, m));
+        });
+    Eigen::RowVectorXd row;
+    const double value =
+        internal::ConditionRow(model_, prop_, bvp, free_, start_.params, y, condition, &row);
+    // The residual is the whole evaluation's, bit for bit.
+    EXPECT_EQ(value, ValueAt(bvp, y, condition));
+    ExpectCentralRow(bvp, y, condition, value, row);
+  }
+}
+
+// h' of the first segment's guard at its end, a function of the orbit alone: central differences
+// of whole evaluations.
+TEST_F(ExtraConditionRows, OrbitRowMatchesCentralDifferences) {
+  const internal::OrbitBvp bvp = Bvp();
+  const Eigen::VectorXd y = Unknowns(bvp);
+  const ExtraCondition condition = ExtraCondition::OfOrbit([this](const PeriodicOrbit& o) {
+    const SegmentSpec& s = o.signature.segments[0];
+    const StateVector end = prop_.FlowMap(s.mode, o.starts[0], o.durations[0], o.params, {}).x;
+    return model_.Guard(s.mode, std::max(0, s.guard), end, o.params).dh;
+  });
+  Eigen::RowVectorXd row;
+  const double value =
+      internal::ConditionRow(model_, prop_, bvp, free_, start_.params, y, condition, &row);
+  EXPECT_EQ(value, ValueAt(bvp, y, condition));
+  ExpectCentralRow(bvp, y, condition, value, row);
+}
+
+}  // namespace
+}  // namespace drillbif
