@@ -86,7 +86,7 @@ struct TraceOptions : ParameterBox {
   // (TracedCurve::outline) keeping what the trace reads of them. The first and last vertices,
   // codimension-2 points, unverified ends, and the period-n PD curves with 2n <= max_period stay
   // whole (the trace starts branches and curves from them). A period-2 vertex holds ~2.4 KB whole,
-  // ~0.75 KB without its states, ~0.2 KB in the outline.
+  // ~0.75 KB without its states, ~0.1 KB in the outline.
   bool vertex_states = true;
   // Cap on the curves added by switching (a note says when hit): a guard against runaway, above
   // what the reference box needs (436 curves in all; 2884 with max_period 2, which 2000 cut short).
