@@ -74,33 +74,4 @@ Eigen::MatrixXd ReducedMonodromy(const HybridModel& model,
   return WithoutPhase(model, m);
 }
 
-const std::vector<StateMatrix>& FactorCache::Of(const HybridModel& model, Propagator& propagator,
-                                                const PeriodicOrbit& orbit) {
-  const size_t k = orbit.durations.size();
-  bool any_same = reference_.size() == k && signature_ == orbit.signature &&
-                  params_.size() == orbit.params.size() && params_ == orbit.params;
-  if (any_same) {
-    any_same = false;
-    for (size_t i = 0; i < k && !any_same; ++i) any_same = Same(orbit, i);
-  }
-  if (!any_same) {
-    reference_ = MonodromyFactors(model, propagator, orbit);
-    starts_ = orbit.starts;
-    durations_ = orbit.durations;
-    params_ = orbit.params;
-    signature_ = orbit.signature;
-    return reference_;
-  }
-  out_.resize(k);
-  for (size_t i = 0; i < k; ++i) {
-    out_[i] = Same(orbit, i) ? reference_[i]
-                             : SegmentFactor(model, propagator, orbit, static_cast<int>(i));
-  }
-  return out_;
-}
-
-bool FactorCache::Same(const PeriodicOrbit& orbit, size_t i) const {
-  return orbit.durations[i] == durations_[i] && orbit.starts[i] == starts_[i];
-}
-
 }  // namespace drillbif::internal

@@ -35,28 +35,6 @@ StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full);
 // The product of the factors, without the phase row and column.
 Eigen::MatrixXd ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
 
-// MonodromyFactors of orbits of one signature, each factor recomputed only where its inputs (the
-// segment's start with its phase, its duration, the parameters: all that SegmentFactor reads)
-// differ bitwise from those of the last orbit computed in full (the reference), so the factors
-// are exactly MonodromyFactors'. An orbit of another signature or parameters, or with no factor
-// in common, becomes the reference. For difference quotients, each moving one unknown: a start's
-// component moves its own factor, a duration its own and (through the phases) the later ones, a
-// parameter all; with k segments k^2 + 11 k factors per Jacobian row instead of 8 k^2 + 4 k.
-class FactorCache {
- public:
-  // The factors of `orbit` (valid until the next call).
-  const std::vector<StateMatrix>& Of(const HybridModel& model, Propagator& propagator,
-                                     const PeriodicOrbit& orbit);
-
- private:
-  bool Same(const PeriodicOrbit& orbit, size_t i) const;
-  std::vector<StateMatrix> reference_, out_;
-  std::vector<StateVector> starts_;
-  std::vector<double> durations_;
-  Params params_;
-  Signature signature_;
-};
-
 }  // namespace drillbif::internal
 
 #endif  // DRILLBIF_ORBIT_MONODROMY_H_

@@ -1,8 +1,7 @@
 // The monodromy factor from a given flow (FactorFromFlow): for a model with a LinearForm, moving
 // a segment's start in its non-phase part by dx moves the end by Phi dx and leaves Phi as it is,
 // so the factor at the moved start is FactorFromFlow at the moved end with the same Phi. The
-// curve tracer's sigma row relies on it (continuation/curve.cc). And FactorCache: the same factors
-// as MonodromyFactors, flowing only the segments whose inputs moved.
+// curve tracer's sigma row relies on it (continuation/curve.cc).
 #include "monodromy.h"
 
 #include <gtest/gtest.h>
@@ -11,7 +10,6 @@
 #include <vector>
 
 #include "support/reference_orbit_test.h"
-#include "support/spy_propagator.h"
 
 namespace drillbif {
 namespace {
@@ -67,42 +65,6 @@ TEST_F(Monodromy, FactorFromAnAffineFlowIsTheFactorAtTheMovedStart) {
               plain[i])
         << "segment " << i;
   }
-}
-
-// FactorCache gives exactly (bitwise) MonodromyFactors' factors for orbits that differ from its
-// reference in one start, one duration, the parameters or the signature, and flows only the
-// segments whose inputs moved: one for a moved start or duration, all for moved parameters or
-// another signature (which then becomes the reference).
-TEST_F(Monodromy, FactorCacheGivesTheFactorsFlowingOnlyWhatMoved) {
-  testing::SpyPropagator spy(prop_);
-  internal::FactorCache cache;
-  const int k = static_cast<int>(start_.durations.size());
-  ASSERT_GE(k, 3);
-  auto expect_exact = [&](const PeriodicOrbit& o, int flows, const char* what) {
-    spy.flows = 0;
-    const std::vector<StateMatrix> got = cache.Of(model_, spy, o);
-    EXPECT_EQ(spy.flows, flows) << what;
-    const std::vector<StateMatrix> plain = internal::MonodromyFactors(model_, prop_, o);
-    ASSERT_EQ(got.size(), plain.size()) << what;
-    for (size_t i = 0; i < plain.size(); ++i) EXPECT_EQ(got[i], plain[i]) << what << ", " << i;
-  };
-  expect_exact(start_, k, "the first orbit (the reference)");
-  expect_exact(start_, 0, "the reference again");
-  PeriodicOrbit moved = start_;
-  moved.starts[1][0] += 1e-7;
-  expect_exact(moved, 1, "segment 1's start moved");
-  moved = start_;
-  moved.durations[2] += 1e-7;
-  expect_exact(moved, 1, "segment 2's duration moved");
-  moved = start_;
-  moved.params[0] += 1e-7;
-  expect_exact(moved, k, "a parameter moved");
-  PeriodicOrbit other = start_;  // the same inputs, segment 0 ending in a tangency instead
-  other.signature.segments[0].tangent = !other.signature.segments[0].tangent;
-  expect_exact(other, k, "another signature");
-  moved = other;
-  moved.starts[0][0] += 1e-7;
-  expect_exact(moved, 1, "its segment 0's start moved");
 }
 
 }  // namespace
