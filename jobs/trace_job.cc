@@ -9,9 +9,9 @@
 #include <new>
 #include <optional>
 #include <string>
-#include <thread>
 
 #include "drillbif/common/checked.h"
+#include "drillbif/common/threads.h"
 #include "drillbif/continuation/trace.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/orbit/periodic_orbit.h"
@@ -96,8 +96,7 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
                            ", got " + std::to_string(request.threads()));
   }
   // More threads than cores would only hold more curves in flight (memory) for no speed.
-  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  opt.threads = request.threads() == 0 ? cores : std::min(request.threads(), cores);
+  opt.threads = std::min(ThreadsOrCores(request.threads()), Cores());
   switch (request.curve_steps()) {
     case v1::CURVE_STEPS_UNSPECIFIED:
     case v1::CURVE_STEPS_FINE:

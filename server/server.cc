@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "drillbif/common/threads.h"
 #include "server/rest_gateway.h"
 #include "server/services.h"
 #include "server/store/sqlite_job_store.h"
@@ -268,7 +269,7 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   auto impl = std::make_unique<Impl>(options.metrics);
   impl->state.options = options;
   if (impl->state.options.workers == 0) {
-    impl->state.options.workers = std::max(1u, std::thread::hardware_concurrency());
+    impl->state.options.workers = Cores();
   }
   const ServerOptions& o = impl->state.options;
   StatusOr<TokenSet> tokens = TokenSet::Load(o.token, o.tokens_file);

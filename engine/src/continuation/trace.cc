@@ -7,7 +7,6 @@
 #include <limits>
 #include <map>
 #include <optional>
-#include <thread>
 #include <unordered_set>
 #include <utility>
 #include <vector>
@@ -16,6 +15,7 @@
 #include "continuation/curve_tasks.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
+#include "drillbif/common/threads.h"
 #include "drillbif/simulate/simulator.h"
 #include "region/segment_index.h"
 
@@ -172,10 +172,7 @@ using internal::SwitchTally;
 using internal::TallyNotes;
 
 // The threads of the curve tasks: TraceOptions::threads, 0 meaning every core.
-int ThreadsOf(const TraceOptions& options) {
-  if (options.threads > 0) return options.threads;
-  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-}
+int ThreadsOf(const TraceOptions& options) { return ThreadsOrCores(options.threads); }
 
 // Whether ContinueCurve starts from a point of this kind.
 bool Traceable(SpecialPointKind kind) {

@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "drillbif/common/checked.h"
+#include "drillbif/common/threads.h"
 
 namespace drillbif {
 
@@ -187,8 +188,7 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
   const bool up = options.direction != SweepDirection::kDown;
   const bool down = options.direction != SweepDirection::kUp;
   const int directions = (up ? 1 : 0) + (down ? 1 : 0);
-  const int threads =
-      options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  const int threads = ThreadsOrCores(options.threads);
   const int chunks = options.chunks;  // validated: 1..n
   const bool streaming = static_cast<bool>(on_point);
 
