@@ -56,8 +56,11 @@ def main():
                 print(f"run {r + 1}: {label:6} {name}: {ms:.0f} ms {counters}", flush=True)
     print("\nmedians of", a.runs)
     medians = {key: statistics.median(ms) for key, (ms, _) in times.items()}
-    base = next((m for (label, _), m in medians.items() if label == "before"), None)
+    # An after benchmark is compared with the before one of its name, else with the only one.
+    before = {name: m for (label, name), m in medians.items() if label == "before"}
+    only = next(iter(before.values())) if len(before) == 1 else None
     for (label, name), m in medians.items():
+        base = before.get(name, only)
         ratio = f"  {base / m:.2f}x the build before" if base and label == "after" else ""
         spread = times[(label, name)][0]
         print(f"  {label:6} {name}: {m:.0f} ms (runs {', '.join(f'{t:.0f}' for t in spread)})"
