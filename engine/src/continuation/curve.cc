@@ -249,65 +249,15 @@ class CurveTracer {
     return f->allFinite() && jac->allFinite();
   }
 
-  // The same forward differences of sigma, recomputing only the monodromy factors an unknown
-  // moves (orbit/monodromy.h): a segment's start state moves its own factor, its duration its
-  // own and (through the phases) every later one, a parameter all. A duration's column takes the
-  // later factors' phase derivatives to first order, dF_l / ds_l computed once per segment (the
-  // exact product of every perturbed factor would cost k^2 / 2 factors per row instead of 2k;
-  // they differ by O(h^2), below the differences' own truncation).
-  // `o` is Unpack(y), `base` its factors, `flows` the segments' flows they were made from.
+  // The same forward differences of sigma: over the orbit's unknowns by internal::MonodromyRow
+  // (only the monodromy factors an unknown moves are recomputed), over the parameters by whole
+  // evaluations (every factor moves with them). `o` is Unpack(y), `base` its factors, `flows` the
+  // segments' flows they were made from.
   void SigmaRow(const Vec& y, const PeriodicOrbit& o, const std::vector<StateMatrix>& base,
                 const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
-    const int k = static_cast<int>(base.size()), d = model_.state_dim() - 1;
-    const int ps = model_.phase_index();
-    const double omega = model_.ForcingFrequency(o.params);
-    // prefix[i] = F_{i-1} ... F_0, suffix[i] = F_{k-1} ... F_i.
-    std::vector<StateMatrix> prefix(k + 1), suffix(k + 1);
-    prefix[0] = suffix[k] = StateMatrix::Identity(d + 1, d + 1);
-    for (int i = 0; i < k; ++i) prefix[i + 1] = base[i] * prefix[i];
-    for (int i = k - 1; i >= 0; --i) suffix[i] = suffix[i + 1] * base[i];
-    PeriodicOrbit op = o;  // perturbed in place, restored after each use
-    auto factor = [&](int l) { return internal::SegmentFactor(model_, propagator_, op, l); };
-    // later[i] = sum over l > i of suffix[l + 1] (dF_l / ds_l) prefix[l]: d M per unit phase
-    // shift of every segment after i.
-    std::vector<StateMatrix> later(k);
-    later[k - 1] = StateMatrix::Zero(d + 1, d + 1);
-    for (int l = k - 1; l >= 1; --l) {
-      const double h = 1.5e-8 * (1.0 + std::abs(o.starts[l][ps]));
-      op.starts[l][ps] += h;
-      const StateMatrix dfl = (factor(l) - base[l]) / h;
-      op.starts[l][ps] = o.starts[l][ps];
-      later[l - 1] = later[l] + suffix[l + 1] * dfl * prefix[l];
-    }
-    // With a LinearForm the flow is affine in the start's non-phase part: moving it moves the end
-    // by Phi dx and leaves Phi, so only the saltation is recomputed (orbit/monodromy.h), from the
-    // segment's flow the base factor was made from.
-    const bool affine = dynamic_cast<const LinearForm*>(&model_) != nullptr;
-    for (int i = 0; i < k; ++i) {
-      const FlowResult& flow = flows[i];
-      for (int r = 0; r <= d; ++r) {
-        const int j = i * (d + 1) + r;
-        const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
-        StateMatrix full;
-        if (r < d && affine) {
-          const StateVector x_end = flow.x + h * flow.state_jacobian.col(r < ps ? r : r + 1);
-          full = suffix[i + 1] *
-                 internal::FactorFromFlow(model_, o, i, x_end, flow.state_jacobian) * prefix[i];
-        } else if (r < d) {
-          double& x = op.starts[i][r < ps ? r : r + 1];
-          const double x0 = x;
-          x += h;
-          full = suffix[i + 1] * factor(i) * prefix[i];
-          x = x0;
-        } else {
-          op.durations[i] += h;
-          full = prefix[k] + suffix[i + 1] * (factor(i) - base[i]) * prefix[i] +
-                 (omega * h) * later[i];
-          op.durations[i] = o.durations[i];
-        }
-        (*jac)(m(), j) = (Sigma(internal::WithoutPhase(model_, full)) - sigma0) / h;
-      }
-    }
+    internal::MonodromyRow(
+        model_, propagator_, o, base, flows, [this](const Eigen::MatrixXd& m) { return Sigma(m); },
+        internal::RowDifferences::kForward, sigma0, jac->row(m()).head(m()));
     for (int j = m(); j < n(); ++j) {
       const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
       Vec yp = y;

@@ -267,10 +267,13 @@ PeriodicOrbit UnpackWithParams(const OrbitBvp& bvp, const std::vector<int>& free
 void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
                   const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
                   const std::function<double(const Eigen::MatrixXd&)>& f,
-                  Eigen::Ref<Eigen::RowVectorXd> row) {
+                  RowDifferences differences, double f0,
+                  Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row) {
   const int k = static_cast<int>(base.size()), d = model.state_dim() - 1;
   const int ps = model.phase_index();
   const double omega = model.ForcingFrequency(orbit.params);
+  const bool central = differences == RowDifferences::kCentral;
+  auto step = [&](double v) { return central ? Step(v) : 1.5e-8 * (1.0 + std::abs(v)); };
   // prefix[i] = F_{i-1} ... F_0, suffix[i] = F_{k-1} ... F_i.
   std::vector<StateMatrix> prefix(k + 1), suffix(k + 1);
   prefix[0] = suffix[k] = StateMatrix::Identity(d + 1, d + 1);
@@ -291,8 +294,9 @@ void MonodromyRow(const HybridModel& model, Propagator& propagator, const Period
   later[k - 1] = StateMatrix::Zero(d + 1, d + 1);
   for (int l = k - 1; l >= 1; --l) {
     double& s = op.starts[l][ps];
-    const double h = Step(s);
-    const StateMatrix dfl = (moved(l, s, h) - moved(l, s, -h)) / (2.0 * h);
+    const double h = step(s);
+    const StateMatrix dfl = central ? StateMatrix((moved(l, s, h) - moved(l, s, -h)) / (2.0 * h))
+                                    : StateMatrix((moved(l, s, h) - base[l]) / h);
     later[l - 1] = later[l] + suffix[l + 1] * dfl * prefix[l];
   }
   // With a LinearForm the flow is affine in the start's non-phase part: moving it moves the end
@@ -302,22 +306,25 @@ void MonodromyRow(const HybridModel& model, Propagator& propagator, const Period
     const FlowResult& flow = flows[i];
     for (int r = 0; r <= d; ++r) {
       const int state = r < ps ? r : r + 1;  // the start's component X holds at this position
-      double h;
-      // M with this unknown moved by sign * h.
-      auto full = [&](double sign) -> StateMatrix {
+      const double h = step(r < d ? orbit.starts[i][state] : orbit.durations[i]);
+      // f with this unknown moved by sign * h.
+      auto moved_f = [&](double sign) {
+        StateMatrix full;
         if (r < d && affine) {
           const StateVector x_end = flow.x + (sign * h) * flow.state_jacobian.col(state);
-          return suffix[i + 1] * FactorFromFlow(model, orbit, i, x_end, flow.state_jacobian) *
+          full = suffix[i + 1] * FactorFromFlow(model, orbit, i, x_end, flow.state_jacobian) *
                  prefix[i];
+        } else if (r < d) {
+          full = suffix[i + 1] * moved(i, op.starts[i][state], sign * h) * prefix[i];
+        } else {
+          full = prefix[k] +
+                 suffix[i + 1] * (moved(i, op.durations[i], sign * h) - base[i]) * prefix[i] +
+                 (sign * omega * h) * later[i];
         }
-        if (r < d) return suffix[i + 1] * moved(i, op.starts[i][state], sign * h) * prefix[i];
-        return prefix[k] +
-               suffix[i + 1] * (moved(i, op.durations[i], sign * h) - base[i]) * prefix[i] +
-               (sign * omega * h) * later[i];
+        return f(WithoutPhase(model, full));
       };
-      h = Step(r < d ? orbit.starts[i][state] : orbit.durations[i]);
       row[i * (d + 1) + r] =
-          (f(WithoutPhase(model, full(1.0))) - f(WithoutPhase(model, full(-1.0)))) / (2.0 * h);
+          central ? (moved_f(1.0) - moved_f(-1.0)) / (2.0 * h) : (moved_f(1.0) - f0) / h;
     }
   }
 }
@@ -338,7 +345,8 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
     std::vector<FlowResult> flows;
     const std::vector<StateMatrix> factors = MonodromyFactors(model, propagator, o, &flows);
     c0 = condition.of_monodromy(ReducedMonodromy(model, factors));
-    MonodromyRow(model, propagator, o, factors, flows, condition.of_monodromy, row->head(m));
+    MonodromyRow(model, propagator, o, factors, flows, condition.of_monodromy,
+                 RowDifferences::kCentral, c0, row->head(m));
     first = m;
   } else {
     c0 = condition.of_orbit(o);

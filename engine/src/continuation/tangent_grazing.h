@@ -119,21 +119,27 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
                     const std::vector<int>& free, const Params& params, const Eigen::VectorXd& y,
                     const ExtraCondition& condition, Eigen::RowVectorXd* row);
 
-// Central differences of f(M) over the orbit's unknowns X (OrbitBvp's order: each segment's start
-// without its phase, then its duration; ConditionRow's step), M the reduced monodromy,
-// recomputing only the monodromy factors (orbit/monodromy.h) an unknown moves: a start's
-// component moves its own factor (for a model with a LinearForm only its saltation, from the
-// segment's flow), a duration its own and, through the later segments' phases, every later one,
-// taken to first order as suffix dF_l / ds_l prefix summed once per segment (the durations'
-// columns flow 4k factors instead of k^2, the starts' none with a LinearForm; the second-order
-// terms left out are even in the step and cancel in the central difference to O(h^2), its own
-// truncation). `base` and `flows` are MonodromyFactors(orbit) and
-// the flows they were made from. The scheme of the fold / PD curves' condition row (CurveTracer),
-// centred.
+// How MonodromyRow differences f: central with steps h = 1e-6 (1 + |x|) (ConditionRow's), or
+// forward from f0 = f(M) with steps h = 1.5e-8 (1 + |x|) (the fold / PD / NS curves' condition
+// row, CurveTracer: truncation h |f''| / 2 and rounding eps |f| / h, both ~1e-8 for these O(1)
+// quantities; one factor per column instead of two).
+enum class RowDifferences { kCentral, kForward };
+
+// Differences of f(M) over the orbit's unknowns X (OrbitBvp's order: each segment's start without
+// its phase, then its duration), M the reduced monodromy, recomputing only the monodromy factors
+// (orbit/monodromy.h) an unknown moves: a start's component moves its own factor (for a model
+// with a LinearForm only its saltation, from the segment's flow), a duration its own and, through
+// the later segments' phases, every later one, taken to first order as suffix dF_l / ds_l prefix
+// summed once per segment (the durations' columns flow 4k factors instead of k^2 centred, 2k
+// instead of k^2 / 2 forward; the starts' none with a LinearForm; the second-order terms left out
+// are O(h) forward, below the differences' own truncation, and even in the step centred, where
+// they cancel to O(h^2)). `base` and `flows` are MonodromyFactors(orbit) and the flows they were
+// made from; `f0` is f(M) (used by kForward only).
 void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
                   const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
                   const std::function<double(const Eigen::MatrixXd&)>& f,
-                  Eigen::Ref<Eigen::RowVectorXd> row);
+                  RowDifferences differences, double f0,
+                  Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row);
 
 // Newton on (G = 0, c = 0) from `guess` in its signature, with the unknowns X and the parameters
 // `free` (one or two), one condition per free parameter so that the system is square. G's
