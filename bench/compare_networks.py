@@ -44,6 +44,18 @@ def missing(src, dst, tol):
             if not any(abs(u - x) <= tol and abs(v - y) <= tol for x, y in by_key[k])]
 
 
+def compare(title, before, after, tol):
+    """Prints the points of each side missing from the other; whether none of before's is."""
+    lost, new = missing(before, after, tol), missing(after, before, tol)
+    print(f"{title}: {len(before)} -> {len(after)}; missing {len(lost)}, new {len(new)} "
+          f"(tol {tol:g})")
+    for p in lost:
+        print("  missing", p)
+    for p in new:
+        print("  new", p)
+    return not lost
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("before")
@@ -64,26 +76,11 @@ def main():
             print(f"  curves {k}: {cb[k]} -> {ca[k]}")
 
     curve_key = lambda c: (c["kind"], c["period"])
-    xb, xa = points(before, "crossings", curve_key), points(after, "crossings", curve_key)
-    lost, new = missing(xb, xa, a.crossing_tol), missing(xa, xb, a.crossing_tol)
-    print(f"crossings of omega = 0.1 and a = 0.3: {len(xb)} -> {len(xa)}; "
-          f"missing {len(lost)}, new {len(new)} (tol {a.crossing_tol:g})")
-    for p in lost:
-        print("  missing", p)
-    for p in new:
-        print("  new", p)
-    ok = ok and not lost
-
+    ok = compare("crossings of omega = 0.1 and a = 0.3", points(before, "crossings", curve_key),
+                 points(after, "crossings", curve_key), a.crossing_tol) and ok
     entry_key = lambda c, p: p["kind"]
-    eb, ea = points(before, "codim2", entry_key), points(after, "codim2", entry_key)
-    lost, new = missing(eb, ea, a.tol), missing(ea, eb, a.tol)
-    print(f"codimension-2 entries: {len(eb)} -> {len(ea)}; missing {len(lost)}, new {len(new)} "
-          f"(tol {a.tol:g})")
-    for p in lost:
-        print("  missing", p)
-    for p in new:
-        print("  new", p)
-    ok = ok and not lost
+    ok = compare("codimension-2 entries", points(before, "codim2", entry_key),
+                 points(after, "codim2", entry_key), a.tol) and ok
     return 0 if ok else 1
 
 
