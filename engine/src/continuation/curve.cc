@@ -238,7 +238,7 @@ class CurveTracer {
       (*jac)(m(), bvp1_.DurationIndex(corner_)) = 1.0;
     } else if (kind_ == CurveKind::kGrazing) {
       for (int j = 0; j < n(); ++j) {
-        const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
+        const double h = internal::ForwardStep(y[j]);
         Vec yp = y;
         yp[j] += h;
         (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
@@ -259,7 +259,7 @@ class CurveTracer {
         model_, propagator_, o, base, flows, [this](const Eigen::MatrixXd& m) { return Sigma(m); },
         internal::RowDifferences::kForward, sigma0, jac->row(m()).head(m()));
     for (int j = m(); j < n(); ++j) {
-      const double h = 1.5e-8 * (1.0 + std::abs(y[j]));
+      const double h = internal::ForwardStep(y[j]);
       Vec yp = y;
       yp[j] += h;
       (*jac)(m(), j) = (Condition(yp) - sigma0) / h;

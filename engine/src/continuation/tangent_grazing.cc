@@ -273,7 +273,7 @@ void MonodromyRow(const HybridModel& model, Propagator& propagator, const Period
   const int ps = model.phase_index();
   const double omega = model.ForcingFrequency(orbit.params);
   const bool central = differences == RowDifferences::kCentral;
-  auto step = [&](double v) { return central ? Step(v) : 1.5e-8 * (1.0 + std::abs(v)); };
+  auto step = [&](double v) { return central ? Step(v) : ForwardStep(v); };
   // prefix[i] = F_{i-1} ... F_0, suffix[i] = F_{k-1} ... F_i.
   std::vector<StateMatrix> prefix(k + 1), suffix(k + 1);
   prefix[0] = suffix[k] = StateMatrix::Identity(d + 1, d + 1);

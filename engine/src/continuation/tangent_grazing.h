@@ -8,6 +8,7 @@
 #define DRILLBIF_CONTINUATION_TANGENT_GRAZING_H_
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
@@ -124,6 +125,9 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
 // row, CurveTracer: truncation h |f''| / 2 and rounding eps |f| / h, both ~1e-8 for these O(1)
 // quantities; one factor per column instead of two).
 enum class RowDifferences { kCentral, kForward };
+
+// The forward-difference step of an unknown of value v: 1.5e-8 (1 + |v|) (RowDifferences).
+inline double ForwardStep(double v) { return 1.5e-8 * (1.0 + std::abs(v)); }
 
 // Differences of f(M) over the orbit's unknowns X (OrbitBvp's order: each segment's start without
 // its phase, then its duration), M the reduced monodromy, recomputing only the monodromy factors
