@@ -163,48 +163,6 @@ JobRecord ReadJob(const Query& q) {
   return job;
 }
 
-// Page tokens are "p" + the hex seq of the last job returned: opaque to clients, checked on use.
-std::string PageToken(int64_t seq) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "p%llx", static_cast<unsigned long long>(seq));
-  return buffer;
-}
-
-// The seq in a page token; INVALID_ARGUMENT for anything but "p" + 1 to 16 lowercase hex digits
-// whose value fits an int64 (checked arithmetic: a token never wraps to a small or negative seq).
-StatusOr<int64_t> ParsePageToken(const std::string& token) {
-  if (token.empty()) return int64_t{0};
-  const auto bad = [&] {
-    // Echo at most 40 bytes of a hostile token.
-    return InvalidArgument("page_token: malformed '" + token.substr(0, 40) +
-                           (token.size() > 40 ? "...'" : "'"));
-  };
-  if (token.size() < 2 || token.size() > 17 || token[0] != 'p') return bad();
-  std::optional<int64_t> seq = 0;
-  for (size_t i = 1; i < token.size(); ++i) {
-    const char c = token[i];
-    int digit;
-    if (c >= '0' && c <= '9') {
-      digit = c - '0';
-    } else if (c >= 'a' && c <= 'f') {
-      digit = c - 'a' + 10;
-    } else {
-      return bad();
-    }
-    seq = CheckedAdd(CheckedMul(seq, int64_t{16}), int64_t{digit});
-    if (!seq) return bad();
-  }
-  return *seq;
-}
-
-// Bit mask of the lanes a claim may take (every bit for "any lane").
-int64_t LaneMask(const ClaimOptions& options) {
-  if (options.lanes.empty()) return INT64_MAX;
-  int64_t mask = 0;
-  for (const int lane : options.lanes) mask |= int64_t{1} << lane;
-  return mask;
-}
-
 // Applies the migrations from `version` to kSchemaVersion and sets the ids, in one transaction
 // (re-checking the version inside it: another process may have migrated meanwhile).
 Status Migrate(sqlite::Connection& connection) {
@@ -259,14 +217,6 @@ StatusOr<int64_t> QueryInt(sqlite::Connection& connection, const char* sql) {
 
 }  // namespace
 
-int64_t NowMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
-Status NoJob(std::string_view id) { return NotFound("no job '" + std::string(id) + "'"); }
-
 Status SqliteStoreImpl::Configure() {
   sqlite3_extended_result_codes(connection_.db(), 1);
   sqlite3_busy_timeout(connection_.db(), options_.busy_timeout_ms);
@@ -317,15 +267,6 @@ Status SqliteStoreImpl::Configure() {
   return Migrate(connection_);
 }
 
-std::string SqliteStoreImpl::NewId() {
-  // 128 bits from the OS entropy source on every call: no generator state to duplicate across
-  // fork() (two processes sharing a file must never draw the same ids).
-  char buffer[33];
-  std::snprintf(buffer, sizeof(buffer), "%08x%08x%08x%08x", random_(), random_(), random_(),
-                random_());
-  return std::string(buffer, 32);
-}
-
 StatusOr<JobHead> SqliteStoreImpl::Head(std::string_view id) {
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("SELECT state, shares IS NOT NULL, cancel_requested, attempts, "
@@ -349,19 +290,7 @@ StatusOr<JobHead> SqliteStoreImpl::Head(std::string_view id) {
 StatusOr<JobHead> SqliteStoreImpl::RunningHead(std::string_view id, const char* action,
                                                int64_t run) {
   DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
-  const std::string what = std::string("cannot ") + action + " job '" + std::string(id) + "': ";
-  if (head.state != kRunning) {
-    return FailedPrecondition(what + "it is " + JobStateName(static_cast<JobState>(head.state)) +
-                              ", not RUNNING");
-  }
-  if (head.shares) {
-    return FailedPrecondition(what + "it shares another job's run and is not run by a worker");
-  }
-  if (run != kAnyRun && run != head.run) {
-    return FailedPrecondition(what + "this is run " + std::to_string(run) +
-                              " but the job is at run " + std::to_string(head.run) +
-                              " (it was requeued and claimed again: this run is stale)");
-  }
+  DRILLBIF_RETURN_IF_ERROR(CheckRunning(id, action, run, head));
   return head;
 }
 
@@ -440,49 +369,28 @@ Status SqliteStoreImpl::CancelRunning(std::string_view id) {
 }
 
 Status SqliteStoreImpl::CheckQueueLimits(const SubmitRequest& request) {
+  int64_t waiting_of_client = 0;
+  int64_t waiting = 0;
   if (request.max_queued_per_client > 0) {
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("SELECT COUNT(*) FROM jobs INDEXED BY jobs_claimable "
                                      "WHERE state = 0 AND shares IS NULL AND client = ?1"));
     q.Bind(1, request.client);
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
-    const int64_t waiting = row ? q.Int(0) : 0;
-    if (waiting >= request.max_queued_per_client) {
-      const std::string who = request.client.empty() ? std::string("anonymous clients have ")
-                                                     : "client '" + request.client + "' has ";
-      return ResourceExhausted(who + std::to_string(waiting) + " jobs waiting (limit " +
-                               std::to_string(request.max_queued_per_client) + "); retry later");
-    }
+    waiting_of_client = row ? q.Int(0) : 0;
   }
   if (request.max_queued > 0) {
-    DRILLBIF_ASSIGN_OR_RETURN(const int64_t waiting,
+    DRILLBIF_ASSIGN_OR_RETURN(waiting,
                               QueryInt(connection_,
                                        "SELECT COUNT(*) FROM jobs INDEXED BY jobs_claimable "
                                        "WHERE state = 0 AND shares IS NULL"));
-    if (waiting >= request.max_queued) {
-      return ResourceExhausted("the job queue is full: " + std::to_string(waiting) +
-                               " jobs waiting (limit " + std::to_string(request.max_queued) +
-                               "); retry later");
-    }
   }
-  return Status::Ok();
+  return server::CheckQueueLimits(request, waiting_of_client, waiting);
 }
 
 StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
-  if (request.kind.empty()) return InvalidArgument("kind: must not be empty");
-  if (request.lane < 0 || request.lane >= kLaneCount) {
-    return InvalidArgument("lane: must be 0 (short) or 1 (long), got " +
-                           std::to_string(request.lane));
-  }
-  if (request.client.size() > kMaxClientBytes) {
-    return InvalidArgument("client: " + std::to_string(request.client.size()) + " bytes, at most " +
-                           std::to_string(kMaxClientBytes));
-  }
-  if (request.max_queued < 0) return InvalidArgument("max_queued: must be >= 0 (0 = no limit)");
-  if (request.max_queued_per_client < 0) {
-    return InvalidArgument("max_queued_per_client: must be >= 0 (0 = no limit)");
-  }
-  DRILLBIF_RETURN_IF_ERROR(CheckSize("request", request.request.size()));
+  DRILLBIF_RETURN_IF_ERROR(CheckSubmit(request));
+  DRILLBIF_RETURN_IF_ERROR(CheckSize("request", request.request.size(), max_value_bytes_));
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
 
@@ -495,9 +403,7 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) {
       if (q.Text(1) != request.kind || q.Blob(2) != request.request) {
-        return FailedPrecondition("request_id '" + request.request_id +
-                                  "' was already used for a different request (job '" + q.Text(0) +
-                                  "')");
+        return RequestIdReused(request.request_id, q.Text(0));
       }
       result.id = q.Text(0);
       result.deduplicated = true;
@@ -508,8 +414,8 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   }
 
   const int64_t now = NowMs();
-  const std::string id = NewId();
-  const std::string result_key = request.cache_key.empty() ? "j:" + id : "c:" + request.cache_key;
+  const std::string id = NewJobId(random_);
+  const std::string result_key = ResultKey(request, id);
 
   // Values for the new row; a cache hit or a shared job starts in another state.
   int state = kQueued;
@@ -664,14 +570,7 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
 
 Status SqliteStoreImpl::UpdateProgress(std::string_view id, int64_t run, double fraction,
                                        std::optional<double> current_value, int64_t points) {
-  if (!(fraction >= 0.0 && fraction <= 1.0)) {
-    return InvalidArgument("progress fraction must be in [0, 1] (got " + std::to_string(fraction) +
-                           ")");
-  }
-  if (current_value && !std::isfinite(*current_value)) {
-    return InvalidArgument("current value must be finite");
-  }
-  if (points < 0) return InvalidArgument("points must be >= 0");
+  DRILLBIF_RETURN_IF_ERROR(CheckProgress(fraction, current_value, points));
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "update progress of", run).status());
@@ -706,8 +605,7 @@ StatusOr<JobState> SqliteStoreImpl::Cancel(std::string_view id) {
       return JobState::kCancelled;
     case JobState::kSucceeded:
     case JobState::kFailed:
-      return FailedPrecondition("job '" + std::string(id) + "' already finished (" +
-                                JobStateName(state) + ")");
+      return AlreadyFinished(id, state);
     case JobState::kQueued:
     case JobState::kRunning:
       if (state == JobState::kRunning && !head.shares) {
@@ -777,9 +675,8 @@ StatusOr<JobRecord> SqliteStoreImpl::Get(std::string_view id) {
 StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   if (request.page_size < 0) return InvalidArgument("page_size: must be >= 0");
   DRILLBIF_ASSIGN_OR_RETURN(const int64_t after_seq, ParsePageToken(request.page_token));
-  const int page_size = request.page_size == 0
-                            ? options_.default_page_size
-                            : std::min(request.page_size, options_.max_page_size);
+  const int page_size =
+      PageSize(request.page_size, options_.default_page_size, options_.max_page_size);
   std::lock_guard<std::mutex> lock(mu_);
   // Keyset pagination on seq: a page starts after the last seq seen, so jobs submitted or
   // deleted meanwhile never shift the pages (an offset would skip or repeat jobs).
@@ -840,9 +737,7 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
       ++report.cancelled;
     } else if (job.attempts >= options_.max_attempts) {
       DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(
-          job.id, StatusCode::kInternal,
-          "the server stopped while this job ran, " + std::to_string(job.attempts) +
-              " times; not retried (max_attempts " + std::to_string(options_.max_attempts) + ")"));
+          job.id, StatusCode::kInternal, TooManyAttempts(job.attempts, options_.max_attempts)));
       ++report.failed;
     } else {
       DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(job.id, /*count_attempt=*/true));

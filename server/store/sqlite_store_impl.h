@@ -22,38 +22,14 @@
 #include "server/store/job_store.h"
 #include "server/store/sqlite_connection.h"
 #include "server/store/sqlite_job_store.h"
+#include "server/store/store_checks.h"
 
 namespace drillbif::server {
-
-// JobState values as stored.
-inline constexpr int kQueued = static_cast<int>(JobState::kQueued);
-inline constexpr int kRunning = static_cast<int>(JobState::kRunning);
-inline constexpr int kSucceeded = static_cast<int>(JobState::kSucceeded);
-inline constexpr int kFailed = static_cast<int>(JobState::kFailed);
-inline constexpr int kCancelled = static_cast<int>(JobState::kCancelled);
-
-// Unix time in milliseconds.
-int64_t NowMs();
-
-// NOT_FOUND "no job '<id>'".
-Status NoJob(std::string_view id);
 
 // PRAGMA quick_check on the existing file at `path`, through a read-only connection (nothing is
 // written, not even a WAL checkpoint): OK for a missing or empty file or a sound one; DATA_LOSS
 // "the job store failed its integrity check: <first problem>" otherwise.
 Status CheckIntegrity(const std::string& path, const sqlite::LogFunction& log);
-
-// The part of a job the state checks need.
-struct JobHead {
-  int state = 0;
-  bool shares = false;  // It follows another job.
-  bool cancel_requested = false;
-  int attempts = 0;
-  int64_t run = 0;
-  int64_t streamed_items = 0;  // Items appended by the current run.
-  int64_t streamed_bytes = 0;  // Their bytes.
-  std::string result_key;
-};
 
 class SqliteStoreImpl final : public JobStore {
  public:
@@ -151,9 +127,6 @@ class SqliteStoreImpl final : public JobStore {
   // Incremental vacuum in bounded steps (files with auto_vacuum = INCREMENTAL), then a WAL
   // checkpoint with TRUNCATE.
   Status FreeSpace();
-  std::string NewId();
-  // Checks that a blob is within SQLite's length limit (INVALID_ARGUMENT naming `field`).
-  Status CheckSize(const char* field, size_t size) const;
   // SQLite's limit on one string or BLOB (SQLITE_MAX_LENGTH, 10^9 bytes by default), read once
   // by Configure (reading it later would race with the connection's use by another thread).
   int64_t max_value_bytes_ = 0;

@@ -169,8 +169,7 @@ Status SqliteStoreImpl::Delete(std::string_view id) {
   DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(id));
   const auto state = static_cast<JobState>(head.state);
   if (!IsFinished(state)) {
-    return FailedPrecondition("job '" + std::string(id) + "' is " + JobStateName(state) +
-                              ": cancel it and wait until it is finished before deleting it");
+    return NotFinished(id, state);
   }
   DRILLBIF_RETURN_IF_ERROR(DeleteJobAndOrphanResult(id, head.result_key).status());
   return tx.Commit();

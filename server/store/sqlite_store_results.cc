@@ -25,15 +25,6 @@ namespace drillbif::server {
 using sqlite::Query;
 using sqlite::Transaction;
 
-Status SqliteStoreImpl::CheckSize(const char* field, size_t size) const {
-  if (size > static_cast<uint64_t>(max_value_bytes_)) {
-    return InvalidArgument(std::string(field) + ": " + std::to_string(size) +
-                           " bytes, more than the job store accepts (" +
-                           std::to_string(max_value_bytes_) + ")");
-  }
-  return Status::Ok();
-}
-
 Status SqliteStoreImpl::DropRunChunks(std::string_view id) {
   {
     DRILLBIF_ASSIGN_OR_RETURN(Query q,
@@ -49,16 +40,8 @@ Status SqliteStoreImpl::DropRunChunks(std::string_view id) {
 Status SqliteStoreImpl::AppendResultChunk(std::string_view id, int64_t run, int stream,
                                           int64_t first_item, int64_t item_count,
                                           std::string_view bytes) {
-  if (run < 1) return InvalidArgument("run: must be >= 1 (the run from the claimed JobRecord)");
-  if (stream < 0 || stream >= kMaxResultStreams) {
-    return InvalidArgument("stream: must be in [0, " + std::to_string(kMaxResultStreams) +
-                           "), got " + std::to_string(stream));
-  }
-  if (first_item < 0) return InvalidArgument("first_item: must be >= 0");
-  if (item_count < 1) return InvalidArgument("item_count: must be >= 1");
-  const std::optional<int64_t> end = CheckedAdd(first_item, item_count);
-  if (!end) return InvalidArgument("first_item + item_count: beyond 2^63 - 1");
-  DRILLBIF_RETURN_IF_ERROR(CheckSize("chunk", bytes.size()));
+  DRILLBIF_RETURN_IF_ERROR(CheckChunk(run, stream, first_item, item_count));
+  DRILLBIF_RETURN_IF_ERROR(CheckSize("chunk", bytes.size(), max_value_bytes_));
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "append a result chunk to", run));
@@ -103,7 +86,7 @@ Status SqliteStoreImpl::AppendResultChunk(std::string_view id, int64_t run, int 
 Status SqliteStoreImpl::Complete(std::string_view id, int64_t run, std::string_view summary,
                                  int64_t points) {
   if (points < 0) return InvalidArgument("points must be >= 0");
-  DRILLBIF_RETURN_IF_ERROR(CheckSize("result", summary.size()));
+  DRILLBIF_RETURN_IF_ERROR(CheckSize("result", summary.size(), max_value_bytes_));
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   DRILLBIF_ASSIGN_OR_RETURN(JobHead head, RunningHead(id, "complete", run));
@@ -268,11 +251,7 @@ StatusOr<ResultInfo> SqliteStoreImpl::GetResultInfo(std::string_view id) {
 StatusOr<std::vector<ResultChunk>> SqliteStoreImpl::ReadResultChunks(std::string_view id,
                                                                      int stream, int64_t first_item,
                                                                      int64_t max_bytes) {
-  if (stream < 0 || stream >= kMaxResultStreams) {
-    return InvalidArgument("stream: must be in [0, " + std::to_string(kMaxResultStreams) + ")");
-  }
-  if (first_item < 0) return InvalidArgument("first_item: must be >= 0");
-  if (max_bytes < 1) return InvalidArgument("max_bytes: must be >= 1");
+  DRILLBIF_RETURN_IF_ERROR(CheckChunkRead(stream, first_item, max_bytes));
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/false));
   DRILLBIF_ASSIGN_OR_RETURN(ResultRow row, ReadResultRow(id, /*with_summary=*/false));

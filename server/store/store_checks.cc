@@ -1,0 +1,186 @@
+#include "server/store/store_checks.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "drillbif/common/checked.h"
+
+namespace drillbif::server {
+
+int64_t NowMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+Status NoJob(std::string_view id) { return NotFound("no job '" + std::string(id) + "'"); }
+
+std::string NewJobId(std::random_device& random) {
+  char buffer[33];
+  std::snprintf(buffer, sizeof(buffer), "%08x%08x%08x%08x", random(), random(), random(), random());
+  return std::string(buffer, 32);
+}
+
+Status CheckRunning(std::string_view id, const char* action, int64_t run, const JobHead& head) {
+  const std::string what = std::string("cannot ") + action + " job '" + std::string(id) + "': ";
+  if (head.state != kRunning) {
+    return FailedPrecondition(what + "it is " + JobStateName(static_cast<JobState>(head.state)) +
+                              ", not RUNNING");
+  }
+  if (head.shares) {
+    return FailedPrecondition(what + "it shares another job's run and is not run by a worker");
+  }
+  if (run != kAnyRun && run != head.run) {
+    return FailedPrecondition(what + "this is run " + std::to_string(run) +
+                              " but the job is at run " + std::to_string(head.run) +
+                              " (it was requeued and claimed again: this run is stale)");
+  }
+  return Status::Ok();
+}
+
+std::string ResultKey(const SubmitRequest& request, const std::string& id) {
+  return request.cache_key.empty() ? "j:" + id : "c:" + request.cache_key;
+}
+
+Status CheckSubmit(const SubmitRequest& request) {
+  if (request.kind.empty()) return InvalidArgument("kind: must not be empty");
+  if (request.lane < 0 || request.lane >= kLaneCount) {
+    return InvalidArgument("lane: must be 0 (short) or 1 (long), got " +
+                           std::to_string(request.lane));
+  }
+  if (request.client.size() > kMaxClientBytes) {
+    return InvalidArgument("client: " + std::to_string(request.client.size()) + " bytes, at most " +
+                           std::to_string(kMaxClientBytes));
+  }
+  if (request.max_queued < 0) return InvalidArgument("max_queued: must be >= 0 (0 = no limit)");
+  if (request.max_queued_per_client < 0) {
+    return InvalidArgument("max_queued_per_client: must be >= 0 (0 = no limit)");
+  }
+  return Status::Ok();
+}
+
+Status CheckProgress(double fraction, std::optional<double> current_value, int64_t points) {
+  if (!(fraction >= 0.0 && fraction <= 1.0)) {
+    return InvalidArgument("progress fraction must be in [0, 1] (got " + std::to_string(fraction) +
+                           ")");
+  }
+  if (current_value && !std::isfinite(*current_value)) {
+    return InvalidArgument("current value must be finite");
+  }
+  if (points < 0) return InvalidArgument("points must be >= 0");
+  return Status::Ok();
+}
+
+Status CheckChunk(int64_t run, int stream, int64_t first_item, int64_t item_count) {
+  if (run < 1) return InvalidArgument("run: must be >= 1 (the run from the claimed JobRecord)");
+  if (stream < 0 || stream >= kMaxResultStreams) {
+    return InvalidArgument("stream: must be in [0, " + std::to_string(kMaxResultStreams) +
+                           "), got " + std::to_string(stream));
+  }
+  if (first_item < 0) return InvalidArgument("first_item: must be >= 0");
+  if (item_count < 1) return InvalidArgument("item_count: must be >= 1");
+  if (!CheckedAdd(first_item, item_count)) {
+    return InvalidArgument("first_item + item_count: beyond 2^63 - 1");
+  }
+  return Status::Ok();
+}
+
+Status CheckChunkRead(int stream, int64_t first_item, int64_t max_bytes) {
+  if (stream < 0 || stream >= kMaxResultStreams) {
+    return InvalidArgument("stream: must be in [0, " + std::to_string(kMaxResultStreams) + ")");
+  }
+  if (first_item < 0) return InvalidArgument("first_item: must be >= 0");
+  if (max_bytes < 1) return InvalidArgument("max_bytes: must be >= 1");
+  return Status::Ok();
+}
+
+Status CheckSize(const char* field, size_t size, int64_t max_value_bytes) {
+  if (size > static_cast<uint64_t>(max_value_bytes)) {
+    return InvalidArgument(std::string(field) + ": " + std::to_string(size) +
+                           " bytes, more than the job store accepts (" +
+                           std::to_string(max_value_bytes) + ")");
+  }
+  return Status::Ok();
+}
+
+Status CheckQueueLimits(const SubmitRequest& request, int64_t waiting_of_client, int64_t waiting) {
+  if (request.max_queued_per_client > 0 && waiting_of_client >= request.max_queued_per_client) {
+    const std::string who = request.client.empty() ? std::string("anonymous clients have ")
+                                                   : "client '" + request.client + "' has ";
+    return ResourceExhausted(who + std::to_string(waiting_of_client) + " jobs waiting (limit " +
+                             std::to_string(request.max_queued_per_client) + "); retry later");
+  }
+  if (request.max_queued > 0 && waiting >= request.max_queued) {
+    return ResourceExhausted("the job queue is full: " + std::to_string(waiting) +
+                             " jobs waiting (limit " + std::to_string(request.max_queued) +
+                             "); retry later");
+  }
+  return Status::Ok();
+}
+
+Status RequestIdReused(const std::string& request_id, const std::string& id) {
+  return FailedPrecondition("request_id '" + request_id +
+                            "' was already used for a different request (job '" + id + "')");
+}
+
+Status NotFinished(std::string_view id, JobState state) {
+  return FailedPrecondition("job '" + std::string(id) + "' is " + JobStateName(state) +
+                            ": cancel it and wait until it is finished before deleting it");
+}
+
+Status AlreadyFinished(std::string_view id, JobState state) {
+  return FailedPrecondition("job '" + std::string(id) + "' already finished (" +
+                            JobStateName(state) + ")");
+}
+
+std::string TooManyAttempts(int attempts, int max_attempts) {
+  return "the server stopped while this job ran, " + std::to_string(attempts) +
+         " times; not retried (max_attempts " + std::to_string(max_attempts) + ")";
+}
+
+std::string PageToken(int64_t seq) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "p%llx", static_cast<unsigned long long>(seq));
+  return buffer;
+}
+
+StatusOr<int64_t> ParsePageToken(const std::string& token) {
+  if (token.empty()) return int64_t{0};
+  const auto bad = [&] {
+    // Echo at most 40 bytes of a hostile token.
+    return InvalidArgument("page_token: malformed '" + token.substr(0, 40) +
+                           (token.size() > 40 ? "...'" : "'"));
+  };
+  if (token.size() < 2 || token.size() > 17 || token[0] != 'p') return bad();
+  std::optional<int64_t> seq = 0;
+  for (size_t i = 1; i < token.size(); ++i) {
+    const char c = token[i];
+    int digit;
+    if (c >= '0' && c <= '9') {
+      digit = c - '0';
+    } else if (c >= 'a' && c <= 'f') {
+      digit = c - 'a' + 10;
+    } else {
+      return bad();
+    }
+    seq = CheckedAdd(CheckedMul(seq, int64_t{16}), int64_t{digit});
+    if (!seq) return bad();
+  }
+  return *seq;
+}
+
+int PageSize(int requested, int default_page_size, int max_page_size) {
+  return requested == 0 ? default_page_size : std::min(requested, max_page_size);
+}
+
+int64_t LaneMask(const ClaimOptions& options) {
+  if (options.lanes.empty()) return INT64_MAX;
+  int64_t mask = 0;
+  for (const int lane : options.lanes) mask |= int64_t{1} << lane;
+  return mask;
+}
+
+}  // namespace drillbif::server
