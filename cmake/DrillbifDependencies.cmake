@@ -112,6 +112,13 @@ add_library(drillbif::microhttpd INTERFACE IMPORTED GLOBAL)
 target_link_libraries(drillbif::microhttpd INTERFACE PkgConfig::DRILLBIF_MICROHTTPD)
 message(STATUS "drillbif: libmicrohttpd ${DRILLBIF_MICROHTTPD_VERSION} via pkg-config")
 
+# libpqxx (libpqxx-dev, 6.4; runtime package libpqxx-6.4) over libpq: the PostgreSQL job store
+# (server/store/postgres_job_store.h). Debian ships a pkg-config file, no CMake config.
+pkg_check_modules(DRILLBIF_PQXX REQUIRED IMPORTED_TARGET libpqxx>=6.4)
+add_library(drillbif::pqxx INTERFACE IMPORTED GLOBAL)
+target_link_libraries(drillbif::pqxx INTERFACE PkgConfig::DRILLBIF_PQXX)
+message(STATUS "drillbif: libpqxx ${DRILLBIF_PQXX_VERSION} via pkg-config")
+
 # utf8cpp (libutfcpp-dev, header-only): UTF-8 validation and repair of request text.
 find_package(utf8cpp REQUIRED CONFIG)
 

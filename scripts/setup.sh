@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config git
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
-  libeigen3-dev libsundials-dev libsqlite3-dev libspdlog-dev libfmt-dev
+  libeigen3-dev libsundials-dev libsqlite3-dev libpqxx-dev postgresql libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
   libssl-dev libcpp-httplib-dev libmicrohttpd-dev libutfcpp-dev prometheus-cpp-dev openssl
   gnuplot-nox python3-yaml

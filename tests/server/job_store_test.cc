@@ -1,6 +1,7 @@
-// JobStore semantics, exercised on the SQLite store with real files in a temporary directory:
-// the job life cycle, request_id idempotency, the content-addressed cache and shared runs,
-// cancellation, deletion, pagination, counters and bad input. Durability (restart, kill -9),
+// JobStore semantics, the contract every store keeps, exercised on each implementation (an SQLite
+// file in a temporary directory, a database of a throwaway PostgreSQL cluster): the job life
+// cycle, request_id idempotency, the content-addressed cache and shared runs, cancellation,
+// deletion, pagination, counters and bad input. The SQLite store's durability (restart, kill -9),
 // concurrency and schema migration are in sqlite_job_store_test.cc.
 #include "server/store/job_store.h"
 
@@ -16,14 +17,16 @@
 #include <string>
 #include <vector>
 
+#include "server/store/postgres_job_store.h"
 #include "server/store/sqlite_job_store.h"
-#include "support/temp_dir.h"
+#include "support/store_under_test.h"
 
 namespace drillbif::server {
 namespace {
 
 using ::testing::HasSubstr;
 using ::testing::MatchesRegex;
+using ::testing::Not;
 
 // The value of a StatusOr the test expects to be OK. On an error: a test failure and T{} instead
 // of undefined behaviour, so that one wrong result does not crash the checks that follow (and
@@ -34,15 +37,15 @@ T Must(StatusOr<T> result) {
   return result.ok() ? std::move(result).value() : T{};
 }
 
-using drillbif::testing::TempDir;
+using drillbif::testing::StoreKind;
+using drillbif::testing::StoreUnderTest;
 
-class JobStoreTest : public ::testing::Test {
+class JobStoreTest : public ::testing::TestWithParam<StoreKind> {
  protected:
   void SetUp() override {
-    ASSERT_FALSE(dir_.path().empty()) << "mkdtemp failed";
-    StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(dir_.path() + "/jobs.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(store).value();
+    ASSERT_TRUE(under_test_.Create());
+    store_ = under_test_.Open();
+    ASSERT_NE(store_, nullptr);
   }
 
   // Submits and returns the id (failing the test on error).
@@ -71,11 +74,14 @@ class JobStoreTest : public ::testing::Test {
     return job.ok() && !job->has_value();
   }
 
-  TempDir dir_{"drillbif_store"};
+  StoreUnderTest under_test_{GetParam()};
   std::unique_ptr<JobStore> store_;
 };
 
-TEST_F(JobStoreTest, SubmitClaimProgressCompleteAndReadTheResult) {
+INSTANTIATE_TEST_SUITE_P(Stores, JobStoreTest, ::testing::ValuesIn(testing::kStoreKinds),
+                         testing::StoreKindName);
+
+TEST_P(JobStoreTest, SubmitClaimProgressCompleteAndReadTheResult) {
   const std::string id = SubmitOk("simulate", std::string("req\0bytes", 9), "key-1");
   JobRecord queued = GetOk(id);
   EXPECT_EQ(queued.state, JobState::kQueued);
@@ -118,7 +124,7 @@ TEST_F(JobStoreTest, SubmitClaimProgressCompleteAndReadTheResult) {
   EXPECT_EQ(*bytes, result);
 }
 
-TEST_F(JobStoreTest, CompletingTwiceIsRefusedAndKeepsTheFirstResult) {
+TEST_P(JobStoreTest, CompletingTwiceIsRefusedAndKeepsTheFirstResult) {
   const std::string id = SubmitOk("simulate", "r");
   ASSERT_EQ(ClaimOk(), id);
   ASSERT_TRUE(store_->Complete(id, "first", 1).ok());
@@ -134,13 +140,13 @@ TEST_F(JobStoreTest, CompletingTwiceIsRefusedAndKeepsTheFirstResult) {
   EXPECT_EQ(GetOk(id).points, 1);
 }
 
-TEST_F(JobStoreTest, CompleteNeedsAClaim) {
+TEST_P(JobStoreTest, CompleteNeedsAClaim) {
   const std::string id = SubmitOk("simulate", "r");
   EXPECT_EQ(store_->Complete(id, "x", 0).code(), StatusCode::kFailedPrecondition);
   EXPECT_EQ(GetOk(id).state, JobState::kQueued);
 }
 
-TEST_F(JobStoreTest, FailRecordsTheErrorAndHasNoResult) {
+TEST_P(JobStoreTest, FailRecordsTheErrorAndHasNoResult) {
   const std::string id = SubmitOk("continue", "r");
   ASSERT_EQ(ClaimOk(), id);
   ASSERT_TRUE(store_->Fail(id, StatusCode::kInvalidArgument, "xi: must be > 0").ok());
@@ -152,7 +158,7 @@ TEST_F(JobStoreTest, FailRecordsTheErrorAndHasNoResult) {
   EXPECT_EQ(store_->GetResult(id).status().code(), StatusCode::kFailedPrecondition);
 }
 
-TEST_F(JobStoreTest, SameRequestIdReturnsTheSameJob) {
+TEST_P(JobStoreTest, SameRequestIdReturnsTheSameJob) {
   StatusOr<SubmitResult> first = store_->Submit({"simulate", "body", "k", "client-req-1"});
   ASSERT_TRUE(first.ok()) << first.status().ToString();
   EXPECT_FALSE(first->deduplicated);
@@ -178,7 +184,7 @@ TEST_F(JobStoreTest, SameRequestIdReturnsTheSameJob) {
   EXPECT_EQ(all->jobs.size(), 2u);
 }
 
-TEST_F(JobStoreTest, IdenticalRequestAfterSuccessIsACacheHitThatNeverRuns) {
+TEST_P(JobStoreTest, IdenticalRequestAfterSuccessIsACacheHitThatNeverRuns) {
   const std::string first = SubmitOk("simulate", "body", "cache-K");
   ASSERT_EQ(ClaimOk(), first);
   ASSERT_TRUE(store_->Complete(first, "the result", 3).ok());
@@ -204,7 +210,7 @@ TEST_F(JobStoreTest, IdenticalRequestAfterSuccessIsACacheHitThatNeverRuns) {
   EXPECT_FALSE(Must(store_->Submit({"simulate", "body", "", ""})).cache_hit);
 }
 
-TEST_F(JobStoreTest, IdenticalRequestWhileRunningSharesTheRun) {
+TEST_P(JobStoreTest, IdenticalRequestWhileRunningSharesTheRun) {
   const std::string a = SubmitOk("sweep", "body", "K");
   StatusOr<SubmitResult> b = store_->Submit({"sweep", "body", "K", ""});
   ASSERT_TRUE(b.ok());
@@ -242,7 +248,7 @@ TEST_F(JobStoreTest, IdenticalRequestWhileRunningSharesTheRun) {
   EXPECT_EQ(Must(store_->Stats()).cache_hits_total, 2);
 }
 
-TEST_F(JobStoreTest, FailureOfASharedRunFailsItsFollowersAndIsNotCached) {
+TEST_P(JobStoreTest, FailureOfASharedRunFailsItsFollowersAndIsNotCached) {
   const std::string a = SubmitOk("trace", "body", "K");
   const std::string b = SubmitOk("trace", "body", "K");
   ASSERT_EQ(ClaimOk(), a);
@@ -259,7 +265,7 @@ TEST_F(JobStoreTest, FailureOfASharedRunFailsItsFollowersAndIsNotCached) {
   EXPECT_EQ(ClaimOk(), c->id);
 }
 
-TEST_F(JobStoreTest, CancelQueuedJobAtOnce) {
+TEST_P(JobStoreTest, CancelQueuedJobAtOnce) {
   const std::string id = SubmitOk("simulate", "r");
   StatusOr<JobState> state = store_->Cancel(id);
   ASSERT_TRUE(state.ok()) << state.status().ToString();
@@ -272,7 +278,7 @@ TEST_F(JobStoreTest, CancelQueuedJobAtOnce) {
   EXPECT_EQ(Must(store_->Cancel(id)), JobState::kCancelled);
 }
 
-TEST_F(JobStoreTest, CancelRunningJobAsksItsWorker) {
+TEST_P(JobStoreTest, CancelRunningJobAsksItsWorker) {
   const std::string id = SubmitOk("sweep", "r");
   ASSERT_EQ(ClaimOk(), id);
   EXPECT_FALSE(Must(store_->IsCancelRequested(id)));
@@ -288,7 +294,7 @@ TEST_F(JobStoreTest, CancelRunningJobAsksItsWorker) {
   EXPECT_EQ(store_->MarkCancelled(id).code(), StatusCode::kFailedPrecondition);
 }
 
-TEST_F(JobStoreTest, CancelFinishedJobIsRefused) {
+TEST_P(JobStoreTest, CancelFinishedJobIsRefused) {
   const std::string id = SubmitOk("simulate", "r");
   ASSERT_EQ(ClaimOk(), id);
   ASSERT_TRUE(store_->Complete(id, "x", 0).ok());
@@ -296,7 +302,7 @@ TEST_F(JobStoreTest, CancelFinishedJobIsRefused) {
   EXPECT_EQ(GetOk(id).state, JobState::kSucceeded);
 }
 
-TEST_F(JobStoreTest, CancellingTheSharedRunHandsItToTheOldestFollower) {
+TEST_P(JobStoreTest, CancellingTheSharedRunHandsItToTheOldestFollower) {
   const std::string a = SubmitOk("sweep", "body", "K");
   const std::string b = SubmitOk("sweep", "body", "K");
   const std::string c = SubmitOk("sweep", "body", "K");
@@ -324,7 +330,7 @@ TEST_F(JobStoreTest, CancellingTheSharedRunHandsItToTheOldestFollower) {
   EXPECT_EQ(Must(store_->GetResult(d->id)), "R");
 }
 
-TEST_F(JobStoreTest, CancellingAFollowerLeavesTheSharedRunAlone) {
+TEST_P(JobStoreTest, CancellingAFollowerLeavesTheSharedRunAlone) {
   const std::string a = SubmitOk("sweep", "body", "K");
   const std::string b = SubmitOk("sweep", "body", "K");
   ASSERT_EQ(ClaimOk(), a);
@@ -335,7 +341,7 @@ TEST_F(JobStoreTest, CancellingAFollowerLeavesTheSharedRunAlone) {
   EXPECT_EQ(GetOk(a).state, JobState::kSucceeded);
 }
 
-TEST_F(JobStoreTest, CancellingAQueuedSharedRunPromotesTheFollower) {
+TEST_P(JobStoreTest, CancellingAQueuedSharedRunPromotesTheFollower) {
   const std::string a = SubmitOk("sweep", "body", "K");
   const std::string b = SubmitOk("sweep", "body", "K");
   EXPECT_EQ(Must(store_->Cancel(a)), JobState::kCancelled);
@@ -343,7 +349,7 @@ TEST_F(JobStoreTest, CancellingAQueuedSharedRunPromotesTheFollower) {
   EXPECT_EQ(ClaimOk(), b);
 }
 
-TEST_F(JobStoreTest, RequeueGivesTheJobBackWithoutCountingTheAttempt) {
+TEST_P(JobStoreTest, RequeueGivesTheJobBackWithoutCountingTheAttempt) {
   const std::string id = SubmitOk("sweep", "r");
   ASSERT_EQ(ClaimOk(), id);
   ASSERT_TRUE(store_->UpdateProgress(id, 0.5, std::nullopt, 3).ok());
@@ -361,7 +367,7 @@ TEST_F(JobStoreTest, RequeueGivesTheJobBackWithoutCountingTheAttempt) {
   EXPECT_EQ(GetOk(id).state, JobState::kCancelled);
 }
 
-TEST_F(JobStoreTest, DeleteOnlyFinishedJobs) {
+TEST_P(JobStoreTest, DeleteOnlyFinishedJobs) {
   const std::string queued = SubmitOk("simulate", "q");
   EXPECT_EQ(store_->Delete(queued).code(), StatusCode::kFailedPrecondition);
   const std::string running = ClaimOk();
@@ -380,7 +386,7 @@ TEST_F(JobStoreTest, DeleteOnlyFinishedJobs) {
   EXPECT_TRUE(store_->Delete(cancelled).ok());
 }
 
-TEST_F(JobStoreTest, ACachedResultLivesAsLongAsAJobHoldsIt) {
+TEST_P(JobStoreTest, ACachedResultLivesAsLongAsAJobHoldsIt) {
   const std::string a = SubmitOk("simulate", "body", "K");
   ASSERT_EQ(ClaimOk(), a);
   ASSERT_TRUE(store_->Complete(a, "R", 1).ok());
@@ -399,7 +405,7 @@ TEST_F(JobStoreTest, ACachedResultLivesAsLongAsAJobHoldsIt) {
   EXPECT_EQ(Must(store_->Stats()).cache_hits_total, 2);
 }
 
-TEST_F(JobStoreTest, DeletingARequestIdFreesIt) {
+TEST_P(JobStoreTest, DeletingARequestIdFreesIt) {
   const std::string a = SubmitOk("simulate", "one", "", "rid");
   ASSERT_TRUE(store_->Cancel(a).ok());
   ASSERT_TRUE(store_->Delete(a).ok());
@@ -429,7 +435,7 @@ std::vector<std::string> AllPages(JobStore& store, ListRequest request, int* pag
   return ids;
 }
 
-TEST_F(JobStoreTest, PaginationReturnsEveryJobOnceInSubmissionOrder) {
+TEST_P(JobStoreTest, PaginationReturnsEveryJobOnceInSubmissionOrder) {
   std::vector<std::string> submitted;
   for (int i = 0; i < 20; ++i) {
     submitted.push_back(
@@ -463,7 +469,7 @@ TEST_F(JobStoreTest, PaginationReturnsEveryJobOnceInSubmissionOrder) {
   EXPECT_EQ(AllPages(*store_, sweeps, &pages), expected_sweeps);
 }
 
-TEST_F(JobStoreTest, PaginationIsStableWhileJobsAreSubmittedAndDeleted) {
+TEST_P(JobStoreTest, PaginationIsStableWhileJobsAreSubmittedAndDeleted) {
   std::vector<std::string> submitted;
   for (int i = 0; i < 10; ++i) submitted.push_back(SubmitOk("simulate", std::to_string(i)));
   ListRequest request;
@@ -481,7 +487,7 @@ TEST_F(JobStoreTest, PaginationIsStableWhileJobsAreSubmittedAndDeleted) {
   EXPECT_EQ(rest, std::vector<std::string>(submitted.begin() + 3, submitted.end()));
 }
 
-TEST_F(JobStoreTest, ListLeavesOutRequestBytesUnlessAsked) {
+TEST_P(JobStoreTest, ListLeavesOutRequestBytesUnlessAsked) {
   SubmitOk("simulate", "big request");
   StatusOr<ListResult> plain = store_->List({});
   ASSERT_TRUE(plain.ok());
@@ -493,7 +499,7 @@ TEST_F(JobStoreTest, ListLeavesOutRequestBytesUnlessAsked) {
   EXPECT_EQ(Must(store_->List(with_request)).jobs.at(0).request, "big request");
 }
 
-TEST_F(JobStoreTest, ListRejectsBadPageArguments) {
+TEST_P(JobStoreTest, ListRejectsBadPageArguments) {
   ListRequest negative;
   negative.page_size = -1;
   EXPECT_EQ(store_->List(negative).status().code(), StatusCode::kInvalidArgument);
@@ -521,7 +527,7 @@ TEST_F(JobStoreTest, ListRejectsBadPageArguments) {
   EXPECT_TRUE(page->next_page_token.empty());
 }
 
-TEST_F(JobStoreTest, StatsCountJobsByState) {
+TEST_P(JobStoreTest, StatsCountJobsByState) {
   const std::string a = SubmitOk("simulate", "a", "Ka");
   SubmitOk("simulate", "a", "Ka");  // Shares a: queued, but not claimable.
   const std::string c = SubmitOk("simulate", "c");
@@ -539,14 +545,14 @@ TEST_F(JobStoreTest, StatsCountJobsByState) {
   EXPECT_EQ(stats->cache_hits_total, 0);
 }
 
-TEST_F(JobStoreTest, ClaimsInSubmissionOrder) {
+TEST_P(JobStoreTest, ClaimsInSubmissionOrder) {
   std::vector<std::string> ids;
   for (int i = 0; i < 5; ++i) ids.push_back(SubmitOk("simulate", std::to_string(i)));
   for (const std::string& id : ids) EXPECT_EQ(ClaimOk(), id);
   EXPECT_TRUE(NothingToClaim());
 }
 
-TEST_F(JobStoreTest, IdsAreRandom128BitHex) {
+TEST_P(JobStoreTest, IdsAreRandom128BitHex) {
   std::set<std::string> ids;
   for (int i = 0; i < 50; ++i) {
     const std::string id = SubmitOk("simulate", "same");
@@ -556,7 +562,7 @@ TEST_F(JobStoreTest, IdsAreRandom128BitHex) {
   EXPECT_EQ(ids.size(), 50u);
 }
 
-TEST_F(JobStoreTest, BadInputIsRejectedWithClearCodes) {
+TEST_P(JobStoreTest, BadInputIsRejectedWithClearCodes) {
   StatusOr<SubmitResult> no_kind = store_->Submit({"", "r", "", ""});
   EXPECT_EQ(no_kind.status().code(), StatusCode::kInvalidArgument);
   EXPECT_THAT(no_kind.status().message(), HasSubstr("kind"));
@@ -602,6 +608,61 @@ TEST(SqliteJobStoreOpenTest, RejectsBadOptionsAndPaths) {
   options.wal_size_limit_bytes = -1;
   EXPECT_EQ(SqliteJobStore::Open(::testing::TempDir() + "unused.db", options).status().code(),
             StatusCode::kInvalidArgument);
+}
+
+TEST(PostgresJobStoreOpenTest, RejectsBadOptionsUnreachableServersAndNewerSchemas) {
+  EXPECT_EQ(PostgresJobStore::Open("").status().code(), StatusCode::kInvalidArgument);
+  PostgresJobStoreOptions options;
+  options.max_attempts = 0;
+  EXPECT_EQ(PostgresJobStore::Open("postgresql:///jobs", options).status().code(),
+            StatusCode::kInvalidArgument);
+  // No server there: UNAVAILABLE, the password in neither the message nor the log.
+  options = PostgresJobStoreOptions();
+  options.password = "s3cret-pw";
+  std::string log;
+  options.log = [&](std::string_view line) { log += std::string(line) + "\n"; };
+  const Status unreachable =
+      PostgresJobStore::Open("postgresql://drillbif@/jobs?host=/nonexistent-dir-for-drillbif",
+                             options)
+          .status();
+  EXPECT_EQ(unreachable.code(), StatusCode::kUnavailable) << unreachable.ToString();
+  EXPECT_THAT(unreachable.message(), HasSubstr("unreachable"));
+  EXPECT_THAT(unreachable.message(), Not(HasSubstr("s3cret")));
+  EXPECT_THAT(log, HasSubstr("nonexistent-dir-for-drillbif"));
+  EXPECT_THAT(log, Not(HasSubstr("s3cret")));
+
+  // A database whose schema a newer build wrote is refused, and left as it was.
+  drillbif::testing::PostgresCluster cluster;
+  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
+  ASSERT_TRUE(PostgresJobStore::Open(cluster.Uri("jobs")).ok());
+  ASSERT_EQ(cluster.Query("jobs", "UPDATE drillbif_schema SET version = 99 RETURNING version"),
+            "99");
+  const Status newer = PostgresJobStore::Open(cluster.Uri("jobs")).status();
+  EXPECT_EQ(newer.code(), StatusCode::kFailedPrecondition);
+  EXPECT_THAT(newer.message(), HasSubstr("schema version 99 is newer"));
+  EXPECT_EQ(cluster.Query("jobs", "SELECT version FROM drillbif_schema"), "99");
+}
+
+TEST(PostgresJobStoreFaultTest, ALostServerIsUnavailableUntilAProbeFindsItBack) {
+  drillbif::testing::PostgresCluster cluster;
+  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
+  std::unique_ptr<JobStore> store = Must(PostgresJobStore::Open(cluster.Uri("jobs")));
+  ASSERT_NE(store, nullptr);
+  const std::string id = Must(store->Submit({"sweep", "r", "", ""})).id;
+  EXPECT_TRUE(store->Health().ok());
+
+  ASSERT_TRUE(cluster.Stop());
+  const StatusOr<JobRecord> lost = store->Get(id);
+  EXPECT_EQ(lost.status().code(), StatusCode::kUnavailable) << lost.status().ToString();
+  EXPECT_EQ(store->Health().code(), StatusCode::kUnavailable);
+  EXPECT_EQ(store->Probe().code(), StatusCode::kUnavailable);
+  EXPECT_EQ(store->Health().code(), StatusCode::kUnavailable);  // The fault stays.
+
+  ASSERT_TRUE(cluster.Restart());
+  EXPECT_TRUE(store->Probe().ok());
+  EXPECT_TRUE(store->Health().ok());
+  // The connection was opened again and the job is there.
+  EXPECT_EQ(Must(store->Get(id)).state, JobState::kQueued);
 }
 
 TEST(JobStateNameTest, NamesEveryState) {

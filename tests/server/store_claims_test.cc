@@ -1,7 +1,7 @@
 // Lanes, clients and fair claims in the job store: claims restricted to lanes, fairness across
 // clients (fewest RUNNING first, then the oldest job), and queue limits checked atomically in
 // Submit (per client and in total) that never refuse cache hits, followers or repeated
-// request_ids.
+// request_ids. Run on every store implementation (support/store_under_test.h).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -15,8 +15,7 @@
 #include <vector>
 
 #include "server/store/job_store.h"
-#include "server/store/sqlite_job_store.h"
-#include "support/temp_dir.h"
+#include "support/store_under_test.h"
 
 namespace drillbif::server {
 namespace {
@@ -38,19 +37,15 @@ SubmitRequest Request(const std::string& body, const std::string& client, int la
   return submit;
 }
 
-class StoreClaimsTest : public ::testing::Test {
+class StoreClaimsTest : public ::testing::TestWithParam<drillbif::testing::StoreKind> {
  protected:
   void SetUp() override {
-    ASSERT_FALSE(dir_.path().empty()) << "mkdtemp failed";
+    ASSERT_TRUE(under_test_.Create());
     store_ = Open();
     ASSERT_NE(store_, nullptr);
   }
 
-  std::unique_ptr<JobStore> Open() {
-    StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(dir_.path() + "/jobs.db");
-    EXPECT_TRUE(store.ok()) << store.status().ToString();
-    return store.ok() ? std::move(store).value() : nullptr;
-  }
+  std::unique_ptr<JobStore> Open() { return under_test_.Open(); }
 
   std::string SubmitOk(const SubmitRequest& request) { return Must(store_->Submit(request)).id; }
 
@@ -62,11 +57,15 @@ class StoreClaimsTest : public ::testing::Test {
     return job ? job->id : std::string();
   }
 
-  drillbif::testing::TempDir dir_{"drillbif_claims"};
+  drillbif::testing::StoreUnderTest under_test_{GetParam()};
   std::unique_ptr<JobStore> store_;
 };
 
-TEST_F(StoreClaimsTest, WorkersClaimOnlyTheirLanes) {
+INSTANTIATE_TEST_SUITE_P(Stores, StoreClaimsTest,
+                         ::testing::ValuesIn(drillbif::testing::kStoreKinds),
+                         drillbif::testing::StoreKindName);
+
+TEST_P(StoreClaimsTest, WorkersClaimOnlyTheirLanes) {
   const std::string short1 = SubmitOk(Request("s1", "alice", kLaneShort));
   const std::string long1 = SubmitOk(Request("l1", "alice", kLaneLong));
   const std::string short2 = SubmitOk(Request("s2", "alice", kLaneShort));
@@ -92,7 +91,7 @@ TEST_F(StoreClaimsTest, WorkersClaimOnlyTheirLanes) {
             StatusCode::kInvalidArgument);
 }
 
-TEST_F(StoreClaimsTest, ClaimsAreFairAcrossClients) {
+TEST_P(StoreClaimsTest, ClaimsAreFairAcrossClients) {
   // alice floods the queue first; bob and carol come later.
   std::map<std::string, std::string> name;  // id -> "a1", ...
   for (const char* tag : {"a1", "a2", "a3", "a4"}) name[SubmitOk(Request(tag, "alice"))] = tag;
@@ -106,7 +105,7 @@ TEST_F(StoreClaimsTest, ClaimsAreFairAcrossClients) {
   EXPECT_EQ(order, (std::vector<std::string>{"a1", "b1", "c1", "a2", "b2", "a3", "a4"}));
 }
 
-TEST_F(StoreClaimsTest, FinishedJobsNoLongerCountAgainstTheirClient) {
+TEST_P(StoreClaimsTest, FinishedJobsNoLongerCountAgainstTheirClient) {
   const std::string a1 = SubmitOk(Request("a1", "alice"));
   const std::string a2 = SubmitOk(Request("a2", "alice"));
   const std::string b1 = SubmitOk(Request("b1", "bob"));
@@ -119,7 +118,7 @@ TEST_F(StoreClaimsTest, FinishedJobsNoLongerCountAgainstTheirClient) {
   EXPECT_EQ(Claim(), a2);
 }
 
-TEST_F(StoreClaimsTest, FairnessCountsTheRunningJobsOfTheWorkersLanes) {
+TEST_P(StoreClaimsTest, FairnessCountsTheRunningJobsOfTheWorkersLanes) {
   // alice keeps the long lane busy; a short-lane worker still treats her as idle there.
   const std::string long1 = SubmitOk(Request("l1", "alice", kLaneLong));
   const std::string long2 = SubmitOk(Request("l2", "alice", kLaneLong));
@@ -131,7 +130,7 @@ TEST_F(StoreClaimsTest, FairnessCountsTheRunningJobsOfTheWorkersLanes) {
   EXPECT_EQ(Claim({kLaneShort}), bob_short);
 }
 
-TEST_F(StoreClaimsTest, AnonymousJobsAreOneClient) {
+TEST_P(StoreClaimsTest, AnonymousJobsAreOneClient) {
   const std::string anon1 = SubmitOk(Request("1", ""));
   const std::string anon2 = SubmitOk(Request("2", ""));
   const std::string named = SubmitOk(Request("3", "dave"));
@@ -140,7 +139,7 @@ TEST_F(StoreClaimsTest, AnonymousJobsAreOneClient) {
   EXPECT_EQ(Claim(), anon2);
 }
 
-TEST_F(StoreClaimsTest, PerClientLimitRefusesWithWhoHowManyAndTheLimit) {
+TEST_P(StoreClaimsTest, PerClientLimitRefusesWithWhoHowManyAndTheLimit) {
   SubmitRequest request = Request("x", "alice");
   request.max_queued_per_client = 2;
   ASSERT_TRUE(store_->Submit(request).ok());
@@ -163,7 +162,7 @@ TEST_F(StoreClaimsTest, PerClientLimitRefusesWithWhoHowManyAndTheLimit) {
             "anonymous clients have 1 jobs waiting (limit 1); retry later");
 }
 
-TEST_F(StoreClaimsTest, TotalLimitCountsEveryClientsWaitingJobs) {
+TEST_P(StoreClaimsTest, TotalLimitCountsEveryClientsWaitingJobs) {
   for (const char* client : {"a", "b", "c"}) ASSERT_TRUE(store_->Submit(Request("x", client)).ok());
   SubmitRequest request = Request("x", "d");
   request.max_queued = 3;
@@ -177,7 +176,7 @@ TEST_F(StoreClaimsTest, TotalLimitCountsEveryClientsWaitingJobs) {
       << "no limit given: none applies";
 }
 
-TEST_F(StoreClaimsTest, CacheHitsFollowersAndRepeatedRequestIdsAreNeverRefused) {
+TEST_P(StoreClaimsTest, CacheHitsFollowersAndRepeatedRequestIdsAreNeverRefused) {
   // A finished result for key "done", a queued job for key "waiting" with a request_id.
   SubmitRequest done = Request("done", "alice");
   done.cache_key = "done";
@@ -214,7 +213,7 @@ TEST_F(StoreClaimsTest, CacheHitsFollowersAndRepeatedRequestIdsAreNeverRefused) 
 // Eight threads on two store objects (two SQLite connections) submit 20 jobs each for one
 // client with a limit of 10: exactly 10 are accepted, because the count and the insert are one
 // transaction (a check outside it would let several threads see 9 and all insert).
-TEST_F(StoreClaimsTest, LimitsHoldUnderConcurrentSubmits) {
+TEST_P(StoreClaimsTest, LimitsHoldUnderConcurrentSubmits) {
   std::unique_ptr<JobStore> second = Open();
   ASSERT_NE(second, nullptr);
   constexpr int kThreads = 8;
@@ -250,7 +249,7 @@ TEST_F(StoreClaimsTest, LimitsHoldUnderConcurrentSubmits) {
   EXPECT_EQ(Must(store_->Stats()).queue_depth, kLimit);
 }
 
-TEST_F(StoreClaimsTest, StatsCountTheQueuePerLane) {
+TEST_P(StoreClaimsTest, StatsCountTheQueuePerLane) {
   SubmitOk(Request("s1", "a", kLaneShort));
   SubmitOk(Request("s2", "a", kLaneShort));
   SubmitOk(Request("l1", "a", kLaneLong));
@@ -265,7 +264,7 @@ TEST_F(StoreClaimsTest, StatsCountTheQueuePerLane) {
   EXPECT_GT(stats.used_bytes, 0);
 }
 
-TEST_F(StoreClaimsTest, BadClientsAndLimitsAreRejected) {
+TEST_P(StoreClaimsTest, BadClientsAndLimitsAreRejected) {
   SubmitRequest request = Request("x", std::string(kMaxClientBytes + 1, 'c'));
   StatusOr<SubmitResult> long_client = store_->Submit(request);
   EXPECT_EQ(long_client.status().code(), StatusCode::kInvalidArgument);

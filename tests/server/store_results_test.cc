@@ -1,10 +1,10 @@
 // Streamed results in the job store: chunks appended during a run, fenced by run and state,
 // contiguous and in order, dropped when a run does not complete, shared by cache hits and
 // followers, and read back in pages (ReadResultChunks) or whole (GetResult). Chunk rows are also
-// counted behind the store's back, through a separate SQLite connection.
+// counted behind the store's back, through a separate connection. Run on every store
+// implementation (support/store_under_test.h).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <sqlite3.h>
 
 #include <cstdint>
 #include <limits>
@@ -14,8 +14,7 @@
 #include <vector>
 
 #include "server/store/job_store.h"
-#include "server/store/sqlite_job_store.h"
-#include "support/temp_dir.h"
+#include "support/store_under_test.h"
 
 namespace drillbif::server {
 namespace {
@@ -28,23 +27,6 @@ T Must(StatusOr<T> result) {
   return result.ok() ? std::move(result).value() : T{};
 }
 
-// The first column of the first row of `sql`, run on the file through its own connection.
-int64_t SqlInt(const std::string& path, const std::string& sql) {
-  sqlite3* db = nullptr;
-  int64_t value = -1;
-  if (sqlite3_open(path.c_str(), &db) == SQLITE_OK) {
-    sqlite3_stmt* statement = nullptr;
-    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &statement, nullptr) == SQLITE_OK &&
-        sqlite3_step(statement) == SQLITE_ROW) {
-      value = sqlite3_column_int64(statement, 0);
-    }
-    sqlite3_finalize(statement);
-  }
-  EXPECT_EQ(sqlite3_errcode(db), SQLITE_OK) << sql << ": " << sqlite3_errmsg(db);
-  sqlite3_close(db);
-  return value;
-}
-
 // A chunk as the test expects it back.
 struct Expected {
   int64_t first_item;
@@ -52,21 +34,15 @@ struct Expected {
   std::string bytes;
 };
 
-class StoreResultsTest : public ::testing::Test {
+class StoreResultsTest : public ::testing::TestWithParam<drillbif::testing::StoreKind> {
  protected:
   void SetUp() override {
-    ASSERT_FALSE(dir_.path().empty()) << "mkdtemp failed";
+    ASSERT_TRUE(under_test_.Create());
     store_ = Open();
     ASSERT_NE(store_, nullptr);
   }
 
-  std::unique_ptr<JobStore> Open() {
-    StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(path());
-    EXPECT_TRUE(store.ok()) << store.status().ToString();
-    return store.ok() ? std::move(store).value() : nullptr;
-  }
-
-  std::string path() const { return dir_.path() + "/jobs.db"; }
+  std::unique_ptr<JobStore> Open() { return under_test_.Open(); }
 
   std::string SubmitOk(const std::string& request, const std::string& cache_key = "") {
     SubmitRequest submit;
@@ -93,11 +69,15 @@ class StoreResultsTest : public ::testing::Test {
   }
 
   // Chunk rows in the file (all runs).
-  int64_t ChunkRows() { return SqlInt(path(), "SELECT COUNT(*) FROM result_chunks"); }
+  int64_t ChunkRows() { return under_test_.SqlInt("SELECT COUNT(*) FROM result_chunks"); }
 
-  drillbif::testing::TempDir dir_{"drillbif_results"};
+  drillbif::testing::StoreUnderTest under_test_{GetParam()};
   std::unique_ptr<JobStore> store_;
 };
+
+INSTANTIATE_TEST_SUITE_P(Stores, StoreResultsTest,
+                         ::testing::ValuesIn(drillbif::testing::kStoreKinds),
+                         drillbif::testing::StoreKindName);
 
 void ExpectChunks(const std::vector<ResultChunk>& got, const std::vector<Expected>& want) {
   ASSERT_EQ(got.size(), want.size());
@@ -115,7 +95,7 @@ const std::vector<Expected> kThreeChunks = {
     {5, 1, std::string("\x0a\x02p5", 4)},
 };
 
-TEST_F(StoreResultsTest, AppendedChunksBecomeTheResultAtCompletion) {
+TEST_P(StoreResultsTest, AppendedChunksBecomeTheResultAtCompletion) {
   const std::string id = SubmitOk("r");
   const JobRecord job = ClaimOk();
   ASSERT_EQ(job.id, id);
@@ -139,7 +119,7 @@ TEST_F(StoreResultsTest, AppendedChunksBecomeTheResultAtCompletion) {
             "SUMMARY" + kThreeChunks[0].bytes + kThreeChunks[1].bytes + kThreeChunks[2].bytes);
 }
 
-TEST_F(StoreResultsTest, ACompletionWithoutChunksIsAllSummary) {
+TEST_P(StoreResultsTest, ACompletionWithoutChunksIsAllSummary) {
   const std::string id = SubmitOk("r");
   ASSERT_TRUE(store_->Complete(ClaimOk().id, "whole", 2).ok());
   const ResultInfo info = Must(store_->GetResultInfo(id));
@@ -149,7 +129,7 @@ TEST_F(StoreResultsTest, ACompletionWithoutChunksIsAllSummary) {
   EXPECT_EQ(Must(store_->GetResult(id)), "whole");
 }
 
-TEST_F(StoreResultsTest, ChunksMustBeContiguousAndInOrder) {
+TEST_P(StoreResultsTest, ChunksMustBeContiguousAndInOrder) {
   const std::string id = SubmitOk("r");
   const int64_t run = ClaimOk().run;
   ASSERT_TRUE(store_->AppendResultChunk(id, run, 0, 0, 2, "ab").ok());
@@ -187,7 +167,7 @@ TEST_F(StoreResultsTest, ChunksMustBeContiguousAndInOrder) {
   EXPECT_EQ(Must(store_->GetResult(id)), "abcyz");
 }
 
-TEST_F(StoreResultsTest, AppendAndFinishAreFencedByStateAndRun) {
+TEST_P(StoreResultsTest, AppendAndFinishAreFencedByStateAndRun) {
   const std::string id = SubmitOk("r", "K");
   const std::string follower = SubmitOk("r", "K");
   EXPECT_EQ(store_->AppendResultChunk(id, 1, 0, 0, 1, "x").code(), StatusCode::kFailedPrecondition)
@@ -234,7 +214,7 @@ TEST_F(StoreResultsTest, AppendAndFinishAreFencedByStateAndRun) {
   EXPECT_EQ(ChunkRows(), 1);
 }
 
-TEST_F(StoreResultsTest, RunsThatDoNotCompleteLeaveNoChunks) {
+TEST_P(StoreResultsTest, RunsThatDoNotCompleteLeaveNoChunks) {
   // Requeue: the next run starts over.
   const std::string requeued = SubmitOk("a");
   int64_t run = ClaimOk().run;
@@ -279,7 +259,7 @@ TEST_F(StoreResultsTest, RunsThatDoNotCompleteLeaveNoChunks) {
   EXPECT_EQ(Must(store_->GetResult(requeued)), "Sx");  // The completed result stays.
 }
 
-TEST_F(StoreResultsTest, CacheHitsAndFollowersReadTheSharedChunksUntilTheLastHolderIsDeleted) {
+TEST_P(StoreResultsTest, CacheHitsAndFollowersReadTheSharedChunksUntilTheLastHolderIsDeleted) {
   const std::string runner = SubmitOk("same", "K");
   const std::string follower = SubmitOk("same", "K");
   const int64_t run = ClaimOk().run;
@@ -302,10 +282,10 @@ TEST_F(StoreResultsTest, CacheHitsAndFollowersReadTheSharedChunksUntilTheLastHol
   EXPECT_EQ(ChunkRows(), 3);
   ASSERT_TRUE(store_->Delete(hit->id).ok());  // The last holder: result and chunks go.
   EXPECT_EQ(ChunkRows(), 0);
-  EXPECT_EQ(SqlInt(path(), "SELECT COUNT(*) FROM results"), 0);
+  EXPECT_EQ(under_test_.SqlInt("SELECT COUNT(*) FROM results"), 0);
 }
 
-TEST_F(StoreResultsTest, ADoubleCompletionKeepsTheFirstResultAndDropsTheSecondRunsChunks) {
+TEST_P(StoreResultsTest, ADoubleCompletionKeepsTheFirstResultAndDropsTheSecondRunsChunks) {
   // The first job's cancel is requested, so the identical second one does not follow it and
   // runs too; the first completes anyway (its worker finished before seeing the cancel).
   const std::string first = SubmitOk("same", "K");
@@ -325,7 +305,7 @@ TEST_F(StoreResultsTest, ADoubleCompletionKeepsTheFirstResultAndDropsTheSecondRu
   EXPECT_EQ(ChunkRows(), 1);
 }
 
-TEST_F(StoreResultsTest, ReadResultChunksStopsAtTheByteBudgetAndStartsInsideAChunk) {
+TEST_P(StoreResultsTest, ReadResultChunksStopsAtTheByteBudgetAndStartsInsideAChunk) {
   const std::vector<Expected> chunks = {
       {0, 3, std::string(100, 'a')},
       {3, 2, std::string(50, 'b')},
