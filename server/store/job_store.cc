@@ -38,6 +38,7 @@ Status ClaimOptions::Validate() const {
                              " is not a lane (0 = short, 1 = long)");
     }
   }
+  if (lease_ms < 0) return InvalidArgument("lease_ms: must be >= 0 (0 = no lease)");
   return Status::Ok();
 }
 

@@ -137,6 +137,10 @@ struct JobRecord {
   // finishing calls, so that a call from a stale run (the job was requeued and claimed again)
   // is refused. 0 before the first claim.
   int64_t run = 0;
+  // While RUNNING with a lease (ClaimOptions::lease_ms): when the lease of the current run
+  // expires unless its worker renews it (RenewLease), Unix ms. 0: no lease (the claim holds
+  // until the run finishes or RecoverAfterRestart). Meaningless in other states.
+  int64_t lease_expires_ms = 0;
 };
 
 // What to submit.
@@ -168,8 +172,12 @@ struct SubmitRequest {
 struct ClaimOptions {
   // Lanes the worker takes (kLaneShort, kLaneLong); empty = any lane.
   std::vector<int> lanes;
+  // The claim is a lease of this many milliseconds, renewed by the worker's heartbeat
+  // (RenewLease); once it expires any process may take the job back (ReclaimExpiredLeases).
+  // 0: no lease, for a store that one process uses (its restart recovers every RUNNING job).
+  int64_t lease_ms = 0;
 
-  // INVALID_ARGUMENT naming the lane when one is out of range.
+  // INVALID_ARGUMENT naming the field when a lane is out of range or lease_ms is negative.
   Status Validate() const;
 };
 
@@ -275,7 +283,8 @@ struct EvictionReport {
   bool size_limit_met = true;
 };
 
-// What RecoverAfterRestart did, counting the jobs that ran (not the jobs sharing them).
+// What RecoverAfterRestart or ReclaimExpiredLeases did, counting the jobs that ran (not the jobs
+// sharing them).
 struct RecoveryReport {
   int requeued = 0;   // RUNNING -> QUEUED: they will run again.
   int cancelled = 0;  // RUNNING with cancel requested -> CANCELLED.
@@ -425,6 +434,20 @@ class JobStore {
   // loop forever. QUEUED jobs stay queued. Jobs that share another are counted with it, not
   // separately.
   virtual StatusOr<RecoveryReport> RecoverAfterRestart() = 0;
+
+  // The heartbeat of a leased run: the lease of run `run` of RUNNING job `id` now expires at
+  // now + lease_ms. INVALID_ARGUMENT for lease_ms < 1, NOT_FOUND for an unknown id,
+  // FAILED_PRECONDITION when the job is not RUNNING or `run` is stale: the lease expired and
+  // the job was taken back (and maybe claimed again), so the worker has lost it and must stop
+  // it; its Complete, Fail and appends are refused the same way.
+  virtual Status RenewLease(std::string_view id, int64_t run, int64_t lease_ms) = 0;
+
+  // Takes back the RUNNING jobs whose lease expired before now_ms (their worker stopped renewing
+  // it: it crashed, was stopped or lost the store), as RecoverAfterRestart does for every
+  // RUNNING job: back to QUEUED with the attempt counted, CANCELLED when a cancel was asked,
+  // FAILED (INTERNAL) after max_attempts claims. Jobs without a lease are left alone. Any
+  // process sharing the store may call it, any number of times.
+  virtual StatusOr<RecoveryReport> ReclaimExpiredLeases(int64_t now_ms) = 0;
 
   // Counts for metrics.
   virtual StatusOr<StoreStats> Stats() = 0;

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "drillbif/common/checked.h"
 #include "server/store/postgres_store_impl.h"
 #include "server/store/store_checks.h"
 
@@ -49,7 +50,8 @@ CREATE TABLE jobs (
   lane INTEGER NOT NULL DEFAULT 0 CHECK (lane >= 0),
   run BIGINT NOT NULL DEFAULT 0,
   streamed_items BIGINT NOT NULL DEFAULT 0,
-  streamed_bytes BIGINT NOT NULL DEFAULT 0
+  streamed_bytes BIGINT NOT NULL DEFAULT 0,
+  lease_expires_ms BIGINT NOT NULL DEFAULT 0
 );
 CREATE INDEX jobs_by_state ON jobs(state, seq);
 CREATE INDEX jobs_by_cache_key ON jobs(cache_key, seq) WHERE cache_key <> '';
@@ -58,6 +60,7 @@ CREATE INDEX jobs_by_result_key ON jobs(result_key);
 CREATE INDEX jobs_claimable ON jobs(client, lane, seq) WHERE state = 0 AND shares IS NULL;
 CREATE INDEX jobs_running ON jobs(client, lane) WHERE state = 1 AND shares IS NULL;
 CREATE INDEX jobs_finished ON jobs(finished_ms, seq) WHERE state IN (2, 3, 4);
+CREATE INDEX jobs_leased ON jobs(lease_expires_ms) WHERE state = 1 AND lease_expires_ms > 0;
 CREATE TABLE results (
   result_key TEXT PRIMARY KEY,
   data BYTEA NOT NULL,
@@ -86,7 +89,7 @@ INSERT INTO counters(name, value) VALUES ('cache_hits', 0), ('probes', 0);
 constexpr const char* kJobColumns =
     "seq, id, kind, state, %s, cache_key, request_id, shares, progress, current_value, points, "
     "error_code, error_message, created_ms, started_ms, finished_ms, cache_hit, attempts, "
-    "cancel_requested, worker_id, client, lane, run";
+    "cancel_requested, worker_id, client, lane, run, lease_expires_ms";
 
 std::string SelectJobs(const char* request_expression, const char* rest) {
   char columns[512];
@@ -121,6 +124,7 @@ JobRecord ReadJob(const pqxx::row& r) {
   job.client = r[20].as<std::string>();
   job.lane = r[21].as<int>();
   job.run = r[22].as<int64_t>();
+  job.lease_expires_ms = r[23].as<int64_t>();
   return job;
 }
 
@@ -412,11 +416,14 @@ StatusOr<std::optional<JobRecord>> PostgresStoreImpl::ClaimNext(std::string_view
         if (r.empty()) return std::optional<JobRecord>();
         const std::string id = r[0][0].as<std::string>();
         const int64_t now = NowMs();
+        // A lease that ends beyond the clock's range never expires.
+        const int64_t lease_expires =
+            options.lease_ms == 0 ? 0 : CheckedAdd(now, options.lease_ms).value_or(INT64_MAX);
         tx.exec_params(
             "UPDATE jobs SET state = 1, started_ms = $2, attempts = attempts + 1, run = run + 1, "
-            "worker_id = $3, progress = 0, current_value = NULL, points = 0 "
-            "WHERE id = $1 AND state = 0",
-            id, now, std::string(worker_id));
+            "worker_id = $3, progress = 0, current_value = NULL, points = 0, "
+            "lease_expires_ms = $4 WHERE id = $1 AND state = 0",
+            id, now, std::string(worker_id), lease_expires);
         // A new run starts from nothing (there is nothing to drop unless a bug left chunks).
         DRILLBIF_RETURN_IF_ERROR(DropRunChunks(tx, id));
         tx.exec_params("UPDATE jobs SET state = 1, started_ms = $2 WHERE shares = $1 AND state = 0",
@@ -537,28 +544,50 @@ StatusOr<ListResult> PostgresStoreImpl::List(const ListRequest& request) {
   });
 }
 
+StatusOr<RecoveryReport> PostgresStoreImpl::TakeBack(TakenBack why, int64_t now_ms) {
+  return Write<RecoveryReport>(
+      "take back interrupted jobs", [&](Tx& tx) -> StatusOr<RecoveryReport> {
+        const pqxx::result r = tx.exec_params(
+            "SELECT id, attempts, cancel_requested FROM jobs WHERE state = 1 AND shares IS NULL "
+            "AND ($1 OR (lease_expires_ms > 0 AND lease_expires_ms < $2)) ORDER BY seq",
+            why == TakenBack::kRestart, now_ms);
+        RecoveryReport report;
+        for (const pqxx::row& job : r) {
+          const std::string id = job[0].as<std::string>();
+          const int attempts = job[1].as<int>();
+          if (job[2].as<bool>()) {
+            DRILLBIF_RETURN_IF_ERROR(CancelRunning(tx, id));
+            ++report.cancelled;
+          } else if (attempts >= options_.max_attempts) {
+            DRILLBIF_RETURN_IF_ERROR(
+                FailWithFollowers(tx, id, StatusCode::kInternal,
+                                  TooManyAttempts(why, attempts, options_.max_attempts)));
+            ++report.failed;
+          } else {
+            DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(tx, id, /*count_attempt=*/true));
+            ++report.requeued;
+          }
+        }
+        return report;
+      });
+}
+
 StatusOr<RecoveryReport> PostgresStoreImpl::RecoverAfterRestart() {
-  return Write<RecoveryReport>("recover interrupted jobs", [&](Tx& tx) -> StatusOr<RecoveryReport> {
-    const pqxx::result r = tx.exec(
-        "SELECT id, attempts, cancel_requested FROM jobs WHERE state = 1 AND shares IS NULL "
-        "ORDER BY seq");
-    RecoveryReport report;
-    for (const pqxx::row& job : r) {
-      const std::string id = job[0].as<std::string>();
-      const int attempts = job[1].as<int>();
-      if (job[2].as<bool>()) {
-        DRILLBIF_RETURN_IF_ERROR(CancelRunning(tx, id));
-        ++report.cancelled;
-      } else if (attempts >= options_.max_attempts) {
-        DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(
-            tx, id, StatusCode::kInternal, TooManyAttempts(attempts, options_.max_attempts)));
-        ++report.failed;
-      } else {
-        DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(tx, id, /*count_attempt=*/true));
-        ++report.requeued;
-      }
-    }
-    return report;
+  return TakeBack(TakenBack::kRestart, 0);
+}
+
+StatusOr<RecoveryReport> PostgresStoreImpl::ReclaimExpiredLeases(int64_t now_ms) {
+  return TakeBack(TakenBack::kLeaseExpired, now_ms);
+}
+
+Status PostgresStoreImpl::RenewLease(std::string_view id, int64_t run, int64_t lease_ms) {
+  if (lease_ms < 1) return InvalidArgument("lease_ms: must be >= 1");
+  return WriteStatus("renew a lease", [&](Tx& tx) -> Status {
+    DRILLBIF_RETURN_IF_ERROR(RunningHead(tx, id, "renew the lease of", run).status());
+    const std::optional<int64_t> expires = CheckedAdd(NowMs(), lease_ms);
+    if (!expires) return InvalidArgument("lease_ms: now + lease_ms beyond 2^63 - 1");
+    return UpdateRunning(tx, "UPDATE jobs SET lease_expires_ms = $2 WHERE id = $1 AND state = 1",
+                         id, *expires);
   });
 }
 

@@ -60,6 +60,8 @@ class PostgresStoreImpl final : public JobStore {
                                                       int64_t first_item,
                                                       int64_t max_bytes) override;
   StatusOr<RecoveryReport> RecoverAfterRestart() override;
+  Status RenewLease(std::string_view id, int64_t run, int64_t lease_ms) override;
+  StatusOr<RecoveryReport> ReclaimExpiredLeases(int64_t now_ms) override;
   StatusOr<StoreStats> Stats() override;
   Status Health() override;
   Status Probe() override;
@@ -108,6 +110,7 @@ class PostgresStoreImpl final : public JobStore {
   Status RequeueWithFollowers(Tx& tx, std::string_view id, bool count_attempt);
   Status FailWithFollowers(Tx& tx, std::string_view id, StatusCode code, std::string_view message);
   Status CancelRunning(Tx& tx, std::string_view id);
+  StatusOr<RecoveryReport> TakeBack(TakenBack why, int64_t now_ms);
   Status CheckQueueLimits(Tx& tx, const SubmitRequest& request);
   Status DropRunChunks(Tx& tx, std::string_view id);
   StatusOr<bool> DeleteJobAndOrphanResult(Tx& tx, std::string_view id,

@@ -120,6 +120,12 @@ CREATE TABLE result_chunks (
 CREATE UNIQUE INDEX result_chunks_by_run ON result_chunks(run_id, stream, first_item);
 INSERT INTO counters(name, value) VALUES ('probes', 0);
 )sql",
+    // 2 -> 3: leases. jobs.lease_expires_ms: when the current run's lease expires (0: no lease);
+    // the index finds the expired ones among the running jobs.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN lease_expires_ms INTEGER NOT NULL DEFAULT 0;
+CREATE INDEX jobs_leased ON jobs(lease_expires_ms) WHERE state = 1 AND lease_expires_ms > 0;
+)sql",
 };
 static_assert(std::size(kMigrations) == SqliteJobStore::kSchemaVersion,
               "one migration per schema version");
@@ -128,7 +134,7 @@ static_assert(std::size(kMigrations) == SqliteJobStore::kSchemaVersion,
 constexpr const char* kJobColumns =
     "seq, id, kind, state, %s, cache_key, request_id, shares, progress, current_value, points, "
     "error_code, error_message, created_ms, started_ms, finished_ms, cache_hit, attempts, "
-    "cancel_requested, worker_id, client, lane, run";
+    "cancel_requested, worker_id, client, lane, run, lease_expires_ms";
 
 std::string SelectJobs(const char* request_expression, const char* rest) {
   char columns[512];
@@ -160,6 +166,7 @@ JobRecord ReadJob(const Query& q) {
   job.client = q.Text(20);
   job.lane = static_cast<int>(q.Int(21));
   job.run = q.Int(22);
+  job.lease_expires_ms = q.Int(23);
   return job;
 }
 
@@ -540,13 +547,18 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
     id = q.Text(0);
   }
   const int64_t now = NowMs();
+  // CheckedAdd: a lease of up to 2^63 - 1 ms is valid input; one that ends beyond the clock's
+  // range never expires.
+  const int64_t lease_expires =
+      options.lease_ms == 0 ? 0 : CheckedAdd(now, options.lease_ms).value_or(INT64_MAX);
   {
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
         connection_.Prepare("UPDATE jobs SET state = 1, started_ms = ?2, attempts = attempts + 1, "
                             "run = run + 1, worker_id = ?3, progress = 0, current_value = NULL, "
-                            "points = 0 WHERE id = ?1 AND state = 0"));
-    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, now).Bind(3, worker_id).Run());
+                            "points = 0, lease_expires_ms = ?4 WHERE id = ?1 AND state = 0"));
+    DRILLBIF_RETURN_IF_ERROR(
+        q.Bind(1, id).Bind(2, now).Bind(3, worker_id).Bind(4, lease_expires).Run());
   }
   // A new run starts from nothing (there is nothing to drop unless a bug left chunks behind).
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
@@ -711,7 +723,7 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   return result;
 }
 
-StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
+StatusOr<RecoveryReport> SqliteStoreImpl::TakeBack(TakenBack why, int64_t now_ms) {
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   struct Interrupted {
@@ -723,7 +735,10 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
   {
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("SELECT id, attempts, cancel_requested FROM jobs "
-                                     "WHERE state = 1 AND shares IS NULL ORDER BY seq"));
+                                     "WHERE state = 1 AND shares IS NULL AND "
+                                     "(?1 OR (lease_expires_ms > 0 AND lease_expires_ms < ?2)) "
+                                     "ORDER BY seq"));
+    q.Bind(1, why == TakenBack::kRestart ? 1 : 0).Bind(2, now_ms);
     for (;;) {
       DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
       if (!row) break;
@@ -736,8 +751,9 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
       DRILLBIF_RETURN_IF_ERROR(CancelRunning(job.id));
       ++report.cancelled;
     } else if (job.attempts >= options_.max_attempts) {
-      DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(
-          job.id, StatusCode::kInternal, TooManyAttempts(job.attempts, options_.max_attempts)));
+      DRILLBIF_RETURN_IF_ERROR(
+          FailWithFollowers(job.id, StatusCode::kInternal,
+                            TooManyAttempts(why, job.attempts, options_.max_attempts)));
       ++report.failed;
     } else {
       DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(job.id, /*count_attempt=*/true));
@@ -746,6 +762,27 @@ StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
   }
   DRILLBIF_RETURN_IF_ERROR(tx.Commit());
   return report;
+}
+
+StatusOr<RecoveryReport> SqliteStoreImpl::RecoverAfterRestart() {
+  return TakeBack(TakenBack::kRestart, 0);
+}
+
+StatusOr<RecoveryReport> SqliteStoreImpl::ReclaimExpiredLeases(int64_t now_ms) {
+  return TakeBack(TakenBack::kLeaseExpired, now_ms);
+}
+
+Status SqliteStoreImpl::RenewLease(std::string_view id, int64_t run, int64_t lease_ms) {
+  if (lease_ms < 1) return InvalidArgument("lease_ms: must be >= 1");
+  std::lock_guard<std::mutex> lock(mu_);
+  DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
+  DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "renew the lease of", run).status());
+  const std::optional<int64_t> expires = CheckedAdd(NowMs(), lease_ms);
+  if (!expires) return InvalidArgument("lease_ms: now + lease_ms beyond 2^63 - 1");
+  DRILLBIF_RETURN_IF_ERROR(
+      UpdateRunning("UPDATE jobs SET lease_expires_ms = ?2 WHERE id = ?1 AND state = 1", id,
+                    [&](Query& q) { q.Bind(2, *expires); }));
+  return tx.Commit();
 }
 
 StatusOr<StoreStats> SqliteStoreImpl::Stats() {

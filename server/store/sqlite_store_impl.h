@@ -66,6 +66,8 @@ class SqliteStoreImpl final : public JobStore {
                                                       int64_t first_item,
                                                       int64_t max_bytes) override;
   StatusOr<RecoveryReport> RecoverAfterRestart() override;
+  Status RenewLease(std::string_view id, int64_t run, int64_t lease_ms) override;
+  StatusOr<RecoveryReport> ReclaimExpiredLeases(int64_t now_ms) override;
   StatusOr<StoreStats> Stats() override;
   Status Health() override;
   Status Probe() override;
@@ -93,6 +95,9 @@ class SqliteStoreImpl final : public JobStore {
   Status RequeueWithFollowers(std::string_view id, bool count_attempt);
   Status FailWithFollowers(std::string_view id, StatusCode code, std::string_view message);
   Status CancelRunning(std::string_view id);
+  // RecoverAfterRestart (every RUNNING job) and ReclaimExpiredLeases (those whose lease expired
+  // before now_ms).
+  StatusOr<RecoveryReport> TakeBack(TakenBack why, int64_t now_ms);
   // RESOURCE_EXHAUSTED when a new QUEUED job would exceed the request's queue limits.
   Status CheckQueueLimits(const SubmitRequest& request);
   // Deletes the chunks appended by the current run of `id` (a run that will not complete).

@@ -136,9 +136,12 @@ Status AlreadyFinished(std::string_view id, JobState state) {
                             JobStateName(state) + ")");
 }
 
-std::string TooManyAttempts(int attempts, int max_attempts) {
-  return "the server stopped while this job ran, " + std::to_string(attempts) +
-         " times; not retried (max_attempts " + std::to_string(max_attempts) + ")";
+std::string TooManyAttempts(TakenBack why, int attempts, int max_attempts) {
+  const char* what = why == TakenBack::kRestart
+                         ? "the server stopped while this job ran, "
+                         : "the worker running this job stopped renewing its lease, ";
+  return what + std::to_string(attempts) + " times; not retried (max_attempts " +
+         std::to_string(max_attempts) + ")";
 }
 
 std::string PageToken(int64_t seq) {

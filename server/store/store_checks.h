@@ -75,8 +75,12 @@ Status NotFinished(std::string_view id, JobState state);
 // FAILED_PRECONDITION for Cancel of a job that finished with a result or an error.
 Status AlreadyFinished(std::string_view id, JobState state);
 
-// The message of a job failed by RecoverAfterRestart after too many claims.
-std::string TooManyAttempts(int attempts, int max_attempts);
+// Why a RUNNING job is taken back: its process ended (RecoverAfterRestart) or its lease expired
+// (ReclaimExpiredLeases).
+enum class TakenBack { kRestart, kLeaseExpired };
+
+// The message of a job failed when taken back after too many claims.
+std::string TooManyAttempts(TakenBack why, int attempts, int max_attempts);
 
 // Page tokens are "p" + the hex seq of the last job returned: opaque to clients, checked on use.
 std::string PageToken(int64_t seq);

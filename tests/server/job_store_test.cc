@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -39,6 +40,13 @@ T Must(StatusOr<T> result) {
 
 using drillbif::testing::StoreKind;
 using drillbif::testing::StoreUnderTest;
+
+// Unix time in ms, as the stores read it.
+int64_t NowForTest() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
 
 class JobStoreTest : public ::testing::TestWithParam<StoreKind> {
  protected:
@@ -365,6 +373,107 @@ TEST_P(JobStoreTest, RequeueGivesTheJobBackWithoutCountingTheAttempt) {
   ASSERT_EQ(Must(store_->Cancel(id)), JobState::kRunning);
   ASSERT_TRUE(store_->Requeue(id).ok());
   EXPECT_EQ(GetOk(id).state, JobState::kCancelled);
+}
+
+// Claims `id` with a lease of `lease_ms` and returns the record (failing the test if another job
+// or none came).
+JobRecord ClaimLeased(JobStore& store, const std::string& id, int64_t lease_ms,
+                      const std::string& worker = "w") {
+  ClaimOptions options;
+  options.lease_ms = lease_ms;
+  std::optional<JobRecord> job = Must(store.ClaimNext(worker, options));
+  EXPECT_TRUE(job.has_value() && job->id == id);
+  return job.value_or(JobRecord());
+}
+
+TEST_P(JobStoreTest, AnExpiredLeaseIsTakenBackAndItsWorkerCanNoLongerFinish) {
+  const std::string id = SubmitOk("trace", "r");
+  const int64_t before = NowForTest();
+  const JobRecord first = ClaimLeased(*store_, id, 1000, "w1");
+  const int64_t after = NowForTest();
+  EXPECT_GE(first.lease_expires_ms, before + 1000);
+  EXPECT_LE(first.lease_expires_ms, after + 1000);
+  EXPECT_EQ(GetOk(id).lease_expires_ms, first.lease_expires_ms);
+  // Not expired yet (the bound is strict: a lease is good until its last millisecond).
+  RecoveryReport report = Must(store_->ReclaimExpiredLeases(first.lease_expires_ms));
+  EXPECT_EQ(report.requeued + report.cancelled + report.failed, 0);
+  EXPECT_EQ(GetOk(id).state, JobState::kRunning);
+
+  report = Must(store_->ReclaimExpiredLeases(first.lease_expires_ms + 1));
+  EXPECT_EQ(report.requeued, 1);
+  JobRecord job = GetOk(id);
+  EXPECT_EQ(job.state, JobState::kQueued);
+  EXPECT_EQ(job.attempts, 1);  // The lost attempt counts (a crash loop must end).
+  // The worker that lost its lease cannot renew it nor finish the job, before and after
+  // another worker claims it.
+  EXPECT_EQ(store_->RenewLease(id, first.run, 1000).code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->Complete(id, first.run, "late", 1).code(), StatusCode::kFailedPrecondition);
+  const JobRecord second = ClaimLeased(*store_, id, 1000, "w2");
+  EXPECT_EQ(second.run, first.run + 1);
+  EXPECT_EQ(second.attempts, 2);
+  EXPECT_EQ(store_->RenewLease(id, first.run, 1000).code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->Complete(id, first.run, "late", 1).code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->AppendResultChunk(id, first.run, 0, 0, 1, "x").code(),
+            StatusCode::kFailedPrecondition);
+  EXPECT_TRUE(store_->Complete(id, second.run, "result", 1).ok());
+  EXPECT_EQ(Must(store_->GetResult(id)), "result");
+}
+
+TEST_P(JobStoreTest, ARenewedLeaseIsKeptAndAClaimWithoutLeaseIsNeverTakenBack) {
+  const std::string leased = SubmitOk("trace", "a");
+  const std::string unleased = SubmitOk("trace", "b");
+  const JobRecord job = ClaimLeased(*store_, leased, 1000);
+  ASSERT_EQ(ClaimOk(), unleased);
+  EXPECT_EQ(GetOk(unleased).lease_expires_ms, 0);
+  const int64_t before = NowForTest();
+  ASSERT_TRUE(store_->RenewLease(leased, job.run, 600000).ok());
+  const int64_t renewed = GetOk(leased).lease_expires_ms;
+  EXPECT_GE(renewed, before + 600000);
+  const RecoveryReport report = Must(store_->ReclaimExpiredLeases(job.lease_expires_ms + 1));
+  EXPECT_EQ(report.requeued + report.cancelled + report.failed, 0);
+  EXPECT_EQ(GetOk(leased).state, JobState::kRunning);
+  EXPECT_EQ(GetOk(unleased).state, JobState::kRunning);
+  // RecoverAfterRestart (one process per store) takes back both.
+  EXPECT_EQ(Must(store_->RecoverAfterRestart()).requeued, 2);
+}
+
+TEST_P(JobStoreTest, AnExpiredLeaseEndsACancelledJobAndFailsAJobThatKeepsLosingIt) {
+  const std::string cancelled = SubmitOk("trace", "a");
+  JobRecord job = ClaimLeased(*store_, cancelled, 1000);
+  ASSERT_EQ(Must(store_->Cancel(cancelled)), JobState::kRunning);
+  RecoveryReport report = Must(store_->ReclaimExpiredLeases(job.lease_expires_ms + 1));
+  EXPECT_EQ(report.cancelled, 1);
+  EXPECT_EQ(GetOk(cancelled).state, JobState::kCancelled);
+
+  // Default max_attempts 3: taken back twice, failed the third time.
+  const std::string crashing = SubmitOk("trace", "b");
+  for (int attempt = 1; attempt <= 3; ++attempt) {
+    job = ClaimLeased(*store_, crashing, 1000);
+    report = Must(store_->ReclaimExpiredLeases(job.lease_expires_ms + 1));
+    EXPECT_EQ(report.requeued, attempt < 3 ? 1 : 0) << attempt;
+    EXPECT_EQ(report.failed, attempt < 3 ? 0 : 1) << attempt;
+  }
+  const JobRecord failed = GetOk(crashing);
+  EXPECT_EQ(failed.state, JobState::kFailed);
+  EXPECT_EQ(failed.error_code, StatusCode::kInternal);
+  EXPECT_THAT(failed.error_message, HasSubstr("stopped renewing its lease, 3 times"));
+}
+
+TEST_P(JobStoreTest, BadLeasesAreRejected) {
+  const std::string id = SubmitOk("trace", "a");
+  ClaimOptions negative;
+  negative.lease_ms = -1;
+  EXPECT_EQ(store_->ClaimNext("w", negative).status().code(), StatusCode::kInvalidArgument);
+  const JobRecord job = ClaimLeased(*store_, id, 1000);
+  EXPECT_EQ(store_->RenewLease(id, job.run, 0).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store_->RenewLease("nope", 1, 1000).code(), StatusCode::kNotFound);
+  EXPECT_EQ(store_->RenewLease(id, job.run, INT64_MAX).code(), StatusCode::kInvalidArgument);
+  // A lease beyond the clock's range is accepted at claim and never expires.
+  const std::string forever = SubmitOk("trace", "b");
+  const JobRecord endless = ClaimLeased(*store_, forever, INT64_MAX);
+  EXPECT_EQ(endless.lease_expires_ms, INT64_MAX);
+  EXPECT_EQ(Must(store_->ReclaimExpiredLeases(INT64_MAX)).requeued, 1);  // `id` only
+  EXPECT_EQ(GetOk(forever).state, JobState::kRunning);
 }
 
 TEST_P(JobStoreTest, DeleteOnlyFinishedJobs) {

@@ -176,9 +176,11 @@ TEST_F(SqliteJobStoreTest, MigratesAVersionOneFileKeepingItsJobsAndResults) {
   ASSERT_EQ(SqlInt(path, "PRAGMA user_version"), 1);
   std::unique_ptr<JobStore> store = OpenOrDie(path);
   ASSERT_NE(store, nullptr);
-  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), 2);
-  // Existing jobs: anonymous, short lane, run = attempts (the claims they had).
+  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
+  // Existing jobs: anonymous, short lane, run = attempts (the claims they had), no lease (the
+  // running one is recovered at the next start, as before).
   const JobRecord running = Must(store->Get("running"));
+  EXPECT_EQ(running.lease_expires_ms, 0);
   EXPECT_EQ(running.client, "");
   EXPECT_EQ(running.lane, kLaneShort);
   EXPECT_EQ(running.attempts, 2);
