@@ -15,6 +15,7 @@
 #include "common/phase_progress.h"
 #include "continuation/arclength.h"
 #include "continuation/bordered_sigma.h"
+#include "continuation/corrector.h"
 #include "continuation/grazing_end.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
@@ -103,7 +104,7 @@ struct SectionCrossing {
   bool unverified = false;
 };
 
-class CurveTracer {
+class CurveTracer : public internal::CorrectorSystem {
  public:
   CurveTracer(const HybridModel& model, Propagator& propagator, const CurveOptions& options,
               CurveKind kind, int index1, int index2, const PeriodicOrbit& start)
@@ -162,12 +163,14 @@ class CurveTracer {
   }
 
   int m() const { return bvp1_.size(); }
+  int Segments() const override { return bvp1_.segments(); }
+  int Block() const override { return m() / bvp1_.segments(); }
   int n() const { return m() + 2; }
   const Vec& start() const { return start_; }
 
   // Whether the propagator's throttle has seen a stop: nothing computed since is kept, and
   // Trace returns kCancelledEnd.
-  bool Stopped() const { return propagator_.stopped(); }
+  bool Stopped() const override { return propagator_.stopped(); }
   static constexpr const char* kCancelledEnd = "cancelled";
 
   Params ParamsAt(const Vec& y) const {
@@ -206,7 +209,7 @@ class CurveTracer {
   }
 
   // F(y) = (G, condition) and its Jacobian (n - 1 rows, n columns).
-  bool Evaluate(const Vec& y, Vec* f, Mat* jac) const {
+  bool Evaluate(const Vec& y, Vec* f, Mat* jac) const override {
     const Params prm = ParamsAt(y);
     if (!model_.ValidateParams(prm).ok()) return false;
     Vec g, gp1, gp2;
@@ -266,94 +269,32 @@ class CurveTracer {
     }
   }
 
-  // Newton on (F = 0, dir . (y - y_pred) = 0) from y_pred. `tangent`, when given, receives the
-  // unit tangent at the result oriented along dir, solved with the factorization of the last
-  // iteration ([F's Jacobian; dir] at the iterate before the converged step, within the
-  // tolerance of *y: internal::UnitTangent's system), so that it costs no further evaluation.
+  // Newton on (F = 0, dir . (y - y_pred) = 0) from y_pred (PseudoArclengthCorrector), with the
+  // contraction-based convergence test. `tangent`, when given, receives the unit tangent at the
+  // result oriented along dir, from the last iteration's factorization, so that it costs no
+  // further evaluation.
+  // The condition's residual must be small too, not only the step (settle_condition): where the
+  // condition is steep in the unknowns (next to a segment vanishing between two of one mode its
+  // saltations grow like 1 / tau, and the multiplier's derivatives like 1 / tau^2) a point within
+  // the step tolerance of the curve can have its multiplier 1e-6 off +-1 (in the reference box:
+  // 327 of 58902 fold / PD vertices above 1e-8, up to 4.7e-5). Once the step has converged, the
+  // iterations go on while the residual |condition| is above 1e-11 and decreasing at least
+  // twofold (CorrectorOptions::condition_tolerance). With it 32 vertices of the box stay above
+  // 1e-8 (6 above 1e-6, their residual at its floor). Not for the end's bisection
+  // (settle_condition false): its points only bracket the end, which is solved on its own;
+  // moved by the extra iterations, one end's last admissible point (0.0953, 0.1776) no longer
+  // led to its tangent-form solution (bracket 2.3e-6).
   bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations, Vec* tangent = nullptr,
                bool settle_condition = true) const {
-    *y = y_pred;
-    Vec f;
-    Mat jac, a(n(), n());
-    Vec r(n());
-    internal::CondensedLu lu(bvp1_.segments(), m() / bvp1_.segments(),
-                             options_.steps.condensed_solve ? internal::CondensedMode::kAuto
+    internal::CorrectorOptions correct;
+    correct.max_iterations = options_.steps.max_iterations;
+    correct.tolerance = options_.steps.tolerance;
+    correct.contraction_test = true;
+    if (settle_condition) correct.condition_tolerance = 1e-11;
+    internal::PseudoArclengthCorrector corrector(*this, options_.steps.condensed_solve
+                                                            ? internal::CondensedMode::kAuto
                                                             : internal::CondensedMode::kDense);
-    double last_norm = std::numeric_limits<double>::infinity();
-    auto accept = [&]() {
-      if (!tangent) return true;
-      *tangent = lu.Solve(Vec::Unit(n(), n() - 1));
-      if (!tangent->allFinite() || tangent->norm() == 0.0) return false;
-      tangent->normalize();
-      if (tangent->dot(dir) < 0.0) *tangent = -*tangent;
-      return true;
-    };
-    // The condition's residual must be small too, not only the step: where the condition is
-    // steep in the unknowns (next to a segment vanishing between two of one mode its saltations
-    // grow like 1 / tau, and the multiplier's derivatives like 1 / tau^2) a point within the
-    // step tolerance of the curve can have its multiplier 1e-6 off +-1 (in the reference box: 327
-    // of 58902 fold / PD vertices above 1e-8, up to 4.7e-5). Once the step has converged, the
-    // iterations go on while the residual |condition| is above condition_tolerance and
-    // decreasing at least twofold; they end at the iterate of smallest residual (at rounding's
-    // floor, or where an evaluation fails, the converged one). The step control still sees the
-    // iterations at which the step converged. With it 32 vertices of the box stay above 1e-8
-    // (6 above 1e-6, their residual at its floor). Not for the end's bisection
-    // (settle_condition false): its points only bracket the end, which is solved on its own;
-    // moved by the extra iterations, one end's last admissible point (0.0953, 0.1776) no longer
-    // led to its tangent-form solution (bracket 2.3e-6).
-    const double condition_tolerance =
-        settle_condition ? 1e-11 : std::numeric_limits<double>::infinity();
-    int converged_at = 0;
-    double last_condition = std::numeric_limits<double>::infinity();
-    Vec y_before;   // the iterate before the last step, of residual last_condition
-    int after = 0;  // steps taken after the step converged
-    auto settle = [&](bool keep_current) {
-      if (!keep_current) *y = y_before;
-      *iterations = converged_at;
-      return accept();
-    };
-    for (int it = 1; it <= options_.steps.max_iterations; ++it) {
-      if (Stopped()) return false;
-      // After convergence, chord steps: the residual alone (one monodromy, not one per unknown)
-      // and the last factorization (the Jacobian moves by O(the step), ~1e-10).
-      const bool chord = converged_at > 0;
-      if (!Evaluate(*y, &f, chord ? nullptr : &jac)) return chord && settle(after == 0);
-      const double condition = std::abs(f[m()]);
-      if (chord && (condition <= condition_tolerance || condition > 0.5 * last_condition)) {
-        return settle(after == 0 || condition <= last_condition);
-      }
-      if (!chord) {
-        a.topRows(n() - 1) = jac;
-        a.bottomRows(1) = dir.transpose();
-        lu.Compute(a);
-      }
-      r.head(n() - 1) = f;
-      r[n() - 1] = dir.dot(*y - y_pred);
-      const Vec step = lu.Solve(-r);
-      if (!step.allFinite()) return chord && settle(true);
-      y_before = *y;
-      *y += step;
-      last_condition = condition;
-      if (chord) {
-        ++after;
-        continue;
-      }
-      const double norm = step.lpNorm<Eigen::Infinity>();
-      const double tol = options_.steps.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>());
-      // Converged: this step is below the tolerance, or the contraction seen (theta, the ratio
-      // of the last two steps; Newton's is quadratic, the difference row makes it at worst linear
-      // with a tiny rate) bounds what the steps still to come would add, theta / (1 - theta)
-      // times this one, below it. The latter saves the confirming evaluation; it is counted as
-      // taken, so that the step control sees the same iterations as before.
-      const double theta = norm / last_norm;
-      if (norm <= tol || (it >= 2 && theta < 0.5 && theta / (1.0 - theta) * norm <= tol)) {
-        converged_at = norm <= tol ? it : it + 1;
-        // The residual before this step already below the tolerance: the one after it is too.
-        if (condition <= condition_tolerance) return settle(true);
-      }
-      last_norm = norm;
-    }
-    return converged_at > 0 && settle(true);
+    return corrector.Correct(correct, y_pred, dir, y, iterations, tangent);
   }
 
   bool Tangent(const Vec& y, const Vec& prev, Vec* t) const {
