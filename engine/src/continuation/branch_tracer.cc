@@ -40,7 +40,8 @@ BranchTracer::BranchTracer(const HybridModel& model, Propagator& propagator,
       propagator_(propagator),
       options_(options),
       param_(param),
-      lu_(0, 0, options.steps.condensed_solve ? CondensedMode::kAuto : CondensedMode::kDense) {}
+      corrector_(system_,
+                 options.steps.condensed_solve ? CondensedMode::kAuto : CondensedMode::kDense) {}
 
 Params BranchTracer::ParamsAt(double value) const {
   Params p = base_;
@@ -69,44 +70,37 @@ Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_star
   return Status::Ok();
 }
 
+bool BranchTracer::System::Evaluate(const Vec& y, Vec* f, Eigen::MatrixXd* jac) const {
+  const int m = tracer_.m();
+  const Params prm = tracer_.ParamsAt(y[m]);
+  if (!tracer_.model_.ValidateParams(prm).ok()) return false;
+  Vec gp;
+  Eigen::MatrixXd gx;
+  if (!tracer_.bvp_->Evaluate(y.head(m), prm, f, jac ? &gx : nullptr, jac ? &gp : nullptr).ok()) {
+    return false;
+  }
+  if (jac) {
+    jac->resize(m, m + 1);
+    jac->leftCols(m) = gx;
+    jac->col(m) = gp;
+  }
+  return true;
+}
+
+bool BranchTracer::System::Valid(const Vec& y) const {
+  return tracer_.model_.ValidateParams(tracer_.ParamsAt(y[tracer_.m()])).ok();
+}
+
 bool BranchTracer::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations,
                            bool accept_rounding_residual) {
-  *y = y_pred;
-  Vec g, gp;
-  Eigen::MatrixXd gx, a(m() + 1, m() + 1);
-  Vec r(m() + 1);
-  for (int it = 1; it <= options_.steps.max_iterations; ++it) {
-    if (propagator_.stopped()) return false;
-    const Params prm = ParamsAt((*y)[m()]);
-    if (!model_.ValidateParams(prm).ok()) return false;
-    if (!bvp_->Evaluate(y->head(m()), prm, &g, &gx, &gp).ok()) return false;
-    a.topLeftCorner(m(), m()) = gx;
-    a.topRightCorner(m(), 1) = gp;
-    a.bottomRows(1) = dir.transpose();
-    r.head(m()) = g;
-    r[m()] = dir.dot(*y - y_pred);
-    // Right after a signature switch the system is ill-conditioned and the Newton steps can stay
-    // at noise size without passing the step test: there a residual at rounding level (1e-13 of
-    // the unknowns' size) counts as converged. Not elsewhere: where the parameter is stationary
-    // (a located grazing) a small residual does not pin it.
-    if (accept_rounding_residual && it > 1 &&
-        r.lpNorm<Eigen::Infinity>() <= 1e-13 * (1.0 + y->lpNorm<Eigen::Infinity>())) {
-      *iterations = it;
-      return model_.ValidateParams(ParamsAt((*y)[m()])).ok();
-    }
-    lu_.Reshape(bvp_->segments(), m() / bvp_->segments());
-    lu_.Compute(a);
-    const Vec step = lu_.Solve(-r);
-    if (!step.allFinite()) return false;
-    *y += step;
-    ++newton_;
-    if (step.lpNorm<Eigen::Infinity>() <=
-        options_.steps.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>())) {
-      *iterations = it;
-      return model_.ValidateParams(ParamsAt((*y)[m()])).ok();
-    }
-  }
-  return false;
+  CorrectorOptions correct;
+  correct.max_iterations = options_.steps.max_iterations;
+  correct.tolerance = options_.steps.tolerance;
+  correct.accept_rounding_residual = accept_rounding_residual;
+  correct.validate_result = true;
+  const bool ok = corrector_.Correct(correct, y_pred, dir, y, iterations);
+  newton_ += corrector_.steps();
+  return ok;
 }
 
 bool BranchTracer::Tangent(const Vec& y, const Vec& prev, Vec* t, double* det) {
@@ -122,12 +116,8 @@ bool BranchTracer::Tangent(const Vec& y, const Vec& prev, Vec* t, double* det) {
 }
 
 bool BranchTracer::TangentFromCorrector(Vec* t, double* det) const {
-  Vec e = Vec::Zero(m() + 1);
-  e[m()] = 1.0;
-  *t = lu_.Solve(e);
-  if (!t->allFinite() || t->norm() == 0.0) return false;
-  t->normalize();
-  *det = lu_.DeterminantSign();
+  if (!corrector_.Tangent(t)) return false;
+  *det = corrector_.lu().DeterminantSign();
   return true;
 }
 

@@ -9,8 +9,8 @@
 #include <functional>
 #include <memory>
 
+#include "continuation/corrector.h"
 #include "drillbif/continuation/continuation.h"
-#include "orbit/condensed.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif::internal {
@@ -31,6 +31,9 @@ class BranchTracer {
  public:
   BranchTracer(const HybridModel& model, Propagator& propagator, const ContinuationOptions& options,
                int param);
+  // The corrector holds a reference to the tracer's system: not copied or moved.
+  BranchTracer(const BranchTracer&) = delete;
+  BranchTracer& operator=(const BranchTracer&) = delete;
 
   // Starts at `start` (solved, admissible), heading towards increasing (sign > 0) or decreasing
   // parameter values. Appends the start point to `result` when `record_start`.
@@ -53,7 +56,23 @@ class BranchTracer {
 
   Params ParamsAt(double value) const;
   int m() const { return bvp_->size(); }
-  // Newton on [G; dir . (y - y_pred)] = 0 from y_pred.
+  // The corrector's system: the shooting system G(X, lambda) of the current signature at
+  // y = (X, lambda), the parameter checked against the model's range.
+  class System : public CorrectorSystem {
+   public:
+    explicit System(const BranchTracer& tracer) : tracer_(tracer) {}
+    bool Evaluate(const Vec& y, Vec* f, Eigen::MatrixXd* jac) const override;
+    bool Stopped() const override { return tracer_.propagator_.stopped(); }
+    bool Valid(const Vec& y) const override;
+    int Segments() const override { return tracer_.bvp_->segments(); }
+    int Block() const override { return tracer_.m() / tracer_.bvp_->segments(); }
+
+   private:
+    const BranchTracer& tracer_;
+  };
+
+  // Newton on [G; dir . (y - y_pred)] = 0 from y_pred (PseudoArclengthCorrector), the result's
+  // parameter checked against the model's range.
   // With accept_rounding_residual, a residual at rounding level also counts as converged.
   bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations,
                bool accept_rounding_residual = false);
@@ -106,7 +125,10 @@ class BranchTracer {
   Vec start_y_;  // the start point, to notice a closed branch
   Signature start_signature_;
   bool closed_ = false;
-  CondensedLu lu_;  // the last corrector iteration's bordered matrix (dense unless condensed_solve)
+  System system_{*this};
+  // Its last factorization is the last corrector iteration's bordered matrix (dense unless
+  // condensed_solve).
+  PseudoArclengthCorrector corrector_;
   double h_ = 0.0;  // next step length
   ContinuationPoint point_;
   TestValues tests_;

@@ -1,0 +1,171 @@
+#include "continuation/curve_codim2.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <utility>
+
+namespace drillbif::internal {
+namespace {
+
+using Vec = Eigen::VectorXd;
+using Mat = Eigen::MatrixXd;
+
+// det(M - I) (shift -1) or det(M + I) (shift +1).
+double ShiftedDet(const Mat& mono, double shift) {
+  return (mono + shift * Mat::Identity(mono.rows(), mono.cols())).determinant();
+}
+
+// On a Neimark-Sacker curve, kappa = Re(mu1 + mu2) / 2 of the critical pair (the two multipliers
+// whose product is nearest 1; on the curve a complex pair on the unit circle, kappa = cos theta):
+// kappa = 1, -1, -1/2, 0 at the strong resonances 1:1, 1:2, 1:3, 1:4 (Kuznetsov 2004,
+// sec. 9.5). Beyond a 1:1 or 1:2 point the pair is real with product 1 and kappa passes +-1.
+double Kappa(const Mat& mono) {
+  const Eigen::VectorXcd mu = Eigen::EigenSolver<Mat>(mono, false).eigenvalues();
+  double best = std::numeric_limits<double>::infinity(), kappa = 0.0;
+  for (int i = 0; i < mu.size(); ++i) {
+    for (int j = i + 1; j < mu.size(); ++j) {
+      const double gap = std::abs(mu[i] * mu[j] - 1.0);
+      if (gap < best) best = gap, kappa = 0.5 * (mu[i] + mu[j]).real();
+    }
+  }
+  return kappa;
+}
+
+}  // namespace
+
+std::vector<Codim2TestFunction> CurveCodim2::Tests() const {
+  auto det = [](double shift) { return [shift](const Mat& m) { return ShiftedDet(m, shift); }; };
+  auto kappa = [](double at) { return [at](const Mat& m) { return Kappa(m) - at; }; };
+  switch (system_.kind()) {
+    case CurveKind::kGrazing:
+      return {{det(-1.0), Codim2Kind::kFoldGrazing}, {det(+1.0), Codim2Kind::kFlipGrazing}};
+    case CurveKind::kFold:
+      return {{det(+1.0), Codim2Kind::kFoldFlip}};
+    case CurveKind::kPeriodDoubling:
+      return {{det(-1.0), Codim2Kind::kFoldFlip}};
+    case CurveKind::kNeimarkSacker:
+      return {{kappa(1.0), Codim2Kind::kResonance11},
+              {kappa(-1.0), Codim2Kind::kResonance12},
+              {kappa(-0.5), Codim2Kind::kResonance13},
+              {kappa(0.0), Codim2Kind::kResonance14}};
+  }
+  return {};
+}
+
+double CurveCodim2::TestValue(const Codim2TestFunction& test, const Vec& y) const {
+  return test.f(OrbitStability(system_.model(), system_.propagator(), system_.Unpack(y)).monodromy);
+}
+
+bool CurveCodim2::SameSigns(const std::vector<Codim2TestFunction>& tests, const Mat& a,
+                            const Mat& b) {
+  return std::all_of(tests.begin(), tests.end(), [&](const Codim2TestFunction& test) {
+    return (test.f(a) > 0.0) == (test.f(b) > 0.0);
+  });
+}
+
+bool CurveCodim2::LocateOnStep(const Vec& y, const Vec& t, double h, double f0, double f1,
+                               double tol, const std::function<bool(const Vec&, double*)>& value,
+                               Vec* root) const {
+  double a = 0.0, fa = f0, b = h, fb = f1;
+  int side = 0;
+  for (int it = 0; it < 100; ++it) {
+    if (system_.Stopped()) return false;
+    double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
+    if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
+    int iterations = 0;
+    double f = 0.0;
+    if (!system_.Correct(y + sigma * t, t, root, &iterations) || !value(*root, &f)) return false;
+    if (std::abs(f) <= tol || b - a <= 1e-14 * std::max(1.0, h)) return true;
+    if ((f > 0.0) == (fa > 0.0)) {
+      a = sigma, fa = f;
+      if (side == -1) fb *= 0.5;
+      side = -1;
+    } else {
+      b = sigma, fb = f;
+      if (side == +1) fa *= 0.5;
+      side = +1;
+    }
+  }
+  return false;
+}
+
+bool CurveCodim2::LocateCodim2(const Vec& y, const Vec& t, double h, const Codim2TestFunction& test,
+                               double d0, double d1, Vec* root) const {
+  return LocateOnStep(
+      y, t, h, d0, d1, 1e-10,
+      [&](const Vec& p, double* f) {
+        *f = TestValue(test, p);
+        return true;
+      },
+      root);
+}
+
+void CurveCodim2::RootsOnStep(const Vec& y, const Vec& t, const Vec& y1, const Mat& mono1,
+                              const std::vector<Codim2TestFunction>& tests,
+                              std::vector<double>* dets, std::vector<Codim2Point>* codim2) const {
+  for (size_t k = 0; k < tests.size(); ++k) {
+    const double d1 = tests[k].f(mono1);
+    Vec root;
+    if (((*dets)[k] > 0.0) != (d1 > 0.0) &&
+        LocateCodim2(y, t, t.dot(y1 - y), tests[k], (*dets)[k], d1, &root)) {
+      CurvePoint point = system_.MakePoint(root);
+      if (!system_.Stopped()) codim2->push_back({tests[k].kind, std::move(point), "", 0.0, {}});
+    }
+    (*dets)[k] = d1;
+  }
+}
+
+bool CurveCodim2::LocateCusp(const Vec& y, const Vec& t, double h, double psi1, double tol,
+                             Vec* root) const {
+  const Eigen::Vector2d u = system_.ParamDirection(t);
+  return LocateOnStep(
+      y, t, h, u.squaredNorm(), psi1, tol * u.norm(),
+      [&](const Vec& p, double* f) {
+        Vec tp;
+        if (!system_.Tangent(p, t, &tp)) return false;
+        *f = u.dot(system_.ParamDirection(tp));
+        return true;
+      },
+      root);
+}
+
+void CurveCodim2::CuspOnStep(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1,
+                             std::vector<Codim2Point>* codim2, double tol, int probes) const {
+  if (system_.kind() != CurveKind::kFold) return;
+  const double h = t.dot(y1 - y);
+  double reach = h, psi_reach = system_.ParamDirection(t).dot(system_.ParamDirection(t1));
+  for (int k = 1; k <= probes; ++k) {
+    const double s = h * (1.0 - std::ldexp(1.0, -k));
+    Vec p, tp;
+    int iterations = 0;
+    if (!system_.Correct(y + s * t, t, &p, &iterations) || !system_.Tangent(p, t, &tp)) continue;
+    const double psi = system_.ParamDirection(t).dot(system_.ParamDirection(tp));
+    if (psi < 0.0) {
+      reach = s, psi_reach = psi;
+      break;
+    }
+  }
+  Vec root, tr;
+  if (!(psi_reach < 0.0 && LocateCusp(y, t, reach, psi_reach, tol, &root))) return;
+  // A cusp, not a turn: psi = 0 also where the direction has turned through a right angle
+  // within the step (a hairpin, |parameter part| ~ |u| there); at a cusp the parameter part
+  // itself vanishes (measured at the box's cusps: at most 2.5e-4 |u|, against 0.07 |u| at the
+  // one hairpin seen, with target_iterations 4). And not one already found on this curve (a
+  // curve passing a cusp twice, or the search reaching it from two steps).
+  if (!system_.Tangent(root, t, &tr) ||
+      system_.ParamDirection(tr).norm() > 1e-2 * system_.ParamDirection(t).norm()) {
+    return;
+  }
+  CurvePoint point = system_.MakePoint(root);
+  for (const Codim2Point& q : *codim2) {
+    if (q.kind == Codim2Kind::kCusp && system_.BoxDistance(q.point, point) <= 1e-9) {
+      return;
+    }
+  }
+  if (!system_.Stopped()) codim2->push_back({Codim2Kind::kCusp, std::move(point), "", 0.0, {}});
+}
+
+}  // namespace drillbif::internal

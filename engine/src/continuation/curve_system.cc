@@ -1,0 +1,208 @@
+#include "continuation/curve_system.h"
+
+#include <utility>
+
+#include "continuation/arclength.h"
+#include "continuation/tangent_grazing.h"
+#include "orbit/monodromy.h"
+
+namespace drillbif::internal {
+
+using Vec = CurveSystem::Vec;
+using Mat = CurveSystem::Mat;
+
+CurveSystem::CurveSystem(const HybridModel& model, Propagator& propagator,
+                         const CurveOptions& options, CurveKind kind, int index1, int index2,
+                         const PeriodicOrbit& start)
+    : model_(model),
+      propagator_(propagator),
+      options_(options),
+      kind_(kind),
+      index1_(index1),
+      index2_(index2),
+      base_(start.params),
+      bvp1_(model, propagator, start.signature, index1, index2) {
+  if (std::isfinite(options.width1())) w1_ = options.width1();
+  if (std::isfinite(options.width2())) w2_ = options.width2();
+  if (kind_ == CurveKind::kGrazing) {
+    corner_ = CornerSegment(model_, start);
+    return;
+  }
+  SetBorders(OrbitStability(model_, propagator_, Unpack(Pack(start))).monodromy);
+}
+
+Vec CurveSystem::Pack(const PeriodicOrbit& orbit) const {
+  Vec y(n());
+  y.head(m()) = bvp1_.Pack(orbit);
+  y[m()] = orbit.params[index1_];
+  y[m() + 1] = orbit.params[index2_];
+  return y;
+}
+
+Params CurveSystem::ParamsAt(const Vec& y) const {
+  Params p = base_;
+  p[index1_] = y[m()];
+  p[index2_] = y[m() + 1];
+  return p;
+}
+
+PeriodicOrbit CurveSystem::Unpack(const Vec& y) const {
+  PeriodicOrbit o;
+  bvp1_.Unpack(y.head(m()), ParamsAt(y), &o);
+  return o;
+}
+
+// Bordering vectors (bordered_sigma.h) from the shifted monodromy. Fixed ones serve only near
+// where they were taken: far along a curve the bordered matrix can turn singular (sigma then
+// blows up and the corrector fails in ever shorter steps: the a-branch fold curve from
+// a = 0.2718 stalled so in the reference box), so they are renewed at every accepted point.
+// sigma's zero set, the curve, does not depend on them.
+void CurveSystem::SetBorders(const Mat& monodromy) const {
+  if (kind_ == CurveKind::kGrazing) return;
+  sigma_ = BorderedSigma(ShiftedMonodromy(kind_, monodromy));
+}
+
+double CurveSystem::ConditionAt(const PeriodicOrbit& o, std::vector<StateMatrix>* factors,
+                                std::vector<FlowResult>* flows) const {
+  if (kind_ == CurveKind::kGrazing) {
+    return corner_ >= 0 ? o.durations[corner_] : TangentEndRate(model_, propagator_, o);
+  }
+  std::vector<StateMatrix> f = MonodromyFactors(model_, propagator_, o, flows);
+  const double sigma = Sigma(ReducedMonodromy(model_, f));
+  if (factors) *factors = std::move(f);
+  return sigma;
+}
+
+double CurveSystem::Sigma(const Eigen::Ref<const Mat>& monodromy) const {
+  return sigma_(ShiftedMonodromy(kind_, monodromy));
+}
+
+bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
+  const Params prm = ParamsAt(y);
+  if (!model_.ValidateParams(prm).ok()) return false;
+  Vec g, gp1, gp2;
+  Mat gx;
+  if (!bvp1_
+           .Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr,
+                     jac ? &gp2 : nullptr)
+           .ok()) {
+    return false;
+  }
+  f->resize(m() + 1);
+  f->head(m()) = g;
+  const PeriodicOrbit o = Unpack(y);
+  std::vector<StateMatrix> factors;
+  std::vector<FlowResult> flows;
+  (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
+  if (!jac) return f->allFinite();
+  jac->setZero(m() + 1, n());
+  jac->topLeftCorner(m(), m()) = gx;
+  jac->col(m()).head(m()) = gp1;
+  jac->col(m() + 1).head(m()) = gp2;
+  // Forward differences of the condition (one evaluation per unknown, each a monodromy):
+  // truncation h |sigma''| / 2 and rounding eps |sigma| / h, both ~1e-8 with
+  // h = 1.5e-8 (1 + |y_j|) for these O(1) quantities. The Jacobian only steers Newton and the
+  // tangent; the residual, and so every point on the curve, is exact.
+  const double sigma0 = (*f)[m()];
+  if (kind_ == CurveKind::kGrazing && corner_ >= 0) {
+    // The corner's duration is one of the unknowns: its row is a unit vector.
+    (*jac)(m(), bvp1_.DurationIndex(corner_)) = 1.0;
+  } else if (kind_ == CurveKind::kGrazing) {
+    for (int j = 0; j < n(); ++j) {
+      const double h = ForwardStep(y[j]);
+      Vec yp = y;
+      yp[j] += h;
+      (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
+    }
+  } else {
+    SigmaRow(y, o, factors, flows, sigma0, jac);
+  }
+  return f->allFinite() && jac->allFinite();
+}
+
+// The same forward differences of sigma: over the orbit's unknowns by MonodromyRow (only the
+// monodromy factors an unknown moves are recomputed), over the parameters by whole evaluations
+// (every factor moves with them). `o` is Unpack(y), `base` its factors, `flows` the segments'
+// flows they were made from.
+void CurveSystem::SigmaRow(const Vec& y, const PeriodicOrbit& o,
+                           const std::vector<StateMatrix>& base,
+                           const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
+  MonodromyRow(
+      model_, propagator_, o, base, flows, [this](const Eigen::MatrixXd& m) { return Sigma(m); },
+      RowDifferences::kForward, sigma0, jac->row(m()).head(m()));
+  for (int j = m(); j < n(); ++j) {
+    const double h = ForwardStep(y[j]);
+    Vec yp = y;
+    yp[j] += h;
+    (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
+  }
+}
+
+// Newton on (F = 0, dir . (y - y_pred) = 0) from y_pred (PseudoArclengthCorrector), with the
+// contraction-based convergence test. `tangent`, when given, receives the unit tangent at the
+// result oriented along dir, from the last iteration's factorization, so that it costs no
+// further evaluation.
+// The condition's residual must be small too, not only the step (settle_condition): where the
+// condition is steep in the unknowns (next to a segment vanishing between two of one mode its
+// saltations grow like 1 / tau, and the multiplier's derivatives like 1 / tau^2) a point within
+// the step tolerance of the curve can have its multiplier 1e-6 off +-1 (in the reference box:
+// 327 of 58902 fold / PD vertices above 1e-8, up to 4.7e-5). Once the step has converged, the
+// iterations go on while the residual |condition| is above 1e-11 and decreasing at least
+// twofold (CorrectorOptions::condition_tolerance). With it 32 vertices of the box stay above
+// 1e-8 (6 above 1e-6, their residual at its floor). Not for the end's bisection
+// (settle_condition false): its points only bracket the end, which is solved on its own;
+// moved by the extra iterations, one end's last admissible point (0.0953, 0.1776) no longer
+// led to its tangent-form solution (bracket 2.3e-6).
+bool CurveSystem::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations, Vec* tangent,
+                          bool settle_condition) const {
+  CorrectorOptions correct;
+  correct.max_iterations = options_.steps.max_iterations;
+  correct.tolerance = options_.steps.tolerance;
+  correct.contraction_test = true;
+  if (settle_condition) correct.condition_tolerance = 1e-11;
+  PseudoArclengthCorrector corrector(
+      *this, options_.steps.condensed_solve ? CondensedMode::kAuto : CondensedMode::kDense);
+  return corrector.Correct(correct, y_pred, dir, y, iterations, tangent);
+}
+
+bool CurveSystem::Tangent(const Vec& y, const Vec& prev, Vec* t) const {
+  Vec f;
+  Mat jac;
+  return Evaluate(y, &f, &jac) && UnitTangent(jac, prev, t);
+}
+
+bool CurveSystem::Admissible(const PeriodicOrbit& o, std::string* why,
+                             Admissibility* violation) const {
+  Admissibility a;
+  if (AtCorner(o)) {
+    PeriodicOrbit p = o;
+    p.durations[corner_] = kCornerDuration;
+    a = CheckAdmissible(model_, propagator_, p);
+  } else {
+    a = CheckAdmissible(model_, propagator_, o);
+  }
+  *why = a.message;
+  if (violation && !a.admissible) *violation = a;
+  return a.admissible;
+}
+
+CurvePoint CurveSystem::MakePoint(const Vec& y) const {
+  CurvePoint p = PointFromOrbit(Unpack(y));
+  p.value1 = y[m()];
+  p.value2 = y[m() + 1];
+  return p;
+}
+
+CurvePoint CurveSystem::PointFromOrbit(PeriodicOrbit orbit, const Stability* stability) const {
+  if (AtCorner(orbit)) orbit.durations[corner_] = kCornerDuration;
+  CurvePoint p;
+  p.value1 = orbit.params[index1_];
+  p.value2 = orbit.params[index2_];
+  p.orbit = std::move(orbit);
+  // ROP only (bit 0): Pc, 20 times its cost in quadrature, is asked for by no consumer of curves.
+  p.measures = OrbitMeasures(model_, propagator_, p.orbit, 1u);
+  p.stability = stability != nullptr ? *stability : OrbitStability(model_, propagator_, p.orbit);
+  return p;
+}
+
+}  // namespace drillbif::internal
