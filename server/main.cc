@@ -69,6 +69,22 @@ int main(int argc, char** argv) {
                  "PEM certificate (chain): both ports use TLS (with --tls-key)");
   app.add_option("--tls-key", options.tls_key_file, "PEM private key of --tls-cert");
   app.add_option("--db", options.db_path, "SQLite file of the job store")->capture_default_str();
+  app.add_option("--store", options.store_uri,
+                 "A PostgreSQL job store shared by several server processes: a libpq URI "
+                 "postgresql://USER@HOST:PORT/DB (without the password); replaces --db");
+  app.add_option("--store-password-file", options.store_password_file,
+                 "File whose first line is the PostgreSQL password (else PGPASSWORD or "
+                 "~/.pgpass)");
+  std::string role = "all";
+  app.add_option("--role", role,
+                 "all: serve the API and run jobs; api: serve the API only; worker: run jobs, "
+                 "serve health and /metrics only (api and worker need --store)")
+      ->check(CLI::IsMember({"all", "api", "worker"}))
+      ->capture_default_str();
+  app.add_option("--lease-ms", options.lease_ms,
+                 "With --store: a worker that has not renewed a job's lease for this long "
+                 "loses it to the others")
+      ->capture_default_str();
   app.add_option("--workers", options.workers, "Worker threads; 0: one per core")
       ->capture_default_str();
   app.add_option("--token", options.token,
@@ -127,6 +143,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
+  options.role = role == "api"      ? drillbif::server::ServerOptions::Role::kApi
+                 : role == "worker" ? drillbif::server::ServerOptions::Role::kWorker
+                                    : drillbif::server::ServerOptions::Role::kAll;
   for (const std::string& limit : job_limits) {
     if (drillbif::Status s = options.SetJobLimit(limit); !s.ok()) {
       std::fprintf(stderr, "invalid options: %s\n", s.message().c_str());

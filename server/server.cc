@@ -4,6 +4,7 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <condition_variable>
@@ -19,12 +20,48 @@
 #include "drillbif/common/threads.h"
 #include "server/rest_gateway.h"
 #include "server/services.h"
+#include "server/store/postgres_job_store.h"
 #include "server/store/sqlite_job_store.h"
 #include "server/watch_hub.h"
 #include "server/worker_pool.h"
 
 namespace drillbif::server {
 namespace {
+
+const char* RoleName(ServerOptions::Role role) {
+  switch (role) {
+    case ServerOptions::Role::kApi:
+      return "api";
+    case ServerOptions::Role::kWorker:
+      return "worker";
+    case ServerOptions::Role::kAll:
+      break;
+  }
+  return "all";
+}
+
+// The store the options name: the PostgreSQL database of store_uri (its password read from
+// store_password_file), else the SQLite file db_path. The stores' own error details (SQL,
+// SQLite's and PostgreSQL's messages) go to the log, never to clients.
+StatusOr<std::unique_ptr<JobStore>> OpenStore(const ServerOptions& o) {
+  auto log = [](std::string_view detail) { spdlog::warn("job store: {}", detail); };
+  if (o.store_uri.empty()) {
+    SqliteJobStoreOptions options;
+    options.full_sync = o.full_sync;
+    options.log = log;
+    return SqliteJobStore::Open(o.db_path, options);
+  }
+  PostgresJobStoreOptions options;
+  options.log = log;
+  if (!o.store_password_file.empty()) {
+    std::ifstream file(o.store_password_file);
+    if (!file || !std::getline(file, options.password)) {
+      return InvalidArgument("store_password_file: cannot read '" + o.store_password_file + "'");
+    }
+    if (!options.password.empty() && options.password.back() == '\r') options.password.pop_back();
+  }
+  return PostgresJobStore::Open(o.store_uri, options);
+}
 
 // The gateway's options: the HTTP limits, and what ServerOptions sets for both ports.
 RestOptions RestOptionsOf(const ServerOptions& o) {
@@ -68,6 +105,19 @@ Status ServerOptions::Validate() const {
     return InvalidArgument("http_port: must be in [0, 65535], got " + std::to_string(http_port));
   }
   if (db_path.empty()) return InvalidArgument("db_path: must not be empty");
+  if (role != Role::kAll && store_uri.empty()) {
+    return InvalidArgument(
+        "role: api and worker processes share a store; give store_uri (--store postgresql://...)");
+  }
+  if (!store_uri.empty() && store_uri.find("password=") != std::string::npos) {
+    return InvalidArgument(
+        "store_uri: must not hold the password (it would show in the process list); use "
+        "store_password_file (--store-password-file) or PGPASSWORD");
+  }
+  if (!store_uri.empty() && lease_ms < 300) {
+    return InvalidArgument("lease_ms: must be >= 300 with a shared store, got " +
+                           std::to_string(lease_ms));
+  }
   if (workers < 0 || workers > 1024) {
     return InvalidArgument("workers: must be in [0, 1024], got " + std::to_string(workers));
   }
@@ -281,18 +331,17 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
                            "--token or --tokens-file (or --allow-unauthenticated)");
   }
 
-  SqliteJobStoreOptions store_options;
-  store_options.full_sync = o.full_sync;
-  // SQL and SQLite's own messages go to the log, never to clients.
-  store_options.log = [](std::string_view detail) { spdlog::warn("job store: {}", detail); };
-  StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(o.db_path, store_options);
+  StatusOr<std::unique_ptr<JobStore>> store = OpenStore(o);
   if (!store.ok()) return store.status();
   impl->store = std::move(store).value();
-  // This process owns the file: every RUNNING job was interrupted by the end of the last one.
-  StatusOr<RecoveryReport> recovered = impl->store->RecoverAfterRestart();
-  if (!recovered.ok()) return recovered.status();
-  spdlog::info("store {}: recovered {} requeued, {} cancelled, {} failed", o.db_path,
-               recovered->requeued, recovered->cancelled, recovered->failed);
+  if (o.store_uri.empty()) {
+    // This process owns the file: every RUNNING job was interrupted by the end of the last one.
+    // (A shared store's jobs are taken back by lease instead: others may be running them.)
+    StatusOr<RecoveryReport> recovered = impl->store->RecoverAfterRestart();
+    if (!recovered.ok()) return recovered.status();
+    spdlog::info("store {}: recovered {} requeued, {} cancelled, {} failed", o.db_path,
+                 recovered->requeued, recovered->cancelled, recovered->failed);
+  }
   if (Status s = impl->state.optimum_index.Load(*impl->store); !s.ok()) return s;
 
   impl->hub = std::make_unique<WatchHub>(impl->store.get(), o.watch_poll_ms);
@@ -300,6 +349,13 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   pool_options.workers = o.workers;
   pool_options.short_workers = o.short_workers;
   pool_options.progress_interval_ms = o.progress_interval_ms;
+  pool_options.lease_ms = o.store_uri.empty() ? 0 : o.lease_ms;
+  if (!o.store_uri.empty()) {
+    // Worker ids in a shared store name the machine and the process that claimed.
+    char host[256] = {};
+    gethostname(host, sizeof(host) - 1);
+    pool_options.worker_prefix = std::string(host) + "-" + std::to_string(getpid()) + "-worker";
+  }
   for (const jobs::JobKindSpec* kind : jobs::AllKinds()) {
     pool_options.limits[kind->name] = o.LimitsOf(*kind);
   }
@@ -334,8 +390,10 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   }
   builder.AddListeningPort(address, *credentials, &impl->port);
   builder.SetMaxReceiveMessageSize(o.max_request_bytes);
-  builder.RegisterService(impl->jobs.get());
-  builder.RegisterService(impl->operations.get());
+  if (o.role != ServerOptions::Role::kWorker) {
+    builder.RegisterService(impl->jobs.get());
+    builder.RegisterService(impl->operations.get());
+  }
   std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> interceptors;
   interceptors.push_back(MakeGrpcMetricsInterceptor(&impl->metrics));
   builder.experimental().SetInterceptorCreators(std::move(interceptors));
@@ -366,10 +424,12 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   impl->rest = std::move(gateway).value();
 
   impl->grpc_server->GetHealthCheckService()->SetServingStatus(true);
-  impl->pool->Start();
+  if (o.role != ServerOptions::Role::kApi) impl->pool->Start();
   impl->maintenance = std::thread([raw] { raw->Maintain(); });
-  spdlog::info("drillbif-server: gRPC on {}:{}, HTTP on {}:{} ({} workers, db {})", o.host,
-               impl->port, o.host, impl->rest->port(), o.workers, o.db_path);
+  spdlog::info("drillbif-server: gRPC on {}:{}, HTTP on {}:{} (role {}, {} workers, store {})",
+               o.host, impl->port, o.host, impl->rest->port(), RoleName(o.role),
+               o.role == ServerOptions::Role::kApi ? 0 : o.workers,
+               o.store_uri.empty() ? o.db_path : "PostgreSQL");
   return std::unique_ptr<Server>(new Server(std::move(impl)));
 }
 

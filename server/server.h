@@ -49,8 +49,27 @@ struct ServerOptions {
   std::string tls_cert_file;
   // See tls_cert_file.
   std::string tls_key_file;
-  // SQLite file of the job store (created if missing).
+  // SQLite file of the job store (created if missing), unless store_uri is given.
   std::string db_path = "drillbif.db";
+  // A PostgreSQL job store shared by several server processes (a libpq connection URI,
+  // postgresql://USER@HOST:PORT/DB?...); empty: the SQLite file db_path, owned by this process.
+  // Never holds the password (it would show in the process list): see store_password_file.
+  std::string store_uri;
+  // A file whose first line is the PostgreSQL password (e.g. a Kubernetes Secret mounted as a
+  // file); empty: libpq's own sources (PGPASSWORD, ~/.pgpass) or none.
+  std::string store_password_file;
+  // What this process does: kAll serves the API and runs jobs; kApi serves the API and runs no
+  // jobs; kWorker runs jobs and serves health and /metrics only (its Jobs and Operations rpcs
+  // answer UNIMPLEMENTED). Roles other than kAll need a shared store (store_uri).
+  enum class Role { kAll, kApi, kWorker };
+  Role role = Role::kAll;
+  // With a shared store, claims are leases of this many milliseconds (WorkerPoolOptions::
+  // lease_ms): a worker that dies or loses the database loses its jobs to the others once it
+  // has not renewed them for this long. 15 s: five missed heartbeats of 3 s at 3 per lease
+  // would be 15 s too; long enough that a database failover or a stop-the-world pause of a few
+  // seconds does not take running jobs away, short enough that a crashed worker's jobs restart
+  // within a quarter of a minute.
+  int64_t lease_ms = 15000;
   // Worker threads running jobs of any cost lane; 0: one per core
   // (std::thread::hardware_concurrency).
   int workers = 0;

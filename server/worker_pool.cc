@@ -48,6 +48,10 @@ Status WorkerPoolOptions::Validate() const {
   if (store_retry_ms < 1 || store_retry_max_ms < store_retry_ms) {
     return InvalidArgument("store_retry_ms: must be >= 1 and <= store_retry_max_ms");
   }
+  if (lease_ms != 0 && lease_ms < 300) {
+    return InvalidArgument("lease_ms: must be 0 (no leases) or >= 300, got " +
+                           std::to_string(lease_ms));
+  }
   for (const auto& [name, limits] : limits) {
     if (Status s = limits.Validate(); !s.ok()) return InvalidArgument(name + "." + s.message());
   }
@@ -69,11 +73,50 @@ void WorkerPool::Start() {
   if (!threads_.empty() || stopping_) return;
   for (int i = 0; i < options_.workers; ++i) {
     const std::string id = options_.worker_prefix + "-" + std::to_string(i);
-    threads_.emplace_back([this, id] { Loop(id, ClaimOptions{}); });
+    threads_.emplace_back([this, id] { Loop(id, ClaimOptions{{}, options_.lease_ms}); });
   }
   for (int i = 0; i < options_.short_workers; ++i) {
     const std::string id = options_.worker_prefix + "-short-" + std::to_string(i);
-    threads_.emplace_back([this, id] { Loop(id, ClaimOptions{{kLaneShort}}); });
+    threads_.emplace_back([this, id] { Loop(id, ClaimOptions{{kLaneShort}, options_.lease_ms}); });
+  }
+  if (options_.lease_ms > 0) heartbeat_ = std::thread([this] { Heartbeat(); });
+}
+
+void WorkerPool::RenewLeases() {
+  std::vector<std::pair<std::string, std::shared_ptr<Running>>> running;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    running.assign(running_.begin(), running_.end());
+  }
+  for (const auto& [id, job] : running) {
+    const Status s = store_->RenewLease(id, job->run, options_.lease_ms);
+    if (s.code() == StatusCode::kFailedPrecondition || s.code() == StatusCode::kNotFound) {
+      // Taken back after its lease expired (this process stalled or lost the store): another
+      // worker may run it now; this run stops and records nothing (the store would refuse it).
+      spdlog::warn("job {}: lease lost ({}); stopping its run", id, s.message());
+      job->lost = true;
+    } else if (!s.ok()) {
+      spdlog::warn("job {}: lease not renewed: {}", id, s.ToString());
+    }
+  }
+}
+
+void WorkerPool::Heartbeat() {
+  const int beat_ms = static_cast<int>(std::min<int64_t>(options_.lease_ms / 3, 1 << 30));
+  while (Sleep(beat_ms)) {
+    RenewLeases();
+    const int64_t now_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+    StatusOr<RecoveryReport> taken = store_->ReclaimExpiredLeases(now_ms);
+    if (!taken.ok()) {
+      spdlog::warn("expired leases not reclaimed: {}", taken.status().ToString());
+    } else if (taken->requeued + taken->cancelled + taken->failed > 0) {
+      spdlog::warn("expired leases: {} jobs requeued, {} cancelled, {} failed", taken->requeued,
+                   taken->cancelled, taken->failed);
+      if (taken->requeued > 0) Wake();
+      hub_->Notify();
+    }
   }
 }
 
@@ -98,6 +141,7 @@ void WorkerPool::Shutdown() {
     stopping_ = true;
     for (auto& [id, running] : running_) running->shutdown = true;
     threads.swap(threads_);
+    if (heartbeat_.joinable()) threads.push_back(std::move(heartbeat_));
   }
   cv_.notify_all();
   for (std::thread& t : threads) t.join();
@@ -198,7 +242,10 @@ class WorkerPool::Run {
 
   // Called by the engine on this thread: false stops the run.
   bool Progress(double fraction) {
-    if (running_->cancel.load() || running_->shutdown.load() || !writer_.error().ok()) return false;
+    if (running_->cancel.load() || running_->shutdown.load() || running_->lost.load() ||
+        !writer_.error().ok()) {
+      return false;
+    }
     const Clock::time_point now = Clock::now();
     if (limits_.max_seconds > 0 &&
         now - started_ > std::chrono::duration<double>(limits_.max_seconds)) {
@@ -230,6 +277,11 @@ class WorkerPool::Run {
 
   // Records how the run ended; returns the outcome's label.
   const char* Finish(StatusOr<jobs::JobOutput>& output) {
+    if (running_->lost.load()) {
+      // The job is another run's now (or queued for one): nothing of this run may be recorded.
+      Announce("lease_lost");
+      return "lease_lost";
+    }
     if (!writer_.error().ok()) return Failed(writer_.error(), "too_large");
     if (!output.ok()) return Failed(output.status(), "failed");
     if (output->status == "CANCELLED") {
@@ -316,6 +368,7 @@ void WorkerPool::RunOne(const JobRecord& job) {
     std::lock_guard<std::mutex> lock(mutex_);
     // A shutdown that began between the claim and now still requeues this job.
     running->shutdown = stopping_;
+    running->run = job.run;
     running_[job.id] = running;
   }
   hub_->Notify();  // QUEUED -> RUNNING

@@ -67,6 +67,13 @@ struct WorkerPoolOptions {
   std::string worker_prefix = "worker";
   // The limits of each kind by name (jobs/job_cost.h); a kind not here runs unlimited.
   std::map<std::string, jobs::KindLimits> limits;
+  // Claims are leases of this many milliseconds (ClaimOptions::lease_ms) for a store that
+  // several processes share: a heartbeat thread renews the leases of the running jobs every
+  // lease_ms / 3 and takes back the jobs of any process whose lease expired
+  // (JobStore::ReclaimExpiredLeases); a run whose renewal is refused (its lease expired and the
+  // job was taken back) is stopped and records nothing. 0: no leases (a store one process owns:
+  // its restart recovers the jobs). >= 300 when set: three beats must fit in it.
+  int64_t lease_ms = 0;
 
   // INVALID_ARGUMENT naming the field when a value is out of range.
   Status Validate() const;
@@ -77,8 +84,8 @@ struct WorkerPoolOptions {
 using OptimumDoneCallback = std::function<void(const std::string& id, const std::string& key)>;
 
 // Called on the worker's thread after each run of a job, with the job, how the run ended
-// ("succeeded", "failed", "cancelled", "requeued", "deadline_exceeded", "too_large") and its
-// wall time in seconds (for metrics).
+// ("succeeded", "failed", "cancelled", "requeued", "deadline_exceeded", "too_large",
+// "lease_lost") and its wall time in seconds (for metrics).
 using JobRunCallback =
     std::function<void(const JobRecord& job, std::string_view outcome, double seconds)>;
 
@@ -119,12 +126,18 @@ class WorkerPool {
  private:
   // A job running on a worker.
   struct Running {
+    int64_t run = 0;                    // Its run (JobRecord::run): the lease's fence.
     std::atomic<bool> cancel{false};    // Stop it and record CANCELLED.
     std::atomic<bool> shutdown{false};  // Stop it and requeue it.
+    std::atomic<bool> lost{false};      // Its lease was lost: stop it and record nothing.
   };
   class Run;
 
   void Loop(const std::string& worker_id, const ClaimOptions& claim);
+  // The lease heartbeat (lease_ms > 0): renews the running jobs' leases and takes back expired
+  // ones, every lease_ms / 3, until the pool stops.
+  void Heartbeat();
+  void RenewLeases();
   void RunOne(const JobRecord& job);
   // Records an outcome with `record`, retrying while the store is faulty (see the header) until
   // it succeeds or answers for good (FAILED_PRECONDITION, NOT_FOUND, INVALID_ARGUMENT), or the
@@ -148,6 +161,7 @@ class WorkerPool {
   int64_t wakeups_ = 0;  // submits since start: idle workers look again when it changes
   std::map<std::string, std::shared_ptr<Running>> running_;
   std::vector<std::thread> threads_;
+  std::thread heartbeat_;
 };
 
 }  // namespace drillbif::server

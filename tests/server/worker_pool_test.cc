@@ -207,5 +207,45 @@ TEST_F(PoolTest, AFinishedRunsItemsAreStoredInChunks) {
   for (int i = 0; i < 200; ++i) EXPECT_EQ(result.poincare(i).period(), 501 + i);
 }
 
+// With leases, a run whose lease is taken back (here by another process's reclaimer, played by
+// the test) stops at its next heartbeat and records nothing: the job runs again in a new run,
+// which alone finishes it.
+TEST_F(PoolTest, ARunThatLosesItsLeaseStopsAndTheJobRunsAgain) {
+  std::mutex mutex;
+  std::vector<std::string> outcomes;
+  ASSERT_FALSE(dir_.path().empty());
+  store_ = SqliteJobStore::Open(dir_.path() + "/jobs.db").value();
+  hub_ = std::make_unique<WatchHub>(store_.get(), 10);
+  WorkerPoolOptions options;
+  options.workers = 1;
+  options.short_workers = 0;
+  options.idle_poll_ms = 10;
+  options.lease_ms = 300;
+  pool_ = std::make_unique<WorkerPool>(store_.get(), hub_.get(), options, OptimumDoneCallback{},
+                                       [&](const JobRecord&, std::string_view outcome, double) {
+                                         std::lock_guard<std::mutex> lock(mutex);
+                                         outcomes.emplace_back(outcome);
+                                       });
+  pool_->Start();
+  v1::SweepRequest sweep = testing::SmallSweep(0.0, 300);  // about a second of engine time
+  const std::string id = Submit("sweep", sweep);
+  StatusOr<JobRecord> job = store_->Get(id);
+  for (int i = 0; i < 2000 && job.ok() && !(job->state == JobState::kRunning && job->progress > 0);
+       ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    job = store_->Get(id);
+  }
+  ASSERT_TRUE(job.ok() && job->state == JobState::kRunning) << "the job never ran";
+  ASSERT_GT(job->lease_expires_ms, 0);
+  // Taken back as if its lease had expired.
+  ASSERT_EQ(store_->ReclaimExpiredLeases(INT64_MAX).value().requeued, 1);
+  const JobRecord done = WaitFinished(id);
+  EXPECT_EQ(done.state, JobState::kSucceeded);
+  EXPECT_EQ(done.run, job->run + 1);
+  EXPECT_EQ(done.attempts, 2);
+  std::lock_guard<std::mutex> lock(mutex);
+  EXPECT_EQ(outcomes, (std::vector<std::string>{"lease_lost", "succeeded"}));
+}
+
 }  // namespace
 }  // namespace drillbif::server
