@@ -148,6 +148,8 @@ int HttpStatusOf(grpc::StatusCode code) {
       return 409;
     case grpc::StatusCode::RESOURCE_EXHAUSTED:
       return 429;
+    case grpc::StatusCode::UNIMPLEMENTED:
+      return 501;
     case grpc::StatusCode::UNAVAILABLE:
       return 503;
     case grpc::StatusCode::DEADLINE_EXCEEDED:
@@ -358,7 +360,7 @@ struct RestGateway::Impl final : public HttpHandler {
     std::string name;
     const StatusOr<int> found = FindRoute(exchange.method(), exchange.target().path, &name);
     if (!found.ok()) {
-      // A path served with other methods is 405 (UNIMPLEMENTED alone would be 500).
+      // A path served with other methods is 405 (UNIMPLEMENTED alone would be 501).
       return ErrorResponse(ToGrpc(found.status()),
                            found.status().code() == StatusCode::kUnimplemented ? 405 : 0);
     }

@@ -23,6 +23,9 @@
 #include "support/server_process.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
+// After Eigen (through the jobs headers): httplib brings <resolv.h>, whose _res macro breaks
+// Eigen's product kernels.
+#include <httplib.h>
 
 namespace drillbif::server {
 namespace {
@@ -155,6 +158,14 @@ TEST(ScaleOut, AWorkerServesNoJobsAndAnApiProcessRunsNone) {
   auto context = ContextWithDeadline();
   EXPECT_EQ(worker_jobs->SubmitSweep(context.get(), submit, &op).error_code(),
             grpc::StatusCode::UNIMPLEMENTED);
+  // Over REST: 501; /metrics and the health check are served.
+  httplib::Client http("127.0.0.1", worker->http_port());
+  const httplib::Result rest = http.Post("/v1/jobs:sweep", "{}", "application/json");
+  ASSERT_TRUE(rest);
+  EXPECT_EQ(rest->status, 501);
+  const httplib::Result metrics = http.Get("/metrics");
+  ASSERT_TRUE(metrics);
+  EXPECT_EQ(metrics->status, 200);
   worker->Kill(SIGTERM);
 
   // With no worker, a job submitted to an API process stays queued.

@@ -126,6 +126,8 @@ class ServerProcess {
 
   pid_t pid() const { return pid_; }
   int grpc_port() const { return port_; }
+  // The HTTP port (REST, /metrics); 0 when the server did not start.
+  int http_port() const { return http_port_; }
   const std::string& log_path() const { return log_path_; }
   std::shared_ptr<grpc::Channel> channel() const { return channel_; }
 
@@ -163,7 +165,10 @@ class ServerProcess {
     const auto give_up = Clock::now() + start_timeout;
     while (Clock::now() < give_up && !WaitExit(std::chrono::milliseconds(0))) {
       std::ifstream in(port_file);
-      if (in >> port_) break;
+      if (in >> port_) {
+        in >> http_port_;
+        break;
+      }
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     if (must_serve) {
@@ -178,6 +183,7 @@ class ServerProcess {
   std::string log_path_;
   pid_t pid_ = -1;
   int port_ = 0;
+  int http_port_ = 0;
   Clock::time_point signalled_at_;
   std::optional<ServerExit> exit_;
   std::shared_ptr<grpc::Channel> channel_;
