@@ -167,6 +167,9 @@ pqxx::connection& PostgresStoreImpl::Connection() {
   if (!connection_ || !connection_->is_open()) {
     connection_.reset();
     connection_ = std::make_unique<pqxx::connection>(WithPassword(uri_, options_.password));
+    pqxx::nontransaction session(*connection_);
+    session.exec("SET idle_in_transaction_session_timeout = " +
+                 std::to_string(options_.idle_in_transaction_timeout_ms));
   }
   return *connection_;
 }
@@ -614,6 +617,9 @@ StatusOr<StoreStats> PostgresStoreImpl::Stats() {
 
 Status PostgresJobStoreOptions::Validate() const {
   if (max_attempts < 1) return InvalidArgument("max_attempts: must be >= 1");
+  if (idle_in_transaction_timeout_ms < 1) {
+    return InvalidArgument("idle_in_transaction_timeout_ms: must be >= 1");
+  }
   if (max_page_size < 1) return InvalidArgument("max_page_size: must be >= 1");
   if (default_page_size < 1 || default_page_size > max_page_size) {
     return InvalidArgument("default_page_size: must be in [1, max_page_size]");

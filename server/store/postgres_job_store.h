@@ -39,6 +39,12 @@ struct PostgresJobStoreOptions {
   int default_page_size = 50;
   // Largest List page (larger requests are capped, as AIP-158 suggests).
   int max_page_size = 1000;
+  // The server ends a session of this store that sits inside a transaction for this long
+  // (idle_in_transaction_session_timeout), rolling it back. The store's transactions take
+  // milliseconds; a process paused inside one (SIGSTOP, a frozen VM) would hold the store's
+  // write lock, and every other process would wait on it until the pause ends. Milliseconds;
+  // 2000: far above any transaction, far below a lease.
+  int idle_in_transaction_timeout_ms = 2000;
   // The password, when the URI has none; never part of the URI given on a command line (it
   // would show in the process list). Empty: none (trust, peer or .pgpass authentication).
   std::string password;

@@ -7,7 +7,10 @@
 #include <signal.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <optional>
 #include <string>
@@ -143,6 +146,154 @@ TEST(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinishes
     EXPECT_EQ(page.operations(i).name(), names[i]);
     EXPECT_TRUE(page.operations(i).done());
   }
+}
+
+// The job in `names` that runs and has reported progress (waiting up to 30 s), from the store.
+std::optional<JobRecord> RunningJob(JobStore& store, const std::vector<std::string>& names) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (std::chrono::steady_clock::now() < give_up) {
+    for (const std::string& name : names) {
+      StatusOr<JobRecord> job = store.Get(JobId(name));
+      if (job.ok() && job->state == JobState::kRunning && job->progress > 0) return *job;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return std::nullopt;
+}
+
+TEST(ScaleOut, AWorkerPausedPastItsLeaseCannotFinishTheJobTheOtherTookOver) {
+  PostgresCluster cluster;
+  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
+  const std::string uri = cluster.Uri("jobs");
+  TempDir dir("drillbif_partition");
+  std::unique_ptr<ServerProcess> api = Start(dir, "api", uri, "api");
+  std::vector<std::unique_ptr<ServerProcess>> workers;
+  workers.push_back(Start(dir, "worker0", uri, "worker"));
+  workers.push_back(Start(dir, "worker1", uri, "worker"));
+  auto jobs = v1::Jobs::NewStub(api->channel());
+  auto operations = google::longrunning::Operations::NewStub(api->channel());
+  const v1::SweepRequest request = SmallSweep(0.0, 300);
+  const std::string name = Submit(*jobs, request);
+  std::unique_ptr<JobStore> store = PostgresJobStore::Open(uri).value();
+  const std::optional<JobRecord> running = RunningJob(*store, {name});
+  ASSERT_TRUE(running.has_value()) << "the job never ran";
+  int paused = -1;
+  for (int w = 0; w < 2; ++w) {
+    if (running->worker_id.find("-" + std::to_string(workers[w]->pid()) + "-worker") !=
+        std::string::npos) {
+      paused = w;
+    }
+  }
+  ASSERT_GE(paused, 0) << running->worker_id;
+  // Paused (as a partition or a frozen VM would stop it) until the other worker has finished the
+  // job in a run of its own.
+  workers[paused]->Signal(SIGSTOP);
+  const Operation op = WaitDone(*operations, name);
+  EXPECT_EQ(MetadataOf(op).state(), v1::SUCCEEDED);
+  const JobRecord taken = store->Get(running->id).value();
+  EXPECT_EQ(taken.run, running->run + 1);
+  EXPECT_NE(taken.worker_id, running->worker_id);
+  // Resumed, the paused worker finds its lease lost and records nothing: the job stays as the
+  // other worker finished it, and the paused worker goes on serving.
+  workers[paused]->Signal(SIGCONT);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2000));
+  const JobRecord after = store->Get(running->id).value();
+  EXPECT_EQ(after.state, JobState::kSucceeded);
+  EXPECT_EQ(after.run, taken.run);
+  EXPECT_EQ(after.finished_ms, taken.finished_ms);
+  EXPECT_EQ(after.worker_id, taken.worker_id);
+  std::ifstream log(workers[paused]->log_path());
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  // Its heartbeat finds the lease lost, or (if its engine finished first) the store refuses the
+  // stale run's result.
+  EXPECT_TRUE(text.find("lease lost") != std::string::npos ||
+              text.find("not recorded: FAILED_PRECONDITION") != std::string::npos)
+      << workers[paused]->log_path();
+  v1::SweepResult served;
+  ASSERT_TRUE(op.response().UnpackTo(&served));
+  StatusOr<v1::SweepResult> direct = jobs::RunSweep(request);
+  ASSERT_TRUE(direct.ok());
+  served.clear_wall_seconds();
+  direct.value().clear_wall_seconds();
+  EXPECT_TRUE(MessageDifferencer::Equals(served, *direct));
+  EXPECT_TRUE(workers[paused]->running());
+}
+
+TEST(ScaleOut, ACancelThroughAnyApiProcessStopsTheRunOnItsWorkerWithinASecond) {
+  PostgresCluster cluster;
+  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
+  const std::string uri = cluster.Uri("jobs");
+  TempDir dir("drillbif_cancel");
+  std::unique_ptr<ServerProcess> api0 = Start(dir, "api0", uri, "api");
+  std::unique_ptr<ServerProcess> api1 = Start(dir, "api1", uri, "api");
+  std::unique_ptr<ServerProcess> worker = Start(dir, "worker", uri, "worker");
+  auto jobs = v1::Jobs::NewStub(api0->channel());
+  const std::string name = Submit(*jobs, drillbif::testing::LongSweep());  // minutes of work
+  std::unique_ptr<JobStore> store = PostgresJobStore::Open(uri).value();
+  ASSERT_TRUE(RunningJob(*store, {name}).has_value()) << "the job never ran";
+  auto operations = google::longrunning::Operations::NewStub(api1->channel());
+  google::longrunning::CancelOperationRequest cancel;
+  cancel.set_name(name);
+  google::protobuf::Empty empty;
+  const auto asked = std::chrono::steady_clock::now();
+  auto context = ContextWithDeadline();
+  ASSERT_TRUE(operations->CancelOperation(context.get(), cancel, &empty).ok());
+  // The worker polls the store's cancel flag with its progress writes (every 250 ms).
+  JobState state = JobState::kRunning;
+  while (state == JobState::kRunning &&
+         std::chrono::steady_clock::now() - asked < std::chrono::seconds(5)) {
+    state = store->Get(JobId(name)).value().state;
+    if (state == JobState::kRunning) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - asked).count();
+  EXPECT_EQ(state, JobState::kCancelled);
+  EXPECT_LT(ms, 1000.0);
+  std::printf("cancel through another API process: CANCELLED after %.0f ms\n", ms);
+}
+
+TEST(ScaleOut, FiftyClientsOverTwoApiProcessesAllGetTheirOwnResults) {
+  PostgresCluster cluster;
+  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
+  const std::string uri = cluster.Uri("jobs");
+  TempDir dir("drillbif_clients");
+  std::vector<std::unique_ptr<ServerProcess>> apis;
+  apis.push_back(Start(dir, "api0", uri, "api"));
+  apis.push_back(Start(dir, "api1", uri, "api"));
+  std::unique_ptr<ServerProcess> worker0 = Start(dir, "worker0", uri, "worker");
+  std::unique_ptr<ServerProcess> worker1 = Start(dir, "worker1", uri, "worker");
+  constexpr int kClients = 50;
+  std::vector<std::string> failures(kClients);
+  std::vector<std::thread> clients;
+  for (int c = 0; c < kClients; ++c) {
+    clients.emplace_back([&, c] {
+      // Submitted through one API process, followed to the end through the other.
+      const v1::SweepRequest request = SmallSweep(0.1 + 0.001 * c, 3);
+      auto jobs = v1::Jobs::NewStub(apis[c % 2]->channel());
+      auto operations = google::longrunning::Operations::NewStub(apis[(c + 1) % 2]->channel());
+      v1::SubmitSweepRequest submit;
+      *submit.mutable_request() = request;
+      Operation op;
+      auto context = ContextWithDeadline();
+      if (const grpc::Status s = jobs->SubmitSweep(context.get(), submit, &op); !s.ok()) {
+        failures[c] = "submit: " + s.error_message();
+        return;
+      }
+      const Operation done = WaitDone(*operations, op.name());
+      v1::SweepResult served;
+      StatusOr<v1::SweepResult> direct = jobs::RunSweep(request);
+      if (MetadataOf(done).state() != v1::SUCCEEDED || !done.response().UnpackTo(&served) ||
+          !direct.ok()) {
+        failures[c] = "not succeeded";
+        return;
+      }
+      served.clear_wall_seconds();
+      direct.value().clear_wall_seconds();
+      if (!MessageDifferencer::Equals(served, *direct)) failures[c] = "another result";
+    });
+  }
+  for (std::thread& t : clients) t.join();
+  for (int c = 0; c < kClients; ++c) EXPECT_EQ(failures[c], "") << "client " << c;
 }
 
 TEST(ScaleOut, AWorkerServesNoJobsAndAnApiProcessRunsNone) {
