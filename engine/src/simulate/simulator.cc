@@ -32,18 +32,6 @@ Status SimulationOptions::Validate() const {
   return Status::Ok();
 }
 
-const char* TerminationName(Termination t) {
-  switch (t) {
-    case Termination::kCompleted:
-      return "COMPLETED";
-    case Termination::kCancelled:
-      return "CANCELLED";
-    case Termination::kFailed:
-      return "FAILED";
-  }
-  return "?";
-}
-
 StateVector DefaultInitialState(const HybridModel& model) {
   return StateVector::Zero(model.state_dim());
 }

@@ -22,6 +22,7 @@
 
 #include "drillbif/common/progress.h"
 #include "drillbif/common/status.h"
+#include "drillbif/common/termination.h"
 #include "drillbif/flow/propagator.h"
 #include "drillbif/model/hybrid_model.h"
 
@@ -56,9 +57,6 @@ struct SimulationOptions {
   // beyond 2^63 - 1, a trajectory_dt or state_tolerance that is not a finite value >= 0.
   Status Validate() const;
 };
-
-enum class Termination { kCompleted, kCancelled, kFailed };
-const char* TerminationName(Termination t);
 
 struct PoincareSample {
   int64_t period = 0;  // index of the section since the start (1 = the end of the first period)
