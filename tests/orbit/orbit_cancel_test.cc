@@ -54,8 +54,10 @@ TEST(OrbitCancel, SolveOrbitStopsPromptlyInsideAFlow) {
   CancelProbe probe(kDelay);
   const OrbitSolveSummary s = SolveOrbit(model, prop, {}, &orbit, probe.Callback());
   probe.Returned();
-  EXPECT_EQ(s.status, SolveStatus::kCancelled) << s.message;
-  EXPECT_STREQ(SolveStatusName(s.status), "CANCELLED");
+  EXPECT_EQ(s.termination, Termination::kCancelled) << s.message;
+  EXPECT_STREQ(TerminationName(s.termination), "CANCELLED");
+  EXPECT_EQ(s.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(s.BriefReport().rfind("cancelled: ", 0), 0u) << s.BriefReport();
   // Left as given.
   EXPECT_EQ(orbit.durations, start->durations);
   probe.ExpectPrompt("start orbit: Newton (slow CVODE flows)");
@@ -73,7 +75,9 @@ TEST(OrbitCancel, SolveOrbitPollsThePropagatorsThrottle) {
   ProgressThrottle throttle;
   throttle.Stop();
   ScopedProgress attach(prop, &throttle);
-  EXPECT_EQ(SolveOrbit(model, prop, {}, &orbit).status, SolveStatus::kCancelled);
+  const OrbitSolveSummary s = SolveOrbit(model, prop, {}, &orbit);
+  EXPECT_EQ(s.termination, Termination::kCancelled);
+  EXPECT_EQ(s.status.code(), StatusCode::kCancelled);
 }
 
 // Attractor sampling from three states, each with a transient of 1e8 periods.

@@ -35,7 +35,7 @@ StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator&
     if (found.ok()) {
       orbit = *found;
       const OrbitSolveSummary solved = SolveOrbit(model, propagator, {}, &orbit);
-      if (solved.status != SolveStatus::kConverged) why = "Newton: " + solved.message;
+      if (!solved.completed()) why = "Newton: " + solved.message;
     } else {
       why = found.status().message();
     }
