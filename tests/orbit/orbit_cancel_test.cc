@@ -93,7 +93,9 @@ TEST(OrbitCancel, SampleAttractorsStopsPromptly) {
       SampleAttractors(model, prop, prm, states, guess, probe.Callback());
   probe.Returned();
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_TRUE(r->cancelled);
+  EXPECT_EQ(r->summary.termination, Termination::kCancelled) << r->summary.BriefReport();
+  EXPECT_EQ(r->summary.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r->summary.message.rfind("cancelled at initial state ", 0), 0u) << r->summary.message;
   EXPECT_TRUE(r->attractors.empty());
   EXPECT_TRUE(r->not_periodic.empty());  // the state it stopped in is in neither list
   probe.ExpectPrompt("attractor sampling");
@@ -111,7 +113,7 @@ TEST(OrbitCancel, SampleAttractorsWithACallbackCompletes) {
     return true;
   });
   ASSERT_TRUE(r.ok());
-  EXPECT_FALSE(r->cancelled);
+  EXPECT_EQ(r->summary.termination, Termination::kCompleted) << r->summary.BriefReport();
   ASSERT_EQ(r->attractors.size(), 1u);
   EXPECT_EQ(r->attractors[0].reached_from.size(), 2u);
   EXPECT_GT(calls, 0);
