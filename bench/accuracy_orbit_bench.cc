@@ -80,8 +80,8 @@ void Measure(benchmark::State& state, Propagator& prop, const OrbitSolverOptions
   state.counters["residual"] = s.residual;
   state.counters["fixed_rel_err"] = err / scale;
   state.counters["iterations"] = s.iterations;
-  state.counters["converged"] = s.status == SolveStatus::kConverged ? 1.0 : 0.0;
-  state.SetLabel(SolveStatusName(s.status));
+  state.counters["converged"] = s.termination == Termination::kCompleted ? 1.0 : 0.0;
+  state.SetLabel(TerminationName(s.termination));
 }
 
 // Argument: -log10(Newton tolerance).

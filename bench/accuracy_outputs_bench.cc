@@ -55,7 +55,7 @@ void BM_Outputs(benchmark::State& state) {
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     benchmark::DoNotOptimize(r.measure_means.data());
   }
-  if (r.termination != Termination::kCompleted) {
+  if (r.summary.termination != Termination::kCompleted) {
     state.SkipWithError("simulation failed");
     return;
   }

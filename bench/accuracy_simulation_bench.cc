@@ -40,8 +40,8 @@ void Measure(benchmark::State& state, Propagator& prop) {
     benchmark::DoNotOptimize(r.measure_means.data());
   }
   const SimulationResult& ref = ExactReference();
-  if (r.termination != Termination::kCompleted || r.poincare.empty()) {
-    state.SkipWithError((std::string("simulation failed: ") + r.status.ToString()).c_str());
+  if (r.summary.termination != Termination::kCompleted || r.poincare.empty()) {
+    state.SkipWithError((std::string("simulation failed: ") + r.summary.status.ToString()).c_str());
     return;
   }
   double err = 0.0, scale = 0.0;

@@ -49,7 +49,7 @@ void TraceReferenceBox(benchmark::State& state, bool condensed) {
   state.counters["curves"] = static_cast<double>(r.curves.size());
   state.counters["points"] = points;
   state.counters["codim2"] = codim2;
-  if (!r.summary.status.ok()) state.SkipWithError("trace failed");
+  if (!r.summary.completed()) state.SkipWithError(r.summary.BriefReport().c_str());
 }
 // Args: target iterations (3: FINE, 4: COARSE), threads.
 void BM_TraceReferenceBox(benchmark::State& state) { TraceReferenceBox(state, false); }
@@ -103,7 +103,7 @@ void BM_TracePeriodTwoBox(benchmark::State& state) {
           codim2 += static_cast<double>(c.curve.codim2.size());
           return true;
         });
-    ok = r.summary.status.ok() && !r.summary.cancelled;
+    ok = r.summary.completed();
   }
   state.counters["curves"] = curves;
   state.counters["points"] = points;

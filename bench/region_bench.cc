@@ -52,7 +52,7 @@ void BM_StabilityRegionReferenceBox(benchmark::State& state) {
   }
   state.counters["inside"] = r.summary.inside_nodes;
   state.counters["solves"] = r.summary.solves;
-  if (!r.summary.status.ok()) state.SkipWithError("region failed");
+  if (!r.summary.completed()) state.SkipWithError(r.summary.BriefReport().c_str());
 }
 BENCHMARK(BM_StabilityRegionReferenceBox)->Unit(benchmark::kMillisecond);
 
@@ -68,8 +68,8 @@ void BM_RobustOptimumQuery(benchmark::State& state) {
     best = FindRobustOptimum(r, o);
     benchmark::DoNotOptimize(best.rop);
   }
-  state.counters["candidates"] = best.candidates;
-  if (!best.status.ok()) state.SkipWithError("no optimum");
+  state.counters["candidates"] = static_cast<double>(best.summary.candidates);
+  if (!best.summary.completed()) state.SkipWithError(best.summary.BriefReport().c_str());
 }
 BENCHMARK(BM_RobustOptimumQuery)->Unit(benchmark::kMillisecond);
 

@@ -47,8 +47,8 @@ SimulationResult TimePeriods(benchmark::State& state, const Run& run) {
 
 void ReportErrors(benchmark::State& state, const SimulationResult& r) {
   const SimulationResult& ref = ExactReference();
-  if (r.termination != Termination::kCompleted || r.poincare.empty()) {
-    state.SkipWithError(("simulation failed: " + r.status.ToString()).c_str());
+  if (r.summary.termination != Termination::kCompleted || r.poincare.empty()) {
+    state.SkipWithError(("simulation failed: " + r.summary.status.ToString()).c_str());
     return;
   }
   double err = 0.0;
@@ -102,9 +102,9 @@ void BM_SweepB(benchmark::State& state) {
     benchmark::DoNotOptimize(r.up.data());
   }
   long long failed = 0;
-  for (const SweepPoint& p : r.up) failed += p.termination != Termination::kCompleted;
+  for (const SweepPoint& p : r.up) failed += p.summary.termination != Termination::kCompleted;
   state.counters["failed_values"] = static_cast<double>(failed);
-  state.counters["periods"] = static_cast<double>(r.periods_total);
+  state.counters["periods"] = static_cast<double>(r.summary.periods);
 }
 BENCHMARK(BM_SweepB)
     ->ArgNames({"threads", "chunks"})

@@ -50,8 +50,8 @@ int Main(int argc, char** argv) {
   options.curve.crossings1 = {0.1};  // omega
   options.curve.crossings2 = {0.3};  // a
   const TraceResult r = TraceCurves(model, prop, start, options);
-  if (!r.summary.status.ok()) {
-    std::fprintf(stderr, "trace failed: %s\n", r.summary.status.ToString().c_str());
+  if (!r.summary.completed()) {
+    std::fprintf(stderr, "trace: %s\n", r.summary.BriefReport().c_str());
     return 1;
   }
   std::printf("{\"curves\": [\n");

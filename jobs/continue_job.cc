@@ -208,8 +208,7 @@ void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
 StatusOr<v1::ContinueResult> ToProto(const ContinuationResult& r,
                                      ItemBatcher<v1::ContinueResult>* points = nullptr) {
   v1::ContinueResult out;
-  out.set_status(TerminationName(r.summary.termination));
-  out.set_message(r.summary.message);
+  internal::SetRunEnd(r.summary, &out);
   if (points != nullptr) {
     for (const ContinuationPoint& pt : r.points) {
       if (!points->Add([&](v1::ContinueResult* batch) { ToProto(pt, batch->add_points()); })) {
@@ -295,8 +294,8 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
     if (!orbit.ok() && !cancelled) return orbit.status();
     if (cancelled || (progress && !progress(kStartShare))) {
       v1::ContinueResult out;
-      out.set_status(TerminationName(Termination::kCancelled));
-      out.set_message("cancelled before the continuation started");
+      internal::SetRunEnd(Termination::kCancelled, "cancelled before the continuation started",
+                          &out);
       out.set_engine_version(EngineVersion());
       out.set_wall_seconds(Seconds(start));
       return out;
@@ -338,8 +337,8 @@ StatusOr<v1::ContinueResult> RunContinue(const v1::ContinueRequest& request,
       }
       {
         if (!orbit2.ok()) {
-          doubled->set_status(TerminationName(Termination::kFailed));
-          doubled->set_message(tried.empty() ? orbit2.status().message() : tried);
+          internal::SetRunEnd(Termination::kFailed,
+                              tried.empty() ? orbit2.status().message() : tried, doubled);
         } else {
           ContinuationOptions options2 = plan.options;
           if (orbit2->params[plan.index] < options2.min ||

@@ -71,15 +71,14 @@ StatusOr<PeriodicOrbit> StartOrbit(Propagator& propagator, const Params& params,
   PeriodicOrbit solved = *orbit;
   const OrbitSolveSummary summary =
       SolveOrbit(model, propagator, OrbitSolverOptions(), &solved, progress);
-  if (summary.status == SolveStatus::kCancelled) {
-    return Cancelled("cancelled while solving the start orbit");
-  }
-  if (summary.status != SolveStatus::kConverged) {
+  if (summary.cancelled()) return Cancelled("cancelled while solving the start orbit");
+  if (!summary.completed()) {
     return FailedPrecondition(
         "the start state is not near a periodic orbit: Newton on the period-" +
         std::to_string(solved.signature.periods) + " orbit " +
         SignatureString(model, orbit->signature) + " found by simulation did not converge (" +
-        SolveStatusName(summary.status) + ": " + summary.message + "); try more transient_periods");
+        TerminationName(summary.termination) + ": " + summary.message +
+        "); try more transient_periods");
   }
   return solved;
 }
@@ -99,6 +98,16 @@ Status CheckParamValues(const Params& params, int index,
     }
   }
   return Status::Ok();
+}
+
+const char* ResultStatus(Termination termination) {
+  return termination == Termination::kNoConvergence ? TerminationName(Termination::kFailed)
+                                                    : TerminationName(termination);
+}
+
+const char* ResultStatus(const RunSummary& summary) {
+  if (summary.failed() && summary.status.code() == StatusCode::kNotFound) return "NOT_FOUND";
+  return ResultStatus(summary.termination);
 }
 
 v1::Mode ToProtoMode(int mode) {

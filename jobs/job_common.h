@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "drillbif/common/status.h"
+#include "drillbif/common/termination.h"
 #include "drillbif/model/drifting_oscillator.h"
 #include "drillbif/orbit/periodic_orbit.h"
 #include "drillbif/simulate/simulator.h"
@@ -73,6 +74,28 @@ StatusOr<StartSearch> StartSearchOf(const Request& request, const Params& params
     return s;
   }
   return out;
+}
+
+// How a run ended, as the results' `status` field (every result of the API has `status` and
+// `message`): the termination's name, except "NOT_FOUND" for a search that failed finding
+// nothing (status NOT_FOUND: the optimum) and "FAILED" for kNoConvergence, which no result lists
+// (an orbit that does not converge fails the run that needs it).
+const char* ResultStatus(const RunSummary& summary);
+const char* ResultStatus(Termination termination);
+
+// A result's `status` and `message` from how its run ended: every job maps the engine's
+// summaries onto its protos here, so that the one vocabulary reads the same in every result.
+template <typename Result>
+void SetRunEnd(const RunSummary& summary, Result* out) {
+  out->set_status(ResultStatus(summary));
+  out->set_message(summary.message);
+}
+// The same for a run that ended outside the engine's summaries (e.g. cancelled while looking for
+// the start orbit, or a job-level verdict over several of them).
+template <typename Result>
+void SetRunEnd(Termination termination, const std::string& message, Result* out) {
+  out->set_status(ResultStatus(termination));
+  out->set_message(message);
 }
 
 // The API's mode of an engine mode index.

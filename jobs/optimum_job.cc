@@ -132,7 +132,7 @@ StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const TracePlan& plan,
     return std::make_shared<const OptimumCurves>();
   }
   DRILLBIF_ASSIGN_OR_RETURN(const internal::EngineTrace trace, std::move(traced));
-  *cancelled = trace.result.summary.cancelled;
+  *cancelled = trace.result.summary.cancelled();
   std::shared_ptr<const OptimumCurves> curves =
       OptimumCurvesOf(trace.start, trace.options, trace.result);
   if (cache != nullptr && !*cancelled) cache->PutCurves(key, curves);
@@ -162,8 +162,7 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   const OptimumCurves& curves = **found;
   out.set_curves(static_cast<int>(curves.kinds.size()));
   if (cancelled) {
-    out.set_status("CANCELLED");
-    out.set_message("cancelled while tracing the curves");
+    internal::SetRunEnd(Termination::kCancelled, "cancelled while tracing the curves", &out);
     return out;
   }
 
@@ -182,8 +181,8 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
     auto computed = std::make_shared<StabilityRegion>(ComputeStabilityRegion(
         model, propagator, curves.start, curves.region_curves,
         internal::RegionOptionsFor(curves.options, n1, n2), region_progress));
-    if (!computed->summary.status.ok()) return computed->summary.status;
-    if (cache != nullptr && !computed->summary.cancelled) cache->PutRegion(key, n1, n2, computed);
+    if (computed->summary.failed()) return computed->summary.status;
+    if (cache != nullptr && !computed->summary.cancelled()) cache->PutRegion(key, n1, n2, computed);
     held = std::move(computed);
   }
   const StabilityRegion& region = *held;
@@ -193,9 +192,9 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   out.add_spacing(region.width1() / (n1 - 1));
   out.add_spacing(region.width2() / (n2 - 1));
   out.set_inside_nodes(region.summary.inside_nodes);
-  if (region.summary.cancelled) {
-    out.set_status("CANCELLED");
-    out.set_message("cancelled while computing the stability region");
+  if (region.summary.cancelled()) {
+    internal::SetRunEnd(Termination::kCancelled, "cancelled while computing the stability region",
+                        &out);
     return out;
   }
 
@@ -203,13 +202,9 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   const RobustOptimum best = FindRobustOptimum(
       region, plan.options, internal::StageProgress(progress, kRegionEnd, kQueryEnd));
   out.set_query_seconds(Seconds(query_start));
-  out.set_candidates(best.candidates);
-  if (!best.status.ok()) {
-    const StatusCode code = best.status.code();
-    out.set_status(code == StatusCode::kNotFound    ? "NOT_FOUND"
-                   : code == StatusCode::kCancelled ? "CANCELLED"
-                                                    : "FAILED");
-    out.set_message(best.status.message());
+  out.set_candidates(static_cast<int32_t>(best.summary.candidates));
+  if (!best.summary.completed()) {
+    internal::SetRunEnd(best.summary, &out);
     return out;
   }
   Params params = curves.start.params;
@@ -237,12 +232,11 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
                        internal::StageProgress(progress, kQueryEnd, 1.0), &out);
 
   if (progress && !progress(1.0)) {  // stopped during the coexistence check
-    out.set_status("CANCELLED");
-    out.set_message("cancelled while checking the coexistence of other motions");
+    internal::SetRunEnd(Termination::kCancelled,
+                        "cancelled while checking the coexistence of other motions", &out);
     return out;
   }
   const bool failed = curves.failed;
-  out.set_status(failed ? "FAILED" : "COMPLETED");
   std::string message = "ROP " + internal::Num(best.rop) + " at " + region.param1 + " = " +
                         internal::Num(best.value1) + ", " + region.param2 + " = " +
                         internal::Num(best.value2) + "; " + region.summary.message;
@@ -250,7 +244,8 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   if (best.near_box_edge) message += "; the margin reaches beyond the box, where nothing is known";
   if (!out.margin_size()) message += "; no bifurcation curve bounds the region in the box";
   message += "; " + coexistence;
-  out.set_message(message);
+  // A curve that failed to trace leaves the answer in doubt: the job calls it FAILED.
+  internal::SetRunEnd(failed ? Termination::kFailed : Termination::kCompleted, message, &out);
   return out;
 }
 

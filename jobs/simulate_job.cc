@@ -73,9 +73,8 @@ void ToProto(const TrajectoryPoint& tp, v1::TrajectoryPoint* out) {
 // (Periods fit the proto's int32: admission keeps runs far below 2^31 periods.)
 v1::SimulateResult ToProto(const SimulationResult& r, const SimulationOptions& options) {
   v1::SimulateResult out;
-  out.set_status(TerminationName(r.termination));
-  if (!r.status.ok()) out.set_message(r.status.message());
-  if (r.termination == Termination::kCompleted && options.outputs.measures &&
+  internal::SetRunEnd(r.summary, &out);
+  if (r.summary.completed() && options.outputs.measures &&
       static_cast<int>(r.measure_means.size()) > Osc::kPower) {
     out.set_rop(r.measure_means[Osc::kDrift]);
     out.set_power(r.measure_means[Osc::kPower]);
@@ -89,9 +88,9 @@ v1::SimulateResult ToProto(const SimulationResult& r, const SimulationOptions& o
   }
   out.mutable_trajectory()->Reserve(static_cast<int>(r.trajectory.size()));
   for (const TrajectoryPoint& tp : r.trajectory) ToProto(tp, out.add_trajectory());
-  out.set_segments(r.segments);
-  out.set_events_total(r.events_total);
-  out.set_evaluations(r.evaluations);
+  out.set_segments(r.summary.segments);
+  out.set_events_total(r.summary.events);
+  out.set_evaluations(r.summary.evaluations);
   out.set_engine_version(EngineVersion());
   return out;
 }

@@ -89,14 +89,11 @@ void ToProto(const SweepPoint& in, bool sweep_cancelled, v1::SweepPoint* out) {
   out->set_value(in.value);
   out->set_start(ToProto(in.start));
   out->set_transient_periods(in.transient_periods);
-  // A grid value the workers never reached keeps the engine's initial kFailed with no message.
-  if (sweep_cancelled && in.termination == Termination::kFailed && in.message.empty()) {
-    out->set_status(TerminationName(Termination::kCancelled));
-    out->set_message("not reached before the sweep was cancelled");
+  if (sweep_cancelled && in.start == SweepStart::kNotStarted) {
+    internal::SetRunEnd(Termination::kCancelled, "not reached before the sweep was cancelled", out);
     return;
   }
-  out->set_status(TerminationName(in.termination));
-  out->set_message(in.message);
+  internal::SetRunEnd(in.summary, out);
   out->mutable_samples()->Reserve(static_cast<int>(in.samples.size()));
   for (const PoincareSample& smp : in.samples) internal::ToProto(smp, out->add_samples());
 }
@@ -172,17 +169,16 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request, const RunCon
     }
     // Sweep validates everything (parameter name, range ends, initial state) before it starts;
     // once started it always completes or is cancelled, single values failing on their own.
-    if (r.termination == Termination::kFailed) {
-      return r.status.ok() ? Internal("sweep failed without a reason") : r.status;
+    if (r.summary.failed()) {
+      return r.summary.status.ok() ? Internal("sweep failed without a reason") : r.summary.status;
     }
-    const bool cancelled = r.termination == Termination::kCancelled;
+    const bool cancelled = r.summary.cancelled();
     v1::SweepResult out;
-    out.set_status(TerminationName(r.termination));
-    if (!r.status.ok()) out.set_message(r.status.message());
+    internal::SetRunEnd(r.summary, &out);
     for (const SweepPoint& pt : r.up) ToProto(pt, cancelled, out.add_up());
     for (const SweepPoint& pt : r.down) ToProto(pt, cancelled, out.add_down());
-    out.set_periods_total(r.periods_total);
-    out.set_events_total(r.events_total);
+    out.set_periods_total(r.summary.periods);
+    out.set_events_total(r.summary.events);
     out.set_engine_version(EngineVersion());
     out.set_wall_seconds(Seconds(start));
     return out;

@@ -187,12 +187,14 @@ v1::TraceResult ToProto(const TraceResult& r, bool with_curves) {
       cp->set_bracket(q.bracket);
     }
   }
-  out.set_status(r.summary.cancelled        ? "CANCELLED"
-                 : internal::TraceFailed(r) ? "FAILED"
-                                            : "COMPLETED");
-  out.set_message(std::to_string(r.curves.size()) + " curves, " +
-                  std::to_string(out.codim2_points_size()) + " codimension-2 points, " +
-                  std::to_string(r.summary.notes.size()) + " notes");
+  // The trace completes with its failed curves and branches in the notes: the job calls it FAILED.
+  internal::SetRunEnd(r.summary.cancelled()      ? Termination::kCancelled
+                      : internal::TraceFailed(r) ? Termination::kFailed
+                                                 : Termination::kCompleted,
+                      std::to_string(r.curves.size()) + " curves, " +
+                          std::to_string(out.codim2_points_size()) + " codimension-2 points, " +
+                          std::to_string(r.summary.notes.size()) + " notes",
+                      &out);
   return out;
 }
 
@@ -261,21 +263,21 @@ StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const RunContex
   if (!trace.ok()) {
     if (trace.status().code() != StatusCode::kCancelled) return trace.status();
     v1::TraceResult out;
-    out.set_status("CANCELLED");
-    out.set_message("cancelled while looking for the start orbit");
+    internal::SetRunEnd(Termination::kCancelled, "cancelled while looking for the start orbit",
+                        &out);
     out.set_engine_version(EngineVersion());
     return out;
   }
   const std::pair<int, int> grid = plan.region_grid.value_or(std::pair<int, int>(0, 0));
   v1::TraceResult out = ToProto(trace->result, /*with_curves=*/!curves);
   // Curves an optimum can use (period 1 only, as its are) go to the cache for later optimum jobs.
-  const bool for_optimum = cache != nullptr && !trace->result.summary.cancelled &&
+  const bool for_optimum = cache != nullptr && !trace->result.summary.cancelled() &&
                            !request.period2() && request.max_period() <= 1;
   const std::string key = for_optimum ? OptimumCache::KeyOf(request) : "";
   if (for_optimum) {
     cache->PutCurves(key, OptimumCurvesOf(trace->start, trace->options, trace->result));
   }
-  if (request.has_region() && !trace->result.summary.cancelled) {
+  if (request.has_region() && !trace->result.summary.cancelled()) {
     const Osc& model = Model();
     ExactPropagator propagator(model);
     RegionProgress region_progress;
@@ -283,10 +285,10 @@ StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const RunContex
     auto region = std::make_shared<StabilityRegion>(ComputeStabilityRegion(
         model, propagator, trace->start, RegionCurvesOf(trace->result.curves),
         internal::RegionOptionsFor(trace->options, grid.first, grid.second), region_progress));
-    if (!region->summary.status.ok()) return region->summary.status;
-    if (region->summary.cancelled) out.set_status("CANCELLED");
+    if (region->summary.failed()) return region->summary.status;
+    if (region->summary.cancelled()) out.set_status(internal::ResultStatus(region->summary));
     jobs::ToProto(model, *region, out.mutable_region());
-    if (for_optimum && !region->summary.cancelled) {
+    if (for_optimum && !region->summary.cancelled()) {
       cache->PutRegion(key, grid.first, grid.second, std::move(region));
     }
   }
@@ -370,7 +372,7 @@ StatusOr<EngineTrace> TraceCurvesOf(const TracePlan& plan, const ProgressCallbac
   out.start = *orbit;
   out.result = TraceCurves(model, propagator, out.start, out.options,
                            StageProgress(progress, kStartShare, 1.0), on_curve);
-  if (!out.result.summary.status.ok()) return out.result.summary.status;
+  if (out.result.summary.failed()) return out.result.summary.status;
   return out;
 }
 

@@ -240,7 +240,7 @@ TEST_F(Codim2Test, CurveGoesOnThroughAPoincareSectionCrossing) {
     PeriodicOrbit o = x.orbit;
     o.params[ia] += da;
     const OrbitSolveSummary solved = SolveOrbit(model_, prop_, {}, &o);
-    ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
+    ASSERT_EQ(solved.termination, Termination::kCompleted) << solved.message;
     const std::complex<double> critical = OrbitStability(model_, prop_, o).multipliers.front();
     EXPECT_EQ(critical.imag(), 0.0);
     side.push_back(critical.real() + 1.0);

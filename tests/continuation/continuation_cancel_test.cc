@@ -74,6 +74,9 @@ TEST(ContinuationCancel, StopsPromptlyInsideASlowStep) {
   probe.Returned();
   EXPECT_EQ(r.summary.termination, Termination::kCancelled) << r.summary.message;
   EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
+  // The counters count the steps accepted before the stop (the callback saw each).
+  EXPECT_LE(r.summary.steps, points);
+  EXPECT_EQ(r.summary.BriefReport().rfind("cancelled: ", 0), 0u) << r.summary.BriefReport();
   // Whatever was kept was accepted before the stop: the points handed to the callback, and the
   // start (recorded when the first direction began) if it was reached.
   EXPECT_LE(static_cast<int>(r.points.size()), points + 1);
@@ -91,6 +94,9 @@ TEST(ContinuationCancel, PollsThePropagatorsThrottle) {
   ScopedProgress attach(prop, &throttle);
   const ContinuationResult r = Continue(model, prop, start, InB());
   EXPECT_EQ(r.summary.termination, Termination::kCancelled) << r.summary.message;
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.message, "cancelled before the first step");
+  EXPECT_EQ(r.summary.steps, 0);
   EXPECT_TRUE(r.points.empty());
 }
 

@@ -95,7 +95,7 @@ std::pair<int, int> ExpectStabilityMatchesSimulation(const DO& model, Propagator
     opt.sample_periods = 30 * p.orbit.signature.periods;
     opt.outputs = SimulationOutputs{false, true, false, false, 0.0};
     const SimulationResult s = Simulate(model, prop, p.orbit.params, x, opt);
-    EXPECT_EQ(s.termination, Termination::kCompleted) << label << " = " << p.value;
+    EXPECT_EQ(s.summary.termination, Termination::kCompleted) << label << " = " << p.value;
     if (s.poincare.empty()) continue;
     const double d = (s.poincare.back().x - p.orbit.starts[0]).head(3).norm();
     if (p.stability.stable) {
@@ -314,7 +314,9 @@ TEST(Continuation, InvalidRequestsAreClearErrors) {
   opt.min = 0.0;
   opt.max = 0.2;
   const ContinuationResult r = Continue(model, prop, broken, opt);
+  EXPECT_EQ(r.summary.termination, Termination::kFailed);
   EXPECT_EQ(r.summary.status.code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(r.summary.steps, 0);
 }
 
 // MODEL.md's other continuations from the start orbit: in a over [0.05, 3] and in omega over

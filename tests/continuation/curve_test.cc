@@ -104,7 +104,7 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
         const int n = std::max(1, static_cast<int>(std::ceil(std::abs(to - from) / step)));
         for (int k = 1; k <= n; ++k) {
           above.params[index] = from + (to - from) * k / n;
-          ASSERT_EQ(SolveOrbit(model, prop, {}, &above).status, SolveStatus::kConverged)
+          ASSERT_EQ(SolveOrbit(model, prop, {}, &above).termination, Termination::kCompleted)
               << model.param_names()[index] << " = " << above.params[index];
         }
       };
@@ -113,13 +113,13 @@ TEST_P(CurveConsistencyTest, CrossesNeighbouringAmplitudesWhereTheOneParameterRu
       step_to(DO::kB, c.value1 + 1e-4, 1e-4);
       step_to(DO::kB, c.value1 + 1e-5, 1e-5);
       above.params[DO::kB] = c.value1 + 1e-6;
-      ASSERT_EQ(SolveOrbit(model, prop, {}, &above).status, SolveStatus::kConverged);
+      ASSERT_EQ(SolveOrbit(model, prop, {}, &above).termination, Termination::kCompleted);
       EXPECT_GT(above.durations[2], 0.0) << "a = " << c.value2;
       EXPECT_LT(above.durations[2], 0.05) << "a = " << c.value2;
       PeriodicOrbit below = above;
       below.params[DO::kB] = c.value1 - 1e-6;
       const OrbitSolveSummary sb = SolveOrbit(model, prop, {}, &below);
-      EXPECT_TRUE(sb.status != SolveStatus::kConverged || below.durations[2] <= 0.0)
+      EXPECT_TRUE(sb.termination != Termination::kCompleted || below.durations[2] <= 0.0)
           << "a = " << c.value2;
       // The touching point: the tangent segment end has h = 0 (an equation of the orbit) and
       // h' = 0 (the curve's condition), to the corrector's accuracy.
@@ -157,8 +157,10 @@ TEST(Curve, OtherStartsAreClearErrors) {
   opt.param1 = "b";
   opt.param2 = "a";
   opt.min1 = 0.0, opt.max1 = 1.0, opt.min2 = 0.0, opt.max2 = 1.0;
-  EXPECT_EQ(ContinueCurve(model, prop, rop_max, opt).summary.status.code(),
-            StatusCode::kInvalidArgument);
+  const CurveResult not_a_curve = ContinueCurve(model, prop, rop_max, opt);
+  EXPECT_EQ(not_a_curve.summary.termination, Termination::kFailed);
+  EXPECT_EQ(not_a_curve.summary.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(not_a_curve.summary.message, not_a_curve.summary.status.message());
   SpecialPoint graze;  // a malformed orbit (no start states, no parameters)
   graze.kind = SpecialPointKind::kGrazingPi;
   graze.point.orbit.signature.segments = {{0, 0}, {1, 1}, {0, -1}};
@@ -202,7 +204,7 @@ TEST(Curve, GrazingCurvesCrossXiOneHalfWhereTheBranchesThereLocate) {
   ASSERT_NEAR(moved.points.back().value, 0.5, 1e-12);
   PeriodicOrbit half = moved.points.back().orbit;
   half.params[DO::kXi] = 0.5;  // exactly (the run ends within rounding of it)
-  ASSERT_EQ(SolveOrbit(model, prop, {}, &half).status, SolveStatus::kConverged);
+  ASSERT_EQ(SolveOrbit(model, prop, {}, &half).termination, Termination::kCompleted);
   int crossings = 0;
   for (const auto& [param, kind, near, min, max] :
        {std::tuple{"a", SpecialPointKind::kGrazingL2, 0.1485, 0.01, 8.0},

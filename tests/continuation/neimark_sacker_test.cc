@@ -24,7 +24,7 @@ void SolveForcedOrbit(const ForcedRotation& model, Propagator& prop, PeriodicOrb
   start->signature.segments = {{0, -1}};
   start->starts = {(StateVector(3) << 0.0, 0.0, 0.0).finished()};
   start->durations = {kTwoPi / start->params[ForcedRotation::kOmega]};
-  ASSERT_EQ(SolveOrbit(model, prop, {}, start).status, SolveStatus::kConverged);
+  ASSERT_EQ(SolveOrbit(model, prop, {}, start).termination, Termination::kCompleted);
 }
 
 TEST(NeimarkSacker, LocatedWhereTheComplexPairCrossesTheUnitCircle) {

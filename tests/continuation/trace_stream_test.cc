@@ -79,8 +79,9 @@ TEST_F(TraceStream, StopsPromptly) {
   const TraceResult r =
       TraceCurves(model_, prop_, start_, testing::ReferenceBox(), probe.Callback());
   probe.Returned();
-  EXPECT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
-  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled) << r.summary.BriefReport();
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.curves, static_cast<int64_t>(r.curves.size()));
   for (const TracedCurve& c : r.curves) {
     for (const CurvePoint& p : c.curve.points) ASSERT_TRUE(p.stability.monodromy.allFinite());
   }
@@ -93,7 +94,7 @@ TEST_F(TraceStream, StopsPromptlyWhileSwitching) {
   CancelProbe probe([](double fraction) { return fraction >= 0.99; });
   const TraceResult r = TraceCurves(model_, prop_, start_, SmallBox(), probe.Callback());
   probe.Returned();
-  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_TRUE(r.summary.cancelled());
   EXPECT_FALSE(r.curves.empty());
   probe.ExpectPrompt("trace: switching at codimension-2 points");
 }
@@ -109,7 +110,7 @@ TEST_F(TraceStream, CurvesAreHandedOverInOrderAsTraced) {
         seen.push_back(c);
         return true;
       });
-  ASSERT_FALSE(full.summary.cancelled);
+  ASSERT_FALSE(full.summary.cancelled());
   ASSERT_GE(full.curves.size(), 3u);
   ASSERT_EQ(seen.size(), full.curves.size());
   for (size_t k = 0; k < seen.size(); ++k) {
@@ -119,7 +120,7 @@ TEST_F(TraceStream, CurvesAreHandedOverInOrderAsTraced) {
   int calls = 0;
   const TraceResult stopped = TraceCurves(model_, prop_, start_, SmallBox(), {},
                                           [&](int, const TracedCurve&) { return ++calls < 2; });
-  EXPECT_TRUE(stopped.summary.cancelled);
+  EXPECT_TRUE(stopped.summary.cancelled());
   EXPECT_EQ(calls, 2);
   EXPECT_LT(stopped.curves.size(), full.curves.size());
 }
@@ -165,7 +166,7 @@ TEST_F(TraceStream, PeriodTwoCurvesAreHandedOverFinal) {
     return true;
   };
   const TraceResult r = TraceCurves(model_, prop_, start_, o, {}, keep);
-  ASSERT_FALSE(r.summary.cancelled);
+  ASSERT_FALSE(r.summary.cancelled());
   ASSERT_EQ(seen.size(), r.curves.size());
   for (size_t k = 0; k < seen.size(); ++k) {
     ExpectSameCurve(seen[k], r.curves[k], static_cast<int>(k));
@@ -229,7 +230,7 @@ TEST_F(TraceStream, TheSameCurvesWhateverTheThreads) {
           return true;
         });
     ASSERT_TRUE(one.summary.status.ok());
-    ASSERT_FALSE(one.summary.cancelled);
+    ASSERT_FALSE(one.summary.cancelled());
     ASSERT_GE(one.curves.size(), 3u);
     for (const int threads : {2, 3}) {
       o.threads = threads;
@@ -244,7 +245,7 @@ TEST_F(TraceStream, TheSameCurvesWhateverTheThreads) {
           });
       SCOPED_TRACE("max_period " + std::to_string(max_period) + ", " + std::to_string(threads) +
                    " threads");
-      ASSERT_FALSE(many.summary.cancelled);
+      ASSERT_FALSE(many.summary.cancelled());
       ASSERT_EQ(many.curves.size(), one.curves.size());
       for (size_t k = 0; k < one.curves.size(); ++k) {
         ExpectSameCurve(seen[k], one.curves[k], static_cast<int>(k));
@@ -266,7 +267,7 @@ TEST_F(TraceStream, StopsPromptlyOnTwoThreads) {
   CancelProbe probe([](double fraction) { return fraction >= 0.3; });
   const TraceResult r = TraceCurves(model_, prop_, start_, o, probe.Callback());
   probe.Returned();
-  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_TRUE(r.summary.cancelled());
   for (const TracedCurve& c : r.curves) {
     for (const CurvePoint& p : c.curve.points) ASSERT_TRUE(p.stability.monodromy.allFinite());
   }
@@ -280,7 +281,7 @@ TEST_F(TraceStream, StopsPromptlyWhileSwitchingOnTwoThreads) {
   CancelProbe probe([](double fraction) { return fraction >= 0.99; });
   const TraceResult r = TraceCurves(model_, prop_, start_, o, probe.Callback());
   probe.Returned();
-  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_TRUE(r.summary.cancelled());
   EXPECT_FALSE(r.curves.empty());
   probe.ExpectPrompt("trace on two threads: switching at codimension-2 points");
 }
@@ -308,7 +309,7 @@ TEST_F(TraceStream, CurvesWithoutVertexStatesAreTheSameCurves) {
   const TraceResult whole = TraceCurves(model_, prop_, start_, o);
   o.vertex_states = false;
   const TraceResult lean = TraceCurves(model_, prop_, start_, o);
-  ASSERT_FALSE(whole.summary.cancelled);
+  ASSERT_FALSE(whole.summary.cancelled());
   ASSERT_EQ(lean.curves.size(), whole.curves.size());
   EXPECT_EQ(lean.summary.notes, whole.summary.notes);
   int lean_curves = 0;

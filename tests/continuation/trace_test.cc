@@ -72,7 +72,7 @@ void AttractorBranch(const DO& model, Propagator& prop, const PeriodicOrbit& sta
   ASSERT_TRUE(found.ok()) << found.status().ToString();
   PeriodicOrbit attractor = *found;
   const OrbitSolveSummary solved = SolveOrbit(model, prop, {}, &attractor);
-  ASSERT_EQ(solved.status, SolveStatus::kConverged) << solved.message;
+  ASSERT_EQ(solved.termination, Termination::kCompleted) << solved.message;
   ContinuationOptions branch;
   branch.param = param;
   branch.min = lo, branch.max = hi;
@@ -150,6 +150,9 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   opt.curve.crossings2.push_back(start_.params[DO::kA]);
   const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+  EXPECT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.BriefReport();
+  EXPECT_EQ(r.summary.curves, static_cast<int64_t>(r.curves.size()));
+  EXPECT_GT(r.summary.branch_points, 0);
   ASSERT_FALSE(r.curves.empty());
   int flip_grazings = 0, fold_pd_vertices = 0, off_by_1e8 = 0;
   double longest_off = 0.0;  // the longest shortest segment of a vertex off by more than 1e-8
@@ -668,7 +671,10 @@ TEST_F(Trace, InvalidRequestsNameTheProblem) {
   TraceOptions unknown = testing::ReferenceBox();
   unknown.param2 = std::string("zeta");
   const TraceResult u = TraceCurves(model_, prop_, start_, unknown);
+  EXPECT_EQ(u.summary.termination, Termination::kFailed);
   EXPECT_EQ(u.summary.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(u.summary.message, u.summary.status.message());
+  EXPECT_TRUE(u.curves.empty());
   EXPECT_NE(u.summary.status.message().find("zeta"), std::string::npos);
   TraceOptions outside = testing::ReferenceBox();
   outside.min2 = 1.0;  // the start orbit has a = 0.3

@@ -54,8 +54,10 @@ TEST(OrbitCancel, SolveOrbitStopsPromptlyInsideAFlow) {
   CancelProbe probe(kDelay);
   const OrbitSolveSummary s = SolveOrbit(model, prop, {}, &orbit, probe.Callback());
   probe.Returned();
-  EXPECT_EQ(s.status, SolveStatus::kCancelled) << s.message;
-  EXPECT_STREQ(SolveStatusName(s.status), "CANCELLED");
+  EXPECT_EQ(s.termination, Termination::kCancelled) << s.message;
+  EXPECT_STREQ(TerminationName(s.termination), "CANCELLED");
+  EXPECT_EQ(s.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(s.BriefReport().rfind("cancelled: ", 0), 0u) << s.BriefReport();
   // Left as given.
   EXPECT_EQ(orbit.durations, start->durations);
   probe.ExpectPrompt("start orbit: Newton (slow CVODE flows)");
@@ -73,7 +75,9 @@ TEST(OrbitCancel, SolveOrbitPollsThePropagatorsThrottle) {
   ProgressThrottle throttle;
   throttle.Stop();
   ScopedProgress attach(prop, &throttle);
-  EXPECT_EQ(SolveOrbit(model, prop, {}, &orbit).status, SolveStatus::kCancelled);
+  const OrbitSolveSummary s = SolveOrbit(model, prop, {}, &orbit);
+  EXPECT_EQ(s.termination, Termination::kCancelled);
+  EXPECT_EQ(s.status.code(), StatusCode::kCancelled);
 }
 
 // Attractor sampling from three states, each with a transient of 1e8 periods.
@@ -89,7 +93,9 @@ TEST(OrbitCancel, SampleAttractorsStopsPromptly) {
       SampleAttractors(model, prop, prm, states, guess, probe.Callback());
   probe.Returned();
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_TRUE(r->cancelled);
+  EXPECT_EQ(r->summary.termination, Termination::kCancelled) << r->summary.BriefReport();
+  EXPECT_EQ(r->summary.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r->summary.message.rfind("cancelled at initial state ", 0), 0u) << r->summary.message;
   EXPECT_TRUE(r->attractors.empty());
   EXPECT_TRUE(r->not_periodic.empty());  // the state it stopped in is in neither list
   probe.ExpectPrompt("attractor sampling");
@@ -107,7 +113,7 @@ TEST(OrbitCancel, SampleAttractorsWithACallbackCompletes) {
     return true;
   });
   ASSERT_TRUE(r.ok());
-  EXPECT_FALSE(r->cancelled);
+  EXPECT_EQ(r->summary.termination, Termination::kCompleted) << r->summary.BriefReport();
   ASSERT_EQ(r->attractors.size(), 1u);
   EXPECT_EQ(r->attractors[0].reached_from.size(), 2u);
   EXPECT_GT(calls, 0);

@@ -78,7 +78,7 @@ TEST(PeriodicOrbit, MonodromyMatchesFiniteDifferencesOfThePoincareMap) {
     one.outputs = SimulationOutputs{false, true, false, false, 0.0};
     auto map = [&](const StateVector& x) {
       const SimulationResult r = Simulate(model, prop, prm, x, one);
-      EXPECT_EQ(r.termination, Termination::kCompleted) << r.status.ToString();
+      EXPECT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.BriefReport();
       return r.poincare.at(0).x;
     };
     const StateVector x0 = orbit.starts[0];
@@ -176,11 +176,11 @@ TEST(PeriodicOrbit, InvalidSignatureOrParametersFailTheSolve) {
   PeriodicOrbit orbit = SolvedOrbit(model, prop, testing::ReferenceParams());
   PeriodicOrbit bad = orbit;
   bad.signature.segments.back().guard = 0;  // the last segment must end at the section
-  EXPECT_EQ(SolveOrbit(model, prop, {}, &bad).status, SolveStatus::kFailed);
+  EXPECT_EQ(SolveOrbit(model, prop, {}, &bad).termination, Termination::kFailed);
   bad = orbit;
   bad.params[DO::kXi] = -1.0;
   const OrbitSolveSummary s = SolveOrbit(model, prop, {}, &bad);
-  EXPECT_EQ(s.status, SolveStatus::kFailed);
+  EXPECT_EQ(s.termination, Termination::kFailed);
   EXPECT_NE(s.message.find("xi"), std::string::npos);
 }
 
@@ -199,7 +199,7 @@ TEST(PeriodicOrbit, SolvesWithCvodesSensitivitiesToo) {
   PeriodicOrbit orbit = reference;
   orbit.starts[0][DO::kY] += 1e-3;  // start Newton off the solution
   const OrbitSolveSummary s = SolveOrbit(model, cvode, {}, &orbit);
-  ASSERT_EQ(s.status, SolveStatus::kConverged) << s.message;
+  ASSERT_EQ(s.termination, Termination::kCompleted) << s.message;
   for (size_t i = 0; i < orbit.starts.size(); ++i) {
     for (int j = 0; j < 4; ++j) {
       EXPECT_NEAR(orbit.starts[i][j], reference.starts[i][j],

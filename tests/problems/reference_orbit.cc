@@ -9,7 +9,7 @@ StatusOr<PeriodicOrbit> SolvedOrbitFromRest(const DriftingOscillator& model, Pro
   if (!guess.ok()) return guess.status();
   PeriodicOrbit orbit = *guess;
   const OrbitSolveSummary s = SolveOrbit(model, propagator, {}, &orbit);
-  if (s.status != SolveStatus::kConverged) return Internal("orbit solve: " + s.message);
+  if (s.termination != Termination::kCompleted) return Internal("orbit solve: " + s.message);
   return orbit;
 }
 

@@ -50,8 +50,9 @@ TEST(RegionCancel, FillStopsPromptly) {
   const StabilityRegion r =
       ComputeStabilityRegion(model, prop, start, {}, Box(801, 801), probe.Callback());
   probe.Returned();
-  EXPECT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
-  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled) << r.summary.BriefReport();
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
+  EXPECT_GT(r.summary.solves, 0);
   EXPECT_GT(r.summary.inside_nodes, 0);
   EXPECT_LT(r.summary.inside_nodes, 801 * 801);
   EXPECT_TRUE(r.polygons.empty());
@@ -72,7 +73,7 @@ TEST(RegionCancel, BoundaryLocationStopsPromptly) {
   CancelProbe probe([&](double fraction) { return fraction >= kRegionFillShare; });
   const StabilityRegion r = ComputeStabilityRegion(model, prop, start, {}, o, probe.Callback());
   probe.Returned();
-  EXPECT_TRUE(r.summary.cancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled) << r.summary.BriefReport();
   EXPECT_TRUE(r.polygons.empty());
   EXPECT_GT(r.summary.boundary_edges, 0);  // it was locating the boundary
   probe.ExpectPrompt("stability region: boundary");
@@ -104,7 +105,7 @@ StabilityRegion Synthetic() {
     }
   }
   r.polygons.push_back(ring);
-  r.summary.status = Status::Ok();
+  r.summary.Complete();
   return r;
 }
 
@@ -116,7 +117,9 @@ TEST(OptimumCancel, SearchStopsPromptly) {
   CancelProbe probe(kDelay);
   const RobustOptimum best = FindRobustOptimum(region, o, probe.Callback());
   probe.Returned();
-  EXPECT_EQ(best.status.code(), StatusCode::kCancelled) << best.status.ToString();
+  EXPECT_EQ(best.summary.termination, Termination::kCancelled) << best.summary.BriefReport();
+  EXPECT_EQ(best.summary.status.code(), StatusCode::kCancelled);
+  EXPECT_GT(best.summary.candidates, 0);  // it was searching
   EXPECT_EQ(best.node, -1);
   probe.ExpectPrompt("robust optimum search");
 }

@@ -89,7 +89,7 @@ BruteGrid FillBySweeps(const RegionGrid& g, const PeriodicOrbit& start) {
     for (double& tau : out->durations) {
       tau *= from.params[DriftingOscillator::kOmega] / params[DriftingOscillator::kOmega];
     }
-    if (SolveOrbit(model, prop, {}, out).status != SolveStatus::kConverged ||
+    if (SolveOrbit(model, prop, {}, out).termination != Termination::kCompleted ||
         !OrbitStability(model, prop, *out).stable) {
       return -1;
     }
@@ -100,7 +100,7 @@ BruteGrid FillBySweeps(const RegionGrid& g, const PeriodicOrbit& start) {
       StatusOr<PeriodicOrbit> sim = OrbitFromSimulation(model, prop, params, from.starts[0], guess);
       if (!sim.ok() || sim->signature == from.signature) return -1;
       *out = *sim;
-      if (SolveOrbit(model, prop, {}, out).status != SolveStatus::kConverged ||
+      if (SolveOrbit(model, prop, {}, out).termination != Termination::kCompleted ||
           !OrbitStability(model, prop, *out).stable ||
           !CheckAdmissible(model, prop, *out).admissible) {
         return -1;
@@ -177,6 +177,8 @@ bool InRings(const std::vector<RegionPolygon>& rings, int signature, double x, d
 TEST(StabilityRegion, FillAgreesWithAnIndependentSweepFill) {
   const StabilityRegion& r = Shared().region;
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
+  EXPECT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.BriefReport();
+  EXPECT_GE(r.summary.solves, r.summary.inside_nodes);  // one solve at least per node inside
   ASSERT_FALSE(Shared().trace.curves.empty());
   const BruteGrid& b = Brute();
   int inside = 0;
@@ -280,7 +282,7 @@ TEST(RobustOptimum, AgreesWithABruteGridSearchToTheGridsResolution) {
     OptimumOptions o;
     o.margin = {m, 2 * m};  // a spans twice omega's width here
     const RobustOptimum best = FindRobustOptimum(r, o);
-    ASSERT_TRUE(best.status.ok()) << best.status.ToString();
+    ASSERT_TRUE(best.summary.status.ok()) << best.summary.status.ToString();
     EXPECT_GE(best.margin[0], m * (1 - 1e-12));
     EXPECT_GE(best.margin[1], 2 * m * (1 - 1e-12));
     const double upper = BruteOptimumRop(m, 2 * m);
@@ -297,7 +299,9 @@ TEST(RobustOptimum, ScaledMarginIsADiskInTheUnitSquare) {
   o.margin = {0.05};
   o.scaled = true;
   const RobustOptimum best = FindRobustOptimum(r, o);
-  ASSERT_TRUE(best.status.ok()) << best.status.ToString();
+  ASSERT_TRUE(best.summary.status.ok()) << best.summary.status.ToString();
+  EXPECT_EQ(best.summary.termination, Termination::kCompleted) << best.summary.BriefReport();
+  EXPECT_GE(best.summary.candidates, 1);  // the optimum itself was checked
   ASSERT_EQ(best.margin.size(), 1u);
   EXPECT_GE(best.margin[0], 0.05 * (1 - 1e-12));
   EXPECT_NEAR(best.distance_scaled, best.margin[0], 1e-12);  // the same distance, two ways
@@ -308,8 +312,9 @@ TEST(RobustOptimum, TooLargeAMarginIsNotFoundWithTheLargestAvailable) {
   o.margin = {0.5};
   o.scaled = true;
   const RobustOptimum best = FindRobustOptimum(Shared().region, o);
-  EXPECT_EQ(best.status.code(), StatusCode::kNotFound);
-  EXPECT_NE(best.status.message().find("largest margin"), std::string::npos);
+  EXPECT_EQ(best.summary.termination, Termination::kFailed);
+  EXPECT_EQ(best.summary.status.code(), StatusCode::kNotFound);
+  EXPECT_NE(best.summary.status.message().find("largest margin"), std::string::npos);
 }
 
 TEST(RobustOptimum, InvalidMarginsNameTheField) {
@@ -324,8 +329,10 @@ TEST(RobustOptimum, InvalidMarginsNameTheField) {
     o.margin = margin;
     o.scaled = scaled;
     const RobustOptimum best = FindRobustOptimum(Shared().region, o);
-    EXPECT_EQ(best.status.code(), StatusCode::kInvalidArgument);
-    EXPECT_EQ(best.status.message().rfind("margin", 0), 0u) << best.status.message();
+    EXPECT_EQ(best.summary.termination, Termination::kFailed);
+    EXPECT_EQ(best.summary.status.code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(best.summary.status.message().rfind("margin", 0), 0u)
+        << best.summary.status.message();
   }
 }
 
@@ -380,7 +387,7 @@ std::optional<PeriodicOrbit> MovedTo(const DriftingOscillator& model, Propagator
     for (double& tau : o.durations) tau *= o.params[DriftingOscillator::kOmega] / w;
     o.params[DriftingOscillator::kOmega] = w;
     o.params[DriftingOscillator::kA] = a0 + f * (a - a0);
-    if (SolveOrbit(model, prop, {}, &o).status != SolveStatus::kConverged) return std::nullopt;
+    if (SolveOrbit(model, prop, {}, &o).termination != Termination::kCompleted) return std::nullopt;
   }
   return o;
 }
@@ -484,7 +491,7 @@ TEST(StabilityRegion, ASeamReachedAcrossASectionCrossingIsToldApart) {
   // The case: with its signature fixed the flight orbit at (0.87, 0.02) is not admissible.
   PeriodicOrbit fixed = flight;
   fixed.params[DriftingOscillator::kA] = 0.02;
-  ASSERT_EQ(SolveOrbit(model, prop, {}, &fixed).status, SolveStatus::kConverged);
+  ASSERT_EQ(SolveOrbit(model, prop, {}, &fixed).termination, Termination::kCompleted);
   EXPECT_FALSE(CheckAdmissible(model, prop, fixed).admissible);
   ContinuationOptions down;
   down.param = "a", down.min = 0.02, down.max = 0.03;
@@ -523,7 +530,7 @@ TEST(StabilityRegion, TheOptimumNamesASeamAsItsNearestObstacle) {
   OptimumOptions scaled;
   scaled.scaled = true, scaled.margin = {0.01};
   const RobustOptimum best = FindRobustOptimum(region, scaled);
-  ASSERT_TRUE(best.status.ok()) << best.status.ToString();
+  ASSERT_TRUE(best.summary.status.ok()) << best.summary.status.ToString();
   EXPECT_EQ(best.nearest_curve, RegionVertex::kSeam);
   const double w1 = region.max1 - region.min1, w2 = region.max2 - region.min2;
   double nearest = 1e300;
@@ -560,8 +567,10 @@ TEST(StabilityRegion, BadRequestsAreClearErrors) {
   ro.min1 = 0.05, ro.max1 = 0.15, ro.min2 = 0.25, ro.max2 = 0.6;
   RegionOptions bad = ro;
   bad.n1 = 2;
-  EXPECT_EQ(ComputeStabilityRegion(model, prop, start, {}, bad).summary.status.code(),
-            StatusCode::kInvalidArgument);
+  const StabilityRegion coarse = ComputeStabilityRegion(model, prop, start, {}, bad);
+  EXPECT_EQ(coarse.summary.termination, Termination::kFailed);
+  EXPECT_EQ(coarse.summary.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(coarse.summary.solves, 0);
   bad = ro;
   bad.param2 = std::string("zeta");
   EXPECT_NE(

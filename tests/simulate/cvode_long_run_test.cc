@@ -57,8 +57,10 @@ Runs SimulateFromRest(const Params& prm, int transient, int samples) {
 }
 
 void ExpectSameOrbit(const Runs& r) {
-  ASSERT_EQ(r.exact.termination, Termination::kCompleted) << r.exact.status.ToString();
-  ASSERT_EQ(r.cvode.termination, Termination::kCompleted) << r.cvode.status.ToString();
+  ASSERT_EQ(r.exact.summary.termination, Termination::kCompleted)
+      << r.exact.summary.status.ToString();
+  ASSERT_EQ(r.cvode.summary.termination, Termination::kCompleted)
+      << r.cvode.summary.status.ToString();
   ASSERT_EQ(r.exact.poincare.size(), r.cvode.poincare.size());
   for (size_t k = 0; k < r.exact.poincare.size(); ++k) {
     EXPECT_EQ(r.exact.poincare[k].mode, r.cvode.poincare[k].mode) << "sample " << k;
@@ -107,8 +109,10 @@ TEST_P(CvodeLongRunCompletionTest, CompletesFromRest) {
   Params prm = testing::ReferenceParams();
   prm[GetParam().param] = GetParam().value;
   const Runs r = SimulateFromRest(prm, GetParam().transient, GetParam().samples);
-  ASSERT_EQ(r.exact.termination, Termination::kCompleted) << r.exact.status.ToString();
-  ASSERT_EQ(r.cvode.termination, Termination::kCompleted) << r.cvode.status.ToString();
+  ASSERT_EQ(r.exact.summary.termination, Termination::kCompleted)
+      << r.exact.summary.status.ToString();
+  ASSERT_EQ(r.cvode.summary.termination, Termination::kCompleted)
+      << r.cvode.summary.status.ToString();
   ASSERT_EQ(r.cvode.poincare.size(), static_cast<size_t>(GetParam().samples));
   for (const PoincareSample& s : r.cvode.poincare) EXPECT_TRUE(s.x.allFinite());
   for (double m : r.cvode.measure_means) EXPECT_TRUE(std::isfinite(m));

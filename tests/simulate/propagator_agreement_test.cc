@@ -48,8 +48,8 @@ TEST(PropagatorAgreement, SameEventsAndPoincarePointsOverOneHundredPeriods) {
   opt.outputs.events = true;
   const SimulationResult a = Simulate(model, exact, prm, x0, opt);
   const SimulationResult b = Simulate(model, cvode, prm, x0, opt);
-  ASSERT_EQ(a.termination, Termination::kCompleted) << a.status.ToString();
-  ASSERT_EQ(b.termination, Termination::kCompleted) << b.status.ToString();
+  ASSERT_EQ(a.summary.termination, Termination::kCompleted) << a.summary.status.ToString();
+  ASSERT_EQ(b.summary.termination, Termination::kCompleted) << b.summary.status.ToString();
   ASSERT_EQ(a.events.size(), b.events.size());
   ASSERT_EQ(a.events.size(), 400u);
   for (size_t k = 0; k < a.events.size(); ++k) {
@@ -91,8 +91,8 @@ TEST_P(HardCaseAgreementTest, BothPropagatorsAgreeWithoutNaN) {
   opt.outputs.events = true;
   const SimulationResult a = Simulate(model, exact, prm, DefaultInitialState(model), opt);
   const SimulationResult b = Simulate(model, cvode, prm, DefaultInitialState(model), opt);
-  ASSERT_EQ(a.termination, Termination::kCompleted) << a.status.ToString();
-  ASSERT_EQ(b.termination, Termination::kCompleted) << b.status.ToString();
+  ASSERT_EQ(a.summary.termination, Termination::kCompleted) << a.summary.status.ToString();
+  ASSERT_EQ(b.summary.termination, Termination::kCompleted) << b.summary.status.ToString();
   for (double v : a.measure_means) EXPECT_TRUE(std::isfinite(v));
   for (double v : b.measure_means) EXPECT_TRUE(std::isfinite(v));
   ASSERT_EQ(a.events.size(), b.events.size());

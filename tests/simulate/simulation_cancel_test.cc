@@ -38,11 +38,15 @@ TEST(SimulationOverflow, TransientOfIntMaxRunsAndIsCancellable) {
   const SimulationResult r = Simulate(model, prop, testing::ReferenceParams(),
                                       DefaultInitialState(model), opt, probe.Callback());
   probe.Returned();
-  EXPECT_EQ(r.termination, Termination::kCancelled) << r.status.ToString();
-  EXPECT_EQ(r.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled) << r.summary.status.ToString();
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
+  // The message says where it stopped, and the report leads with the termination.
+  EXPECT_EQ(r.summary.message.rfind("cancelled at period ", 0), 0u) << r.summary.message;
+  EXPECT_EQ(r.summary.BriefReport().rfind("cancelled: ", 0), 0u) << r.summary.BriefReport();
   EXPECT_TRUE(r.measure_means.empty());
   EXPECT_TRUE(r.final_state.allFinite());
-  EXPECT_GT(r.segments, 1000);  // it ran
+  EXPECT_GT(r.summary.segments, 1000);  // it ran
+  EXPECT_GT(r.summary.evaluations, 0);
   EXPECT_GT(probe.calls(), 0);
   probe.ExpectPrompt("simulate exact, 2^31 - 1 transient periods");
 }
@@ -73,7 +77,7 @@ TEST(SimulationCancel, CvodeRunStopsPromptly) {
   const SimulationResult r = Simulate(model, prop, testing::ReferenceParams(),
                                       DefaultInitialState(model), opt, probe.Callback());
   probe.Returned();
-  EXPECT_EQ(r.termination, Termination::kCancelled) << r.status.ToString();
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled) << r.summary.status.ToString();
   EXPECT_TRUE(r.final_state.allFinite());
   probe.ExpectPrompt("simulate cvode");
 }

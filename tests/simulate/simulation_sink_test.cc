@@ -89,19 +89,19 @@ void ExpectSameAsAccumulated(const SimulationOptions& options) {
   const Params prm = testing::ReferenceParams();
   const StateVector x0 = DefaultInitialState(model);
   const SimulationResult kept = Simulate(model, prop, prm, x0, options);
-  ASSERT_EQ(kept.termination, Termination::kCompleted) << kept.status.ToString();
+  ASSERT_EQ(kept.summary.termination, Termination::kCompleted) << kept.summary.status.ToString();
   RecordingSink sink;
   SimulationOptions streamed = options;
   streamed.sink = &sink;
   const SimulationResult r = Simulate(model, prop, prm, x0, streamed);
-  ASSERT_EQ(r.termination, Termination::kCompleted) << r.status.ToString();
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.status.ToString();
   // Nothing accumulated; the counters, measures and final state as without the sink.
   EXPECT_TRUE(r.poincare.empty());
   EXPECT_TRUE(r.events.empty());
   EXPECT_TRUE(r.period_modes.empty());
   EXPECT_TRUE(r.trajectory.empty());
-  EXPECT_EQ(r.segments, kept.segments);
-  EXPECT_EQ(r.events_total, kept.events_total);
+  EXPECT_EQ(r.summary.segments, kept.summary.segments);
+  EXPECT_EQ(r.summary.events, kept.summary.events);
   ASSERT_EQ(r.measure_means.size(), kept.measure_means.size());
   for (size_t k = 0; k < r.measure_means.size(); ++k) {
     EXPECT_TRUE(SameBits(r.measure_means[k], kept.measure_means[k])) << k;
@@ -160,7 +160,7 @@ TEST(SimulationSink, ResultStaysEmptyHoweverLongTheRun) {
   o.sink = &sink;
   const SimulationResult r =
       Simulate(model, prop, testing::ReferenceParams(), DefaultInitialState(model), o);
-  ASSERT_EQ(r.termination, Termination::kCompleted) << r.status.ToString();
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.status.ToString();
   EXPECT_EQ(sink.poincare, 20000);
   EXPECT_EQ(sink.period_modes, 20000);
   EXPECT_EQ(sink.events, 4 * 20000);
@@ -179,8 +179,8 @@ TEST(SimulationSink, ASinkCanStopTheRun) {
   o.sink = &sink;
   const SimulationResult r =
       Simulate(model, prop, testing::ReferenceParams(), DefaultInitialState(model), o);
-  EXPECT_EQ(r.termination, Termination::kCancelled);
-  EXPECT_EQ(r.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
   EXPECT_EQ(sink.poincare, 10);
   // The mode list of the period that ended with the tenth sample was handed over before it;
   // after the stop, none.

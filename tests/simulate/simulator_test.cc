@@ -24,7 +24,7 @@ TEST(ReferenceOrbit, SettlesOnThePublishedPeriodOneOrbit) {
   opt.outputs.modes = true;
   const SimulationResult r =
       Simulate(model, prop, testing::ReferenceParams(), DefaultInitialState(model), opt);
-  ASSERT_EQ(r.termination, Termination::kCompleted) << r.status.ToString();
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.status.ToString();
   // Published to 10 decimals; the simulation after 500 periods has converged far below that
   // (the orbit's nontrivial multiplier is -0.087, so 500 periods contract by 1e-500).
   ASSERT_EQ(r.measure_means.size(), 2u);
@@ -66,7 +66,7 @@ TEST(LongRun, KeepsTheInvariantSetAndThePhaseOverOneHundredThousandPeriods) {
   opt.sample_periods = 100000;
   opt.outputs.events = true;
   const SimulationResult r = Simulate(model, prop, prm, DefaultInitialState(model), opt);
-  ASSERT_EQ(r.termination, Termination::kCompleted) << r.status.ToString();
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.status.ToString();
   ASSERT_EQ(r.poincare.size(), 100000u);
   ASSERT_EQ(r.events.size(), 400000u);
   auto check = [&](const StateVector& x) {
@@ -101,7 +101,7 @@ TEST(OutputsOnDemand, ComputesNothingThatWasNotAsked) {
   opt.outputs = SimulationOutputs{false, false, false, false, 0.0};
   const SimulationResult r =
       Simulate(model, spy, testing::ReferenceParams(), DefaultInitialState(model), opt);
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   EXPECT_FALSE(spy.measures_asked);
   EXPECT_FALSE(spy.samples_asked);
   EXPECT_TRUE(r.measure_means.empty());
@@ -121,7 +121,7 @@ TEST(OutputsOnDemand, MeasuresAreComputedOnlyInTheWindow) {
   opt.outputs = SimulationOutputs{true, false, false, false, 0.0};
   const SimulationResult r =
       Simulate(model, spy, testing::ReferenceParams(), DefaultInitialState(model), opt);
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   EXPECT_TRUE(spy.measures_asked);
   EXPECT_EQ(r.measure_means.size(), 2u);
   EXPECT_TRUE(r.poincare.empty());
@@ -136,7 +136,7 @@ TEST(OutputsOnDemand, TrajectoryIsSampledAlongTheFlow) {
   opt.sample_periods = 1;
   opt.outputs = SimulationOutputs{false, false, false, false, 0.5};
   const SimulationResult r = Simulate(model, prop, prm, DefaultInitialState(model), opt);
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   // One period of 62.8 time units at dt = 0.5 plus one point per segment end.
   ASSERT_GE(r.trajectory.size(), 126u);
   for (size_t k = 1; k < r.trajectory.size(); ++k) {
@@ -168,9 +168,10 @@ TEST(BadInput, EachInvalidParameterFailsWithAMessageNamingIt) {
     Params p = testing::ReferenceParams();
     p[c.index] = c.value;
     const SimulationResult r = Simulate(model, prop, p, DefaultInitialState(model), {});
-    EXPECT_EQ(r.termination, Termination::kFailed);
-    EXPECT_EQ(r.status.code(), StatusCode::kInvalidArgument);
-    EXPECT_NE(r.status.message().find(c.name), std::string::npos) << r.status.message();
+    EXPECT_EQ(r.summary.termination, Termination::kFailed);
+    EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(r.summary.status.message().find(c.name), std::string::npos)
+        << r.summary.status.message();
     for (double v : r.measure_means) EXPECT_FALSE(std::isnan(v));
   }
 }
@@ -181,8 +182,9 @@ TEST(BadInput, InitialStateOutsideTheInvariantSetFails) {
   StateVector x = DefaultInitialState(model);
   x[DO::kP] = 1.0;  // p > q + g: the bit inside the rock
   const SimulationResult r = Simulate(model, prop, testing::ReferenceParams(), x, {});
-  EXPECT_EQ(r.termination, Termination::kFailed);
-  EXPECT_NE(r.status.message().find("p <= q + g"), std::string::npos) << r.status.message();
+  EXPECT_EQ(r.summary.termination, Termination::kFailed);
+  EXPECT_NE(r.summary.status.message().find("p <= q + g"), std::string::npos)
+      << r.summary.status.message();
 }
 
 TEST(BadInput, InvalidOptionsFail) {
@@ -192,8 +194,11 @@ TEST(BadInput, InvalidOptionsFail) {
   opt.sample_periods = 0;
   const SimulationResult r =
       Simulate(model, prop, testing::ReferenceParams(), DefaultInitialState(model), opt);
-  EXPECT_EQ(r.status.code(), StatusCode::kInvalidArgument);
-  EXPECT_NE(r.status.message().find("sample_periods"), std::string::npos);
+  EXPECT_EQ(r.summary.termination, Termination::kFailed);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.summary.status.message().find("sample_periods"), std::string::npos);
+  EXPECT_EQ(r.summary.message, r.summary.status.message());
+  EXPECT_EQ(r.summary.segments, 0);
 }
 
 TEST(Cancellation, ProgressCallbackStopsTheRun) {
@@ -208,8 +213,8 @@ TEST(Cancellation, ProgressCallbackStopsTheRun) {
                                         EXPECT_LE(fraction, 1.0);
                                         return ++calls < 3;
                                       });
-  EXPECT_EQ(r.termination, Termination::kCancelled);
-  EXPECT_EQ(r.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
   EXPECT_EQ(calls, 3);
 }
 

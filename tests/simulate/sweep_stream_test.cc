@@ -55,16 +55,29 @@ TEST(SweepCancel, EveryWorkerStopsPromptly) {
   const SweepResult r = Sweep(model, Exact(model), testing::ReferenceParams(),
                               DefaultInitialState(model), o, probe.Callback());
   probe.Returned();
-  EXPECT_EQ(r.termination, Termination::kCancelled);
-  EXPECT_EQ(r.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
   probe.ExpectPrompt("sweep, 4 threads");
   // Values reached were kept; none after the ones in progress at the stop.
   ASSERT_EQ(r.up.size(), 2000u);
   const auto done = std::count_if(r.up.begin(), r.up.end(), [](const SweepPoint& p) {
-    return p.termination == Termination::kCompleted;
+    return p.summary.termination == Termination::kCompleted;
   });
   EXPECT_GT(done, 0);
   EXPECT_LT(done, 2000);
+  // The summary counts the values simulated, cancelled ones included; a value's own summary
+  // says how its simulation ended, and one never reached is failed with no message.
+  EXPECT_GE(r.summary.values, done);
+  EXPECT_LT(r.summary.values, 4000);
+  EXPECT_EQ(r.summary.message, "sweep cancelled");
+  for (const SweepPoint& p : r.up) {
+    if (p.start == SweepStart::kNotStarted) {
+      EXPECT_EQ(p.summary.termination, Termination::kFailed);
+      EXPECT_TRUE(p.summary.message.empty()) << p.summary.message;
+    } else if (p.summary.completed()) {
+      EXPECT_GT(p.summary.segments, 0);
+    }
+  }
 }
 
 // Values of 2^31 - 1 transient periods (and 4 times that at the second chunk's first value,
@@ -79,11 +92,11 @@ TEST(SweepCancel, WorkersInsideLongValuesStopPromptly) {
   const SweepResult r = Sweep(model, Exact(model), testing::ReferenceParams(),
                               DefaultInitialState(model), o, probe.Callback());
   probe.Returned();
-  EXPECT_EQ(r.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled);
   for (const std::vector<SweepPoint>* list : {&r.up, &r.down}) {
     ASSERT_EQ(list->size(), 4u);
-    EXPECT_EQ((*list)[0].termination, Termination::kCancelled);
-    EXPECT_EQ((*list)[2].termination, Termination::kCancelled);  // the second chunk's first
+    EXPECT_EQ((*list)[0].summary.termination, Termination::kCancelled);
+    EXPECT_EQ((*list)[2].summary.termination, Termination::kCancelled);  // the second chunk's first
     EXPECT_EQ((*list)[2].transient_periods, int64_t{4} * std::numeric_limits<int32_t>::max());
   }
   probe.ExpectPrompt("sweep, workers in 2^33-period values");
@@ -107,7 +120,7 @@ void ExpectStreamedEqualsAccumulated(const SweepOptions& o) {
   const Params prm = testing::ReferenceParams();
   const StateVector x0 = DefaultInitialState(model);
   const SweepResult kept = Sweep(model, Exact(model), prm, x0, o);
-  ASSERT_EQ(kept.termination, Termination::kCompleted);
+  ASSERT_EQ(kept.summary.termination, Termination::kCompleted);
   std::vector<SweepPoint> up, down;
   const std::thread::id caller = std::this_thread::get_id();
   bool on_caller = true;
@@ -119,11 +132,11 @@ void ExpectStreamedEqualsAccumulated(const SweepOptions& o) {
         list.push_back(std::move(p));
         return true;
       });
-  ASSERT_EQ(r.termination, Termination::kCompleted) << r.status.ToString();
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.status.ToString();
   EXPECT_TRUE(on_caller);
   EXPECT_TRUE(r.up.empty());
   EXPECT_TRUE(r.down.empty());
-  EXPECT_EQ(r.periods_total, kept.periods_total);
+  EXPECT_EQ(r.summary.periods, kept.summary.periods);
   ASSERT_EQ(up.size(), kept.up.size());
   ASSERT_EQ(down.size(), kept.down.size());
   for (size_t k = 0; k < up.size(); ++k) EXPECT_TRUE(SameBits(up[k], kept.up[k])) << k;
@@ -165,7 +178,7 @@ TEST(SweepStream, BufferStaysBoundedBehindASlowConsumer) {
         std::this_thread::sleep_for(milliseconds(2));
         return true;
       });
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   EXPECT_EQ(delivered, 60);
   EXPECT_GT(most_held, 0);  // the check saw values in flight
   EXPECT_LE(most_held, 3 * threads);
@@ -179,7 +192,8 @@ TEST(SweepStream, AConsumerCanStopTheSweep) {
   const SweepResult r =
       Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o, {}, {},
             [&](SweepDirection, int, SweepPoint&&) { return ++calls < 5; });
-  EXPECT_EQ(r.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
   EXPECT_EQ(calls, 5);
 }
 

@@ -41,7 +41,7 @@ TEST(Sweep, UpAndDownAgreeInsideThePeriodOneWindow) {
   const SweepOptions o = Small(0.12, 0.16, 5, SweepDirection::kBoth);
   const SweepResult r =
       Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o);
-  ASSERT_EQ(r.termination, Termination::kCompleted) << r.status.ToString();
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.status.ToString();
   ASSERT_EQ(r.up.size(), 5u);
   ASSERT_EQ(r.down.size(), 5u);
   for (int i = 0; i < 5; ++i) {
@@ -49,7 +49,7 @@ TEST(Sweep, UpAndDownAgreeInsideThePeriodOneWindow) {
     const SweepPoint& d = r.down[4 - i];
     EXPECT_DOUBLE_EQ(u.value, 0.12 + 0.01 * i);
     EXPECT_DOUBLE_EQ(u.value, d.value);
-    ASSERT_EQ(u.termination, Termination::kCompleted) << u.message;
+    ASSERT_EQ(u.summary.termination, Termination::kCompleted) << u.summary.message;
     ASSERT_EQ(u.samples.size(), 5u);
     ASSERT_EQ(d.samples.size(), 5u);
     for (int k = 0; k < 5; ++k) {
@@ -73,7 +73,7 @@ TEST(Sweep, EachValueStartsFromTheLastState) {
   o.threads = 1;
   const SweepResult r =
       Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o);
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   ExactPropagator prop(model);
   StateVector x = DefaultInitialState(model);
   for (int i = 0; i < 3; ++i) {
@@ -109,13 +109,14 @@ TEST(Sweep, MoreThreadsKeepEveryValueStartingFromThePreviousOne) {
     o.transient_periods = 50;
     o.threads = 1;
     const SweepResult one = Sweep(model, Exact(model), prm, x0, o);
-    ASSERT_EQ(one.termination, Termination::kCompleted) << one.status.ToString();
+    ASSERT_EQ(one.summary.termination, Termination::kCompleted) << one.summary.status.ToString();
     for (const std::vector<SweepPoint>* list : {&one.up, &one.down}) {
       for (size_t i = 0; i < list->size(); ++i) {
         EXPECT_EQ((*list)[i].start,
                   i == 0 ? SweepStart::kFromInitialState : SweepStart::kFromPreviousValue)
             << i;
-        EXPECT_EQ((*list)[i].termination, Termination::kCompleted) << (*list)[i].message;
+        EXPECT_EQ((*list)[i].summary.termination, Termination::kCompleted)
+            << (*list)[i].summary.message;
       }
     }
     for (int threads : {2, 4}) {
@@ -124,9 +125,9 @@ TEST(Sweep, MoreThreadsKeepEveryValueStartingFromThePreviousOne) {
         const SweepResult many =
             with_progress ? Sweep(model, Exact(model), prm, x0, o, [](double) { return true; })
                           : Sweep(model, Exact(model), prm, x0, o);
-        ASSERT_EQ(many.termination, Termination::kCompleted);
-        EXPECT_EQ(many.periods_total, one.periods_total);
-        EXPECT_EQ(many.events_total, one.events_total);
+        ASSERT_EQ(many.summary.termination, Termination::kCompleted);
+        EXPECT_EQ(many.summary.periods, one.summary.periods);
+        EXPECT_EQ(many.summary.events, one.summary.events);
         ASSERT_EQ(many.up.size(), one.up.size());
         ASSERT_EQ(many.down.size(), one.down.size());
         for (size_t i = 0; i < one.up.size(); ++i) {
@@ -157,12 +158,12 @@ SweepResult ThreeChunksOfEleven(const DO& model, SweepDirection direction) {
 TEST(Sweep, ExplicitChunksStartEachChunkFromTheInitialState) {
   DO model;
   const SweepResult r = ThreeChunksOfEleven(model, SweepDirection::kBoth);
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   for (const std::vector<SweepPoint>* list : {&r.up, &r.down}) {
     ASSERT_EQ(list->size(), 11u);
     for (int i = 0; i < 11; ++i) {
       const SweepPoint& pt = (*list)[i];
-      ASSERT_EQ(pt.termination, Termination::kCompleted) << pt.message;
+      ASSERT_EQ(pt.summary.termination, Termination::kCompleted) << pt.summary.message;
       const bool chunk_start = i == 0 || i == 3 || i == 7;
       EXPECT_EQ(pt.start,
                 chunk_start ? SweepStart::kFromInitialState : SweepStart::kFromPreviousValue)
@@ -171,18 +172,18 @@ TEST(Sweep, ExplicitChunksStartEachChunkFromTheInitialState) {
     }
   }
   // Each direction: 11 x (20 + 2) periods and 2 x 3 x 20 more at the later chunks' starts.
-  EXPECT_EQ(r.periods_total, 2 * (11 * 22 + 2 * 3 * 20));
+  EXPECT_EQ(r.summary.periods, 2 * (11 * 22 + 2 * 3 * 20));
 }
 
 TEST(Sweep, ChunksCoverTheGridInOrder) {
   DO model;
   const SweepResult r = ThreeChunksOfEleven(model, SweepDirection::kUp);
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   ASSERT_EQ(r.up.size(), 11u);
   EXPECT_TRUE(r.down.empty());
   for (int i = 0; i < 11; ++i) {
     EXPECT_NEAR(r.up[i].value, 0.02 * i, 1e-15);
-    EXPECT_EQ(r.up[i].termination, Termination::kCompleted) << r.up[i].message;
+    EXPECT_EQ(r.up[i].summary.termination, Termination::kCompleted) << r.up[i].summary.message;
     EXPECT_EQ(r.up[i].samples.size(), 2u);
   }
 }
@@ -227,7 +228,7 @@ TEST(Sweep, AfterAFailedValueTheNextStartsFromTheLastCompletedOne) {
   const Params prm = testing::ReferenceParams();
   const StateVector x0 = DefaultInitialState(model);
   const SweepResult r = Sweep(model, failing, prm, x0, o);
-  ASSERT_EQ(r.termination, Termination::kCompleted);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   ASSERT_EQ(r.up.size(), 5u);
   const Termination kOk = Termination::kCompleted, kFail = Termination::kFailed;
   const Termination ends[] = {kFail, kOk, kFail, kFail, kOk};
@@ -235,7 +236,7 @@ TEST(Sweep, AfterAFailedValueTheNextStartsFromTheLastCompletedOne) {
                                SweepStart::kFromPreviousValue, SweepStart::kFromEarlierValue,
                                SweepStart::kFromEarlierValue};
   for (int i = 0; i < 5; ++i) {
-    EXPECT_EQ(r.up[i].termination, ends[i]) << i << ": " << r.up[i].message;
+    EXPECT_EQ(r.up[i].summary.termination, ends[i]) << i << ": " << r.up[i].summary.message;
     EXPECT_EQ(r.up[i].start, starts[i]) << i;
   }
   ExactPropagator prop(model);
@@ -275,9 +276,11 @@ TEST(Sweep, InvalidRequestsNameTheProblem) {
        {Case{unknown, "zeta"}, Case{reversed, "max must be > min"}, Case{one_step, "steps"},
         Case{bad_xi, "xi"}, Case{no_chunk, "chunks"}, Case{too_many_chunks, "chunks"}}) {
     const SweepResult r = Sweep(model, Exact(model), prm, x0, c.options);
-    EXPECT_FALSE(r.status.ok());
-    EXPECT_NE(r.termination, Termination::kCompleted);
-    EXPECT_NE(r.status.message().find(c.needle), std::string::npos) << r.status.message();
+    EXPECT_FALSE(r.summary.status.ok());
+    EXPECT_EQ(r.summary.termination, Termination::kFailed);
+    EXPECT_EQ(r.summary.values, 0);
+    EXPECT_NE(r.summary.status.message().find(c.needle), std::string::npos)
+        << r.summary.status.message();
   }
 }
 
@@ -287,8 +290,9 @@ TEST(Sweep, ProgressCanCancel) {
   o.transient_periods = 500;
   const SweepResult r = Sweep(model, Exact(model), testing::ReferenceParams(),
                               DefaultInitialState(model), o, [](double) { return false; });
-  EXPECT_EQ(r.termination, Termination::kCancelled);
-  EXPECT_EQ(r.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.termination, Termination::kCancelled);
+  EXPECT_EQ(r.summary.status.code(), StatusCode::kCancelled);
+  EXPECT_EQ(r.summary.BriefReport().rfind("cancelled: ", 0), 0u) << r.summary.BriefReport();
 }
 
 }  // namespace

@@ -19,7 +19,9 @@ inline bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) 
 
 // Every field of two sweep values, samples included.
 inline bool SameBits(const SweepPoint& a, const SweepPoint& b) {
-  if (!SameBits(a.value, b.value) || a.termination != b.termination || a.message != b.message ||
+  const SimulationSummary &as = a.summary, &bs = b.summary;
+  if (!SameBits(a.value, b.value) || as.termination != bs.termination || as.message != bs.message ||
+      as.segments != bs.segments || as.events != bs.events || as.evaluations != bs.evaluations ||
       a.start != b.start || a.transient_periods != b.transient_periods ||
       a.samples.size() != b.samples.size()) {
     return false;

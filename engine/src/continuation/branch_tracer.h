@@ -7,13 +7,19 @@
 
 #include <Eigen/Dense>
 #include <functional>
+#include <limits>
 #include <memory>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "continuation/corrector.h"
 #include "drillbif/continuation/continuation.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif::internal {
+
+struct SwitchedOrbit;  // continuation/signature_switch.h
 
 // Test function values at one point of the branch.
 struct TestValues {
@@ -113,6 +119,52 @@ class BranchTracer {
   // grazing, records it and switches the signature. False when the branch cannot go on.
   bool CrossGrazing(double h, const std::vector<Admissibility>& violations,
                     ContinuationResult* result);
+  // The pieces of CrossGrazing, in the order it calls them.
+  //
+  // The violations of a step located between the current point and its end: each located one,
+  // and the earliest, which the signature switches at.
+  struct GrazingCrossing {
+    struct Located {
+      double sigma, value;  // arclength from y_, parameter
+      Admissibility violation;
+    };
+    std::vector<Located> located;
+    double sigma = std::numeric_limits<double>::infinity();  // the earliest's arclength from y_
+    Vec y;                                                   // the earliest's point
+    Admissibility violation;                                 // and what it violates
+  };
+  // Each of `violations`, violated at y_end (arclength h_end), located between y_ and there;
+  // the earliest becomes the one crossed if it lies before `before` and before crossing->sigma.
+  void LocateViolations(const std::vector<Admissibility>& violations, double h_end,
+                        const Vec& y_end, double before, GrazingCrossing* crossing);
+  // The crossing is a vanishing segment: a guard crossing elsewhere that lies clearly before it,
+  // unseen at the step's end, replaces it.
+  void LocateHiddenGuardCrossing(const std::vector<Admissibility>& violations,
+                                 GrazingCrossing* crossing);
+  // The grazing point reported where `segment` vanishes: at_graze refined by the tangency
+  // system, back in the old signature with that segment of zero length (at_graze when the
+  // tangency system has no sound solution).
+  ContinuationPoint RefinedGrazingPoint(const ContinuationPoint& at_graze, int segment);
+  // The old signature's point just before the grazing point y_star (none when it cannot be
+  // corrected), after detecting the special points between y_ and it.
+  std::optional<ContinuationPoint> SideBeforeGrazing(const Vec& y_star, ContinuationResult* result);
+  // The crossing's violation and its twins at the same point, by decreasing segment index.
+  std::vector<Admissibility> CrossedTogether(const GrazingCrossing& crossing, double h) const;
+  // The orbit at_graze switched at each of `together` in turn; `inserted` receives the
+  // zero-length segments inserted, as indices in the switched orbit.
+  SwitchedOrbit SwitchTogether(const PeriodicOrbit& at_graze,
+                               const std::vector<Admissibility>& together,
+                               std::vector<int>* inserted);
+  // The start of the new signature's branch where zero-length segments were inserted: y with
+  // the inserted durations at the first step-off length whose corrected orbit (duration `fix`
+  // held) has every duration positive, else the shortest.
+  Vec StepOffGrazing(const Vec& y, const Vec& fix, const std::vector<int>& inserted);
+  // Replaces the system by the switched orbit's and corrects its first point at parameter
+  // `value` into y_, t_ and *det; false (after Finish where the branch ends) when it cannot.
+  bool StartNewSignature(const SwitchedOrbit& sw, const std::vector<int>& inserted, double value,
+                         double* det);
+  // Turns t_ (and *det) round when the new signature's branch lies behind the grazing point.
+  void OrientNewBranch(double* det);
   void Finish(Termination termination, std::string message);
 
   const HybridModel& model_;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
+#include <utility>
 
 #include "common/phase_progress.h"
 #include "continuation/branch_tracer.h"
@@ -104,6 +106,11 @@ Status ContinuationOptions::Validate() const {
   return Status::Ok();
 }
 
+std::string ContinuationSummary::BriefReport() const {
+  return RunSummary::BriefReport(CountOf(steps, "step") + " (" + std::to_string(rejected_steps) +
+                                 " rejected), " + CountOf(newton_iterations, "Newton iteration"));
+}
+
 ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
                             const PeriodicOrbit& start, const ContinuationOptions& options,
                             const ContinuationCallback& callback,
@@ -112,15 +119,11 @@ ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
   ContinuationSummary& sum = result.summary;
   internal::PhaseProgress phase(propagator, progress);
   auto fail = [&](Status s) {
-    sum.termination = Termination::kFailed;
-    sum.status = s;
-    sum.message = s.message();
+    sum.Fail(std::move(s));
     return result;
   };
   auto cancelled_at_start = [&] {
-    sum.termination = Termination::kCancelled;
-    sum.status = Cancelled("continuation cancelled");
-    sum.message = "cancelled before the first step";
+    sum.Cancel("cancelled before the first step");
     return result;
   };
   if (Status s = options.Validate(); !s.ok()) return fail(s);

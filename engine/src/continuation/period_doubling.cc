@@ -106,7 +106,7 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
     PeriodicOrbit doubled = *found;
     const OrbitSolveSummary s = SolveOrbit(model, propagator, {}, &doubled);
     if (phase.stopped()) return Cancelled("period-doubling switch cancelled");
-    if (s.status == SolveStatus::kConverged) return doubled;
+    if (s.completed()) return doubled;
     tried += " " + param + " = " + std::to_string(p[*index]) + ": " + s.message + ";";
   }
   return Status(StatusCode::kFailedPrecondition,

@@ -149,7 +149,7 @@ bool TraversedTwice(const HybridModel& model, Propagator& propagator, const Peri
   half.sample_periods = o.signature.periods / 2;
   half.outputs = SimulationOutputs{false, true, false, false, 0.0};
   const SimulationResult s = Simulate(model, propagator, o.params, o.starts[0], half);
-  if (!s.status.ok() || s.poincare.size() != static_cast<size_t>(half.sample_periods)) {
+  if (!s.summary.completed() || s.poincare.size() != static_cast<size_t>(half.sample_periods)) {
     return false;
   }
   double size = 0.0;
@@ -162,6 +162,9 @@ bool TraversedTwice(const HybridModel& model, Propagator& propagator, const Peri
 }  // namespace internal
 
 namespace {
+
+// The message of a cancelled trace: the curves traced until then are its result.
+constexpr char kCancelledMessage[] = "cancelled: the curves traced until then";
 
 using internal::DistanceToCurve;
 using internal::GrazingKind;
@@ -317,15 +320,15 @@ class TraceDriver {
   // Also hands over the curves final by now (stream). False once cancelled.
   bool Report(double fraction) {
     reported_ = std::max(reported_, fraction);
-    if (!sum_.cancelled && (!phase_.Continue(reported_) || !stream_.Flush(false))) {
-      sum_.cancelled = true;
+    if (!sum_.cancelled() && (!phase_.Continue(reported_) || !stream_.Flush(false))) {
+      sum_.Cancel(kCancelledMessage);
     }
-    return !sum_.cancelled;
+    return !sum_.cancelled();
   }
   // Whether the trace was stopped (meanwhile, by a flow's poll); then nothing since is kept.
   bool Stopped() {
-    if (phase_.stopped()) sum_.cancelled = true;
-    return sum_.cancelled;
+    if (phase_.stopped() && !sum_.cancelled()) sum_.Cancel(kCancelledMessage);
+    return sum_.cancelled();
   }
   bool Branch(const PeriodicOrbit& orbit, int axis, double from, double to,
               ContinuationDirection direction, const std::string& edge = "");
@@ -362,13 +365,13 @@ class TraceDriver {
 
 bool TraceDriver::Validate() {
   if (Status s = options_.Validate(); !s.ok()) {
-    sum_.status = s;
+    sum_.Fail(s);
     return false;
   }
   const StatusOr<int> i1 = model_.ParamIndex(options_.param1);
   const StatusOr<int> i2 = model_.ParamIndex(options_.param2);
   if (!i1.ok() || !i2.ok()) {
-    sum_.status = InvalidArgument((!i1.ok() ? i1 : i2).status().message());
+    sum_.Fail(InvalidArgument((!i1.ok() ? i1 : i2).status().message()));
     return false;
   }
   i1_ = *i1, i2_ = *i2;
@@ -378,11 +381,12 @@ bool TraceDriver::Validate() {
   for (const Axis& a : axes_) {
     const double v0 = start_.params[a.index];
     if (v0 < a.min || v0 > a.max) {
-      sum_.status = InvalidArgument("the start orbit's " + *a.name + " lies outside the box");
+      sum_.Fail(InvalidArgument("the start orbit's " + *a.name + " lies outside the box"));
       return false;
     }
   }
-  sum_.status = Status::Ok();
+  // Completed unless a stop says otherwise: a curve or branch that fails is a note.
+  sum_.Complete();
   return true;
 }
 
@@ -408,7 +412,7 @@ bool TraceDriver::Branch(const PeriodicOrbit& orbit, int axis, double from, doub
       Continue(model_, propagator_, orbit, branch,
                [&](const ContinuationPoint&, double f) { return Report(from + (to - from) * f); });
   if (Stopped()) return false;
-  sum_.branch_points += static_cast<int>(r.points.size());
+  sum_.branch_points += static_cast<int64_t>(r.points.size());
   if (r.summary.termination == Termination::kFailed && edge.empty()) {
     sum_.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
                          "-branch failed: " + r.summary.message);
@@ -486,7 +490,7 @@ bool TraceDriver::Seeds() {
     PeriodicOrbit attractor = *found;
     const OrbitSolveSummary solved = SolveOrbit(model_, propagator_, {}, &attractor);
     if (Stopped()) return false;
-    if (solved.status != SolveStatus::kConverged) {
+    if (!solved.completed()) {
       sum_.notes.push_back(where + "the attractor's orbit did not solve: " + solved.message);
       continue;
     }
@@ -628,7 +632,7 @@ bool TraceDriver::TraceStarts(size_t first, double from, double to) {
     if (!cut || !curve.points.empty()) {
       internal::AppendCurve(s, *axes_[axis].name, std::move(curve), &result_);
     }
-    if (cut) sum_.cancelled = true;
+    if (cut && !sum_.cancelled()) sum_.Cancel(kCancelledMessage);
     if (Stopped()) return false;
   }
   return true;
@@ -758,6 +762,12 @@ void TraceDriver::Notes() {
 
 }  // namespace
 
+std::string TraceSummary::BriefReport() const {
+  return RunSummary::BriefReport(CountOf(curves, "curve") + ", " +
+                                 CountOf(branch_points, "branch point") + ", " +
+                                 CountOf(static_cast<int64_t>(notes.size()), "note"));
+}
+
 TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
                         const PeriodicOrbit& start, const TraceOptions& options,
                         const TraceProgress& progress, const TracedCurveCallback& on_curve) {
@@ -765,7 +775,8 @@ TraceResult TraceCurves(const HybridModel& model, Propagator& propagator,
   CurveStream stream(on_curve, options, result);
   TraceDriver(model, propagator, start, options, progress, &stream, &result).Run();
   // However the trace ended, the curves not handed over yet are final now.
-  if (!stream.Flush(true)) result.summary.cancelled = true;
+  if (!stream.Flush(true) && result.summary.completed()) result.summary.Cancel(kCancelledMessage);
+  result.summary.curves = static_cast<int64_t>(result.curves.size());
   // Each note once, in the order first written: a located point met from both directions of a
   // branch, or a codimension-2 point met from every curve through it, gives the same text each
   // time (the --period2 box had 106 notes on curves not started for 80 distinct ones).

@@ -35,7 +35,7 @@ StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator&
     if (found.ok()) {
       orbit = *found;
       const OrbitSolveSummary solved = SolveOrbit(model, propagator, {}, &orbit);
-      if (solved.status != SolveStatus::kConverged) why = "Newton: " + solved.message;
+      if (!solved.completed()) why = "Newton: " + solved.message;
     } else {
       why = found.status().message();
     }
@@ -43,8 +43,8 @@ StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator&
     const bool stable = why.empty() && OrbitStability(model, propagator, orbit).stable;
     // Nothing computed after a stop is kept.
     if (phase.stopped() || !phase.Continue(static_cast<double>(i + 1) / n)) {
-      out.cancelled = true;
-      break;
+      out.summary.Cancel("cancelled at initial state " + std::to_string(i));
+      return out;
     }
     if (!why.empty()) {
       out.not_periodic.push_back(i);
@@ -68,6 +68,7 @@ StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator&
     a.reached_from.push_back(i);
     out.attractors.push_back(std::move(a));
   }
+  out.summary.Complete();
   return out;
 }
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/format.h"
 #include "common/phase_progress.h"
 #include "orbit/condensed.h"
 #include "orbit/monodromy.h"
@@ -19,18 +20,9 @@ Status OrbitSolverOptions::Validate() const {
   return Status::Ok();
 }
 
-const char* SolveStatusName(SolveStatus s) {
-  switch (s) {
-    case SolveStatus::kConverged:
-      return "CONVERGED";
-    case SolveStatus::kNoConvergence:
-      return "NO_CONVERGENCE";
-    case SolveStatus::kFailed:
-      return "FAILED";
-    case SolveStatus::kCancelled:
-      return "CANCELLED";
-  }
-  return "?";
+std::string OrbitSolveSummary::BriefReport() const {
+  return RunSummary::BriefReport(CountOf(iterations, "Newton iteration") + ", residual " +
+                                 internal::FormatNumber(residual, 2));
 }
 
 OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
@@ -39,16 +31,16 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
   OrbitSolveSummary summary;
   internal::PhaseProgress phase(propagator, progress);
   auto cancelled = [&] {
-    summary.status = SolveStatus::kCancelled;
-    summary.message = "cancelled";
+    summary.Cancel("cancelled");
+    return summary;
+  };
+  auto fail = [&](Status s) {
+    summary.Fail(std::move(s));
     return summary;
   };
   for (const Status& s : {options.Validate(), ValidateSignature(model, orbit->signature),
                           model.ValidateParams(orbit->params)}) {
-    if (!s.ok()) {
-      summary.message = s.message();
-      return summary;
-    }
+    if (!s.ok()) return fail(s);
   }
   internal::OrbitBvp bvp(model, propagator, orbit->signature, -1);
   Eigen::VectorXd x = bvp.Pack(*orbit), g;
@@ -60,8 +52,7 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
     }
     if (Status s = bvp.Evaluate(x, orbit->params, &g, &gx, nullptr); !s.ok()) {
       if (phase.stopped()) return cancelled();
-      summary.message = s.message();
-      return summary;
+      return fail(s);
     }
     // A residual at rounding level (1e-13 of the unknowns' size) is converged even when an
     // ill-conditioned system keeps the steps at noise size.
@@ -74,10 +65,7 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
     Eigen::VectorXd step;
     if (options.condensed_solve && lu.Compute(gx)) step = lu.Solve(-g);
     if (!lu.condensed() || !step.allFinite()) step = gx.colPivHouseholderQr().solve(-g);
-    if (!step.allFinite()) {
-      summary.message = "singular Newton system";
-      return summary;
-    }
+    if (!step.allFinite()) return fail(FailedPrecondition("singular Newton system"));
     x += step;
     if (step.lpNorm<Eigen::Infinity>() <= options.tolerance * (1.0 + x.lpNorm<Eigen::Infinity>())) {
       break;
@@ -85,20 +73,18 @@ OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
   }
   if (Status s = bvp.Evaluate(x, orbit->params, &g, nullptr, nullptr); !s.ok()) {
     if (phase.stopped()) return cancelled();
-    summary.message = s.message();
-    return summary;
+    return fail(s);
   }
   if (phase.stopped()) return cancelled();
   bvp.Unpack(x, orbit->params, orbit);
   summary.residual = g.lpNorm<Eigen::Infinity>();
   if (summary.iterations > options.max_iterations) {
     summary.iterations = options.max_iterations;
-    summary.status = SolveStatus::kNoConvergence;
-    summary.message = "Newton did not converge in " + std::to_string(options.max_iterations) +
-                      " iterations (residual " + std::to_string(summary.residual) + ")";
+    summary.NoConvergence("Newton did not converge in " + std::to_string(options.max_iterations) +
+                          " iterations (residual " + std::to_string(summary.residual) + ")");
     return summary;
   }
-  summary.status = SolveStatus::kConverged;
+  summary.Complete();
   return summary;
 }
 
@@ -268,10 +254,10 @@ StatusOr<PeriodicOrbit> OrbitFromSimulation(const HybridModel& model, Propagator
       static_cast<double>(settle.transient_periods + 1 + std::max<int64_t>(look.sample_periods, 0));
   const SimulationResult first =
       Simulate(model, propagator, params, x0, settle, phase.Sub(0.0, split));
-  if (first.termination != Termination::kCompleted) return first.status;
+  if (!first.summary.completed()) return first.summary.status;
   const SimulationResult r =
       Simulate(model, propagator, params, first.final_state, look, phase.Sub(split, 1.0));
-  if (r.termination != Termination::kCompleted) return r.status;
+  if (!r.summary.completed()) return r.summary.status;
 
   const StateVector& start = first.final_state;
   int n = 0;

@@ -77,25 +77,26 @@ RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOpti
   ProgressThrottle throttle(progress);
   auto cancelled = [&] {
     RobustOptimum out;
-    out.status = Cancelled("robust optimum cancelled");
-    out.candidates = best.candidates;
+    out.summary.Cancel("robust optimum cancelled");
+    out.summary.candidates = best.summary.candidates;
     return out;
   };
   if (Status s = options.Validate(); !s.ok()) {
-    best.status = s;
+    best.summary.Fail(s);
     return best;
   }
-  if (!region.summary.status.ok() || region.summary.cancelled) {
-    best.status = Status(StatusCode::kFailedPrecondition,
-                         "the stability region was not computed: " +
-                             (region.summary.cancelled ? std::string("cancelled")
-                                                       : region.summary.status.message()));
+  // (Not `completed()`: a region assembled by hand, with its summary left as constructed, is
+  // searched too; a failed one always has a status saying why.)
+  if (region.summary.cancelled() || !region.summary.status.ok()) {
+    best.summary.Fail(FailedPrecondition(
+        "the stability region was not computed: " +
+        (region.summary.cancelled() ? std::string("cancelled") : region.summary.status.message())));
     return best;
   }
   const RegionGrid& g = region.grid;
   if (g.n1 < 2 || g.n2 < 2 || g.label.size() != static_cast<size_t>(g.n1) * g.n2 ||
       g.rop.size() != g.label.size()) {
-    best.status = InvalidArgument("region: no grid");
+    best.summary.Fail(InvalidArgument("region: no grid"));
     return best;
   }
   const Eigen::Vector2d width(region.width1(), region.width2());
@@ -143,11 +144,11 @@ RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOpti
   // passes), then, where none does, those whose largest margin is known.
   const double total = 2.0 * std::max<size_t>(inside.size(), 1);
   while (!order.empty()) {
-    if (!throttle.Tick(best.candidates / total)) return cancelled();
+    if (!throttle.Tick(static_cast<double>(best.summary.candidates) / total)) return cancelled();
     std::pop_heap(order.begin(), order.end(), after);
     const int node = order.back();
     order.pop_back();
-    ++best.candidates;
+    ++best.summary.candidates;
     const Eigen::Vector2d u = metric.U(g.values1[node % g.n1], g.values2[node / g.n1]);
     bool clear = true;
     obstacles.ForEachNear(u - one, u + one, [&](const internal::Segment& s) {
@@ -177,12 +178,11 @@ RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOpti
       largest = std::max(largest,
                          nearest(metric.U(g.values1[node % g.n1], g.values2[node / g.n1]), &curve));
     }
-    best.status = Status(StatusCode::kNotFound,
-                         inside.empty()
-                             ? std::string("the stability region has no grid node inside")
-                             : "no grid node of the stability region is that far from its boundary "
-                               "curves: the largest margin any node has is " +
-                                   Num(largest) + " times the one asked");
+    best.summary.Fail(NotFound(
+        inside.empty() ? std::string("the stability region has no grid node inside")
+                       : "no grid node of the stability region is that far from its boundary "
+                         "curves: the largest margin any node has is " +
+                             Num(largest) + " times the one asked"));
     return best;
   }
   best.node = found;
@@ -206,7 +206,12 @@ RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOpti
                                       s.q.cwiseProduct(to_unit)));
   }
   best.near_box_edge = (u.array() < 1.0).any() || (u.array() > extent.array() - 1.0).any();
+  best.summary.Complete();
   return best;
+}
+
+std::string OptimumSummary::BriefReport() const {
+  return RunSummary::BriefReport(CountOf(candidates, "candidate"));
 }
 
 }  // namespace drillbif

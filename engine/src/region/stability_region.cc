@@ -86,7 +86,7 @@ class RegionBuilder {
       for (double& tau : out->durations) tau *= ratio;
     }
     ++region_.summary.solves;
-    if (SolveOrbit(model_, propagator_, options_.solver, out).status != SolveStatus::kConverged ||
+    if (!SolveOrbit(model_, propagator_, options_.solver, out).completed() ||
         !OrbitStability(model_, propagator_, *out).stable) {
       return Outcome::kFailed;
     }
@@ -109,8 +109,7 @@ class RegionBuilder {
     if (!found.ok() || found->signature == from.signature) return false;
     *out = *found;
     ++region_.summary.solves;
-    return SolveOrbit(model_, propagator_, options_.solver, out).status ==
-               SolveStatus::kConverged &&
+    return SolveOrbit(model_, propagator_, options_.solver, out).completed() &&
            OrbitStability(model_, propagator_, *out).stable &&
            CheckAdmissible(model_, propagator_, *out).admissible;
   }
@@ -328,43 +327,42 @@ StabilityRegion ComputeStabilityRegion(const HybridModel& model, Propagator& pro
   region.box() = options.box();
   RegionSummary& summary = region.summary;
   if (Status s = options.Validate(); !s.ok()) {
-    summary.status = s;
+    summary.Fail(s);
     return region;
   }
   const StatusOr<int> k1 = model.ParamIndex(options.param1), k2 = model.ParamIndex(options.param2);
   if (!k1.ok() || !k2.ok()) {
-    summary.status = InvalidArgument((k1.ok() ? k2 : k1).status().message());
+    summary.Fail(InvalidArgument((k1.ok() ? k2 : k1).status().message()));
     return region;
   }
   const double v1 = start.params[*k1], v2 = start.params[*k2];
   if (!(v1 >= options.min1 && v1 <= options.max1 && v2 >= options.min2 && v2 <= options.max2)) {
-    summary.status = InvalidArgument("the start orbit (" + options.param1 + " = " + Num(v1) + ", " +
-                                     options.param2 + " = " + Num(v2) + ") is outside the box");
+    summary.Fail(InvalidArgument("the start orbit (" + options.param1 + " = " + Num(v1) + ", " +
+                                 options.param2 + " = " + Num(v2) + ") is outside the box"));
     return region;
   }
   // The region's throttle, attached to the propagator: every solve polls it.
   internal::PhaseProgress phase(propagator, progress);
   auto cancelled = [&] {
-    summary.cancelled = true;
-    summary.message = "cancelled";
+    summary.Cancel("cancelled");
     return std::move(region);
   };
   const bool stable =
       start.signature.periods == 1 && OrbitStability(model, propagator, start).stable;
   if (phase.stopped()) return cancelled();
   if (!stable) {
-    summary.status = Status(StatusCode::kFailedPrecondition,
-                            "the start orbit is not a stable period-1 orbit: it has no stability "
-                            "region of period-1 motion");
+    summary.Fail(FailedPrecondition(
+        "the start orbit is not a stable period-1 orbit: it has no stability region of period-1 "
+        "motion"));
     return region;
   }
   region.grid = MakeGrid(options);
   RegionBuilder builder(model, propagator, curves, options, phase, &region);
   if (!builder.Fill(start)) return cancelled();
   if (summary.inside_nodes == 0) {
-    summary.status = Status(StatusCode::kFailedPrecondition,
-                            "no grid node next to the start orbit has a stable orbit of its "
-                            "signature (the start is within one grid spacing of the boundary?)");
+    summary.Fail(FailedPrecondition(
+        "no grid node next to the start orbit has a stable orbit of its signature (the start is "
+        "within one grid spacing of the boundary?)"));
     return region;
   }
   for (size_t label = 0; label < region.signatures.size(); ++label) {
@@ -379,15 +377,22 @@ StabilityRegion ComputeStabilityRegion(const HybridModel& model, Propagator& pro
     region.polygons.clear();
     return cancelled();
   }
-  summary.message =
+  summary.Complete(
       std::to_string(summary.inside_nodes) + " of " + std::to_string(region.grid.label.size()) +
       " grid nodes inside in " + std::to_string(region.signatures.size()) + " signatures (" +
       std::to_string(summary.switches) + " switches), " + std::to_string(region.polygons.size()) +
       " rings, " + std::to_string(summary.boundary_edges) + " boundary edges (" +
       std::to_string(summary.untraced_edges) + " crossed by no traced curve, " +
       std::to_string(summary.seam_edges) + " of them seams between coexisting stable orbits), " +
-      std::to_string(summary.solves) + " Newton solves";
+      std::to_string(summary.solves) + " Newton solves");
   return region;
+}
+
+std::string RegionSummary::BriefReport() const {
+  return RunSummary::BriefReport(
+      CountOf(solves, "Newton solve") + ", " + CountOf(inside_nodes, "inside node") + " (" +
+      std::to_string(switches) + " switched), " + CountOf(boundary_edges, "boundary edge") + " (" +
+      std::to_string(untraced_edges) + " untraced, " + std::to_string(seam_edges) + " seams)");
 }
 
 }  // namespace drillbif

@@ -32,16 +32,9 @@ Status SimulationOptions::Validate() const {
   return Status::Ok();
 }
 
-const char* TerminationName(Termination t) {
-  switch (t) {
-    case Termination::kCompleted:
-      return "COMPLETED";
-    case Termination::kCancelled:
-      return "CANCELLED";
-    case Termination::kFailed:
-      return "FAILED";
-  }
-  return "?";
+std::string SimulationSummary::BriefReport() const {
+  return RunSummary::BriefReport(CountOf(segments, "segment") + ", " + CountOf(events, "event") +
+                                 ", " + CountOf(evaluations, "evaluation"));
 }
 
 StateVector DefaultInitialState(const HybridModel& model) {
@@ -51,8 +44,7 @@ StateVector DefaultInitialState(const HybridModel& model) {
 namespace {
 
 SimulationResult Fail(SimulationResult r, Status status) {
-  r.termination = Termination::kFailed;
-  r.status = std::move(status);
+  r.summary.Fail(std::move(status));
   return r;
 }
 
@@ -151,8 +143,7 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
   // itself stopped the run.
   auto stop = [&](const std::string& why, bool flush) {
     if (flush) static_cast<void>(emit.EndPeriod());
-    r.termination = Termination::kCancelled;
-    r.status = Cancelled(why + " at period " + std::to_string(period));
+    r.summary.Cancel(why + " at period " + std::to_string(period));
     r.final_state = x;
     r.final_mode = mode;
     return std::move(r);
@@ -172,8 +163,8 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
     req.measures = in_window && out.measures;
     req.sample_dt = in_window ? out.trajectory_dt : 0.0;
     AdvanceResult adv = propagator.Advance(req, params);
-    ++r.segments;
-    r.evaluations += adv.evaluations;
+    ++r.summary.segments;
+    r.summary.evaluations += adv.evaluations;
     if (adv.end == AdvanceEnd::kFailed) {
       if (adv.status.code() == StatusCode::kCancelled || propagator.stopped()) {
         return stop("cancelled", true);
@@ -195,7 +186,7 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
     if (adv.end == AdvanceEnd::kEvent) {
       const double s_event = std::min(x[ps], std::nextafter(kTwoPi, 0.0));
       Transition tr = model.Jump(mode, adv.guard, x, params);
-      ++r.events_total;
+      ++r.summary.events;
       if (in_window && out.events) {
         EventRecord e;
         e.period = period, e.s = s_event, e.t = time_of(period, s_event);
@@ -244,7 +235,7 @@ SimulationResult Simulate(const HybridModel& model, Propagator& propagator, cons
   }
   r.final_state = x;
   r.final_mode = mode;
-  r.termination = Termination::kCompleted;
+  r.summary.Complete();
   return r;
 }
 

@@ -160,13 +160,14 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
                   const std::function<void(double value)>& on_value,
                   const SweepPointCallback& on_point) {
   SweepResult result;
+  SweepSummary& sum = result.summary;
   if (Status s = options.Validate(); !s.ok()) {
-    result.status = s;
+    sum.Fail(s);
     return result;
   }
   StatusOr<int> index = model.ParamIndex(options.param);
   if (!index.ok()) {
-    result.status = Status(StatusCode::kInvalidArgument, index.status().message());
+    sum.Fail(Status(StatusCode::kInvalidArgument, index.status().message()));
     return result;
   }
   // Validate the range's ends so that a bad range fails at once, naming the parameter.
@@ -174,12 +175,12 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
     Params p = params;
     p[*index] = v;
     if (Status s = model.ValidateParams(p); !s.ok()) {
-      result.status = s;
+      sum.Fail(s);
       return result;
     }
   }
   if (Status s = model.ValidateState(x0, params, SimulationOptions().state_tolerance); !s.ok()) {
-    result.status = s;
+    sum.Fail(s);
     return result;
   }
 
@@ -239,13 +240,12 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
         // calling thread ends this value's run there.
         SimulationResult sr =
             Simulate(model, *prop, p, x, so, [&](double) { return !cancel.load(); });
-        pt.termination = sr.termination;
-        pt.message = sr.status.ok() ? "" : sr.status.message();
+        pt.summary = sr.summary;
         pt.samples = std::move(sr.poincare);
-        events += sr.events_total;
+        events += sr.summary.events;
         periods += so.transient_periods + so.sample_periods;
         // Continue from this value's final state; after a failure, from the last good state.
-        if (sr.termination == Termination::kCompleted) {
+        if (sr.summary.completed()) {
           x = sr.final_state;
           start = SweepStart::kFromPreviousValue;
         } else if (start != SweepStart::kFromInitialState) {
@@ -303,15 +303,20 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
   }
   for (std::thread& t : pool) t.join();
 
-  result.events_total = events.load();
-  result.periods_total = periods.load();
+  sum.values = done.load();
+  sum.events = events.load();
+  sum.periods = periods.load();
   if (cancel.load()) {
-    result.termination = Termination::kCancelled;
-    result.status = Cancelled("sweep cancelled");
+    sum.Cancel("sweep cancelled");
   } else {
-    result.termination = Termination::kCompleted;
+    sum.Complete();
   }
   return result;
+}
+
+std::string SweepSummary::BriefReport() const {
+  return RunSummary::BriefReport(CountOf(values, "value") + ", " + CountOf(periods, "period") +
+                                 ", " + CountOf(events, "event"));
 }
 
 }  // namespace drillbif

@@ -143,13 +143,16 @@ struct ContinuationOptions {
   Status Validate() const;
 };
 
-struct ContinuationSummary {
-  Termination termination = Termination::kFailed;
-  Status status;
-  std::string message;
-  int steps = 0;
-  int rejected_steps = 0;
-  int newton_iterations = 0;
+// How a continuation ended (common/termination.h): kCompleted when each direction reached a
+// bound, its step budget or a stop_at point (the message says which, "increasing: ...;
+// decreasing: ..."); kFailed when one could not go on (e.g. the corrector failed down to
+// min_step; status INTERNAL with that message) or could not start; kCancelled when stopped.
+struct ContinuationSummary : RunSummary {
+  int64_t steps = 0;              // accepted steps, over all directions
+  int64_t rejected_steps = 0;     // steps retried shorter
+  int64_t newton_iterations = 0;  // corrector iterations
+  // "completed: 785 steps (2 rejected), 2345 Newton iterations; increasing: reached max; ..."
+  std::string BriefReport() const;
 };
 
 struct ContinuationResult {

@@ -132,14 +132,18 @@ struct TracedCurve {
   CurveOutline outline;     // of curve.points, set when the trace appends the curve
 };
 
-struct TraceSummary {
-  Status status;           // OK, or why the trace could not start
-  bool cancelled = false;  // progress returned false: curves are those traced until then
+// How a trace ended (common/termination.h): kFailed only when it could not start (status
+// says why); kCancelled when progress or on_curve stopped it (the curves are those traced until
+// then); else kCompleted, a curve or branch that failed being named in the notes.
+struct TraceSummary : RunSummary {
   // Starts skipped (duplicates, unsupported), with why; switching tallies; and, per period, how
   // many codimension-2 points are known only to a bracket above 1e-8 (none of period 1 in the
   // reference (omega, a) box).
   std::vector<std::string> notes;
-  int branch_points = 0;  // points of the one-parameter runs
+  int64_t branch_points = 0;  // points of the one-parameter runs
+  int64_t curves = 0;         // curves traced (TraceResult::curves)
+  // "completed: 436 curves, 5200 branch points, 12 notes" (RunSummary::BriefReport).
+  std::string BriefReport() const;
 };
 
 struct TraceResult {
@@ -151,7 +155,7 @@ struct TraceResult {
 // ProgressThrottle: about every 5 ms of computation (every flow of every branch, curve and switch
 // polls it) and whenever the fraction passes a percent (before each curve). Returning false
 // cancels within milliseconds: the result then holds the curves traced until then (a curve cut
-// short kept with what it has, its termination kCancelled) and summary.cancelled is set.
+// short kept with what it has, its termination kCancelled), summary.termination kCancelled.
 using TraceProgress = std::function<bool(double fraction)>;
 
 // Receives a traced curve when it is final, with its index in TraceResult::curves (the curve is

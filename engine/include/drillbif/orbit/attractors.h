@@ -9,6 +9,7 @@
 
 #include <vector>
 
+#include "drillbif/common/termination.h"
 #include "drillbif/orbit/periodic_orbit.h"
 
 namespace drillbif {
@@ -29,16 +30,17 @@ struct AttractorSample {
   // the transient (chaotic, or a longer transient), with why.
   std::vector<int> not_periodic;
   std::vector<std::string> why_not;
-  // The progress callback stopped the sampling: the states from the one it stopped in on are in
-  // neither list.
-  bool cancelled = false;
+  // kCompleted once every state was followed; kCancelled when the progress callback stopped the
+  // sampling (the states from the one it stopped in on are in neither list). Invalid input is
+  // not a sample: SampleAttractors returns its error instead.
+  RunSummary summary;
 };
 
 // Simulates from each initial state (guess.transient_periods forcing periods), finds the periodic
 // orbit it settles on and solves it. INVALID_ARGUMENT for invalid parameters or an invalid initial
 // state (naming its index). `progress` (optional, common/progress.h) receives the fraction of the
-// states done and can stop the sampling (AttractorSample::cancelled; without it the sampling
-// polls the throttle the propagator carries, if any).
+// states done and can stop the sampling (AttractorSample::summary kCancelled; without it the
+// sampling polls the throttle the propagator carries, if any).
 StatusOr<AttractorSample> SampleAttractors(const HybridModel& model, Propagator& propagator,
                                            const Params& params,
                                            const std::vector<StateVector>& initial_states,

@@ -74,15 +74,15 @@ struct OrbitSolverOptions {
   Status Validate() const;
 };
 
-// kCancelled: the progress callback stopped the solve (the orbit is left as it was given).
-enum class SolveStatus { kConverged, kNoConvergence, kFailed, kCancelled };
-const char* SolveStatusName(SolveStatus s);
-
-struct OrbitSolveSummary {
-  SolveStatus status = SolveStatus::kFailed;
-  std::string message;
-  int iterations = 0;
-  double residual = 0.0;  // max-norm of the conditions at the returned orbit
+// How a Newton solve of an orbit ended (common/termination.h): kCompleted when converged;
+// kNoConvergence after max_iterations (the orbit is the last iterate); kCancelled when the
+// progress callback stopped it and kFailed for invalid options, a failed flow or a singular
+// system (the orbit is left as it was given).
+struct OrbitSolveSummary : RunSummary {
+  int64_t iterations = 0;  // Newton iterations
+  double residual = 0.0;   // max-norm of the conditions at the returned orbit
+  // "completed: 4 Newton iterations, residual 1.2e-13" (RunSummary::BriefReport).
+  std::string BriefReport() const;
 };
 
 // The measures' means over the orbit (as in HybridModel::measure_names(): ROP, Pc); only those
@@ -106,7 +106,7 @@ std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Pro
 
 // Solves for the orbit near `guess` (same signature and parameters) by Newton. `progress`
 // (optional; see common/progress.h) receives the fraction of max_iterations used and can stop
-// the solve: status kCancelled, *orbit unchanged. Without it the solve polls the throttle the
+// the solve: termination kCancelled, *orbit unchanged. Without it the solve polls the throttle the
 // propagator carries, if any (flow/propagator.h).
 OrbitSolveSummary SolveOrbit(const HybridModel& model, Propagator& propagator,
                              const OrbitSolverOptions& options, PeriodicOrbit* orbit,

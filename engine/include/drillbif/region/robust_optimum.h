@@ -36,8 +36,17 @@ struct OptimumOptions {
   Status Validate() const;
 };
 
+// How the search ended (common/termination.h): kCompleted when the optimum was found; kFailed
+// with NOT_FOUND when no inside node has the margin (the message says the largest any has), with
+// INVALID_ARGUMENT / FAILED_PRECONDITION for bad options or region; kCancelled when stopped.
+struct OptimumSummary : RunSummary {
+  int64_t candidates = 0;  // inside nodes checked (rejected ones + the optimum)
+  // "completed: 12 candidates" (RunSummary::BriefReport).
+  std::string BriefReport() const;
+};
+
 struct RobustOptimum {
-  Status status;        // OK; NOT_FOUND when no inside node has the margin
+  OptimumSummary summary;
   int node = -1;        // the optimum's grid node (flat index)
   double value1 = 0.0;  // the optimum's param1
   double value2 = 0.0;  // and param2
@@ -50,13 +59,12 @@ struct RobustOptimum {
   // The curve of that obstacle (index), or kUntraced / kSeam.
   int nearest_curve = RegionVertex::kUntraced;
   bool near_box_edge = false;  // the margin neighbourhood reaches beyond the box
-  int candidates = 0;          // inside nodes checked (rejected ones + the optimum)
 };
 
 // INVALID_ARGUMENT for bad options or a region without a grid; FAILED_PRECONDITION for a region
 // whose computation did not succeed. `progress` (optional, common/progress.h; through a
-// ProgressThrottle) receives the fraction of the nodes checked and can stop the search: status
-// CANCELLED, `candidates` the nodes checked until then, nothing else set.
+// ProgressThrottle) receives the fraction of the nodes checked and can stop the search:
+// termination kCancelled, `candidates` the nodes checked until then, nothing else set.
 RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOptions& options,
                                 const ProgressCallback& progress = {});
 

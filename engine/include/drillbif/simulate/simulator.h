@@ -22,6 +22,7 @@
 
 #include "drillbif/common/progress.h"
 #include "drillbif/common/status.h"
+#include "drillbif/common/termination.h"
 #include "drillbif/flow/propagator.h"
 #include "drillbif/model/hybrid_model.h"
 
@@ -57,9 +58,6 @@ struct SimulationOptions {
   Status Validate() const;
 };
 
-enum class Termination { kCompleted, kCancelled, kFailed };
-const char* TerminationName(Termination t);
-
 struct PoincareSample {
   int64_t period = 0;  // index of the section since the start (1 = the end of the first period)
   int mode = 0;        // the mode the flow is in at the section
@@ -83,9 +81,18 @@ struct TrajectoryPoint {
   StateVector x;  // s wrapped to [0, 2 pi)
 };
 
+// How a simulation ended (common/termination.h) and its work, transient included.
+struct SimulationSummary : RunSummary {
+  int64_t segments = 0;     // flows to the next guard event or Poincare section
+  int64_t events = 0;       // guard events crossed
+  int64_t evaluations = 0;  // right-hand-side evaluations by the propagator
+  // "completed: 1200 segments, 800 events, 96000 evaluations" (RunSummary::BriefReport).
+  std::string BriefReport() const;
+};
+
 struct SimulationResult {
-  Termination termination = Termination::kFailed;
-  Status status;  // why, when not completed
+  // Completed, cancelled (the outputs up to the stop) or failed (the message says why).
+  SimulationSummary summary;
   // Means over the window: measures[k] / window length (k as in HybridModel::measure_names()).
   std::vector<double> measure_means;
   std::vector<PoincareSample> poincare;
@@ -94,10 +101,6 @@ struct SimulationResult {
   std::vector<TrajectoryPoint> trajectory;
   StateVector final_state;  // state at the end of the run (s = 0)
   int final_mode = 0;
-  // Counters.
-  long long segments = 0;
-  long long events_total = 0;
-  long long evaluations = 0;
 };
 
 // Receives a simulation's outputs as they are produced (SimulationOptions::sink), instead of
@@ -124,7 +127,7 @@ class SimulationSink {
 };
 
 // Runs a simulation from x0 (phase wrapped into [0, 2 pi)). Invalid parameters, options or an
-// initial state outside the invariant set give termination kFailed with INVALID_ARGUMENT.
+// initial state outside the invariant set give summary.termination kFailed with INVALID_ARGUMENT.
 // `progress` (may be empty) can stop the run: termination kCancelled, status CANCELLED, the
 // outputs up to there, final_state / final_mode where it stopped (at a section or a segment's
 // start), no measure_means.

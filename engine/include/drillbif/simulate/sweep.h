@@ -68,20 +68,28 @@ enum class SweepStart {
 
 struct SweepPoint {
   double value = 0.0;
-  Termination termination = Termination::kFailed;
-  std::string message;                         // why, when not completed
+  // How this value's simulation ended, and its work; never run (start kNotStarted): kFailed
+  // with no message.
+  SimulationSummary summary;
   SweepStart start = SweepStart::kNotStarted;  // the state the simulation started from
   int64_t transient_periods = 0;  // forcing periods simulated before the samples; 0 if not run
   std::vector<PoincareSample> samples;
 };
 
+// How a sweep ended (common/termination.h) and its work over every value and direction. A sweep
+// that starts always completes or is cancelled: single values fail on their own (SweepPoint).
+struct SweepSummary : RunSummary {
+  int64_t values = 0;   // grid values simulated (each direction's counted)
+  int64_t periods = 0;  // forcing periods simulated, transients included
+  int64_t events = 0;   // guard events crossed
+  // "completed: 2000 values, 1200000 periods, 50000 events" (RunSummary::BriefReport).
+  std::string BriefReport() const;
+};
+
 struct SweepResult {
-  Termination termination = Termination::kFailed;
-  Status status;
+  SweepSummary summary;
   std::vector<SweepPoint> up;    // ascending values, when swept up
   std::vector<SweepPoint> down;  // descending values, when swept down
-  long long events_total = 0;
-  long long periods_total = 0;
 };
 
 using PropagatorFactory = std::function<std::unique_ptr<Propagator>()>;
