@@ -1,7 +1,8 @@
-// Several drillbif-server processes on one PostgreSQL store (a throwaway cluster): an API process
-// that runs no jobs and worker processes that run them, claims as leases. A worker killed with
-// kill -9 while it runs a job loses it to the other worker once its lease expires: every job
-// finishes exactly once, with the result a direct run gives.
+// Several drillbif-server processes on one PostgreSQL store (a throwaway cluster): API processes
+// that run no jobs and worker processes that run them, claims as leases. A worker killed with
+// kill -9 (or paused) while it runs a job loses it to the other worker once its lease expires:
+// every job finishes exactly once, with the result a direct run gives; cancels and waits cross
+// processes.
 #include <google/protobuf/util/message_differencer.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -20,9 +21,11 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "jobs/sweep_job.h"
+#include "jobs/trace_job.h"
 #include "server/store/postgres_job_store.h"
 #include "support/operations.h"
 #include "support/postgres_cluster.h"
+#include "support/same_result.h"
 #include "support/server_process.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
@@ -90,6 +93,14 @@ TEST(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinishes
   for (int i = 0; i < 40; ++i) requests.push_back(SmallSweep(0.1 + 0.001 * i, 5));
   std::vector<std::string> names;
   for (const v1::SweepRequest& sweep : requests) names.push_back(Submit(*jobs, sweep));
+  // And a trace, whose result must equal a direct run's whoever runs it.
+  v1::SubmitTraceRequest trace;
+  *trace.mutable_request() = drillbif::testing::SmallBoxTrace();
+  Operation trace_op;
+  {
+    auto context = ContextWithDeadline();
+    ASSERT_TRUE(jobs->SubmitTrace(context.get(), trace, &trace_op).ok());
+  }
 
   // Once a long one runs and has reported progress, kill its worker.
   std::unique_ptr<JobStore> store = PostgresJobStore::Open(uri).value();
@@ -131,6 +142,13 @@ TEST(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinishes
     direct.value().clear_wall_seconds();
     EXPECT_TRUE(MessageDifferencer::Equals(served, *direct)) << names[i];
   }
+  const Operation traced = WaitDone(*operations, trace_op.name());
+  ASSERT_EQ(MetadataOf(traced).state(), v1::SUCCEEDED);
+  StatusOr<v1::TraceResult> direct_trace = jobs::RunTrace(trace.request());
+  ASSERT_TRUE(direct_trace.ok());
+  drillbif::testing::ExpectSameResult(drillbif::testing::ResponseOf<v1::TraceResult>(traced),
+                                      *direct_trace);
+  EXPECT_GT(direct_trace->curves_size(), 0);
   // The interrupted job was finished by the surviving worker, in its second run.
   const JobRecord finished = store->Get(victim->id).value();
   EXPECT_EQ(finished.run, victim->run + 1);
@@ -141,6 +159,7 @@ TEST(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinishes
   google::longrunning::ListOperationsResponse page;
   auto context = ContextWithDeadline();
   ASSERT_TRUE(operations->ListOperations(context.get(), list, &page).ok());
+  names.push_back(trace_op.name());
   ASSERT_EQ(page.operations_size(), static_cast<int>(names.size()));
   for (int i = 0; i < page.operations_size(); ++i) {
     EXPECT_EQ(page.operations(i).name(), names[i]);
