@@ -419,9 +419,7 @@ StatusOr<std::optional<JobRecord>> PostgresStoreImpl::ClaimNext(std::string_view
         if (r.empty()) return std::optional<JobRecord>();
         const std::string id = r[0][0].as<std::string>();
         const int64_t now = NowMs();
-        // A lease that ends beyond the clock's range never expires.
-        const int64_t lease_expires =
-            options.lease_ms == 0 ? 0 : CheckedAdd(now, options.lease_ms).value_or(INT64_MAX);
+        const int64_t lease_expires = ClaimedLeaseExpiry(now, options.lease_ms);
         tx.exec_params(
             "UPDATE jobs SET state = 1, started_ms = $2, attempts = attempts + 1, run = run + 1, "
             "worker_id = $3, progress = 0, current_value = NULL, points = 0, "
@@ -558,17 +556,21 @@ StatusOr<RecoveryReport> PostgresStoreImpl::TakeBack(TakenBack why, int64_t now_
         for (const pqxx::row& job : r) {
           const std::string id = job[0].as<std::string>();
           const int attempts = job[1].as<int>();
-          if (job[2].as<bool>()) {
-            DRILLBIF_RETURN_IF_ERROR(CancelRunning(tx, id));
-            ++report.cancelled;
-          } else if (attempts >= options_.max_attempts) {
-            DRILLBIF_RETURN_IF_ERROR(
-                FailWithFollowers(tx, id, StatusCode::kInternal,
-                                  TooManyAttempts(why, attempts, options_.max_attempts)));
-            ++report.failed;
-          } else {
-            DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(tx, id, /*count_attempt=*/true));
-            ++report.requeued;
+          switch (TakeBackActionOf(job[2].as<bool>(), attempts, options_.max_attempts)) {
+            case TakeBackAction::kCancel:
+              DRILLBIF_RETURN_IF_ERROR(CancelRunning(tx, id));
+              ++report.cancelled;
+              break;
+            case TakeBackAction::kFail:
+              DRILLBIF_RETURN_IF_ERROR(
+                  FailWithFollowers(tx, id, StatusCode::kInternal,
+                                    TooManyAttempts(why, attempts, options_.max_attempts)));
+              ++report.failed;
+              break;
+            case TakeBackAction::kRequeue:
+              DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(tx, id, /*count_attempt=*/true));
+              ++report.requeued;
+              break;
           }
         }
         return report;
@@ -584,13 +586,11 @@ StatusOr<RecoveryReport> PostgresStoreImpl::ReclaimExpiredLeases(int64_t now_ms)
 }
 
 Status PostgresStoreImpl::RenewLease(std::string_view id, int64_t run, int64_t lease_ms) {
-  if (lease_ms < 1) return InvalidArgument("lease_ms: must be >= 1");
+  DRILLBIF_ASSIGN_OR_RETURN(const int64_t expires, RenewedLeaseExpiry(lease_ms));
   return WriteStatus("renew a lease", [&](Tx& tx) -> Status {
     DRILLBIF_RETURN_IF_ERROR(RunningHead(tx, id, "renew the lease of", run).status());
-    const std::optional<int64_t> expires = CheckedAdd(NowMs(), lease_ms);
-    if (!expires) return InvalidArgument("lease_ms: now + lease_ms beyond 2^63 - 1");
     return UpdateRunning(tx, "UPDATE jobs SET lease_expires_ms = $2 WHERE id = $1 AND state = 1",
-                         id, *expires);
+                         id, expires);
   });
 }
 

@@ -547,10 +547,7 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
     id = q.Text(0);
   }
   const int64_t now = NowMs();
-  // CheckedAdd: a lease of up to 2^63 - 1 ms is valid input; one that ends beyond the clock's
-  // range never expires.
-  const int64_t lease_expires =
-      options.lease_ms == 0 ? 0 : CheckedAdd(now, options.lease_ms).value_or(INT64_MAX);
+  const int64_t lease_expires = ClaimedLeaseExpiry(now, options.lease_ms);
   {
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
@@ -747,17 +744,21 @@ StatusOr<RecoveryReport> SqliteStoreImpl::TakeBack(TakenBack why, int64_t now_ms
   }
   RecoveryReport report;
   for (const Interrupted& job : interrupted) {
-    if (job.cancel_requested) {
-      DRILLBIF_RETURN_IF_ERROR(CancelRunning(job.id));
-      ++report.cancelled;
-    } else if (job.attempts >= options_.max_attempts) {
-      DRILLBIF_RETURN_IF_ERROR(
-          FailWithFollowers(job.id, StatusCode::kInternal,
-                            TooManyAttempts(why, job.attempts, options_.max_attempts)));
-      ++report.failed;
-    } else {
-      DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(job.id, /*count_attempt=*/true));
-      ++report.requeued;
+    switch (TakeBackActionOf(job.cancel_requested, job.attempts, options_.max_attempts)) {
+      case TakeBackAction::kCancel:
+        DRILLBIF_RETURN_IF_ERROR(CancelRunning(job.id));
+        ++report.cancelled;
+        break;
+      case TakeBackAction::kFail:
+        DRILLBIF_RETURN_IF_ERROR(
+            FailWithFollowers(job.id, StatusCode::kInternal,
+                              TooManyAttempts(why, job.attempts, options_.max_attempts)));
+        ++report.failed;
+        break;
+      case TakeBackAction::kRequeue:
+        DRILLBIF_RETURN_IF_ERROR(RequeueWithFollowers(job.id, /*count_attempt=*/true));
+        ++report.requeued;
+        break;
     }
   }
   DRILLBIF_RETURN_IF_ERROR(tx.Commit());
@@ -773,15 +774,13 @@ StatusOr<RecoveryReport> SqliteStoreImpl::ReclaimExpiredLeases(int64_t now_ms) {
 }
 
 Status SqliteStoreImpl::RenewLease(std::string_view id, int64_t run, int64_t lease_ms) {
-  if (lease_ms < 1) return InvalidArgument("lease_ms: must be >= 1");
+  DRILLBIF_ASSIGN_OR_RETURN(const int64_t expires, RenewedLeaseExpiry(lease_ms));
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "renew the lease of", run).status());
-  const std::optional<int64_t> expires = CheckedAdd(NowMs(), lease_ms);
-  if (!expires) return InvalidArgument("lease_ms: now + lease_ms beyond 2^63 - 1");
   DRILLBIF_RETURN_IF_ERROR(
       UpdateRunning("UPDATE jobs SET lease_expires_ms = ?2 WHERE id = ?1 AND state = 1", id,
-                    [&](Query& q) { q.Bind(2, *expires); }));
+                    [&](Query& q) { q.Bind(2, expires); }));
   return tx.Commit();
 }
 

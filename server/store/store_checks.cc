@@ -136,6 +136,22 @@ Status AlreadyFinished(std::string_view id, JobState state) {
                             JobStateName(state) + ")");
 }
 
+int64_t ClaimedLeaseExpiry(int64_t now_ms, int64_t lease_ms) {
+  return lease_ms == 0 ? 0 : CheckedAdd(now_ms, lease_ms).value_or(INT64_MAX);
+}
+
+StatusOr<int64_t> RenewedLeaseExpiry(int64_t lease_ms) {
+  if (lease_ms < 1) return InvalidArgument("lease_ms: must be >= 1");
+  const std::optional<int64_t> expires = CheckedAdd(NowMs(), lease_ms);
+  if (!expires) return InvalidArgument("lease_ms: now + lease_ms beyond 2^63 - 1");
+  return *expires;
+}
+
+TakeBackAction TakeBackActionOf(bool cancel_requested, int attempts, int max_attempts) {
+  if (cancel_requested) return TakeBackAction::kCancel;
+  return attempts >= max_attempts ? TakeBackAction::kFail : TakeBackAction::kRequeue;
+}
+
 std::string TooManyAttempts(TakenBack why, int attempts, int max_attempts) {
   const char* what = why == TakenBack::kRestart
                          ? "the server stopped while this job ran, "

@@ -75,9 +75,21 @@ Status NotFinished(std::string_view id, JobState state);
 // FAILED_PRECONDITION for Cancel of a job that finished with a result or an error.
 Status AlreadyFinished(std::string_view id, JobState state);
 
+// When a lease claimed at now_ms for lease_ms expires: 0 for no lease (lease_ms 0); INT64_MAX,
+// never, for a lease that ends beyond the clock's range (any lease_ms >= 0 is valid input).
+int64_t ClaimedLeaseExpiry(int64_t now_ms, int64_t lease_ms);
+// When a lease renewed now for lease_ms expires; INVALID_ARGUMENT for lease_ms < 1 or an end
+// beyond 2^63 - 1.
+StatusOr<int64_t> RenewedLeaseExpiry(int64_t lease_ms);
+
 // Why a RUNNING job is taken back: its process ended (RecoverAfterRestart) or its lease expired
 // (ReclaimExpiredLeases).
 enum class TakenBack { kRestart, kLeaseExpired };
+
+// What taking back a RUNNING job does to it: CANCELLED when a cancel was asked, FAILED after
+// max_attempts claims, else QUEUED again.
+enum class TakeBackAction { kCancel, kFail, kRequeue };
+TakeBackAction TakeBackActionOf(bool cancel_requested, int attempts, int max_attempts);
 
 // The message of a job failed when taken back after too many claims.
 std::string TooManyAttempts(TakenBack why, int attempts, int max_attempts);
