@@ -802,11 +802,13 @@ def make_operator_files(directory):
     token = os.urandom(32).hex()
     with open(os.path.join(directory, "tokens"), "w") as f:
         f.write(f"# test clients\ndefault {token}\n")
+    # Without a newline, as deploy/README.md makes them: KEDA passes a Secret's bytes on as they
+    # are, and Kubernetes puts store_uri's into --store.
     password = os.urandom(24).hex()
     with open(os.path.join(directory, "db_password"), "w") as f:
-        f.write(password + "\n")
+        f.write(password)
     with open(os.path.join(directory, "store_uri"), "w") as f:
-        f.write("postgresql://drillbif@db.example:5432/drillbif?sslmode=verify-full\n")
+        f.write("postgresql://drillbif@db.example:5432/drillbif?sslmode=require")
     return token, password
 
 
