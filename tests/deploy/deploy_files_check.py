@@ -524,8 +524,8 @@ def kubernetes_layout(k8s_dir, name, components=()):
     return layout
 
 
-def render_errors(objects, variant, expect_db):
-    """What must hold in a `kubectl kustomize` render."""
+def render_errors(objects, components, expect_db):
+    """What must hold in a `kubectl kustomize` render with the given components."""
     errors = []
     secrets = {o["metadata"]["name"]: o for o in objects if o["kind"] == "Secret"}
     deployments = {o["metadata"]["name"]: o for o in objects if o["kind"] == "Deployment"}
@@ -548,7 +548,7 @@ def render_errors(objects, variant, expect_db):
                                   f"hold")
             uri = container.get("env") and {v["name"]: v for v in container["env"]}.get(
                 "DRILLBIF_STORE_URI")
-            if variant == "external-db" and uri and "valueFrom" not in uri:
+            if "external-db" in components and uri and "valueFrom" not in uri:
                 errors.append(f"Deployment {name}: DRILLBIF_STORE_URI not from a Secret")
     for statefulset in (o for o in objects if o["kind"] == "StatefulSet"):
         for volume in statefulset["spec"]["template"]["spec"].get("volumes", []):
@@ -556,11 +556,19 @@ def render_errors(objects, variant, expect_db):
             if secret is not None and secret not in secrets:
                 errors.append(f"StatefulSet: volume {volume['name']} names missing Secret {secret}")
     has_db = any(o["kind"] == "StatefulSet" for o in objects)
-    if variant == "external-db" and has_db:
+    if "external-db" in components and has_db:
         errors.append("the PostgreSQL StatefulSet is still there")
-    if expect_db and variant != "external-db" and not has_db:
+    if expect_db and "external-db" not in components and not has_db:
         errors.append("no PostgreSQL StatefulSet")
+    services = {o["metadata"]["name"] for o in objects if o["kind"] == "Service"}
     for scaled in (o for o in objects if o["kind"] == "ScaledObject"):
+        # With the in-cluster database the scaler must name its Service (with an external one
+        # the operator sets the host: deploy/README.md).
+        for trigger in scaled["spec"].get("triggers", []):
+            host = trigger.get("metadata", {}).get("host", "")
+            if has_db and host.split(".")[0] not in services:
+                errors.append(f"the ScaledObject's database host {host} is no Service of the "
+                              f"render")
         target = deployments.get(scaled["spec"]["scaleTargetRef"]["name"])
         if target is None:
             errors.append("ScaledObject targets a Deployment the render does not hold")
@@ -572,7 +580,7 @@ def render_errors(objects, variant, expect_db):
             if ref["key"] not in secrets.get(ref["name"], {}).get("data", {}):
                 errors.append(f"TriggerAuthentication names Secret {ref['name']} key "
                               f"{ref['key']}, which the render does not hold")
-    if variant == "keda" and not any(o["kind"] == "ScaledObject" for o in objects):
+    if "keda" in components and not any(o["kind"] == "ScaledObject" for o in objects):
         errors.append("no ScaledObject")
     if any(s.get("type") == "kubernetes.io/tls" and sorted(s.get("data", {})) !=
            ["tls.crt", "tls.key"] for s in secrets.values()):
@@ -582,7 +590,7 @@ def render_errors(objects, variant, expect_db):
 
 def render_kustomization(k8s_dir, work, variants, expect_db):
     """`kubectl kustomize` of a copy of the directory with made operator files, once per variant
-    (None: as shipped; else a component added to its kustomization.yaml)."""
+    (a tuple of components added to its kustomization.yaml; () as shipped)."""
     errors = []
     k8s_copy = os.path.join(work, "render")
     shutil.copytree(k8s_dir, k8s_copy)
@@ -596,10 +604,11 @@ def render_kustomization(k8s_dir, work, variants, expect_db):
         shipped = f.read()
     for variant in variants:
         with open(kustomization_path, "w") as f:
-            f.write(shipped + (f"components:\n  - {variant}\n" if variant else ""))
+            f.write(shipped + ("components:\n" + "".join(f"  - {c}\n" for c in variant)
+                               if variant else ""))
         result = subprocess.run(["kubectl", "kustomize", k8s_copy], capture_output=True,
                                 text=True, timeout=120)
-        what = f"kubectl kustomize{f' with {variant}' if variant else ''}"
+        what = f"kubectl kustomize{' with ' + ' and '.join(variant) if variant else ''}"
         if result.returncode != 0:
             errors.append(f"{what}: {result.stderr.strip()}")
             continue
@@ -1110,11 +1119,11 @@ def run_store_layout(layout, server_bin, drillctl_bin, work, quiet):
 def all_layouts(deploy_dir):
     k8s_dir = os.path.join(deploy_dir, "k8s")
     k8s = kubernetes_layout(k8s_dir, "k8s", components=("keda",))
-    k8s.render = lambda work: render_kustomization(k8s_dir, work, [None, "keda", "external-db"],
-                                                   expect_db=True)
+    k8s.render = lambda work: render_kustomization(
+        k8s_dir, work, [(), ("keda",), ("external-db",), ("keda", "external-db")], expect_db=True)
     single_dir = os.path.join(k8s_dir, "single")
     k8s_single = kubernetes_layout(single_dir, "k8s/single")
-    k8s_single.render = lambda work: render_kustomization(single_dir, work, [None],
+    k8s_single.render = lambda work: render_kustomization(single_dir, work, [()],
                                                           expect_db=False)
     composes = [compose_layout(deploy_dir, "compose.yaml", "compose"),
                 compose_layout(deploy_dir, "compose.single.yaml", "compose.single")]
@@ -1252,6 +1261,10 @@ BREAKS = [
     # key.
     ("compose", "compose.yaml", "    restart: unless-stopped\n    # Over TCP",
      "    restrat: unless-stopped\n    # Over TCP", "docker-compose config"),
+    # Only the render finds this one: the scaler's database host is no Service.
+    ("k8s", "k8s/keda/scaledobject.yaml", "host: drillbif-postgres.default",
+     "host: postgres.default",
+     "kubectl kustomize with keda: the ScaledObject's database host postgres.default.svc"),
     # Only the run finds this one: the autoscaler's query no longer counts a queued job.
     ("k8s", "k8s/keda/scaledobject.yaml", "WHERE state IN (0, 1) AND", "WHERE state IN (1) AND",
      "returned '0', expected 1"),
