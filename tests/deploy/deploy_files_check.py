@@ -23,10 +23,13 @@ Static checks, per launch:
 Static checks, per PostgreSQL layout: an API and a worker launch; the --store host is the
 database's Service (compose service, or Kubernetes Service selecting the StatefulSet's pods); the
 database's password from POSTGRES_PASSWORD_FILE naming the operator's db_password (never
-POSTGRES_PASSWORD); pg_isready probes; compose services wait for the database to be healthy;
-Kubernetes objects of known apiVersion/kind, PodDisruptionBudgets selecting a Deployment's pods,
-the ScaledObject targeting the worker Deployment and its TriggerAuthentication a generated Secret
-key; `kubectl kustomize` renders the default build, the keda and external-db components.
+POSTGRES_PASSWORD); pg_isready probes; compose services wait for the database to be healthy and
+publish on 127.0.0.1 only, on distinct host ports, workers nothing; Kubernetes objects of known
+apiVersion/kind, Service and PodDisruptionBudget selectors matching one workload's pods, the
+ScaledObject targeting the worker Deployment and its TriggerAuthentication a generated Secret key.
+With the tools installed (else skipped, saying so): `kubectl kustomize` renders the default
+build, with the keda and external-db components, alone and together; `docker-compose config`
+validates both compose files against Compose's schema.
 Run checks (with --server and --drillctl): a temp dir gets a fresh self-signed certificate
 (openssl; SAN localhost and 127.0.0.1), a tokens file and a database password; the server starts
 with the launch's own flags, the host rewritten to 127.0.0.1, ports to 0, the database and every
