@@ -9,7 +9,7 @@ packages=(
   libeigen3-dev libsundials-dev libsqlite3-dev libpqxx-dev postgresql libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
   libssl-dev libcpp-httplib-dev libmicrohttpd-dev libutfcpp-dev prometheus-cpp-dev openssl
-  gnuplot-nox python3-yaml
+  gnuplot-nox python3-yaml docker-compose
   clang libclang-rt-14-dev
 )
 
