@@ -399,11 +399,17 @@ StatusOr<SubmitResult> PostgresStoreImpl::Submit(const SubmitRequest& request) {
 StatusOr<std::optional<JobRecord>> PostgresStoreImpl::ClaimNext(std::string_view worker_id,
                                                                 const ClaimOptions& options) {
   DRILLBIF_RETURN_IF_ERROR(options.Validate());
-  return Write<std::optional<JobRecord>>(
+  // Not under the store's write lock: claims of several workers proceed together, each locking
+  // the row it takes (FOR UPDATE SKIP LOCKED passes over rows another claim holds). What the
+  // other writers do to a queued job meanwhile is safe: Cancel takes a job claimed under it for
+  // a running one (below, in Cancel), a follower inserted while its leader is claimed stays
+  // QUEUED until the leader finishes, and the rest touch no queued job.
+  return Claim<std::optional<JobRecord>>(
       "claim a job", [&](Tx& tx) -> StatusOr<std::optional<JobRecord>> {
-        // Fair across clients: each client's oldest claimable job of the allowed lanes,
-        // ordered by how many jobs that client has RUNNING in those lanes, then by age.
-        const pqxx::result r = tx.exec_params(
+        const int64_t lanes = LaneMask(options);
+        // Fair across clients: the clients with claimable jobs in the allowed lanes, by how many
+        // jobs each has RUNNING in those lanes, then by the age of its oldest claimable job.
+        const pqxx::result clients = tx.exec_params(
             "WITH heads AS ("
             "  SELECT client, MIN(seq) AS seq FROM jobs"
             "  WHERE state = 0 AND shares IS NULL AND (($1::bigint >> lane) & 1) = 1"
@@ -412,19 +418,28 @@ StatusOr<std::optional<JobRecord>> PostgresStoreImpl::ClaimNext(std::string_view
             "  SELECT client, COUNT(*) AS n FROM jobs"
             "  WHERE state = 1 AND shares IS NULL AND (($1::bigint >> lane) & 1) = 1"
             "  GROUP BY client)"
-            " SELECT j.id FROM heads h JOIN jobs j ON j.seq = h.seq"
-            " LEFT JOIN running r ON r.client = h.client"
-            " ORDER BY COALESCE(r.n, 0), h.seq LIMIT 1",
-            LaneMask(options));
-        if (r.empty()) return std::optional<JobRecord>();
-        const std::string id = r[0][0].as<std::string>();
+            " SELECT h.client FROM heads h LEFT JOIN running r ON r.client = h.client"
+            " ORDER BY COALESCE(r.n, 0), h.seq",
+            lanes);
+        std::string id;
+        for (const pqxx::row& client : clients) {
+          // The client's oldest claimable job that no other claim holds.
+          const pqxx::result r = tx.exec_params(
+              "SELECT id FROM jobs WHERE state = 0 AND shares IS NULL AND client = $1 "
+              "AND (($2::bigint >> lane) & 1) = 1 ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED",
+              client[0].as<std::string>(), lanes);
+          if (!r.empty()) {
+            id = r[0][0].as<std::string>();
+            break;
+          }
+        }
+        if (id.empty()) return std::optional<JobRecord>();
         const int64_t now = NowMs();
-        const int64_t lease_expires = ClaimedLeaseExpiry(now, options.lease_ms);
         tx.exec_params(
             "UPDATE jobs SET state = 1, started_ms = $2, attempts = attempts + 1, run = run + 1, "
             "worker_id = $3, progress = 0, current_value = NULL, points = 0, "
             "lease_expires_ms = $4 WHERE id = $1 AND state = 0",
-            id, now, std::string(worker_id), lease_expires);
+            id, now, std::string(worker_id), ClaimedLeaseExpiry(now, options.lease_ms));
         // A new run starts from nothing (there is nothing to drop unless a bug left chunks).
         DRILLBIF_RETURN_IF_ERROR(DropRunChunks(tx, id));
         tx.exec_params("UPDATE jobs SET state = 1, started_ms = $2 WHERE shares = $1 AND state = 0",
@@ -477,9 +492,18 @@ StatusOr<JobState> PostgresStoreImpl::Cancel(std::string_view id) {
                      std::string(id));
       return JobState::kRunning;
     }
-    // Nothing runs for it (queued, or following another job): cancelled at once.
-    tx.exec_params("UPDATE jobs SET state = 4, finished_ms = $2 WHERE id = $1 AND state IN (0, 1)",
-                   std::string(id), NowMs());
+    // Nothing runs for it (queued, or following another job): cancelled at once. A queued job
+    // that a claim (which does not take the write lock) took since Head read it is running
+    // now: its worker is asked to stop instead.
+    const pqxx::result cancelled = tx.exec_params(
+        "UPDATE jobs SET state = 4, finished_ms = $2 WHERE id = $1 AND (state = 0 OR "
+        "(state = 1 AND shares IS NOT NULL))",
+        std::string(id), NowMs());
+    if (cancelled.affected_rows() == 0) {
+      tx.exec_params("UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 1",
+                     std::string(id));
+      return JobState::kRunning;
+    }
     if (!head.shares) DRILLBIF_RETURN_IF_ERROR(PromoteFollower(tx, id));
     return JobState::kCancelled;
   });

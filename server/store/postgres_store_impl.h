@@ -82,6 +82,10 @@ class PostgresStoreImpl final : public JobStore {
   StatusOr<T> Write(const char* what, const std::function<StatusOr<T>(Tx&)>& body);
   template <typename T>
   StatusOr<T> Read(const char* what, const std::function<StatusOr<T>(Tx&)>& body);
+  // A writing transaction that does not take the store's write lock: claims, which lock the
+  // rows they take instead.
+  template <typename T>
+  StatusOr<T> Claim(const char* what, const std::function<StatusOr<T>(Tx&)>& body);
   // Write for a body that returns only a Status.
   Status WriteStatus(const char* what, const std::function<Status(Tx&)>& body) {
     return Write<bool>(what,
@@ -147,14 +151,21 @@ template <typename T, typename Transaction>
 StatusOr<T> PostgresStoreImpl::Run(const char* what, bool lock,
                                    const std::function<StatusOr<T>(Tx&)>& body) {
   std::lock_guard<std::mutex> guard(mu_);
-  try {
-    Transaction tx(Connection());
-    if (lock) tx.exec_params("SELECT pg_advisory_xact_lock($1)", kWriteLockKey);
-    StatusOr<T> result = body(tx);
-    if (result.ok()) tx.commit();
-    return result;
-  } catch (const std::exception& error) {
-    return Error(what, error);
+  // A transaction the server rolled back to break a deadlock (or a serialization failure) did
+  // nothing: it is run again, a few times.
+  for (int attempt = 1;; ++attempt) {
+    try {
+      Transaction tx(Connection());
+      if (lock) tx.exec_params("SELECT pg_advisory_xact_lock($1)", kWriteLockKey);
+      StatusOr<T> result = body(tx);
+      if (result.ok()) tx.commit();
+      return result;
+    } catch (const pqxx::transaction_rollback& error) {
+      if (attempt == 3) return Error(what, error);
+      Log(std::string("job store: ") + what + ": retried after " + error.what());
+    } catch (const std::exception& error) {
+      return Error(what, error);
+    }
   }
 }
 
@@ -162,6 +173,12 @@ template <typename T>
 StatusOr<T> PostgresStoreImpl::Write(const char* what,
                                      const std::function<StatusOr<T>(Tx&)>& body) {
   return Run<T, pqxx::work>(what, /*lock=*/true, body);
+}
+
+template <typename T>
+StatusOr<T> PostgresStoreImpl::Claim(const char* what,
+                                     const std::function<StatusOr<T>(Tx&)>& body) {
+  return Run<T, pqxx::work>(what, /*lock=*/false, body);
 }
 
 template <typename T>

@@ -210,6 +210,71 @@ TEST_P(StoreClaimsTest, CacheHitsFollowersAndRepeatedRequestIdsAreNeverRefused) 
   EXPECT_EQ(store_->Submit(fresh).status().code(), StatusCode::kResourceExhausted);
 }
 
+// Four connections claim at once (with three clients, leases, and cancels of queued jobs
+// arriving meanwhile): every job that was not cancelled is claimed exactly once, by one
+// connection, in one run; a cancel that meets a claim leaves the job RUNNING with its cancel
+// asked, never a claimed job CANCELLED under its worker.
+TEST_P(StoreClaimsTest, ConcurrentClaimsTakeEachJobOnce) {
+  constexpr int kJobs = 120;
+  constexpr int kConnections = 4;
+  std::vector<std::string> ids;
+  for (int i = 0; i < kJobs; ++i) {
+    ids.push_back(SubmitOk(Request("job " + std::to_string(i), "client" + std::to_string(i % 3))));
+  }
+  std::vector<std::unique_ptr<JobStore>> stores;
+  for (int c = 0; c < kConnections; ++c) {
+    stores.push_back(Open());
+    ASSERT_NE(stores.back(), nullptr);
+  }
+  std::vector<std::vector<std::string>> claimed(kConnections);
+  std::atomic<int> errors{0};
+  std::latch start(kConnections + 1);
+  std::vector<std::thread> threads;
+  for (int c = 0; c < kConnections; ++c) {
+    threads.emplace_back([&, c] {
+      ClaimOptions options;
+      options.lease_ms = 60000;
+      start.arrive_and_wait();
+      for (;;) {
+        StatusOr<std::optional<JobRecord>> job =
+            stores[c]->ClaimNext("w" + std::to_string(c), options);
+        if (!job.ok()) {
+          ++errors;
+          continue;
+        }
+        if (!job->has_value()) break;
+        claimed[c].push_back((*job)->id);
+      }
+    });
+  }
+  // Cancels of every tenth job, racing the claims.
+  std::vector<JobState> after_cancel;
+  start.arrive_and_wait();
+  for (int i = 0; i < kJobs; i += 10) after_cancel.push_back(Must(store_->Cancel(ids[i])));
+  for (std::thread& thread : threads) thread.join();
+  EXPECT_EQ(errors.load(), 0);
+  std::map<std::string, int> times;
+  for (const auto& list : claimed) {
+    for (const std::string& id : list) ++times[id];
+  }
+  for (int i = 0; i < kJobs; ++i) {
+    const JobRecord job = Must(store_->Get(ids[i]));
+    if (job.state == JobState::kCancelled) {
+      EXPECT_EQ(times.count(ids[i]), 0u) << "cancelled job " << i << " was claimed";
+      continue;
+    }
+    EXPECT_EQ(job.state, JobState::kRunning) << i;
+    EXPECT_EQ(times[ids[i]], 1) << i;
+    EXPECT_EQ(job.attempts, 1) << i;
+    EXPECT_EQ(job.run, 1) << i;
+    if (i % 10 == 0) EXPECT_TRUE(job.cancel_requested) << "claimed before its cancel: " << i;
+  }
+  for (int k = 0; k < static_cast<int>(after_cancel.size()); ++k) {
+    const JobRecord job = Must(store_->Get(ids[10 * k]));
+    EXPECT_EQ(after_cancel[k], job.state) << "Cancel's answer for job " << 10 * k;
+  }
+}
+
 // Eight threads on two store objects (two SQLite connections) submit 20 jobs each for one
 // client with a limit of 10: exactly 10 are accepted, because the count and the insert are one
 // transaction (a check outside it would let several threads see 9 and all insert).
