@@ -549,15 +549,8 @@ void JobsService::QueryOptimum(QueryOptimumCall* call) {
     response->set_stored(true);
     return call->Finish(grpc::Status::OK);
   }
-  if (!known && !request.compute()) {
-    return call->Finish(Error(grpc::StatusCode::NOT_FOUND,
-                              "no stored optimum for this request; set compute to run it"));
-  }
   // Computing it is a submit: the same limits apply (a stored answer is served whatever its cost).
-  if (Status s = jobs::CheckCost(*cost, state_->options.LimitsOf(optimum), "optimum");
-      !known && !s.ok()) {
-    return call->Finish(ToGrpc(s));
-  }
+  const Status affordable = jobs::CheckCost(*cost, state_->options.LimitsOf(optimum), "optimum");
   const Clock::time_point deadline = WaitDeadline(call->context(), &request.timeout());
   ServiceState* state = state_;
   const bool submitted = state_->executor->TrySubmit([=] {
@@ -565,6 +558,19 @@ void JobsService::QueryOptimum(QueryOptimumCall* call) {
       grpc::Status s = AnswerFromStore(*state, key, id, /*stored=*/true, response);
       if (s.ok() || !request.compute()) return call->Finish(s);
       state->optimum_index.RemoveJob(id);  // Deleted meanwhile: compute it again.
+    } else {
+      // Not in this process's index: another process sharing the store may have computed it.
+      StatusOr<std::optional<std::string>> found = state->store->FindSucceeded(key);
+      if (!found.ok()) return call->Finish(ToGrpc(found.status()));
+      if (found->has_value()) {
+        grpc::Status s = AnswerFromStore(*state, key, **found, /*stored=*/true, response);
+        if (s.ok()) return call->Finish(s);
+      }
+      if (!request.compute()) {
+        return call->Finish(Error(grpc::StatusCode::NOT_FOUND,
+                                  "no stored optimum for this request; set compute to run it"));
+      }
+      if (!affordable.ok()) return call->Finish(ToGrpc(affordable));
     }
     Operation op;
     std::string job_id;

@@ -406,6 +406,11 @@ class JobStore {
   // FAILED_PRECONDITION for a QUEUED or RUNNING job, NOT_FOUND for an unknown id.
   virtual Status Delete(std::string_view id) = 0;
 
+  // The oldest SUCCEEDED job whose cache_key is `cache_key` (its result is the key's cached
+  // result), or nullopt when none: how a process finds a result another process computed.
+  // INVALID_ARGUMENT for an empty key.
+  virtual StatusOr<std::optional<std::string>> FindSucceeded(std::string_view cache_key) = 0;
+
   // The whole result of a SUCCEEDED job: the summary followed by every chunk's bytes, in order
   // (for protobuf results whose chunks hold serialized item fields, the complete message). It is
   // held in memory whole: use it for small results (check GetResultInfo's total_bytes) and page

@@ -534,6 +534,18 @@ Status PostgresStoreImpl::Requeue(std::string_view id, int64_t run) {
   });
 }
 
+StatusOr<std::optional<std::string>> PostgresStoreImpl::FindSucceeded(std::string_view cache_key) {
+  if (cache_key.empty()) return InvalidArgument("cache_key: must not be empty");
+  using Found = std::optional<std::string>;
+  return Read<Found>("find a result", [&](Tx& tx) -> StatusOr<Found> {
+    const pqxx::result r = tx.exec_params(
+        "SELECT id FROM jobs WHERE cache_key = $1 AND state = 2 ORDER BY seq LIMIT 1",
+        std::string(cache_key));
+    if (r.empty()) return Found();
+    return Found(r[0][0].as<std::string>());
+  });
+}
+
 StatusOr<JobRecord> PostgresStoreImpl::Get(std::string_view id) {
   return Read<JobRecord>("read a job", [&](Tx& tx) -> StatusOr<JobRecord> {
     const pqxx::result r = tx.exec_params(SelectJobs("request", "WHERE id = $1"), std::string(id));

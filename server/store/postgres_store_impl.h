@@ -54,6 +54,7 @@ class PostgresStoreImpl final : public JobStore {
   StatusOr<JobRecord> Get(std::string_view id) override;
   StatusOr<ListResult> List(const ListRequest& request) override;
   Status Delete(std::string_view id) override;
+  StatusOr<std::optional<std::string>> FindSucceeded(std::string_view cache_key) override;
   StatusOr<std::string> GetResult(std::string_view id) override;
   StatusOr<ResultInfo> GetResultInfo(std::string_view id) override;
   StatusOr<std::vector<ResultChunk>> ReadResultChunks(std::string_view id, int stream,

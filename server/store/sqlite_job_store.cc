@@ -672,6 +672,19 @@ Status SqliteStoreImpl::Requeue(std::string_view id, int64_t run) {
   return tx.Commit();
 }
 
+StatusOr<std::optional<std::string>> SqliteStoreImpl::FindSucceeded(std::string_view cache_key) {
+  if (cache_key.empty()) return InvalidArgument("cache_key: must not be empty");
+  std::lock_guard<std::mutex> lock(mu_);
+  DRILLBIF_ASSIGN_OR_RETURN(
+      Query q, connection_.Prepare("SELECT id FROM jobs INDEXED BY jobs_by_cache_key "
+                                   "WHERE cache_key = ?1 AND cache_key <> '' AND state = 2 "
+                                   "ORDER BY seq LIMIT 1"));
+  q.Bind(1, cache_key);
+  DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+  if (!row) return std::optional<std::string>();
+  return std::optional<std::string>(q.Text(0));
+}
+
 StatusOr<JobRecord> SqliteStoreImpl::Get(std::string_view id) {
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(SelectJobs("request", "WHERE id = ?1")));

@@ -476,6 +476,24 @@ TEST_P(JobStoreTest, BadLeasesAreRejected) {
   EXPECT_EQ(GetOk(forever).state, JobState::kRunning);
 }
 
+TEST_P(JobStoreTest, FindSucceededNamesTheJobHoldingAKeysResult) {
+  EXPECT_EQ(Must(store_->FindSucceeded("K")), std::nullopt);
+  const std::string first = SubmitOk("optimum", "r", "K");
+  EXPECT_EQ(Must(store_->FindSucceeded("K")), std::nullopt);  // queued: no result yet
+  ASSERT_EQ(ClaimOk(), first);
+  EXPECT_EQ(Must(store_->FindSucceeded("K")), std::nullopt);  // running
+  ASSERT_TRUE(store_->Complete(first, "result", 1).ok());
+  EXPECT_EQ(Must(store_->FindSucceeded("K")), first);
+  // A later cache hit holds the same result; the oldest job is named.
+  const std::string hit = SubmitOk("optimum", "r", "K");
+  ASSERT_TRUE(GetOk(hit).cache_hit);
+  EXPECT_EQ(Must(store_->FindSucceeded("K")), first);
+  ASSERT_TRUE(store_->Delete(first).ok());
+  EXPECT_EQ(Must(store_->FindSucceeded("K")), hit);
+  EXPECT_EQ(Must(store_->FindSucceeded("other")), std::nullopt);
+  EXPECT_EQ(store_->FindSucceeded("").status().code(), StatusCode::kInvalidArgument);
+}
+
 TEST_P(JobStoreTest, DeleteOnlyFinishedJobs) {
   const std::string queued = SubmitOk("simulate", "q");
   EXPECT_EQ(store_->Delete(queued).code(), StatusCode::kFailedPrecondition);

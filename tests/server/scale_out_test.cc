@@ -271,6 +271,39 @@ TEST(ScaleOut, ACancelThroughAnyApiProcessStopsTheRunOnItsWorkerWithinASecond) {
   std::printf("cancel through another API process: CANCELLED after %.0f ms\n", ms);
 }
 
+TEST(ScaleOut, AnOptimumComputedThroughOneApiProcessIsFoundThroughAnother) {
+  PostgresCluster cluster;
+  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
+  const std::string uri = cluster.Uri("jobs");
+  TempDir dir("drillbif_optimum");
+  std::unique_ptr<ServerProcess> api0 = Start(dir, "api0", uri, "api");
+  std::unique_ptr<ServerProcess> api1 = Start(dir, "api1", uri, "api");
+  std::unique_ptr<ServerProcess> worker = Start(dir, "worker", uri, "worker");
+  v1::QueryOptimumRequest query;
+  *query.mutable_request()->mutable_trace() = drillbif::testing::SmallBoxTrace();
+  query.mutable_request()->add_grid(21);
+  query.mutable_request()->add_grid(21);
+  query.set_compute(true);
+  v1::QueryOptimumResponse computed;
+  {
+    auto jobs = v1::Jobs::NewStub(api0->channel());
+    auto context = ContextWithDeadline(60);
+    const grpc::Status s = jobs->QueryOptimum(context.get(), query, &computed);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+  }
+  EXPECT_FALSE(computed.stored());
+  // The other API process has it in no index of its own: it finds it in the store.
+  query.set_compute(false);
+  v1::QueryOptimumResponse found;
+  auto jobs = v1::Jobs::NewStub(api1->channel());
+  auto context = ContextWithDeadline();
+  const grpc::Status s = jobs->QueryOptimum(context.get(), query, &found);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_TRUE(found.stored());
+  EXPECT_EQ(found.operation(), computed.operation());
+  EXPECT_TRUE(MessageDifferencer::Equals(found.optimum(), computed.optimum()));
+}
+
 TEST(ScaleOut, FiftyClientsOverTwoApiProcessesAllGetTheirOwnResults) {
   PostgresCluster cluster;
   ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
