@@ -439,7 +439,7 @@ StatusOr<std::optional<JobRecord>> PostgresStoreImpl::ClaimNext(std::string_view
             "UPDATE jobs SET state = 1, started_ms = $2, attempts = attempts + 1, run = run + 1, "
             "worker_id = $3, progress = 0, current_value = NULL, points = 0, "
             "lease_expires_ms = $4 WHERE id = $1 AND state = 0",
-            id, now, std::string(worker_id), ClaimedLeaseExpiry(now, options.lease_ms));
+            id, now, StoredText(worker_id), ClaimedLeaseExpiry(now, options.lease_ms));
         // A new run starts from nothing (there is nothing to drop unless a bug left chunks).
         DRILLBIF_RETURN_IF_ERROR(DropRunChunks(tx, id));
         tx.exec_params("UPDATE jobs SET state = 1, started_ms = $2 WHERE shares = $1 AND state = 0",
@@ -468,7 +468,7 @@ Status PostgresStoreImpl::Fail(std::string_view id, int64_t run, StatusCode code
   if (code == StatusCode::kOk) return InvalidArgument("a failed job needs an error code, not OK");
   return WriteStatus("fail a job", [&](Tx& tx) -> Status {
     DRILLBIF_RETURN_IF_ERROR(RunningHead(tx, id, "fail", run).status());
-    return FailWithFollowers(tx, id, code, message);
+    return FailWithFollowers(tx, id, code, StoredText(message));
   });
 }
 

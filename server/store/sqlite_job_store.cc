@@ -555,7 +555,7 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
                             "run = run + 1, worker_id = ?3, progress = 0, current_value = NULL, "
                             "points = 0, lease_expires_ms = ?4 WHERE id = ?1 AND state = 0"));
     DRILLBIF_RETURN_IF_ERROR(
-        q.Bind(1, id).Bind(2, now).Bind(3, worker_id).Bind(4, lease_expires).Run());
+        q.Bind(1, id).Bind(2, now).Bind(3, StoredText(worker_id)).Bind(4, lease_expires).Run());
   }
   // A new run starts from nothing (there is nothing to drop unless a bug left chunks behind).
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
@@ -598,7 +598,7 @@ Status SqliteStoreImpl::Fail(std::string_view id, int64_t run, StatusCode code,
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   DRILLBIF_RETURN_IF_ERROR(RunningHead(id, "fail", run).status());
-  DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(id, code, message));
+  DRILLBIF_RETURN_IF_ERROR(FailWithFollowers(id, code, StoredText(message)));
   return tx.Commit();
 }
 

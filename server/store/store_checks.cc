@@ -1,9 +1,12 @@
 #include "server/store/store_checks.h"
 
+#include <utf8cpp/utf8.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <string>
 
 #include "drillbif/common/checked.h"
@@ -45,8 +48,38 @@ std::string ResultKey(const SubmitRequest& request, const std::string& id) {
   return request.cache_key.empty() ? "j:" + id : "c:" + request.cache_key;
 }
 
+Status CheckText(const char* field, std::string_view text) {
+  if (text.find('\0') != std::string_view::npos) {
+    return InvalidArgument(std::string(field) + ": contains a NUL byte");
+  }
+  if (!utf8::is_valid(text.begin(), text.end())) {
+    return InvalidArgument(std::string(field) + ": is not valid UTF-8");
+  }
+  return Status::Ok();
+}
+
+std::string StoredText(std::string_view text) {
+  std::string valid;
+  valid.reserve(text.size());
+  utf8::replace_invalid(text.begin(), text.end(), std::back_inserter(valid));
+  std::string out;
+  out.reserve(valid.size());
+  for (const char c : valid) {
+    if (c == '\0') {
+      out += "\xEF\xBF\xBD";  // U+FFFD
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
 Status CheckSubmit(const SubmitRequest& request) {
   if (request.kind.empty()) return InvalidArgument("kind: must not be empty");
+  DRILLBIF_RETURN_IF_ERROR(CheckText("kind", request.kind));
+  DRILLBIF_RETURN_IF_ERROR(CheckText("cache_key", request.cache_key));
+  DRILLBIF_RETURN_IF_ERROR(CheckText("request_id", request.request_id));
+  DRILLBIF_RETURN_IF_ERROR(CheckText("client", request.client));
   if (request.lane < 0 || request.lane >= kLaneCount) {
     return InvalidArgument("lane: must be 0 (short) or 1 (long), got " +
                            std::to_string(request.lane));

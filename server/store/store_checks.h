@@ -55,12 +55,21 @@ Status CheckRunning(std::string_view id, const char* action, int64_t run, const 
 std::string ResultKey(const SubmitRequest& request, const std::string& id);
 
 // Argument checks, before any I/O; INVALID_ARGUMENT naming the field.
+// Text the store keeps as text (kind, cache_key, request_id, client): valid UTF-8 without NUL
+// bytes, which every database's text type holds as it is (PostgreSQL's refuses both, and a
+// driver passing C strings would cut the text at a NUL: two request_ids could become one).
+Status CheckText(const char* field, std::string_view text);
 Status CheckSubmit(const SubmitRequest& request);
 Status CheckProgress(double fraction, std::optional<double> current_value, int64_t points);
 Status CheckChunk(int64_t run, int stream, int64_t first_item, int64_t item_count);
 Status CheckChunkRead(int stream, int64_t first_item, int64_t max_bytes);
 // A value of `size` bytes against the database's limit on one value.
 Status CheckSize(const char* field, size_t size, int64_t max_value_bytes);
+
+// `text` as the store keeps a message or a name it did not choose (a failure's message, a
+// worker id): invalid UTF-8 and NUL bytes replaced by U+FFFD, so that recording an outcome never
+// fails on its text.
+std::string StoredText(std::string_view text);
 
 // RESOURCE_EXHAUSTED when a new QUEUED job would exceed the request's limits, given the jobs
 // waiting from its client and from every client.

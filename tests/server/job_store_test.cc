@@ -494,6 +494,32 @@ TEST_P(JobStoreTest, FindSucceededNamesTheJobHoldingAKeysResult) {
   EXPECT_EQ(store_->FindSucceeded("").status().code(), StatusCode::kInvalidArgument);
 }
 
+// Text kept as text is valid UTF-8 without NUL bytes in every store: identifiers that are not are
+// refused (a store cutting a C string at the NUL would merge two request_ids), and messages and
+// worker ids are kept with U+FFFD in place of what is not.
+TEST_P(JobStoreTest, TextIsRefusedOrKeptAsValidUtf8WithoutNul) {
+  const std::string nul("a\0b", 3);
+  const std::string invalid = "a\xff\xfe";
+  for (const auto& [field, text] : {std::pair{"request_id", nul}, {"request_id", invalid}}) {
+    const Status s = store_->Submit({"sweep", "r", "", text}).status();
+    EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
+    EXPECT_THAT(s.message(), HasSubstr(field));
+  }
+  EXPECT_EQ(store_->Submit({"sweep", "r", nul, ""}).status().code(), StatusCode::kInvalidArgument);
+  SubmitRequest bad_client{"sweep", "r", "", ""};
+  bad_client.client = invalid;
+  EXPECT_EQ(store_->Submit(bad_client).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store_->Submit({std::string("sw\0eep", 6), "r", "", ""}).status().code(),
+            StatusCode::kInvalidArgument);
+
+  const std::string id = SubmitOk("sweep", "r");
+  StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext(std::string("w\0x", 3));
+  ASSERT_TRUE(claimed.ok() && claimed->has_value()) << claimed.status().ToString();
+  EXPECT_EQ(GetOk(id).worker_id, "w\xEF\xBF\xBDx");
+  ASSERT_TRUE(store_->Fail(id, StatusCode::kInternal, std::string("bad \0 and \xff", 11)).ok());
+  EXPECT_EQ(GetOk(id).error_message, "bad \xEF\xBF\xBD and \xEF\xBF\xBD");
+}
+
 TEST_P(JobStoreTest, DeleteOnlyFinishedJobs) {
   const std::string queued = SubmitOk("simulate", "q");
   EXPECT_EQ(store_->Delete(queued).code(), StatusCode::kFailedPrecondition);
