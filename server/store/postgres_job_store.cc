@@ -3,6 +3,7 @@
 // postgres_store_maintenance.cc. Semantics: job_store.h and docs/store.md.
 #include "server/store/postgres_job_store.h"
 
+#include <cctype>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -166,10 +167,14 @@ void PostgresStoreImpl::Log(const std::string& line) const {
 pqxx::connection& PostgresStoreImpl::Connection() {
   if (!connection_ || !connection_->is_open()) {
     connection_.reset();
-    connection_ = std::make_unique<pqxx::connection>(WithPassword(uri_, options_.password));
-    pqxx::nontransaction session(*connection_);
-    session.exec("SET idle_in_transaction_session_timeout = " +
-                 std::to_string(options_.idle_in_transaction_timeout_ms));
+    // Kept only once configured: a failure here leaves no half-set connection to reuse.
+    auto opened = std::make_unique<pqxx::connection>(WithPassword(uri_, options_.password));
+    {
+      pqxx::nontransaction session(*opened);
+      session.exec("SET idle_in_transaction_session_timeout = " +
+                   std::to_string(options_.idle_in_transaction_timeout_ms));
+    }
+    connection_ = std::move(opened);
   }
   return *connection_;
 }
