@@ -1,8 +1,8 @@
 // What the job store sustains: job cycles (submit, claim with a lease, complete), lease renewals
-// (the workers' heartbeats) and reclaim passes, on the SQLite file and on PostgreSQL (a
-// throwaway cluster in /dev/shm or the temp dir, started as tests/support/postgres_cluster.h
-// does: fsync off, so these are the store's own costs, not a disk's), from 1 and from 4
-// connections at once (processes sharing the store).
+// (the workers' heartbeats), reclaim passes and job reads (the watch hub's polls), on the SQLite
+// file and on PostgreSQL (a throwaway cluster in /dev/shm or the temp dir, started as
+// tests/support/postgres_cluster.h does: fsync off, so these are the store's own costs, not a
+// disk's), from 1 and from 4 connections at once (processes sharing the store).
 //
 //   build/bench/store_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 //
@@ -114,6 +114,28 @@ void BM_RenewLease(benchmark::State& state) {
   (void)store->Complete((*job)->id, (*job)->run, "", 0);
 }
 
+// Each iteration: one read of a job (what the watch hub does per watched job and poll).
+void BM_GetJob(benchmark::State& state) {
+  std::unique_ptr<JobStore> store = Stores::Get().Open(static_cast<int>(state.range(0)));
+  if (!store) {
+    state.SkipWithError("cannot open the store");
+    return;
+  }
+  StatusOr<SubmitResult> submitted =
+      store->Submit({"sweep", "watched " + std::to_string(counter.fetch_add(1)), "", ""});
+  if (!submitted.ok()) {
+    state.SkipWithError("submit failed");
+    return;
+  }
+  for (auto _ : state) {
+    if (!store->Get(submitted->id).ok()) {
+      state.SkipWithError("get failed");
+      break;
+    }
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+
 // Each iteration: one pass of the reclaimer over the running jobs (none expired).
 void BM_ReclaimPass(benchmark::State& state) {
   std::unique_ptr<JobStore> store = Stores::Get().Open(static_cast<int>(state.range(0)));
@@ -133,6 +155,7 @@ void BM_ReclaimPass(benchmark::State& state) {
 BENCHMARK(BM_JobCycle)->Arg(0)->Arg(1)->Threads(1)->Threads(4)->UseRealTime();
 BENCHMARK(BM_RenewLease)->Arg(0)->Arg(1)->Threads(1)->Threads(4)->UseRealTime();
 BENCHMARK(BM_ReclaimPass)->Arg(0)->Arg(1)->UseRealTime();
+BENCHMARK(BM_GetJob)->Arg(0)->Arg(1)->UseRealTime();
 
 }  // namespace
 }  // namespace drillbif::server
