@@ -60,13 +60,18 @@ class Stores {
 
 std::atomic<int64_t> counter{0};
 
+// A connection to the store the benchmark's argument names; nullptr (the benchmark skipped with
+// an error) when it cannot be opened.
+std::unique_ptr<JobStore> OpenOrSkip(benchmark::State& state) {
+  std::unique_ptr<JobStore> store = Stores::Get().Open(static_cast<int>(state.range(0)));
+  if (!store) state.SkipWithError("cannot open the store");
+  return store;
+}
+
 // Each iteration: a job submitted, claimed with a lease and completed with a 1 KB result.
 void BM_JobCycle(benchmark::State& state) {
-  std::unique_ptr<JobStore> store = Stores::Get().Open(static_cast<int>(state.range(0)));
-  if (!store) {
-    state.SkipWithError("cannot open the store");
-    return;
-  }
+  std::unique_ptr<JobStore> store = OpenOrSkip(state);
+  if (!store) return;
   ClaimOptions claim;
   claim.lease_ms = 15000;
   const std::string result(1000, 'r');
@@ -89,11 +94,8 @@ void BM_JobCycle(benchmark::State& state) {
 
 // Each iteration: one lease renewal of a running job of this connection's.
 void BM_RenewLease(benchmark::State& state) {
-  std::unique_ptr<JobStore> store = Stores::Get().Open(static_cast<int>(state.range(0)));
-  if (!store) {
-    state.SkipWithError("cannot open the store");
-    return;
-  }
+  std::unique_ptr<JobStore> store = OpenOrSkip(state);
+  if (!store) return;
   ClaimOptions claim;
   claim.lease_ms = 15000;
   const std::string body = "leased " + std::to_string(counter.fetch_add(1));
@@ -116,11 +118,8 @@ void BM_RenewLease(benchmark::State& state) {
 
 // Each iteration: one read of a job (what the watch hub does per watched job and poll).
 void BM_GetJob(benchmark::State& state) {
-  std::unique_ptr<JobStore> store = Stores::Get().Open(static_cast<int>(state.range(0)));
-  if (!store) {
-    state.SkipWithError("cannot open the store");
-    return;
-  }
+  std::unique_ptr<JobStore> store = OpenOrSkip(state);
+  if (!store) return;
   StatusOr<SubmitResult> submitted =
       store->Submit({"sweep", "watched " + std::to_string(counter.fetch_add(1)), "", ""});
   if (!submitted.ok()) {
@@ -138,11 +137,8 @@ void BM_GetJob(benchmark::State& state) {
 
 // Each iteration: one pass of the reclaimer over the running jobs (none expired).
 void BM_ReclaimPass(benchmark::State& state) {
-  std::unique_ptr<JobStore> store = Stores::Get().Open(static_cast<int>(state.range(0)));
-  if (!store) {
-    state.SkipWithError("cannot open the store");
-    return;
-  }
+  std::unique_ptr<JobStore> store = OpenOrSkip(state);
+  if (!store) return;
   for (auto _ : state) {
     if (!store->ReclaimExpiredLeases(0).ok()) {
       state.SkipWithError("reclaim failed");

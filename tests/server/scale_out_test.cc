@@ -51,16 +51,33 @@ using google::protobuf::util::MessageDifferencer;
 // within 2 s of its last renewal.
 constexpr const char* kLeaseMs = "1500";
 
-// A process of `role` on the cluster's database, its files in dir/name.
-std::unique_ptr<ServerProcess> Start(const TempDir& dir, const std::string& name,
-                                     const std::string& uri, const std::string& role) {
-  const std::string sub = dir.path() + "/" + name;
-  std::filesystem::create_directories(sub);
-  return std::make_unique<ServerProcess>(
-      sub, sub + "/unused.db",
-      std::vector<std::string>{"--store", uri, "--role", role, "--workers", "1", "--short-workers",
-                               "0", "--lease-ms", kLeaseMs});
-}
+// Each test: a throwaway cluster with an empty database, and a directory for the files of the
+// processes it starts (killed when the test body ends, before the cluster stops).
+class ScaleOut : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(cluster_.ok() && cluster_.CreateDatabase("jobs")) << cluster_.error();
+    ASSERT_FALSE(dir_.path().empty());
+  }
+
+  std::string uri() const { return cluster_.Uri("jobs"); }
+
+  // A process of `role` on the database, its files in dir/name.
+  std::unique_ptr<ServerProcess> Start(const std::string& name, const std::string& role) {
+    const std::string sub = dir_.path() + "/" + name;
+    std::filesystem::create_directories(sub);
+    return std::make_unique<ServerProcess>(
+        sub, sub + "/unused.db",
+        std::vector<std::string>{"--store", uri(), "--role", role, "--workers", "1",
+                                 "--short-workers", "0", "--lease-ms", kLeaseMs});
+  }
+
+  // A connection of the test's own to the store, behind the processes' backs.
+  std::unique_ptr<JobStore> OpenStore() { return PostgresJobStore::Open(uri()).value(); }
+
+  PostgresCluster cluster_;
+  TempDir dir_{"drillbif_scale_out"};
+};
 
 std::string Submit(v1::Jobs::Stub& jobs, const v1::SweepRequest& sweep) {
   v1::SubmitSweepRequest submit;
@@ -75,15 +92,11 @@ std::string Submit(v1::Jobs::Stub& jobs, const v1::SweepRequest& sweep) {
 // The id of a job in the store: the operation's name is "operations/<id>".
 std::string JobId(const std::string& name) { return name.substr(name.find('/') + 1); }
 
-TEST(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinishesOnce) {
-  PostgresCluster cluster;
-  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
-  const std::string uri = cluster.Uri("jobs");
-  TempDir dir("drillbif_scale_out");
-  std::unique_ptr<ServerProcess> api = Start(dir, "api", uri, "api");
+TEST_F(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinishesOnce) {
+  std::unique_ptr<ServerProcess> api = Start("api", "api");
   std::vector<std::unique_ptr<ServerProcess>> workers;
-  workers.push_back(Start(dir, "worker0", uri, "worker"));
-  workers.push_back(Start(dir, "worker1", uri, "worker"));
+  workers.push_back(Start("worker0", "worker"));
+  workers.push_back(Start("worker1", "worker"));
   ASSERT_TRUE(api->serving() && workers[0]->serving() && workers[1]->serving());
   auto jobs = v1::Jobs::NewStub(api->channel());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
@@ -103,7 +116,7 @@ TEST(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinishes
   }
 
   // Once a long one runs and has reported progress, kill its worker.
-  std::unique_ptr<JobStore> store = PostgresJobStore::Open(uri).value();
+  std::unique_ptr<JobStore> store = OpenStore();
   std::optional<JobRecord> victim;
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
   while (!victim && std::chrono::steady_clock::now() < give_up) {
@@ -180,20 +193,16 @@ std::optional<JobRecord> RunningJob(JobStore& store, const std::vector<std::stri
   return std::nullopt;
 }
 
-TEST(ScaleOut, AWorkerPausedPastItsLeaseCannotFinishTheJobTheOtherTookOver) {
-  PostgresCluster cluster;
-  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
-  const std::string uri = cluster.Uri("jobs");
-  TempDir dir("drillbif_partition");
-  std::unique_ptr<ServerProcess> api = Start(dir, "api", uri, "api");
+TEST_F(ScaleOut, AWorkerPausedPastItsLeaseCannotFinishTheJobTheOtherTookOver) {
+  std::unique_ptr<ServerProcess> api = Start("api", "api");
   std::vector<std::unique_ptr<ServerProcess>> workers;
-  workers.push_back(Start(dir, "worker0", uri, "worker"));
-  workers.push_back(Start(dir, "worker1", uri, "worker"));
+  workers.push_back(Start("worker0", "worker"));
+  workers.push_back(Start("worker1", "worker"));
   auto jobs = v1::Jobs::NewStub(api->channel());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
   const v1::SweepRequest request = SmallSweep(0.0, 300);
   const std::string name = Submit(*jobs, request);
-  std::unique_ptr<JobStore> store = PostgresJobStore::Open(uri).value();
+  std::unique_ptr<JobStore> store = OpenStore();
   const std::optional<JobRecord> running = RunningJob(*store, {name});
   ASSERT_TRUE(running.has_value()) << "the job never ran";
   int paused = -1;
@@ -238,17 +247,13 @@ TEST(ScaleOut, AWorkerPausedPastItsLeaseCannotFinishTheJobTheOtherTookOver) {
   EXPECT_TRUE(workers[paused]->running());
 }
 
-TEST(ScaleOut, ACancelThroughAnyApiProcessStopsTheRunOnItsWorkerWithinASecond) {
-  PostgresCluster cluster;
-  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
-  const std::string uri = cluster.Uri("jobs");
-  TempDir dir("drillbif_cancel");
-  std::unique_ptr<ServerProcess> api0 = Start(dir, "api0", uri, "api");
-  std::unique_ptr<ServerProcess> api1 = Start(dir, "api1", uri, "api");
-  std::unique_ptr<ServerProcess> worker = Start(dir, "worker", uri, "worker");
+TEST_F(ScaleOut, ACancelThroughAnyApiProcessStopsTheRunOnItsWorkerWithinASecond) {
+  std::unique_ptr<ServerProcess> api0 = Start("api0", "api");
+  std::unique_ptr<ServerProcess> api1 = Start("api1", "api");
+  std::unique_ptr<ServerProcess> worker = Start("worker", "worker");
   auto jobs = v1::Jobs::NewStub(api0->channel());
   const std::string name = Submit(*jobs, drillbif::testing::LongSweep());  // minutes of work
-  std::unique_ptr<JobStore> store = PostgresJobStore::Open(uri).value();
+  std::unique_ptr<JobStore> store = OpenStore();
   ASSERT_TRUE(RunningJob(*store, {name}).has_value()) << "the job never ran";
   auto operations = google::longrunning::Operations::NewStub(api1->channel());
   google::longrunning::CancelOperationRequest cancel;
@@ -271,14 +276,10 @@ TEST(ScaleOut, ACancelThroughAnyApiProcessStopsTheRunOnItsWorkerWithinASecond) {
   std::printf("cancel through another API process: CANCELLED after %.0f ms\n", ms);
 }
 
-TEST(ScaleOut, AnOptimumComputedThroughOneApiProcessIsFoundThroughAnother) {
-  PostgresCluster cluster;
-  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
-  const std::string uri = cluster.Uri("jobs");
-  TempDir dir("drillbif_optimum");
-  std::unique_ptr<ServerProcess> api0 = Start(dir, "api0", uri, "api");
-  std::unique_ptr<ServerProcess> api1 = Start(dir, "api1", uri, "api");
-  std::unique_ptr<ServerProcess> worker = Start(dir, "worker", uri, "worker");
+TEST_F(ScaleOut, AnOptimumComputedThroughOneApiProcessIsFoundThroughAnother) {
+  std::unique_ptr<ServerProcess> api0 = Start("api0", "api");
+  std::unique_ptr<ServerProcess> api1 = Start("api1", "api");
+  std::unique_ptr<ServerProcess> worker = Start("worker", "worker");
   v1::QueryOptimumRequest query;
   *query.mutable_request()->mutable_trace() = drillbif::testing::SmallBoxTrace();
   query.mutable_request()->add_grid(21);
@@ -304,16 +305,12 @@ TEST(ScaleOut, AnOptimumComputedThroughOneApiProcessIsFoundThroughAnother) {
   EXPECT_TRUE(MessageDifferencer::Equals(found.optimum(), computed.optimum()));
 }
 
-TEST(ScaleOut, FiftyClientsOverTwoApiProcessesAllGetTheirOwnResults) {
-  PostgresCluster cluster;
-  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
-  const std::string uri = cluster.Uri("jobs");
-  TempDir dir("drillbif_clients");
+TEST_F(ScaleOut, FiftyClientsOverTwoApiProcessesAllGetTheirOwnResults) {
   std::vector<std::unique_ptr<ServerProcess>> apis;
-  apis.push_back(Start(dir, "api0", uri, "api"));
-  apis.push_back(Start(dir, "api1", uri, "api"));
-  std::unique_ptr<ServerProcess> worker0 = Start(dir, "worker0", uri, "worker");
-  std::unique_ptr<ServerProcess> worker1 = Start(dir, "worker1", uri, "worker");
+  apis.push_back(Start("api0", "api"));
+  apis.push_back(Start("api1", "api"));
+  std::unique_ptr<ServerProcess> worker0 = Start("worker0", "worker");
+  std::unique_ptr<ServerProcess> worker1 = Start("worker1", "worker");
   constexpr int kClients = 50;
   std::vector<std::string> failures(kClients);
   std::vector<std::thread> clients;
@@ -348,12 +345,8 @@ TEST(ScaleOut, FiftyClientsOverTwoApiProcessesAllGetTheirOwnResults) {
   for (int c = 0; c < kClients; ++c) EXPECT_EQ(failures[c], "") << "client " << c;
 }
 
-TEST(ScaleOut, AWorkerServesNoJobsAndAnApiProcessRunsNone) {
-  PostgresCluster cluster;
-  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
-  const std::string uri = cluster.Uri("jobs");
-  TempDir dir("drillbif_roles");
-  std::unique_ptr<ServerProcess> worker = Start(dir, "worker", uri, "worker");
+TEST_F(ScaleOut, AWorkerServesNoJobsAndAnApiProcessRunsNone) {
+  std::unique_ptr<ServerProcess> worker = Start("worker", "worker");
   auto worker_jobs = v1::Jobs::NewStub(worker->channel());
   v1::SubmitSweepRequest submit;
   *submit.mutable_request() = SmallSweep(0.1, 5);
@@ -372,14 +365,14 @@ TEST(ScaleOut, AWorkerServesNoJobsAndAnApiProcessRunsNone) {
   worker->Kill(SIGTERM);
 
   // With no worker, a job submitted to an API process stays queued.
-  std::unique_ptr<ServerProcess> api = Start(dir, "api", uri, "api");
+  std::unique_ptr<ServerProcess> api = Start("api", "api");
   auto jobs = v1::Jobs::NewStub(api->channel());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
   const std::string name = Submit(*jobs, SmallSweep(0.1, 5));
   std::this_thread::sleep_for(std::chrono::milliseconds(1000));
   EXPECT_EQ(MetadataOf(GetOperation(*operations, name)).state(), v1::QUEUED);
   // A worker that joins runs it.
-  std::unique_ptr<ServerProcess> joined = Start(dir, "joined", uri, "worker");
+  std::unique_ptr<ServerProcess> joined = Start("joined", "worker");
   EXPECT_EQ(MetadataOf(WaitDone(*operations, name)).state(), v1::SUCCEEDED);
 }
 

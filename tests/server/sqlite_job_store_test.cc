@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "server/store/job_store.h"
+#include "support/sqlite_sql.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
@@ -55,23 +56,7 @@ std::unique_ptr<JobStore> OpenOrDie(const std::string& path,
   return store.ok() ? std::move(store).value() : nullptr;
 }
 
-// Runs one SQL statement on the file directly (behind the store's back) and returns the first
-// column of the first row as an integer (0 if none).
-int64_t SqlInt(const std::string& path, const std::string& sql) {
-  sqlite3* db = nullptr;
-  int64_t value = 0;
-  if (sqlite3_open(path.c_str(), &db) == SQLITE_OK) {
-    sqlite3_stmt* statement = nullptr;
-    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &statement, nullptr) == SQLITE_OK &&
-        sqlite3_step(statement) == SQLITE_ROW) {
-      value = sqlite3_column_int64(statement, 0);
-    }
-    sqlite3_finalize(statement);
-  }
-  EXPECT_EQ(sqlite3_errcode(db), SQLITE_OK) << sql << ": " << sqlite3_errmsg(db);
-  sqlite3_close(db);
-  return value;
-}
+using drillbif::testing::SqliteInt;
 
 void SqlExec(const std::string& path, const std::string& sql) {
   sqlite3* db = nullptr;
@@ -92,13 +77,13 @@ class SqliteJobStoreTest : public ::testing::Test {
 TEST_F(SqliteJobStoreTest, OpensInWalModeAtTheCurrentSchemaVersion) {
   const std::string path = Path("jobs.db");
   ASSERT_NE(OpenOrDie(path), nullptr);
-  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
-  EXPECT_EQ(SqlInt(path, "PRAGMA application_id"), SqliteJobStore::kApplicationId);
+  EXPECT_EQ(SqliteInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
+  EXPECT_EQ(SqliteInt(path, "PRAGMA application_id"), SqliteJobStore::kApplicationId);
   // journal_mode=WAL is persistent: a plain connection sees it.
-  EXPECT_EQ(SqlInt(path, "SELECT journal_mode = 'wal' FROM pragma_journal_mode"), 1);
+  EXPECT_EQ(SqliteInt(path, "SELECT journal_mode = 'wal' FROM pragma_journal_mode"), 1);
   // Reopening an up-to-date file changes nothing.
   ASSERT_NE(OpenOrDie(path), nullptr);
-  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
+  EXPECT_EQ(SqliteInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
 }
 
 TEST_F(SqliteJobStoreTest, MigratesAVersionZeroFile) {
@@ -106,15 +91,15 @@ TEST_F(SqliteJobStoreTest, MigratesAVersionZeroFile) {
   // An SQLite file at user_version 0, as a build before the store would leave it.
   SqlExec(path,
           "CREATE TABLE unrelated_notes (text TEXT); INSERT INTO unrelated_notes VALUES ('x')");
-  ASSERT_EQ(SqlInt(path, "PRAGMA user_version"), 0);
+  ASSERT_EQ(SqliteInt(path, "PRAGMA user_version"), 0);
   std::unique_ptr<JobStore> store = OpenOrDie(path);
   ASSERT_NE(store, nullptr);
-  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
-  EXPECT_EQ(SqlInt(path,
-                   "SELECT COUNT(*) FROM sqlite_master WHERE name IN "
-                   "('jobs', 'results', 'counters', 'result_chunks')"),
+  EXPECT_EQ(SqliteInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
+  EXPECT_EQ(SqliteInt(path,
+                      "SELECT COUNT(*) FROM sqlite_master WHERE name IN "
+                      "('jobs', 'results', 'counters', 'result_chunks')"),
             4);
-  EXPECT_EQ(SqlInt(path, "SELECT COUNT(*) FROM unrelated_notes"), 1);  // Left alone.
+  EXPECT_EQ(SqliteInt(path, "SELECT COUNT(*) FROM unrelated_notes"), 1);  // Left alone.
   StatusOr<SubmitResult> job = store->Submit({"simulate", "r", "k", ""});
   EXPECT_TRUE(job.ok()) << job.status().ToString();
 }
@@ -173,10 +158,10 @@ TEST_F(SqliteJobStoreTest, MigratesAVersionOneFileKeepingItsJobsAndResults) {
                     "  ('running', 'sweep', 1, x'02', '', 'j:running', 0, 1, 0, 2),"
                     "  ('queued', 'sweep', 0, x'03', '', 'j:queued', 0, 1, 0, 0);"
                     "INSERT INTO results VALUES ('c:K', x'0a0b0c', 3, 2);");
-  ASSERT_EQ(SqlInt(path, "PRAGMA user_version"), 1);
+  ASSERT_EQ(SqliteInt(path, "PRAGMA user_version"), 1);
   std::unique_ptr<JobStore> store = OpenOrDie(path);
   ASSERT_NE(store, nullptr);
-  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
+  EXPECT_EQ(SqliteInt(path, "PRAGMA user_version"), SqliteJobStore::kSchemaVersion);
   // Existing jobs: anonymous, short lane, run = attempts (the claims they had), no lease (the
   // running one is recovered at the next start, as before).
   const JobRecord running = Must(store->Get("running"));
@@ -205,9 +190,9 @@ TEST_F(SqliteJobStoreTest, MigratesAVersionOneFileKeepingItsJobsAndResults) {
   EXPECT_EQ(Must(store->GetResult("running")), "sumitem");
   // An old file keeps auto_vacuum NONE (it cannot change without a VACUUM); a new one is
   // INCREMENTAL.
-  EXPECT_EQ(SqlInt(path, "PRAGMA auto_vacuum"), 0);
+  EXPECT_EQ(SqliteInt(path, "PRAGMA auto_vacuum"), 0);
   ASSERT_NE(OpenOrDie(Path("new.db")), nullptr);
-  EXPECT_EQ(SqlInt(Path("new.db"), "PRAGMA auto_vacuum"), 2);
+  EXPECT_EQ(SqliteInt(Path("new.db"), "PRAGMA auto_vacuum"), 2);
 }
 
 TEST_F(SqliteJobStoreTest, RefusesAFileFromANewerSchema) {
@@ -217,8 +202,8 @@ TEST_F(SqliteJobStoreTest, RefusesAFileFromANewerSchema) {
   ASSERT_FALSE(store.ok());
   EXPECT_EQ(store.status().code(), StatusCode::kFailedPrecondition);
   EXPECT_THAT(store.status().message(), HasSubstr("schema version 99 is newer"));
-  EXPECT_EQ(SqlInt(path, "PRAGMA user_version"), 99);  // Untouched.
-  EXPECT_EQ(SqlInt(path, "SELECT COUNT(*) FROM sqlite_master"), 0);
+  EXPECT_EQ(SqliteInt(path, "PRAGMA user_version"), 99);  // Untouched.
+  EXPECT_EQ(SqliteInt(path, "SELECT COUNT(*) FROM sqlite_master"), 0);
 }
 
 TEST_F(SqliteJobStoreTest, RefusesAnotherApplicationsFile) {

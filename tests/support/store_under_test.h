@@ -8,7 +8,6 @@
 #define DRILLBIF_TESTS_SUPPORT_STORE_UNDER_TEST_H_
 
 #include <gtest/gtest.h>
-#include <sqlite3.h>
 
 #include <cstdint>
 #include <memory>
@@ -19,6 +18,7 @@
 #include "server/store/postgres_job_store.h"
 #include "server/store/sqlite_job_store.h"
 #include "support/postgres_cluster.h"
+#include "support/sqlite_sql.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::testing {
@@ -62,27 +62,15 @@ class StoreUnderTest {
   // The SQLite file (empty for PostgreSQL).
   std::string path() const { return dir_ ? dir_->path() + "/jobs.db" : std::string(); }
 
-  // The first column of the first row of `sql`, run behind the store's back as an integer (-1,
-  // with a test failure, on an error). The store's tables and columns are the same in both.
+  // The first column of the first row of `sql`, run behind the store's back, as an integer (a
+  // test failure on an error). The store's tables and columns are the same in both.
   int64_t SqlInt(const std::string& sql) {
     if (kind_ == StoreKind::kPostgres) {
       const std::string value = cluster_->Query(kDatabase, sql);
       EXPECT_FALSE(value.empty()) << sql;
       return value.empty() ? -1 : std::stoll(value);
     }
-    sqlite3* db = nullptr;
-    int64_t value = -1;
-    if (sqlite3_open(path().c_str(), &db) == SQLITE_OK) {
-      sqlite3_stmt* statement = nullptr;
-      if (sqlite3_prepare_v2(db, sql.c_str(), -1, &statement, nullptr) == SQLITE_OK &&
-          sqlite3_step(statement) == SQLITE_ROW) {
-        value = sqlite3_column_int64(statement, 0);
-      }
-      sqlite3_finalize(statement);
-    }
-    EXPECT_EQ(sqlite3_errcode(db), SQLITE_OK) << sql << ": " << sqlite3_errmsg(db);
-    sqlite3_close(db);
-    return value;
+    return SqliteInt(path(), sql);
   }
 
  private:
