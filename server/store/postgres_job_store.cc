@@ -515,7 +515,7 @@ StatusOr<JobState> PostgresStoreImpl::Cancel(std::string_view id) {
 }
 
 StatusOr<bool> PostgresStoreImpl::IsCancelRequested(std::string_view id) {
-  return Read<bool>("read a job", [&](Tx& tx) -> StatusOr<bool> {
+  return ReadStatement<bool>("read a job", [&](Tx& tx) -> StatusOr<bool> {
     const pqxx::result r =
         tx.exec_params("SELECT cancel_requested FROM jobs WHERE id = $1", std::string(id));
     if (r.empty()) return NoJob(id);
@@ -542,7 +542,7 @@ Status PostgresStoreImpl::Requeue(std::string_view id, int64_t run) {
 StatusOr<std::optional<std::string>> PostgresStoreImpl::FindSucceeded(std::string_view cache_key) {
   if (cache_key.empty()) return InvalidArgument("cache_key: must not be empty");
   using Found = std::optional<std::string>;
-  return Read<Found>("find a result", [&](Tx& tx) -> StatusOr<Found> {
+  return ReadStatement<Found>("find a result", [&](Tx& tx) -> StatusOr<Found> {
     const pqxx::result r = tx.exec_params(
         "SELECT id FROM jobs WHERE cache_key = $1 AND state = 2 ORDER BY seq LIMIT 1",
         std::string(cache_key));
@@ -552,7 +552,7 @@ StatusOr<std::optional<std::string>> PostgresStoreImpl::FindSucceeded(std::strin
 }
 
 StatusOr<JobRecord> PostgresStoreImpl::Get(std::string_view id) {
-  return Read<JobRecord>("read a job", [&](Tx& tx) -> StatusOr<JobRecord> {
+  return ReadStatement<JobRecord>("read a job", [&](Tx& tx) -> StatusOr<JobRecord> {
     const pqxx::result r = tx.exec_params(SelectJobs("request", "WHERE id = $1"), std::string(id));
     if (r.empty()) return NoJob(id);
     return ReadJob(r[0]);
@@ -564,7 +564,7 @@ StatusOr<ListResult> PostgresStoreImpl::List(const ListRequest& request) {
   DRILLBIF_ASSIGN_OR_RETURN(const int64_t after_seq, ParsePageToken(request.page_token));
   const int page_size =
       PageSize(request.page_size, options_.default_page_size, options_.max_page_size);
-  return Read<ListResult>("list jobs", [&](Tx& tx) -> StatusOr<ListResult> {
+  return ReadStatement<ListResult>("list jobs", [&](Tx& tx) -> StatusOr<ListResult> {
     // Keyset pagination on seq: a page starts after the last seq seen, so jobs submitted or
     // deleted meanwhile never shift the pages (an offset would skip or repeat jobs).
     const pqxx::result r = tx.exec_params(
