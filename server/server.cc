@@ -28,6 +28,19 @@
 namespace drillbif::server {
 namespace {
 
+// Whether a libpq connection string carries a password: a password= parameter (key=value or a
+// URI's query), or a URI's user:password@.
+bool UriHoldsPassword(const std::string& uri) {
+  if (uri.find("password=") != std::string::npos) return true;
+  const size_t scheme = uri.find("://");
+  if (scheme == std::string::npos) return false;
+  const size_t authority = scheme + 3;
+  const size_t end = uri.find_first_of("/?", authority);
+  const std::string userinfo_and_host = uri.substr(authority, end - authority);
+  const size_t at = userinfo_and_host.rfind('@');
+  return at != std::string::npos && userinfo_and_host.substr(0, at).find(':') != std::string::npos;
+}
+
 const char* RoleName(ServerOptions::Role role) {
   switch (role) {
     case ServerOptions::Role::kApi:
@@ -109,7 +122,7 @@ Status ServerOptions::Validate() const {
     return InvalidArgument(
         "role: api and worker processes share a store; give store_uri (--store postgresql://...)");
   }
-  if (!store_uri.empty() && store_uri.find("password=") != std::string::npos) {
+  if (!store_uri.empty() && UriHoldsPassword(store_uri)) {
     return InvalidArgument(
         "store_uri: must not hold the password (it would show in the process list); use "
         "store_password_file (--store-password-file) or PGPASSWORD");

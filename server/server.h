@@ -65,10 +65,10 @@ struct ServerOptions {
   Role role = Role::kAll;
   // With a shared store, claims are leases of this many milliseconds (WorkerPoolOptions::
   // lease_ms): a worker that dies or loses the database loses its jobs to the others once it
-  // has not renewed them for this long. 15 s: five missed heartbeats of 3 s at 3 per lease
-  // would be 15 s too; long enough that a database failover or a stop-the-world pause of a few
-  // seconds does not take running jobs away, short enough that a crashed worker's jobs restart
-  // within a quarter of a minute.
+  // has not renewed them for this long. 15 s: renewed every 5 s (a third), so two renewals may
+  // fail before the lease goes; long enough that a database failover or a pause of a few seconds
+  // does not take running jobs away, short enough that a crashed worker's jobs start again
+  // within about 20 s.
   int64_t lease_ms = 15000;
   // Worker threads running jobs of any cost lane; 0: one per core
   // (std::thread::hardware_concurrency).

@@ -37,5 +37,26 @@ TEST(ServerOptions, BadJobLimitsAreRefusedSayingWhy) {
   EXPECT_THAT(options.Validate().message(), HasSubstr("job_limits: unknown job kind 'nonsense'"));
 }
 
+TEST(ServerOptions, AStoreUriWithAPasswordAndRolesWithoutAStoreAreRefused) {
+  ServerOptions options;
+  options.store_uri = "postgresql://drillbif@db:5432/drillbif?sslmode=require";
+  EXPECT_TRUE(options.Validate().ok());
+  for (const char* uri :
+       {"postgresql://drillbif:s3cret@db/drillbif", "postgres://u:p@[::1]:5432/d",
+        "postgresql://u@db/d?password=s3cret", "host=db user=u password=s3cret dbname=d"}) {
+    options.store_uri = uri;
+    const Status s = options.Validate();
+    EXPECT_EQ(s.code(), StatusCode::kInvalidArgument) << uri;
+    EXPECT_THAT(s.message(), HasSubstr("must not hold the password")) << uri;
+  }
+  options = ServerOptions();
+  options.role = ServerOptions::Role::kWorker;
+  EXPECT_THAT(options.Validate().message(), HasSubstr("role: api and worker processes share"));
+  options.store_uri = "postgresql://u@db/d";
+  EXPECT_TRUE(options.Validate().ok());
+  options.lease_ms = 100;
+  EXPECT_THAT(options.Validate().message(), HasSubstr("lease_ms: must be >= 300"));
+}
+
 }  // namespace
 }  // namespace drillbif::server
