@@ -69,7 +69,8 @@ void WatchHub::Loop() {
     // One read per job, whatever the number of its watchers.
     for (auto it = round.begin(); it != round.end();) {
       const std::string& id = it->first;
-      const StatusOr<JobRecord> record = store_->Get(id);
+      // Watchers read state and progress, not the request (up to max_request_bytes).
+      const StatusOr<JobRecord> record = store_->Get(id, /*include_request=*/false);
       auto end = round.upper_bound(id);
       for (; it != end; ++it) {
         if (it->second->OnRecord(record, now)) done.push_back(it->second);

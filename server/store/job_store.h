@@ -394,8 +394,12 @@ class JobStore {
   // Requeue without a run fence.
   Status Requeue(std::string_view id) { return Requeue(id, kAnyRun); }
 
-  // One job, with its request bytes. NOT_FOUND for an unknown id.
-  virtual StatusOr<JobRecord> Get(std::string_view id) = 0;
+  // One job, with its request bytes unless include_request is false (JobRecord::request empty:
+  // what a reader of its state and progress needs, e.g. the watch hub's polls). NOT_FOUND for
+  // an unknown id.
+  virtual StatusOr<JobRecord> Get(std::string_view id, bool include_request) = 0;
+  // Get with the request bytes.
+  StatusOr<JobRecord> Get(std::string_view id) { return Get(id, /*include_request=*/true); }
 
   // A page of jobs matching the filter, oldest first. Pages are stable: walking all pages returns
   // every matching job that existed at the first call exactly once, whatever jobs are submitted

@@ -551,9 +551,11 @@ StatusOr<std::optional<std::string>> PostgresStoreImpl::FindSucceeded(std::strin
   });
 }
 
-StatusOr<JobRecord> PostgresStoreImpl::Get(std::string_view id) {
+StatusOr<JobRecord> PostgresStoreImpl::Get(std::string_view id, bool include_request) {
   return ReadStatement<JobRecord>("read a job", [&](Tx& tx) -> StatusOr<JobRecord> {
-    const pqxx::result r = tx.exec_params(SelectJobs("request", "WHERE id = $1"), std::string(id));
+    const pqxx::result r =
+        tx.exec_params(SelectJobs("CASE WHEN $2 THEN request ELSE ''::bytea END", "WHERE id = $1"),
+                       std::string(id), include_request);
     if (r.empty()) return NoJob(id);
     return ReadJob(r[0]);
   });

@@ -685,10 +685,12 @@ StatusOr<std::optional<std::string>> SqliteStoreImpl::FindSucceeded(std::string_
   return std::optional<std::string>(q.Text(0));
 }
 
-StatusOr<JobRecord> SqliteStoreImpl::Get(std::string_view id) {
+StatusOr<JobRecord> SqliteStoreImpl::Get(std::string_view id, bool include_request) {
   std::lock_guard<std::mutex> lock(mu_);
-  DRILLBIF_ASSIGN_OR_RETURN(Query q, connection_.Prepare(SelectJobs("request", "WHERE id = ?1")));
-  q.Bind(1, id);
+  DRILLBIF_ASSIGN_OR_RETURN(
+      Query q,
+      connection_.Prepare(SelectJobs("CASE WHEN ?2 THEN request ELSE x'' END", "WHERE id = ?1")));
+  q.Bind(1, id).Bind(2, include_request ? 1 : 0);
   DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
   if (!row) return NoJob(id);
   return ReadJob(q);

@@ -39,6 +39,7 @@ class SqliteStoreImpl final : public JobStore {
   using JobStore::ClaimNext;
   using JobStore::Complete;
   using JobStore::Fail;
+  using JobStore::Get;
   using JobStore::MarkCancelled;
   using JobStore::Requeue;
   using JobStore::UpdateProgress;
@@ -57,7 +58,7 @@ class SqliteStoreImpl final : public JobStore {
   StatusOr<bool> IsCancelRequested(std::string_view id) override;
   Status MarkCancelled(std::string_view id, int64_t run) override;
   Status Requeue(std::string_view id, int64_t run) override;
-  StatusOr<JobRecord> Get(std::string_view id) override;
+  StatusOr<JobRecord> Get(std::string_view id, bool include_request) override;
   StatusOr<ListResult> List(const ListRequest& request) override;
   Status Delete(std::string_view id) override;
   StatusOr<std::optional<std::string>> FindSucceeded(std::string_view cache_key) override;

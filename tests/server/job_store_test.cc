@@ -520,6 +520,27 @@ TEST_P(JobStoreTest, TextIsRefusedOrKeptAsValidUtf8WithoutNul) {
   EXPECT_EQ(GetOk(id).error_message, "bad \xEF\xBF\xBD and \xEF\xBF\xBD");
 }
 
+TEST_P(JobStoreTest, GetLeavesOutTheRequestBytesWhenAsked) {
+  const std::string request(100000, 'q');
+  const std::string id = SubmitOk("sweep", request);
+  ASSERT_EQ(ClaimOk(), id);
+  ASSERT_TRUE(store_->UpdateProgress(id, 0.25, 1.5, 7).ok());
+  const JobRecord whole = GetOk(id);
+  EXPECT_EQ(whole.request, request);
+  StatusOr<JobRecord> slim = store_->Get(id, /*include_request=*/false);
+  ASSERT_TRUE(slim.ok()) << slim.status().ToString();
+  EXPECT_EQ(slim->request, "");
+  // Everything else as the whole record says.
+  EXPECT_EQ(slim->id, whole.id);
+  EXPECT_EQ(slim->state, whole.state);
+  EXPECT_EQ(slim->progress, whole.progress);
+  EXPECT_EQ(slim->current_value, whole.current_value);
+  EXPECT_EQ(slim->points, whole.points);
+  EXPECT_EQ(slim->run, whole.run);
+  EXPECT_EQ(slim->worker_id, whole.worker_id);
+  EXPECT_EQ(store_->Get("nope", false).status().code(), StatusCode::kNotFound);
+}
+
 TEST_P(JobStoreTest, DeleteOnlyFinishedJobs) {
   const std::string queued = SubmitOk("simulate", "q");
   EXPECT_EQ(store_->Delete(queued).code(), StatusCode::kFailedPrecondition);
