@@ -6,6 +6,7 @@
 #define DRILLBIF_CONTINUATION_BRANCH_TRACER_H_
 
 #include <Eigen/Dense>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -50,12 +51,12 @@ class BranchTracer {
 
   Termination termination() const { return termination_; }
   const std::string& message() const { return message_; }
-  int steps() const { return steps_; }
+  int64_t steps() const { return steps_; }
   // The branch came back to its start (a closed branch): the other direction would only run
   // round it again.
   bool closed() const { return closed_; }
-  int rejected() const { return rejected_; }
-  int newton_iterations() const { return newton_; }
+  int64_t rejected() const { return rejected_; }
+  int64_t newton_iterations() const { return newton_; }
 
  private:
   using Vec = Eigen::VectorXd;
@@ -184,7 +185,7 @@ class BranchTracer {
   double h_ = 0.0;  // next step length
   ContinuationPoint point_;
   TestValues tests_;
-  int steps_ = 0, rejected_ = 0, newton_ = 0;
+  int64_t steps_ = 0, rejected_ = 0, newton_ = 0;
   Termination termination_ = Termination::kCompleted;
   std::string message_;
   std::string stop_kind_;  // set once a special point of a stop_at kind is recorded
