@@ -221,6 +221,14 @@ Status RemoteClient::FromGrpc(const grpc::Status& status) const {
       return Status(StatusCode::kDeadlineExceeded, "the drillbif server at " + target +
                                                        " did not answer in time (" +
                                                        status.error_message() + ")");
+    case grpc::StatusCode::UNIMPLEMENTED:
+      // Not the request's fault: this server takes no such call.
+      return Status(StatusCode::kUnavailable,
+                    "the drillbif server at " + target + " does not serve this call (" +
+                        status.error_message() +
+                        "): a worker process (--role worker) takes no requests, and an older "
+                        "server lacks newer calls; name an API process with --server HOST:PORT "
+                        "or DRILLBIF_SERVER");
     case grpc::StatusCode::UNAUTHENTICATED:
       return Status(StatusCode::kUnauthenticated,
                     "the drillbif server at " + target +

@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "drillbif/v1/sweep.pb.h"
+#include "support/postgres_cluster.h"
 #include "support/temp_dir.h"
 
 #ifndef DRILLCTL_BINARY
@@ -451,6 +452,25 @@ TEST_F(DrillctlServer, HealthPrintsServingWithoutAToken) {
   const Outcome outcome = Drillctl({"--server", server_->address(), "health"});
   EXPECT_EQ(outcome.exit_code, 0) << outcome.err;
   EXPECT_EQ(outcome.out, "SERVING\n");
+}
+
+// A worker process (--role worker, on a throwaway PostgreSQL store) takes no requests: drillctl
+// says so and names what to do, exit 1 as for a server it cannot use.
+TEST(DrillctlWorkerProcess, SubmittingToAWorkerSaysToNameAnApiProcess) {
+  testing::PostgresCluster cluster;
+  ASSERT_TRUE(cluster.ok() && cluster.CreateDatabase("jobs")) << cluster.error();
+  testing::TempDir dir("drillctl_worker");
+  ServerProcess worker(dir.path(), {"--store", cluster.Uri("jobs"), "--role", "worker"});
+  ASSERT_GT(worker.port(), 0) << worker.log();
+  const std::string stem = dir.path() + "/drillctl";
+  const pid_t pid =
+      Spawn(DRILLCTL_BINARY, {"--server", worker.address(), "--token", kToken, "simulate"}, {},
+            stem + ".out", stem + ".err");
+  EXPECT_EQ(Reap(pid), 1);
+  const std::string err = ReadFile(stem + ".err");
+  EXPECT_THAT(err, HasSubstr("does not serve this call"));
+  EXPECT_THAT(err, HasSubstr("--role worker"));
+  EXPECT_THAT(err, HasSubstr("name an API process"));
 }
 
 TEST_F(DrillctlServer, UnreachableServerExits1) {
