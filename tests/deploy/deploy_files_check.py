@@ -34,7 +34,8 @@ Run checks (with --server and --drillctl): a temp dir gets a fresh self-signed c
 (openssl; SAN localhost and 127.0.0.1), a tokens file and a database password; the server starts
 with the launch's own flags, the host rewritten to 127.0.0.1, ports to 0, the database and every
 operator file mapped into the temp dir; then each of the launch's probes must print SERVING, a
-jobs call without the token must be refused (exit 2) and with it accepted, and the HTTP port
+jobs call without the token must be refused (exit 2) and with it accepted (a worker's: drillctl
+exits 1 saying the server does not serve the call), and the HTTP port
 must answer GET /metrics over TLS verified against the certificate. A PostgreSQL layout runs one
 API and one worker process on a throwaway PostgreSQL cluster (password authentication, a Unix
 socket in the temp dir), the --store URI pointed at it: both as above, the worker refusing Jobs
@@ -994,13 +995,20 @@ def probe_process(process, drillctl_bin, operator_dir, token):
     remote = ["--server", f"localhost:{process.grpc_port}", "--tls-ca", cert, "--timeout", "10"]
     role = parse_flags(launch.args).get("--role", "all")
     if launch.files.get(parse_flags(launch.args).get("--tokens-file", "")):
-        drillctl(drillctl_bin, launch, remote + ["jobs", "list"], 2,
-                 "jobs list without the token", env)
-        if role != "worker":
+        if role == "worker":
+            # A worker serves no jobs (its gRPC Jobs rpcs are UNIMPLEMENTED): drillctl says to
+            # name an API process and exits 1, token or not.
+            result = subprocess.run([drillctl_bin] + remote + ["--token", token, "jobs", "list"],
+                                    capture_output=True, text=True, env=env, timeout=60)
+            if result.returncode != 1 or "does not serve this call" not in result.stderr:
+                launch.errors.append(f"jobs list on a worker: exit {result.returncode}, expected 1 "
+                                     f"saying it does not serve this call: {result.stderr}")
+        else:
+            drillctl(drillctl_bin, launch, remote + ["jobs", "list"], 2,
+                     "jobs list without the token", env)
             drillctl(drillctl_bin, launch, remote + ["--token", token, "jobs", "list"], 0,
                      "jobs list with the token", env)
-        # A worker serves no jobs: its REST answers 501 even with the token (its gRPC Jobs rpcs
-        # UNIMPLEMENTED, which drillctl reports with the same exit code as a refused token).
+        # A worker's REST answers 501 even with the token.
         status, _ = https_get(process.http_port, cert, "/v1/operations", token)
         expected = b"HTTP/1.1 501" if role == "worker" else b"HTTP/1.1 200"
         if not status.startswith(expected):
