@@ -190,14 +190,6 @@ std::vector<SwitchCandidate> CandidatesAt(const HybridModel& model, Propagator& 
   return candidates;
 }
 
-// What a candidate's task computed: the starts tried in turn, each with its curve; the last one
-// decides (a curve that failed, or one that got away from the point).
-struct CandidateRun {
-  bool deferred = false;  // no regular step-off length gave an admissible start
-  bool stopped = false;   // the last try was cut short by a stop
-  std::vector<std::pair<SpecialPoint, CurveResult>> tries;
-};
-
 // Whether every point of the curve lies within `distance` (box-scaled) of (u, v).
 bool StaysAt(const CurveResult& curve, double u, double v, double w1, double w2, double distance) {
   return std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {

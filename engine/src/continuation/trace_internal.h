@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "drillbif/continuation/trace.h"
+#include "drillbif/continuation/trace_tasks.h"
 
 namespace drillbif::internal {
 
@@ -52,14 +53,6 @@ double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, cons
 // period-2 folds of those branches, no closer than 0.29; the fold where a period-2 branch turns
 // at its birth (told apart by its branch point), ~sqrt of its location tolerance (1.3e-3).
 bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o);
-
-// A curve to try from a codimension-2 point: its start orbit, the kind of its point and curve.
-struct SwitchCandidate {
-  StatusOr<PeriodicOrbit> orbit;
-  SpecialPointKind seed_kind;
-  CurveKind kind;
-  int step_off = -1;  // a zero-length segment of `orbit` to step off from (CrossingForm)
-};
 
 // A candidate whose step-off needs a last-resort length (SwitchAtCodim2), kept for the end.
 struct DeferredStepOff {

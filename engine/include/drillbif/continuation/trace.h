@@ -25,6 +25,8 @@
 
 namespace drillbif {
 
+class TraceTaskRunner;  // continuation/trace_tasks.h
+
 // The most threads a trace may ask for: more than any machine it runs on has cores.
 constexpr int kMaxTraceThreads = 256;
 
@@ -95,6 +97,9 @@ struct TraceOptions : ParameterBox {
   // every core. The result is the same whatever the number (the tasks' results are applied in
   // the order one thread computes them).
   int threads = 1;
+  // Where the tasks run instead of those threads (continuation/trace_tasks.h), e.g. as child jobs
+  // of the service's store; null: the threads. Not owned; must outlive the trace.
+  TraceTaskRunner* task_runner = nullptr;
   ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
   // param1 / param2 of these options, whichever order a curve is traced in.
