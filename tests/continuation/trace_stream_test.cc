@@ -17,6 +17,7 @@
 #include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 #include "support/cancel_probe.h"
+#include "support/same_curves.h"
 
 namespace drillbif {
 namespace {
@@ -24,6 +25,8 @@ namespace {
 using DO = DriftingOscillator;
 using std::chrono::milliseconds;
 using testing::CancelProbe;
+using testing::ExpectSameCurve;
+using testing::SameBits;
 
 constexpr milliseconds kDelay(200);  // as in simulation_cancel_test.cc
 
@@ -47,30 +50,6 @@ class TraceStream : public ::testing::Test {
   ExactPropagator prop_{model_};
   PeriodicOrbit start_;
 };
-
-bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
-
-// The same curve: kind, start, message, and every point's and codimension-2 point's parameters
-// to the bit.
-void ExpectSameCurve(const TracedCurve& a, const TracedCurve& b, int index) {
-  EXPECT_EQ(a.curve.kind, b.curve.kind) << index;
-  EXPECT_EQ(a.start.kind, b.start.kind) << index;
-  EXPECT_EQ(a.from_curve, b.from_curve) << index;
-  EXPECT_EQ(a.curve.summary.message, b.curve.summary.message) << index;
-  ASSERT_EQ(a.curve.points.size(), b.curve.points.size()) << index;
-  for (size_t k = 0; k < a.curve.points.size(); ++k) {
-    EXPECT_TRUE(SameBits(a.curve.points[k].value1, b.curve.points[k].value1) &&
-                SameBits(a.curve.points[k].value2, b.curve.points[k].value2))
-        << index << " " << k;
-  }
-  ASSERT_EQ(a.curve.codim2.size(), b.curve.codim2.size()) << index;
-  for (size_t k = 0; k < a.curve.codim2.size(); ++k) {
-    EXPECT_EQ(a.curve.codim2[k].kind, b.curve.codim2[k].kind) << index << " " << k;
-    EXPECT_EQ(a.curve.codim2[k].detail, b.curve.codim2[k].detail) << index << " " << k;
-    EXPECT_TRUE(SameBits(a.curve.codim2[k].point.value1, b.curve.codim2[k].point.value1))
-        << index << " " << k;
-  }
-}
 
 // The whole box of problems/reference_box.h (seconds of branches, hundreds of curves), stopped
 // 200 ms in.

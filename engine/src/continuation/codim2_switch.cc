@@ -15,6 +15,7 @@
 #include "common/format.h"
 #include "continuation/curve_tasks.h"
 #include "continuation/grazing_end.h"
+#include "continuation/runner_tasks.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
@@ -83,8 +84,6 @@ void TallyNotes(const SwitchTally& t, TraceSummary* sum) {
         "grazings past which the touch's curve does not go on)");
   }
 }
-
-namespace {
 
 // The curves to try from codimension-2 point `point` of a curve of kind `from_kind` (none where
 // no curve leaves it that switching starts).
@@ -190,12 +189,16 @@ std::vector<SwitchCandidate> CandidatesAt(const HybridModel& model, Propagator& 
   return candidates;
 }
 
+namespace {
+
 // Whether every point of the curve lies within `distance` (box-scaled) of (u, v).
 bool StaysAt(const CurveResult& curve, double u, double v, double w1, double w2, double distance) {
   return std::all_of(curve.points.begin(), curve.points.end(), [&](const CurvePoint& p) {
     return std::hypot((p.value1 - u) / w1, (p.value2 - v) / w2) <= distance;
   });
 }
+
+}  // namespace
 
 // The orbits to start a candidate's curve from and the curves from them, on a worker's
 // propagator: the candidate itself, or stepped off its zero-length segment at the first of
@@ -260,8 +263,6 @@ CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
   return run;
 }
 
-}  // namespace
-
 bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerPropagators& workers,
                     const std::function<void()>& wait, const TraceOptions& options,
                     const std::function<bool(double)>& report, size_t first_curve,
@@ -270,8 +271,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   const double w1 = options.width1(), w2 = options.width2();
   const int i1 = model.ParamIndex(options.param1).value();
   const int i2 = model.ParamIndex(options.param2).value();
-  CurveOptions co = options.curve;
-  co.box() = options.box();
+  const CurveOptions co = SwitchCurveOptions(options);
   int& added = tally->added;
   // Whether a candidate's curve is known: on a traced curve of the same kind and signature, by
   // its polyline or by one of its codimension-2 points (which lie between its vertices, off the
@@ -433,8 +433,32 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   };
   TaskStage<Work> stage(workers);
   OrderedTasks<Work>& tasks = stage.tasks();
+  // With a task runner (TraceOptions::task_runner) the tasks go there instead; a runner's error
+  // ends the trace failed with it.
+  std::optional<RunnerSwitchQueue> remote;
+  if (options.task_runner != nullptr) {
+    remote.emplace(
+        *options.task_runner,
+        [&] {
+          wait();
+          return !propagator.stopped();
+        },
+        known, last_resort);
+  }
+  const size_t window = remote ? remote->window() : stage.window();
+  auto fail = [&](const Status& why) {
+    if (why.code() != StatusCode::kCancelled) sum.Fail(why);
+    return false;
+  };
+  // How the round ended: false when cancelled or failed.
+  auto ended = [&] { return !propagator.stopped() && !sum.failed(); };
   std::deque<Item> items;
   auto queue = [&](Item item, CurveKind from_kind) {
+    if (remote) {
+      const Status queued = remote->Queue(from_kind, item.point, item.candidate);
+      items.push_back(std::move(item));
+      return queued.ok() || fail(queued);
+    }
     tasks.Push([&, from_kind, point = item.point, fixed = item.candidate](int worker) {
       Propagator& p = workers.at(worker);
       Work w;
@@ -447,26 +471,49 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       return w;
     });
     items.push_back(std::move(item));
+    return true;
+  };
+  // The runner's front item as the threads' Work (its runs taken when applied).
+  auto take_remote = [&](Work* w) {
+    if (Status s = remote->Promote(); !s.ok()) return fail(s);
+    StatusOr<std::vector<SwitchCandidate>> candidates = remote->FrontCandidates();
+    if (!candidates.ok()) return fail(candidates.status());
+    w->candidates = *std::move(candidates);
+    return true;
   };
   // Applies the first item: its candidates in order, each from its run (computed by the task,
   // else now on the calling thread's propagator). False when the round ends (cap, stop).
   auto apply_front = [&]() {
     const Item item = std::move(items.front());
     items.pop_front();
-    Work w = *tasks.TakeFront(wait);
+    Work w;
+    if (!remote) {
+      w = *tasks.TakeFront(wait);
+    } else if (!take_remote(&w)) {
+      return false;
+    }
     if (propagator.stopped()) return false;  // the candidates are not to be trusted
     w.runs.resize(w.candidates.size());
-    for (size_t i = 0; i < w.candidates.size(); ++i) {
+    bool taken = true;  // false once a runner could not give a run
+    for (size_t i = 0; i < w.candidates.size() && taken; ++i) {
       const SwitchCandidate& candidate = w.candidates[i];
       const bool is_known = candidate.orbit.ok() && known(candidate);
+      if (is_known && remote) remote->DropRun(i);
       auto take = [&]() -> CandidateRun {
         if (w.runs[i].has_value()) return *std::move(w.runs[i]);
+        if (remote) {
+          StatusOr<CandidateRun> run = remote->TakeRun(i);
+          if (run.ok()) return *std::move(run);
+          taken = fail(run.status());
+          return CandidateRun{};  // not applied: the round ends below
+        }
         return RunCandidate(model, propagator, options, co, i1, i2, item.point, candidate,
                             last_resort);
       };
       if (!apply(item.c, item.q, item.point, candidate, is_known, take)) return false;
     }
-    return true;
+    if (remote) remote->PopFront();
+    return taken;
   };
 
   if (last_resort) {
@@ -474,14 +521,14 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     deferred.swap(tally->deferred);
     size_t next = 0;
     for (size_t k = 0; k < deferred.size(); ++k) {
-      for (; next < deferred.size() && items.size() < stage.window(); ++next) {
+      for (; next < deferred.size() && items.size() < window; ++next) {
         const DeferredStepOff& d = deferred[next];
-        queue({d.curve, d.codim2, d.point, d.candidate}, d.candidate.kind);
+        if (!queue({d.curve, d.codim2, d.point, d.candidate}, d.candidate.kind)) return false;
       }
       if (!report(0.99)) return false;
-      if (!apply_front()) return !propagator.stopped();
+      if (!apply_front()) return ended();
     }
-    return !propagator.stopped();
+    return ended();
   }
   // result->curves grows while it is walked: index, not iterator. After its codimension-2 points
   // a curve's unverified ends (CurveResult::unverified_ends): not located, but the curves that
@@ -490,24 +537,29 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   // reaches).
   size_t c = first_curve, e = 0;
   auto queue_points = [&] {
-    while (c < result->curves.size() && items.size() < stage.window()) {
+    while (c < result->curves.size() && items.size() < window) {
       const CurveResult& curve = result->curves[c].curve;
       const size_t located = curve.codim2.size();
       if (e >= located + curve.unverified_ends.size()) {
         ++c, e = 0;
         continue;
       }
-      queue({c, e < located ? static_cast<int>(e) : -1,
-             e < located ? curve.codim2[e] : curve.unverified_ends[e - located], std::nullopt},
-            curve.kind);
-      ++e;
+      const size_t at = e++;
+      if (!queue(
+              {c, at < located ? static_cast<int>(at) : -1,
+               at < located ? curve.codim2[at] : curve.unverified_ends[at - located], std::nullopt},
+              curve.kind)) {
+        return false;
+      }
     }
+    return true;
   };
-  for (queue_points(); !items.empty(); queue_points()) {
+  for (bool queued = queue_points(); !items.empty(); queued = queue_points()) {
+    if (!queued) return false;
     if (!report(0.99)) return false;
-    if (!apply_front()) return !propagator.stopped();
+    if (!apply_front()) return ended();
   }
-  return !propagator.stopped();
+  return ended();
 }
 
 }  // namespace drillbif::internal

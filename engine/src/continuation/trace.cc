@@ -13,6 +13,7 @@
 
 #include "common/phase_progress.h"
 #include "continuation/curve_tasks.h"
+#include "continuation/runner_tasks.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
 #include "drillbif/common/threads.h"
@@ -286,9 +287,9 @@ class TraceDriver {
   // TraceCurves without its notes' last pass and the last curves' hand-over.
   void Run() {
     if (!Validate()) return;
-    // The curve tasks' threads; while the calling thread waits for one, it polls the trace's
-    // throttle and abandons the tasks at a stop.
-    workers_.emplace(propagator_, ThreadsOf(options_));
+    // The curve tasks' threads (none of its own with a task runner); while the calling thread
+    // waits for one, it polls the trace's throttle and abandons the tasks at a stop.
+    workers_.emplace(propagator_, options_.task_runner != nullptr ? 1 : ThreadsOf(options_));
     wait_ = [this] {
       if (!phase_.Continue()) workers_->Abandon();
     };
@@ -325,10 +326,21 @@ class TraceDriver {
     }
     return !sum_.cancelled();
   }
-  // Whether the trace was stopped (meanwhile, by a flow's poll); then nothing since is kept.
+  // Whether the trace was stopped (meanwhile, by a flow's poll; then nothing since is kept), or
+  // failed (a task runner's error).
   bool Stopped() {
-    if (phase_.stopped() && !sum_.cancelled()) sum_.Cancel(kCancelledMessage);
-    return sum_.cancelled();
+    if (phase_.stopped() && !sum_.cancelled() && !sum_.failed()) sum_.Cancel(kCancelledMessage);
+    return sum_.cancelled() || sum_.failed();
+  }
+  // Ends the trace with a task runner's error: cancelled for CANCELLED (the trace was stopped),
+  // else failed with it. False.
+  bool TaskFailed(const Status& why) {
+    if (why.code() == StatusCode::kCancelled) {
+      if (!sum_.cancelled()) sum_.Cancel(kCancelledMessage);
+    } else {
+      sum_.Fail(why);
+    }
+    return false;
   }
   bool Branch(const PeriodicOrbit& orbit, int axis, double from, double to,
               ContinuationDirection direction, const std::string& edge = "");
@@ -576,14 +588,7 @@ const TracedCurve* TraceDriver::KnownCurve(const SpecialPoint& s) const {
 
 // The curve through a start, on a worker's propagator (values in the start axis' order).
 CurveResult TraceDriver::CurveFrom(const SpecialPoint& s, int axis, Propagator& p) const {
-  CurveOptions co = options_.curve;
-  const Axis& a = axes_[axis];
-  const Axis& other = axes_[1 - axis];
-  co.param1 = *a.name, co.min1 = a.min, co.max1 = a.max;
-  co.param2 = *other.name, co.min2 = other.min, co.max2 = other.max;
-  // The options' crossings1 / crossings2 are values of param1 / param2 of the trace.
-  if (axis == 1) std::swap(co.crossings1, co.crossings2);
-  return ContinueCurve(model_, p, s, co);
+  return internal::CurveThroughStart(model_, p, options_, s, axis);
 }
 
 // The curves through starts_[first..], progress from `from` to `to`. Each start's curve is a task
@@ -592,15 +597,29 @@ CurveResult TraceDriver::CurveFrom(const SpecialPoint& s, int axis, Propagator& 
 bool TraceDriver::TraceStarts(size_t first, double from, double to) {
   internal::TaskStage<CurveResult> stage(*workers_);
   internal::OrderedTasks<CurveResult>& tasks = stage.tasks();
+  // With a task runner (TraceOptions::task_runner) the tasks go there instead.
+  std::optional<internal::RunnerTickets> remote;
+  if (options_.task_runner != nullptr) {
+    remote.emplace(*options_.task_runner, [this] { return phase_.Continue(); });
+  }
+  const size_t window = remote ? remote->window() : stage.window();
   std::deque<bool> queued;  // per start queued: whether a task computes its curve (false: it was
                             // on a traced curve when queued)
+  std::deque<int64_t> tickets;  // the runner's, per start computed
   size_t next = first;
   for (size_t k = first; k < starts_.size(); ++k) {
     // Queue the starts up to the window, each unless it is on a curve applied already.
-    for (; next < starts_.size() && queued.size() < stage.window(); ++next) {
+    for (; next < starts_.size() && queued.size() < window; ++next) {
       const bool known = KnownCurve(starts_[next].second) != nullptr;
       queued.push_back(!known);
       if (known) continue;
+      if (remote) {
+        StatusOr<int64_t> ticket =
+            remote->Submit(CurveTask{starts_[next].second, starts_[next].first});
+        if (!ticket.ok()) return TaskFailed(ticket.status());
+        tickets.push_back(*ticket);
+        continue;
+      }
       tasks.Push([this, next](int worker) {
         return CurveFrom(starts_[next].second, starts_[next].first, workers_->at(worker));
       });
@@ -615,12 +634,21 @@ bool TraceDriver::TraceStarts(size_t first, double from, double to) {
     const SpecialPoint& s = starts_[k].second;
     // (A start on a traced curve when queued is on it now: the curves only grow.)
     if (const TracedCurve* on = KnownCurve(s); on != nullptr) {
-      if (computed) tasks.DropFront();
+      if (computed && remote) remote->Drop(tickets.front()), tickets.pop_front();
+      if (computed && !remote) tasks.DropFront();
       sum_.notes.push_back(WhereOf(s) + ": on the curve traced from " +
                            SpecialPointKindName(on->start.kind) + " already");
       continue;
     }
-    CurveResult curve = *tasks.TakeFront(wait_);
+    CurveResult curve;
+    if (remote) {
+      StatusOr<CurveResult> taken = remote->Take<CurveResult>(tickets.front());
+      tickets.pop_front();
+      if (!taken.ok()) return TaskFailed(taken.status());
+      curve = *std::move(taken);
+    } else {
+      curve = *tasks.TakeFront(wait_);
+    }
     if (curve.summary.termination == Termination::kFailed) {
       sum_.notes.push_back(WhereOf(s) + ": not traced: " + curve.summary.message);
       continue;

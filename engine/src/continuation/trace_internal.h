@@ -54,6 +54,25 @@ double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, cons
 // at its birth (told apart by its branch point), ~sqrt of its location tolerance (1.3e-3).
 bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o);
 
+// The candidates at codimension-2 point `point` of a curve of kind `from_kind` (CandidatesTask).
+std::vector<SwitchCandidate> CandidatesAt(const HybridModel& model, Propagator& propagator,
+                                          CurveKind from_kind, const Codim2Point& point);
+
+// The run of a candidate at `point` (CandidateTask): its step-off, if any, and its curve, with
+// the curve options `co` of the trace's box and its parameters' indices i1, i2.
+CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
+                          const TraceOptions& options, const CurveOptions& co, int i1, int i2,
+                          const Codim2Point& point, const SwitchCandidate& candidate,
+                          bool last_resort);
+
+// The curve through a located start (CurveTask), its values in the start axis' order (axis 1:
+// (param2, param1)).
+CurveResult CurveThroughStart(const HybridModel& model, Propagator& propagator,
+                              const TraceOptions& options, const SpecialPoint& start, int axis);
+
+// The curve options of the trace's switching: its curve options over its box.
+CurveOptions SwitchCurveOptions(const TraceOptions& options);
+
 // A candidate whose step-off needs a last-resort length (SwitchAtCodim2), kept for the end.
 struct DeferredStepOff {
   size_t curve = 0;  // the point it leaves: the curve's codim2[codim2], or (-1) an unverified end
