@@ -23,7 +23,8 @@ using google::protobuf::RepeatedPtrField;
 
 // The last enumerator of each engine enum the messages carry: decoding accepts 0 .. last. An
 // enumerator added after one of these is refused by decoding (an error, never a wrong value)
-// until it is named here.
+// until it is named here; the codec's test compares these ranges with the engine's name
+// functions, which name every enumerator.
 constexpr SpecialPointKind kLastSpecialPointKind = SpecialPointKind::kPowerMax;
 constexpr CurveKind kLastCurveKind = CurveKind::kNeimarkSacker;
 constexpr Codim2Kind kLastCodim2Kind = Codim2Kind::kCusp;

@@ -504,6 +504,70 @@ TEST(TraceTaskCodecTest, EveryEnumValueRoundTrips) {
   }
 }
 
+// The values the codec accepts for each enum are the engine enum's: every value below the first
+// one refused has an engine name, and the first refused has none (the name functions' fallback).
+// An enumerator added to the engine gets a name, so this fails until the codec's range grows.
+int FirstRefused(const std::function<bool(int32_t)>& decodes) {
+  int32_t k = 0;
+  while (k < 1000 && decodes(k)) ++k;
+  return k;
+}
+
+TEST(TraceTaskCodecTest, EnumRangesAreTheEngineEnumsRanges) {
+  v1::TraceTaskResponse response;
+  ASSERT_TRUE(response.ParseFromString(EncodeTraceTaskResult(Filler(true).MakeCurveResult())));
+  v1::TraceTaskRequest request;
+  ASSERT_TRUE(
+      request.ParseFromString(EncodeTraceTaskRequest(ParentRequest(), Filler(true).Curve())));
+  auto result_decodes = [&response](const std::function<void(v1::TaskCurveResult*, int32_t)>& set) {
+    return [&response, set](int32_t k) {
+      v1::TraceTaskResponse changed = response;
+      set(changed.mutable_curve(), k);
+      return DecodeTraceTaskResult(changed.SerializeAsString()).ok();
+    };
+  };
+  const int curve_kinds =
+      FirstRefused(result_decodes([](v1::TaskCurveResult* r, int32_t k) { r->set_kind(k); }));
+  const int codim2_kinds = FirstRefused(
+      result_decodes([](v1::TaskCurveResult* r, int32_t k) { r->mutable_codim2(0)->set_kind(k); }));
+  const int terminations = FirstRefused(result_decodes(
+      [](v1::TaskCurveResult* r, int32_t k) { r->mutable_summary()->set_termination(k); }));
+  const int codes = FirstRefused(result_decodes([](v1::TaskCurveResult* r, int32_t k) {
+    r->mutable_summary()->mutable_status()->set_code(k);
+  }));
+  const int point_kinds = FirstRefused([&request](int32_t k) {
+    v1::TraceTaskRequest changed = request;
+    changed.mutable_curve()->mutable_start()->set_kind(k);
+    return DecodeTraceTaskRequest(changed.SerializeAsString()).ok();
+  });
+  auto expect_range = [](int refused, const std::function<std::string(int)>& name,
+                         const std::string& unnamed, const char* what) {
+    for (int k = 0; k < refused; ++k) EXPECT_NE(name(k), unnamed) << what << " " << k;
+    EXPECT_EQ(name(refused), unnamed) << what << " " << refused << " is refused";
+  };
+  expect_range(
+      curve_kinds, [](int k) { return CurveKindName(static_cast<CurveKind>(k)); }, "?",
+      "CurveKind");
+  expect_range(
+      codim2_kinds, [](int k) { return Codim2KindName(static_cast<Codim2Kind>(k)); }, "?",
+      "Codim2Kind");
+  expect_range(
+      point_kinds, [](int k) { return SpecialPointKindName(static_cast<SpecialPointKind>(k)); },
+      "?", "SpecialPointKind");
+  expect_range(
+      terminations, [](int k) { return TerminationName(static_cast<Termination>(k)); }, "?",
+      "Termination");
+  // StatusCodeName's fallback is "UNKNOWN", also the name of code 2.
+  expect_range(
+      codes,
+      [](int k) {
+        return k == 2 ? std::string("UNKNOWN (2)") : StatusCodeName(static_cast<StatusCode>(k));
+      },
+      "UNKNOWN", "StatusCode");
+  // A negative value is refused too.
+  EXPECT_FALSE(result_decodes([](v1::TaskCurveResult* r, int32_t k) { r->set_kind(k); })(-1));
+}
+
 // ---------------------------------------------------------------------------------------------
 // The helper sees every field: changing any one field of a filled value is a difference at that
 // field's path. With the round trips above this means no field is dropped or altered.
