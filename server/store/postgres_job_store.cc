@@ -340,8 +340,10 @@ Status PostgresStoreImpl::CancelChildren(Tx& tx, std::string_view id) {
   // commit and then skip the child, which is RUNNING by then; the second statement starts
   // after that commit (read committed: a new snapshot per statement) and asks its worker to
   // stop. A claim that comes after the first statement finds the child locked or, once this
-  // transaction commits, CANCELLED (the claim's locking read re-checks the row). One statement
-  // doing both would see the child QUEUED, skip it when it became RUNNING, and leave it running.
+  // transaction commits, CANCELLED (the claim's locking read re-checks the row). In the other
+  // order a child claimed between the two statements would escape both: not yet RUNNING for the
+  // flag, no longer QUEUED for the cancel (the contract suite's
+  // ACancelThatWaitsForAClaimInProgressStopsTheClaimedChild fails that way).
   tx.exec_params(
       "UPDATE jobs SET state = 4, finished_ms = $2 WHERE parent_id = $1 AND parent_id <> '' "
       "AND state = 0",

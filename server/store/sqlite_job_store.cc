@@ -778,11 +778,17 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   std::lock_guard<std::mutex> lock(mu_);
   // Keyset pagination on seq: a page starts after the last seq seen, so jobs submitted or
   // deleted meanwhile never shift the pages (an offset would skip or repeat jobs).
+  // One parent's children come from its index (a few hundred rows sorted), not from a walk of
+  // every job after the token.
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare(SelectJobs(
                    "CASE WHEN ?4 THEN request ELSE x'' END",
-                   "WHERE seq > ?1 AND (?2 IS NULL OR state = ?2) AND (?3 = '' OR kind = ?3) "
-                   "AND parent_id = ?6 ORDER BY seq LIMIT ?5")));
+                   request.parent.empty()
+                       ? "WHERE seq > ?1 AND (?2 IS NULL OR state = ?2) AND (?3 = '' OR kind = ?3) "
+                         "AND parent_id = ?6 ORDER BY seq LIMIT ?5"
+                       : "INDEXED BY jobs_by_parent WHERE parent_id = ?6 AND parent_id <> '' "
+                         "AND seq > ?1 AND (?2 IS NULL OR state = ?2) AND (?3 = '' OR kind = ?3) "
+                         "ORDER BY seq LIMIT ?5")));
   q.Bind(1, after_seq);
   if (request.state) {
     q.Bind(2, static_cast<int>(*request.state));
