@@ -474,6 +474,25 @@ TEST_P(StoreChildrenTest, CancellingARunningParentReachesEveryTasksWorker) {
   EXPECT_EQ(Must(store_->Get(f.parent)).state, JobState::kCancelled);
 }
 
+TEST_P(StoreChildrenTest, ARunningChildFansOutAndItsStopReachesItsOwnChildren) {
+  std::string parent;
+  const int64_t run = StartParent(&parent);
+  const std::string child = SubmitChildOk(parent, run, "task");
+  const JobRecord claimed = ClaimChildOf(parent);
+  ASSERT_EQ(claimed.id, child);
+  const std::string grandchild = SubmitChildOk(child, claimed.run, "subtask");
+  EXPECT_EQ(Must(store_->Get(grandchild)).parent, child);
+  // The parent stops: its running child is asked to stop, and may spawn nothing more.
+  ASSERT_TRUE(store_->Complete(parent, run, "whole", 1).ok());
+  EXPECT_TRUE(Must(store_->IsCancelRequested(child)));
+  EXPECT_EQ(SubmitChild(child, claimed.run, "more").status().code(),
+            StatusCode::kFailedPrecondition);
+  EXPECT_EQ(Must(store_->Get(grandchild)).state, JobState::kQueued);  // One level at a time.
+  ASSERT_TRUE(store_->MarkCancelled(child, claimed.run).ok());
+  EXPECT_EQ(Must(store_->Get(grandchild)).state, JobState::kCancelled);
+  EXPECT_EQ(Claim().id, "");
+}
+
 TEST_P(StoreChildrenTest, ListShowsTopLevelJobsOrOneParentsChildrenInPages) {
   std::string parent;
   const int64_t run = StartParent(&parent);
