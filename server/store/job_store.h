@@ -408,9 +408,10 @@ class JobStore {
   // Cancels a job. QUEUED: CANCELLED at once. RUNNING: sets cancel_requested (the worker polls
   // IsCancelRequested, stops and calls MarkCancelled); for a job that shares another, CANCELLED
   // at once (nothing runs for it). CANCELLED: no change (cancel is idempotent). SUCCEEDED or
-  // FAILED: FAILED_PRECONDITION. Returns the job's state afterwards. Cancelling a QUEUED or
-  // RUNNING parent also cancels its unfinished children in the same transaction: QUEUED ones at
-  // once, RUNNING ones by their cancel_requested (each task's worker sees it on its usual poll).
+  // FAILED: FAILED_PRECONDITION. Returns the job's state afterwards. Cancelling a RUNNING parent
+  // also cancels its unfinished children in the same transaction: QUEUED ones at once, RUNNING
+  // ones by their cancel_requested (each task's worker sees it on its usual poll). (A QUEUED job
+  // has no unfinished children: its last run's were cancelled when it left RUNNING.)
   virtual StatusOr<JobState> Cancel(std::string_view id) = 0;
 
   // Whether Cancel was called on this RUNNING job. NOT_FOUND for an unknown id.
