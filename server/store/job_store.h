@@ -33,6 +33,11 @@
 //   the calls that append to or finish it, and a call from a stale run is refused.
 // - Store faults (full disk, I/O errors, corruption) are reported with client-readable messages
 //   and without SQL; Health() says whether the store can currently write.
+// - Child jobs: a RUNNING job's current run may submit child jobs (its tasks, SubmitRequest::
+//   parent), which any worker, or the parent itself (ClaimOptions::parent), claims and runs like
+//   any job. Children of RUNNING parents are claimed before new top-level jobs, and a parent that
+//   leaves RUNNING cancels its unfinished children in the same transaction (docs/store.md, child
+//   jobs).
 #ifndef DRILLBIF_SERVER_STORE_JOB_STORE_H_
 #define DRILLBIF_SERVER_STORE_JOB_STORE_H_
 
@@ -141,6 +146,9 @@ struct JobRecord {
   // expires unless its worker renews it (RenewLease), Unix ms. 0: no lease (the claim holds
   // until the run finishes or RecoverAfterRestart). Meaningless in other states.
   int64_t lease_expires_ms = 0;
+  // The id of the job that submitted this one as its child (SubmitRequest::parent); "" for a
+  // top-level job.
+  std::string parent{};
 };
 
 // What to submit.
@@ -166,6 +174,18 @@ struct SubmitRequest {
   int64_t max_queued = 0;
   // The same limit for this request's client alone; 0 = no limit.
   int64_t max_queued_per_client = 0;
+  // The job submitting this one as its child (a task of its run); empty: a top-level job. Only
+  // the current run of a RUNNING parent may submit children, so that a stale worker cannot spawn
+  // work: NOT_FOUND for an unknown parent, FAILED_PRECONDITION when the parent is not RUNNING,
+  // shares another job's run, has its cancel requested, or parent_run is not its current run. A
+  // child must have an empty cache_key (INVALID_ARGUMENT: it neither uses nor fills the cache)
+  // and is never refused by the queue limits above (its parent was admitted with its cost), nor
+  // counted by them for other submits. client and lane are the caller's (a parent's runner
+  // passes the parent's).
+  std::string parent{};
+  // The parent's run that submits the child (JobRecord::run of the parent's claim); must be set
+  // (>= 1) exactly when parent is (INVALID_ARGUMENT otherwise).
+  int64_t parent_run = 0;
 };
 
 // Which jobs a worker may claim.
@@ -176,6 +196,12 @@ struct ClaimOptions {
   // (RenewLease); once it expires any process may take the job back (ReclaimExpiredLeases).
   // 0: no lease, for a store that one process uses (its restart recovers every RUNNING job).
   int64_t lease_ms = 0;
+  // Non-empty: take only QUEUED children of this job, oldest first (a parent running its own
+  // tasks while it waits for them, so that a pool whose every worker runs a parent cannot
+  // deadlock). Empty: any claimable job, QUEUED children of RUNNING parents first (oldest child
+  // first, whatever their client), then top-level jobs fairly across clients: a worker finishes
+  // work already running before it starts new work. Lanes apply either way.
+  std::string parent{};
 
   // INVALID_ARGUMENT naming the field when a lane is out of range or lease_ms is negative.
   Status Validate() const;
@@ -207,6 +233,9 @@ struct ListRequest {
   std::string page_token;
   // Also return each job's request bytes.
   bool include_request = false;
+  // Empty: top-level jobs only (children are listed through their parent). Non-empty: only the
+  // children of this job (the same filters and paging).
+  std::string parent{};
 };
 
 // One page of jobs, oldest first (the order of submission).
@@ -220,7 +249,8 @@ struct ListResult {
 struct StoreStats {
   // Number of jobs in each state, indexed by static_cast<int>(JobState).
   std::array<int64_t, kJobStateCount> jobs_by_state{};
-  // QUEUED jobs that a worker can claim (jobs waiting on a shared job are not counted).
+  // QUEUED jobs that a worker can claim (jobs waiting on a shared job are not counted), children
+  // included: an autoscaler on queue depth sees the fanned-out work.
   int64_t queue_depth = 0;
   // queue_depth split by lane, indexed by lane.
   std::array<int64_t, kLaneCount> queue_depth_by_lane{};
@@ -306,7 +336,9 @@ class JobStore {
   //   shares it: it mirrors that job's state and progress, is never claimed itself, and finishes
   //   when that job does (see docs/store.md for failure and cancellation).
   // - otherwise the job is QUEUED.
-  // INVALID_ARGUMENT when kind is empty.
+  // INVALID_ARGUMENT when kind is empty. A child (SubmitRequest::parent) is checked against its
+  // parent after the request_id lookup (a retried submit returns its job whatever the parent
+  // became): see SubmitRequest::parent for its errors.
   virtual StatusOr<SubmitResult> Submit(const SubmitRequest& request) = 0;
 
   // Atomically takes a claimable QUEUED job of the allowed lanes, makes it RUNNING (with the jobs
@@ -314,7 +346,9 @@ class JobStore {
   // worker_id. Fair across clients: the job comes from the client with the fewest RUNNING jobs
   // in those lanes, ties going to the oldest waiting job (so with one client it is FIFO).
   // Returns std::nullopt when no job is waiting. The record includes the request bytes.
-  // INVALID_ARGUMENT for a bad lane.
+  // QUEUED children of RUNNING parents come before top-level jobs, oldest first;
+  // ClaimOptions::parent restricts the claim to one parent's children. Leases, runs, attempts and
+  // fencing are the same for children. INVALID_ARGUMENT for a bad lane.
   virtual StatusOr<std::optional<JobRecord>> ClaimNext(std::string_view worker_id,
                                                        const ClaimOptions& options) = 0;
   // ClaimNext of any lane.
@@ -374,7 +408,10 @@ class JobStore {
   // Cancels a job. QUEUED: CANCELLED at once. RUNNING: sets cancel_requested (the worker polls
   // IsCancelRequested, stops and calls MarkCancelled); for a job that shares another, CANCELLED
   // at once (nothing runs for it). CANCELLED: no change (cancel is idempotent). SUCCEEDED or
-  // FAILED: FAILED_PRECONDITION. Returns the job's state afterwards.
+  // FAILED: FAILED_PRECONDITION. Returns the job's state afterwards. Cancelling a RUNNING parent
+  // also cancels its unfinished children in the same transaction: QUEUED ones at once, RUNNING
+  // ones by their cancel_requested (each task's worker sees it on its usual poll). (A QUEUED job
+  // has no unfinished children: its last run's were cancelled when it left RUNNING.)
   virtual StatusOr<JobState> Cancel(std::string_view id) = 0;
 
   // Whether Cancel was called on this RUNNING job. NOT_FOUND for an unknown id.
@@ -401,12 +438,14 @@ class JobStore {
   // Get with the request bytes.
   StatusOr<JobRecord> Get(std::string_view id) { return Get(id, /*include_request=*/true); }
 
-  // A page of jobs matching the filter, oldest first. Pages are stable: walking all pages returns
-  // every matching job that existed at the first call exactly once, whatever jobs are submitted
-  // meanwhile. INVALID_ARGUMENT for a negative page_size or a malformed page_token.
+  // A page of jobs matching the filter, oldest first: top-level jobs, or one parent's children
+  // (ListRequest::parent). Pages are stable: walking all pages returns every matching job that
+  // existed at the first call exactly once, whatever jobs are submitted meanwhile.
+  // INVALID_ARGUMENT for a negative page_size or a malformed page_token.
   virtual StatusOr<ListResult> List(const ListRequest& request) = 0;
 
-  // Deletes a finished job (and its result and chunks when no other job uses them).
+  // Deletes a finished job (and its result and chunks when no other job uses them), with its
+  // finished children (children still stopping after its cancel are left to Evict).
   // FAILED_PRECONDITION for a QUEUED or RUNNING job, NOT_FOUND for an unknown id.
   virtual Status Delete(std::string_view id) = 0;
 
@@ -474,8 +513,9 @@ class JobStore {
 
   // Deletes finished jobs by the retention limits (docs/store.md has the order and guarantees):
   // first those finished more than max_age_ms before now_ms, oldest first; then, while the
-  // store's data exceeds max_db_bytes, the oldest finished jobs. QUEUED and RUNNING jobs, and
-  // jobs that a QUEUED or RUNNING job follows, are never deleted. A result goes with the last job
+  // store's data exceeds max_db_bytes, the oldest finished jobs. QUEUED and RUNNING jobs, jobs
+  // that a QUEUED or RUNNING job follows, and children of a QUEUED or RUNNING parent (it may
+  // still read their results) are never deleted. A result goes with the last job
   // that holds it; request_ids of deleted jobs are forgotten. Then frees the space on disk where
   // the implementation can. INVALID_ARGUMENT for bad options.
   virtual StatusOr<EvictionReport> Evict(const RetentionOptions& options, int64_t now_ms) = 0;

@@ -3,8 +3,10 @@
 // postgres_store_maintenance.cc. Semantics: job_store.h and docs/store.md.
 #include "server/store/postgres_job_store.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
+#include <iterator>
 #include <memory>
 #include <optional>
 #include <pqxx/pqxx>
@@ -86,11 +88,28 @@ CREATE TABLE counters (
 INSERT INTO counters(name, value) VALUES ('cache_hits', 0), ('probes', 0);
 )sql";
 
+// Migrations after version 1 (kSchema), in order: entry i brings the schema from version i + 1
+// to i + 2. Configure applies the missing ones in its transaction, a new database included, so
+// that every database has gone through the same steps. Never edit one once released: append one.
+constexpr const char* kMigrations[] = {
+    // 1 -> 2: child jobs (as the SQLite store's migration 3 -> 4, which says what each is for).
+    R"sql(
+ALTER TABLE jobs ADD COLUMN parent_id TEXT NOT NULL DEFAULT '';
+DROP INDEX jobs_claimable;
+CREATE INDEX jobs_claimable ON jobs(client, lane, seq)
+  WHERE state = 0 AND shares IS NULL AND parent_id = '';
+CREATE INDEX jobs_by_parent ON jobs(parent_id, state, seq) WHERE parent_id <> '';
+CREATE INDEX jobs_queued_children ON jobs(seq) WHERE state = 0 AND parent_id <> '';
+)sql",
+};
+static_assert(std::size(kMigrations) == PostgresJobStore::kSchemaVersion - 1,
+              "one migration per schema version after the first");
+
 // Columns of a JobRecord, in the order ReadJob expects; %s is the request expression.
 constexpr const char* kJobColumns =
     "seq, id, kind, state, %s, cache_key, request_id, shares, progress, current_value, points, "
     "error_code, error_message, created_ms, started_ms, finished_ms, cache_hit, attempts, "
-    "cancel_requested, worker_id, client, lane, run, lease_expires_ms";
+    "cancel_requested, worker_id, client, lane, run, lease_expires_ms, parent_id";
 
 std::string SelectJobs(const char* request_expression, const char* rest) {
   char columns[512];
@@ -126,6 +145,7 @@ JobRecord ReadJob(const pqxx::row& r) {
   job.lane = r[21].as<int>();
   job.run = r[22].as<int64_t>();
   job.lease_expires_ms = r[23].as<int64_t>();
+  job.parent = r[24].as<std::string>();
   return job;
 }
 
@@ -219,8 +239,13 @@ Status PostgresStoreImpl::Configure() {
     }
     if (version == 0) {
       tx.exec(kSchema);
-      tx.exec_params("INSERT INTO drillbif_schema (version) VALUES ($1)",
-                     PostgresJobStore::kSchemaVersion);
+      tx.exec("INSERT INTO drillbif_schema (version) VALUES (1)");
+    }
+    for (int v = std::max(version, 1); v < PostgresJobStore::kSchemaVersion; ++v) {
+      tx.exec(kMigrations[v - 1]);
+    }
+    if (version < PostgresJobStore::kSchemaVersion) {
+      tx.exec_params("UPDATE drillbif_schema SET version = $1", PostgresJobStore::kSchemaVersion);
     }
     return Status::Ok();
   });
@@ -275,6 +300,8 @@ Status PostgresStoreImpl::RequeueWithFollowers(Tx& tx, std::string_view id, bool
       "points = 0, worker_id = '', attempts = attempts - $2 WHERE id = $1 AND state = 1",
       id, count_attempt ? 0 : 1));
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(tx, id));
+  // The next run submits its own tasks: this run's are no longer wanted.
+  DRILLBIF_RETURN_IF_ERROR(CancelChildren(tx, id));
   tx.exec_params(
       "UPDATE jobs SET state = 0, started_ms = 0, progress = 0, current_value = NULL, "
       "points = 0 WHERE shares = $1 AND state IN (0, 1)",
@@ -291,6 +318,7 @@ Status PostgresStoreImpl::FailWithFollowers(Tx& tx, std::string_view id, StatusC
       "WHERE id = $1 AND state = 1",
       id, static_cast<int>(code), std::string(message), now));
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(tx, id));
+  DRILLBIF_RETURN_IF_ERROR(CancelChildren(tx, id));
   tx.exec_params(
       "UPDATE jobs SET state = 3, error_code = $2, error_message = $3, finished_ms = $4 "
       "WHERE shares = $1 AND state IN (0, 1)",
@@ -302,7 +330,29 @@ Status PostgresStoreImpl::CancelRunning(Tx& tx, std::string_view id) {
   DRILLBIF_RETURN_IF_ERROR(UpdateRunning(
       tx, "UPDATE jobs SET state = 4, finished_ms = $2 WHERE id = $1 AND state = 1", id, NowMs()));
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(tx, id));
+  DRILLBIF_RETURN_IF_ERROR(CancelChildren(tx, id));
   return PromoteFollower(tx, id);
+}
+
+Status PostgresStoreImpl::CancelChildren(Tx& tx, std::string_view id) {
+  // Two statements, in this order, because claims do not take the write lock. A child that a
+  // claim has locked (FOR UPDATE SKIP LOCKED) makes the first statement wait for the claim's
+  // commit and then skip the child, which is RUNNING by then; the second statement starts
+  // after that commit (read committed: a new snapshot per statement) and asks its worker to
+  // stop. A claim that comes after the first statement finds the child locked or, once this
+  // transaction commits, CANCELLED (the claim's locking read re-checks the row). In the other
+  // order a child claimed between the two statements would escape both: not yet RUNNING for the
+  // flag, no longer QUEUED for the cancel (the contract suite's
+  // ACancelThatWaitsForAClaimInProgressStopsTheClaimedChild fails that way).
+  tx.exec_params(
+      "UPDATE jobs SET state = 4, finished_ms = $2 WHERE parent_id = $1 AND parent_id <> '' "
+      "AND state = 0",
+      std::string(id), NowMs());
+  tx.exec_params(
+      "UPDATE jobs SET cancel_requested = TRUE WHERE parent_id = $1 AND parent_id <> '' "
+      "AND state = 1",
+      std::string(id));
+  return Status::Ok();
 }
 
 Status PostgresStoreImpl::CheckQueueLimits(Tx& tx, const SubmitRequest& request) {
@@ -311,13 +361,16 @@ Status PostgresStoreImpl::CheckQueueLimits(Tx& tx, const SubmitRequest& request)
   if (request.max_queued_per_client > 0) {
     waiting_of_client =
         tx.exec_params(
-              "SELECT COUNT(*) FROM jobs WHERE state = 0 AND shares IS NULL AND client = $1",
+              "SELECT COUNT(*) FROM jobs WHERE state = 0 AND shares IS NULL AND parent_id = '' "
+              "AND client = $1",
               request.client)[0][0]
             .as<int64_t>();
   }
   if (request.max_queued > 0) {
     waiting =
-        tx.exec("SELECT COUNT(*) FROM jobs WHERE state = 0 AND shares IS NULL")[0][0].as<int64_t>();
+        tx.exec("SELECT COUNT(*) FROM jobs WHERE state = 0 AND shares IS NULL AND parent_id = ''")
+            [0][0]
+                .as<int64_t>();
   }
   return server::CheckQueueLimits(request, waiting_of_client, waiting);
 }
@@ -330,11 +383,12 @@ StatusOr<SubmitResult> PostgresStoreImpl::Submit(const SubmitRequest& request) {
     SubmitResult result;
     if (!request.request_id.empty()) {
       const pqxx::result r = tx.exec_params(
-          "SELECT id, kind, request, cache_hit, shares FROM jobs WHERE request_id = $1",
+          "SELECT id, kind, request, cache_hit, shares, parent_id FROM jobs WHERE request_id = $1",
           request.request_id);
       if (!r.empty()) {
         if (r[0][1].as<std::string>() != request.kind ||
-            pqxx::binarystring(r[0][2]).str() != request.request) {
+            pqxx::binarystring(r[0][2]).str() != request.request ||
+            r[0][5].as<std::string>() != request.parent) {
           return RequestIdReused(request.request_id, r[0][0].as<std::string>());
         }
         result.id = r[0][0].as<std::string>();
@@ -343,6 +397,14 @@ StatusOr<SubmitResult> PostgresStoreImpl::Submit(const SubmitRequest& request) {
         result.shared_with = Text(r[0][4]);
         return result;
       }
+    }
+    if (!request.parent.empty()) {
+      // Parents leave RUNNING only under the write lock, which this transaction holds: the
+      // parent cannot finish between this check and the insert.
+      StatusOr<JobHead> parent = Head(tx, request.parent);
+      if (!parent.ok() && parent.status().code() != StatusCode::kNotFound) return parent.status();
+      DRILLBIF_RETURN_IF_ERROR(
+          CheckParent(request.parent, request.parent_run, parent.ok() ? &*parent : nullptr));
     }
     const int64_t now = NowMs();
     const std::string id = NewJobId(random_);
@@ -381,18 +443,20 @@ StatusOr<SubmitResult> PostgresStoreImpl::Submit(const SubmitRequest& request) {
         result.shared_with = shares;
       }
     }
-    // Only a job that will run adds work: cache hits and followers are never refused.
-    if (state == kQueued && shares.empty()) {
+    // Only a job that will run adds work: cache hits and followers are never refused. Nor are
+    // children: their parent was admitted with the cost of the whole.
+    if (state == kQueued && shares.empty() && request.parent.empty()) {
       DRILLBIF_RETURN_IF_ERROR(CheckQueueLimits(tx, request));
     }
     tx.exec_params(
         "INSERT INTO jobs (id, kind, state, request, cache_key, request_id, shares, result_key, "
         "progress, current_value, points, created_ms, started_ms, finished_ms, cache_hit, "
-        "client, lane) VALUES ($1, $2, $3, $4, $5, NULLIF($6, ''), NULLIF($7, ''), $8, $9, "
-        "CASE WHEN $10 THEN $11::float8 END, $12, $13, $14, $15, $16, $17, $18)",
+        "client, lane, parent_id) VALUES ($1, $2, $3, $4, $5, NULLIF($6, ''), NULLIF($7, ''), "
+        "$8, $9, CASE WHEN $10 THEN $11::float8 END, $12, $13, $14, $15, $16, $17, $18, $19)",
         id, request.kind, state, Bytes(request.request), request.cache_key, request.request_id,
         shares, result_key, progress, current_value.has_value(), current_value.value_or(0.0),
-        points, now, started_ms, finished_ms, result.cache_hit, request.client, request.lane);
+        points, now, started_ms, finished_ms, result.cache_hit, request.client, request.lane,
+        request.parent);
     if (result.cache_hit) {
       tx.exec("UPDATE counters SET value = value + 1 WHERE name = 'cache_hits'");
     }
@@ -412,26 +476,52 @@ StatusOr<std::optional<JobRecord>> PostgresStoreImpl::ClaimNext(std::string_view
   return Claim<std::optional<JobRecord>>(
       "claim a job", [&](Tx& tx) -> StatusOr<std::optional<JobRecord>> {
         const int64_t lanes = LaneMask(options);
+        std::string id;
+        if (!options.parent.empty()) {
+          // The parent runs its own tasks: only its children, oldest first.
+          const pqxx::result r = tx.exec_params(
+              "SELECT id FROM jobs WHERE parent_id = $1 AND parent_id <> '' AND state = 0 "
+              "AND (($2::bigint >> lane) & 1) = 1 ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED",
+              options.parent, lanes);
+          if (r.empty()) return std::optional<JobRecord>();
+          id = r[0][0].as<std::string>();
+        } else {
+          // Work already running first: the oldest QUEUED child of a RUNNING parent. The
+          // locking read re-checks the child it locks (a cancel that committed meanwhile makes
+          // it CANCELLED, and it is passed over); the parent's state is the snapshot's, but a
+          // parent that left RUNNING since cancelled its queued children in the same commit.
+          const pqxx::result r = tx.exec_params(
+              "SELECT c.id FROM jobs c JOIN jobs p ON p.id = c.parent_id "
+              "WHERE c.state = 0 AND c.parent_id <> '' AND p.state = 1 "
+              "AND (($1::bigint >> c.lane) & 1) = 1 ORDER BY c.seq LIMIT 1 "
+              "FOR UPDATE OF c SKIP LOCKED",
+              lanes);
+          if (!r.empty()) id = r[0][0].as<std::string>();
+        }
         // Fair across clients: the clients with claimable jobs in the allowed lanes, by how many
         // jobs each has RUNNING in those lanes, then by the age of its oldest claimable job.
-        const pqxx::result clients = tx.exec_params(
-            "WITH heads AS ("
-            "  SELECT client, MIN(seq) AS seq FROM jobs"
-            "  WHERE state = 0 AND shares IS NULL AND (($1::bigint >> lane) & 1) = 1"
-            "  GROUP BY client),"
-            " running AS ("
-            "  SELECT client, COUNT(*) AS n FROM jobs"
-            "  WHERE state = 1 AND shares IS NULL AND (($1::bigint >> lane) & 1) = 1"
-            "  GROUP BY client)"
-            " SELECT h.client FROM heads h LEFT JOIN running r ON r.client = h.client"
-            " ORDER BY COALESCE(r.n, 0), h.seq",
-            lanes);
-        std::string id;
+        const pqxx::result clients =
+            id.empty()
+                ? tx.exec_params(
+                      "WITH heads AS ("
+                      "  SELECT client, MIN(seq) AS seq FROM jobs"
+                      "  WHERE state = 0 AND shares IS NULL AND parent_id = ''"
+                      "  AND (($1::bigint >> lane) & 1) = 1"
+                      "  GROUP BY client),"
+                      " running AS ("
+                      "  SELECT client, COUNT(*) AS n FROM jobs"
+                      "  WHERE state = 1 AND shares IS NULL AND (($1::bigint >> lane) & 1) = 1"
+                      "  GROUP BY client)"
+                      " SELECT h.client FROM heads h LEFT JOIN running r ON r.client = h.client"
+                      " ORDER BY COALESCE(r.n, 0), h.seq",
+                      lanes)
+                : pqxx::result();
         for (const pqxx::row& client : clients) {
           // The client's oldest claimable job that no other claim holds.
           const pqxx::result r = tx.exec_params(
-              "SELECT id FROM jobs WHERE state = 0 AND shares IS NULL AND client = $1 "
-              "AND (($2::bigint >> lane) & 1) = 1 ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED",
+              "SELECT id FROM jobs WHERE state = 0 AND shares IS NULL AND parent_id = '' "
+              "AND client = $1 AND (($2::bigint >> lane) & 1) = 1 "
+              "ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED",
               client[0].as<std::string>(), lanes);
           if (!r.empty()) {
             id = r[0][0].as<std::string>();
@@ -495,6 +585,8 @@ StatusOr<JobState> PostgresStoreImpl::Cancel(std::string_view id) {
       // Its worker stops it: only the worker knows when the engine has let go.
       tx.exec_params("UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 1",
                      std::string(id));
+      // Its tasks too: each task's worker sees the cancel on its own poll.
+      DRILLBIF_RETURN_IF_ERROR(CancelChildren(tx, id));
       return JobState::kRunning;
     }
     // Nothing runs for it (queued, or following another job): cancelled at once. A queued job
@@ -572,9 +664,9 @@ StatusOr<ListResult> PostgresStoreImpl::List(const ListRequest& request) {
     const pqxx::result r = tx.exec_params(
         SelectJobs("CASE WHEN $4 THEN request ELSE ''::bytea END",
                    "WHERE seq > $1 AND (NOT $2 OR state = $3) AND ($5 = '' OR kind = $5) "
-                   "ORDER BY seq LIMIT $6"),
+                   "AND parent_id = $7 ORDER BY seq LIMIT $6"),
         after_seq, request.state.has_value(), request.state ? static_cast<int>(*request.state) : 0,
-        request.include_request, request.kind, static_cast<int64_t>(page_size) + 1);
+        request.include_request, request.kind, static_cast<int64_t>(page_size) + 1, request.parent);
     ListResult result;
     for (const pqxx::row& row : r) {
       if (static_cast<int>(result.jobs.size()) == page_size) {
@@ -592,14 +684,18 @@ StatusOr<RecoveryReport> PostgresStoreImpl::TakeBack(TakenBack why, int64_t now_
   return Write<RecoveryReport>(
       "take back interrupted jobs", [&](Tx& tx) -> StatusOr<RecoveryReport> {
         const pqxx::result r = tx.exec_params(
-            "SELECT id, attempts, cancel_requested FROM jobs WHERE state = 1 AND shares IS NULL "
+            "SELECT id FROM jobs WHERE state = 1 AND shares IS NULL "
             "AND ($1 OR (lease_expires_ms > 0 AND lease_expires_ms < $2)) ORDER BY seq",
             why == TakenBack::kRestart, now_ms);
         RecoveryReport report;
         for (const pqxx::row& job : r) {
           const std::string id = job[0].as<std::string>();
-          const int attempts = job[1].as<int>();
-          switch (TakeBackActionOf(job[2].as<bool>(), attempts, options_.max_attempts)) {
+          // Read again: taking back a parent earlier in this loop asked its running children to
+          // stop, and such a child must end CANCELLED, not be queued again without a parent.
+          DRILLBIF_ASSIGN_OR_RETURN(const JobHead head, Head(tx, id));
+          if (head.state != kRunning) continue;
+          const int attempts = head.attempts;
+          switch (TakeBackActionOf(head.cancel_requested, attempts, options_.max_attempts)) {
             case TakeBackAction::kCancel:
               DRILLBIF_RETURN_IF_ERROR(CancelRunning(tx, id));
               ++report.cancelled;

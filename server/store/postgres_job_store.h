@@ -61,7 +61,7 @@ struct PostgresJobStoreOptions {
 class PostgresJobStore {
  public:
   // Highest schema version this build knows.
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
   // Bytes of the largest value (request, chunk, summary) the store accepts: PostgreSQL's limit
   // on one bytea field is 1 GiB; a little less leaves room for the protocol's framing.
   static constexpr int64_t kMaxValueBytes = 1'000'000'000;

@@ -120,6 +120,9 @@ class PostgresStoreImpl final : public JobStore {
   Status RequeueWithFollowers(Tx& tx, std::string_view id, bool count_attempt);
   Status FailWithFollowers(Tx& tx, std::string_view id, StatusCode code, std::string_view message);
   Status CancelRunning(Tx& tx, std::string_view id);
+  // Parent `id` leaves RUNNING, or is being cancelled: its QUEUED children become CANCELLED and
+  // its RUNNING ones get cancel_requested, including one a concurrent claim takes meanwhile.
+  Status CancelChildren(Tx& tx, std::string_view id);
   StatusOr<RecoveryReport> TakeBack(TakenBack why, int64_t now_ms);
   Status CheckQueueLimits(Tx& tx, const SubmitRequest& request);
   Status DropRunChunks(Tx& tx, std::string_view id);

@@ -60,7 +60,19 @@ Status PostgresStoreImpl::Delete(std::string_view id) {
     DRILLBIF_ASSIGN_OR_RETURN(JobHead head, Head(tx, id));
     const auto state = static_cast<JobState>(head.state);
     if (!IsFinished(state)) return NotFinished(id, state);
-    return DeleteJobAndOrphanResult(tx, id, head.result_key).status();
+    DRILLBIF_RETURN_IF_ERROR(DeleteJobAndOrphanResult(tx, id, head.result_key).status());
+    // Its finished children go with it; any still stopping after its cancel are left to Evict,
+    // which takes them once they finish (their parent is gone).
+    const pqxx::result children = tx.exec_params(
+        "SELECT id, result_key FROM jobs WHERE parent_id = $1 AND parent_id <> '' "
+        "AND state IN (2, 3, 4)",
+        std::string(id));
+    for (const pqxx::row& child : children) {
+      DRILLBIF_RETURN_IF_ERROR(
+          DeleteJobAndOrphanResult(tx, child[0].as<std::string>(), child[1].as<std::string>())
+              .status());
+    }
+    return Status::Ok();
   });
 }
 
@@ -90,10 +102,12 @@ Status PostgresStoreImpl::EvictOldest(int64_t finished_before, int64_t max_used_
       jobs = results = 0;
       DRILLBIF_ASSIGN_OR_RETURN(const int64_t used_at_start, UsedBytes(tx));
       if (max_used_bytes > 0 && used_at_start <= max_used_bytes) return true;
-      // The oldest finished jobs that no QUEUED or RUNNING job follows.
+      // The oldest finished jobs that no QUEUED or RUNNING job follows and whose parent (if
+      // any) is not QUEUED or RUNNING (it may still read their results).
       const pqxx::result batch = tx.exec_params(
           "SELECT id, result_key FROM jobs j WHERE state IN (2, 3, 4) AND finished_ms < $1 "
           "AND NOT EXISTS (SELECT 1 FROM jobs f WHERE f.shares = j.id AND f.state IN (0, 1)) "
+          "AND NOT EXISTS (SELECT 1 FROM jobs p WHERE p.id = j.parent_id AND p.state IN (0, 1)) "
           "ORDER BY finished_ms, seq LIMIT $2",
           finished_before, kEvictBatch);
       if (batch.empty()) return true;  // Nothing (more) that may go.

@@ -78,6 +78,8 @@ Status PostgresStoreImpl::Complete(std::string_view id, int64_t run, std::string
                       "UPDATE jobs SET state = 2, progress = 1, points = $2, finished_ms = $3 "
                       "WHERE id = $1 AND state = 1",
                       id, points, now));
+    // Tasks still queued or running are no longer needed by anyone.
+    DRILLBIF_RETURN_IF_ERROR(CancelChildren(tx, id));
     const pqxx::result followers = tx.exec_params(
         "UPDATE jobs SET state = 2, progress = 1, points = $2, finished_ms = $3, cache_hit = TRUE "
         "WHERE shares = $1 AND state IN (0, 1)",

@@ -126,6 +126,20 @@ INSERT INTO counters(name, value) VALUES ('probes', 0);
 ALTER TABLE jobs ADD COLUMN lease_expires_ms INTEGER NOT NULL DEFAULT 0;
 CREATE INDEX jobs_leased ON jobs(lease_expires_ms) WHERE state = 1 AND lease_expires_ms > 0;
 )sql",
+    // 3 -> 4: child jobs. jobs.parent_id: the job that submitted this one as its task ('' for a
+    // top-level job; existing jobs are top-level). jobs_claimable is rebuilt for top-level jobs
+    // only (fair claims and queue limits are about top-level jobs; children are claimed through
+    // their own indexes). jobs_by_parent finds one parent's children by state (its claims, the
+    // cascade when it leaves RUNNING, Delete, List); jobs_queued_children walks the queued
+    // children oldest first (claims prefer children of running parents; queue depth).
+    R"sql(
+ALTER TABLE jobs ADD COLUMN parent_id TEXT NOT NULL DEFAULT '';
+DROP INDEX jobs_claimable;
+CREATE INDEX jobs_claimable ON jobs(client, lane, seq)
+  WHERE state = 0 AND shares IS NULL AND parent_id = '';
+CREATE INDEX jobs_by_parent ON jobs(parent_id, state, seq) WHERE parent_id <> '';
+CREATE INDEX jobs_queued_children ON jobs(seq) WHERE state = 0 AND parent_id <> '';
+)sql",
 };
 static_assert(std::size(kMigrations) == SqliteJobStore::kSchemaVersion,
               "one migration per schema version");
@@ -134,7 +148,7 @@ static_assert(std::size(kMigrations) == SqliteJobStore::kSchemaVersion,
 constexpr const char* kJobColumns =
     "seq, id, kind, state, %s, cache_key, request_id, shares, progress, current_value, points, "
     "error_code, error_message, created_ms, started_ms, finished_ms, cache_hit, attempts, "
-    "cancel_requested, worker_id, client, lane, run, lease_expires_ms";
+    "cancel_requested, worker_id, client, lane, run, lease_expires_ms, parent_id";
 
 std::string SelectJobs(const char* request_expression, const char* rest) {
   char columns[512];
@@ -167,6 +181,7 @@ JobRecord ReadJob(const Query& q) {
   job.lane = static_cast<int>(q.Int(21));
   job.run = q.Int(22);
   job.lease_expires_ms = q.Int(23);
+  job.parent = q.Text(24);
   return job;
 }
 
@@ -344,6 +359,8 @@ Status SqliteStoreImpl::RequeueWithFollowers(std::string_view id, bool count_att
       "points = 0, worker_id = '', attempts = attempts - ?2 WHERE id = ?1 AND state = 1",
       id, [&](Query& q) { q.Bind(2, count_attempt ? 0 : 1); }));
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
+  // The next run submits its own tasks: this run's are no longer wanted.
+  DRILLBIF_RETURN_IF_ERROR(CancelChildren(id));
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare("UPDATE jobs SET state = 0, started_ms = 0, progress = 0, "
                                    "current_value = NULL, points = 0 "
@@ -359,6 +376,7 @@ Status SqliteStoreImpl::FailWithFollowers(std::string_view id, StatusCode code,
       "WHERE id = ?1 AND state = 1",
       id, [&](Query& q) { q.Bind(2, static_cast<int>(code)).Bind(3, message).Bind(4, now); }));
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
+  DRILLBIF_RETURN_IF_ERROR(CancelChildren(id));
   DRILLBIF_ASSIGN_OR_RETURN(Query q,
                             connection_.Prepare("UPDATE jobs SET state = 3, error_code = ?2, "
                                                 "error_message = ?3, finished_ms = ?4 "
@@ -372,7 +390,22 @@ Status SqliteStoreImpl::CancelRunning(std::string_view id) {
       UpdateRunning("UPDATE jobs SET state = 4, finished_ms = ?2 WHERE id = ?1 AND state = 1", id,
                     [&](Query& q) { q.Bind(2, now); }));
   DRILLBIF_RETURN_IF_ERROR(DropRunChunks(id));
+  DRILLBIF_RETURN_IF_ERROR(CancelChildren(id));
   return PromoteFollower(id);
+}
+
+Status SqliteStoreImpl::CancelChildren(std::string_view id) {
+  {
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("UPDATE jobs INDEXED BY jobs_by_parent SET state = 4, "
+                                     "finished_ms = ?2 WHERE parent_id = ?1 AND parent_id <> '' "
+                                     "AND state = 0"));
+    DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Bind(2, NowMs()).Run());
+  }
+  DRILLBIF_ASSIGN_OR_RETURN(
+      Query q, connection_.Prepare("UPDATE jobs INDEXED BY jobs_by_parent SET cancel_requested = 1 "
+                                   "WHERE parent_id = ?1 AND parent_id <> '' AND state = 1"));
+  return q.Bind(1, id).Run();
 }
 
 Status SqliteStoreImpl::CheckQueueLimits(const SubmitRequest& request) {
@@ -381,7 +414,8 @@ Status SqliteStoreImpl::CheckQueueLimits(const SubmitRequest& request) {
   if (request.max_queued_per_client > 0) {
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q, connection_.Prepare("SELECT COUNT(*) FROM jobs INDEXED BY jobs_claimable "
-                                     "WHERE state = 0 AND shares IS NULL AND client = ?1"));
+                                     "WHERE state = 0 AND shares IS NULL AND parent_id = '' "
+                                     "AND client = ?1"));
     q.Bind(1, request.client);
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     waiting_of_client = row ? q.Int(0) : 0;
@@ -390,7 +424,7 @@ Status SqliteStoreImpl::CheckQueueLimits(const SubmitRequest& request) {
     DRILLBIF_ASSIGN_OR_RETURN(waiting,
                               QueryInt(connection_,
                                        "SELECT COUNT(*) FROM jobs INDEXED BY jobs_claimable "
-                                       "WHERE state = 0 AND shares IS NULL"));
+                                       "WHERE state = 0 AND shares IS NULL AND parent_id = ''"));
   }
   return server::CheckQueueLimits(request, waiting_of_client, waiting);
 }
@@ -404,12 +438,13 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
   SubmitResult result;
   if (!request.request_id.empty()) {
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("SELECT id, kind, request, cache_hit, shares FROM jobs "
-                                     "WHERE request_id = ?1"));
+        Query q, connection_.Prepare("SELECT id, kind, request, cache_hit, shares, parent_id "
+                                     "FROM jobs WHERE request_id = ?1"));
     q.Bind(1, request.request_id);
     DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
     if (row) {
-      if (q.Text(1) != request.kind || q.Blob(2) != request.request) {
+      if (q.Text(1) != request.kind || q.Blob(2) != request.request ||
+          q.Text(5) != request.parent) {
         return RequestIdReused(request.request_id, q.Text(0));
       }
       result.id = q.Text(0);
@@ -418,6 +453,14 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
       result.shared_with = q.Text(4);
       return result;  // Nothing written: the transaction rolls back.
     }
+  }
+  if (!request.parent.empty()) {
+    // Parents leave RUNNING only in writing transactions, which this one excludes: the parent
+    // cannot finish between this check and the insert.
+    StatusOr<JobHead> parent = Head(request.parent);
+    if (!parent.ok() && parent.status().code() != StatusCode::kNotFound) return parent.status();
+    DRILLBIF_RETURN_IF_ERROR(
+        CheckParent(request.parent, request.parent_run, parent.ok() ? &*parent : nullptr));
   }
 
   const int64_t now = NowMs();
@@ -465,16 +508,19 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
       result.shared_with = shares;
     }
   }
-  // Only a job that will run adds work: cache hits and followers are never refused.
-  if (state == kQueued && shares.empty()) DRILLBIF_RETURN_IF_ERROR(CheckQueueLimits(request));
+  // Only a job that will run adds work: cache hits and followers are never refused. Nor are
+  // children: their parent was admitted with the cost of the whole.
+  if (state == kQueued && shares.empty() && request.parent.empty()) {
+    DRILLBIF_RETURN_IF_ERROR(CheckQueueLimits(request));
+  }
   {
     DRILLBIF_ASSIGN_OR_RETURN(
         Query q,
         connection_.Prepare(
             "INSERT INTO jobs (id, kind, state, request, cache_key, request_id, shares, "
             "result_key, progress, current_value, points, created_ms, started_ms, "
-            "finished_ms, cache_hit, client, lane) "
-            "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)"));
+            "finished_ms, cache_hit, client, lane, parent_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, "
+            "?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)"));
     q.Bind(1, id)
         .Bind(2, request.kind)
         .Bind(3, state)
@@ -491,7 +537,8 @@ StatusOr<SubmitResult> SqliteStoreImpl::Submit(const SubmitRequest& request) {
         .Bind(14, finished_ms)
         .Bind(15, result.cache_hit ? 1 : 0)
         .Bind(16, request.client)
-        .Bind(17, request.lane);
+        .Bind(17, request.lane)
+        .Bind(18, request.parent);
     DRILLBIF_RETURN_IF_ERROR(q.Run());
   }
   if (result.cache_hit) {
@@ -511,7 +558,30 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
   std::lock_guard<std::mutex> lock(mu_);
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   std::string id;
-  {
+  if (!options.parent.empty()) {
+    // The parent runs its own tasks: only its children, oldest first.
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT id FROM jobs INDEXED BY jobs_by_parent "
+                                     "WHERE parent_id = ?1 AND parent_id <> '' AND state = 0 "
+                                     "AND ((?2 >> lane) & 1) = 1 ORDER BY seq LIMIT 1"));
+    q.Bind(1, options.parent).Bind(2, LaneMask(options));
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    if (!row) return std::optional<JobRecord>();
+    id = q.Text(0);
+  } else {
+    // Work already running first: the oldest QUEUED child of a RUNNING parent. Queued children
+    // exist only while their parent runs (it cancels them when it stops), so the first entry of
+    // the index is normally the one taken.
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT c.id FROM jobs c INDEXED BY jobs_queued_children "
+                                     "JOIN jobs p ON p.id = c.parent_id "
+                                     "WHERE c.state = 0 AND c.parent_id <> '' AND p.state = 1 "
+                                     "AND ((?1 >> c.lane) & 1) = 1 ORDER BY c.seq LIMIT 1"));
+    q.Bind(1, LaneMask(options));
+    DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+    if (row) id = q.Text(0);
+  }
+  if (id.empty()) {
     // Fair across clients: each client's oldest claimable job of the allowed lanes (heads),
     // ordered by how many jobs that client has RUNNING in those lanes, then by age. The clients
     // are walked as a skip scan of jobs_claimable (one index seek per client) and each head is
@@ -521,15 +591,17 @@ StatusOr<std::optional<JobRecord>> SqliteStoreImpl::ClaimNext(std::string_view w
         connection_.Prepare(
             "WITH RECURSIVE clients(client) AS ("
             "  SELECT (SELECT MIN(client) FROM jobs INDEXED BY jobs_claimable"
-            "          WHERE state = 0 AND shares IS NULL)"
+            "          WHERE state = 0 AND shares IS NULL AND parent_id = '')"
             "  UNION ALL"
             "  SELECT (SELECT MIN(client) FROM jobs INDEXED BY jobs_claimable"
-            "          WHERE state = 0 AND shares IS NULL AND client > c.client)"
+            "          WHERE state = 0 AND shares IS NULL AND parent_id = ''"
+            "          AND client > c.client)"
             "  FROM clients c WHERE c.client IS NOT NULL),"
             " lanes(lane) AS (SELECT 0 UNION ALL SELECT lane + 1 FROM lanes WHERE lane + 1 < ?2),"
             " heads AS ("
             "  SELECT c.client AS client, MIN((SELECT seq FROM jobs INDEXED BY jobs_claimable"
-            "    WHERE state = 0 AND shares IS NULL AND client = c.client AND lane = l.lane"
+            "    WHERE state = 0 AND shares IS NULL AND parent_id = '' AND client = c.client"
+            "    AND lane = l.lane"
             "    ORDER BY seq LIMIT 1)) AS seq"
             "  FROM clients c JOIN lanes l"
             "  WHERE c.client IS NOT NULL AND ((?1 >> l.lane) & 1) = 1"
@@ -623,6 +695,8 @@ StatusOr<JobState> SqliteStoreImpl::Cancel(std::string_view id) {
                                   connection_.Prepare("UPDATE jobs SET cancel_requested = 1 "
                                                       "WHERE id = ?1 AND state = 1"));
         DRILLBIF_RETURN_IF_ERROR(q.Bind(1, id).Run());
+        // Its tasks too: each task's worker sees the cancel on its own poll.
+        DRILLBIF_RETURN_IF_ERROR(CancelChildren(id));
         after = JobState::kRunning;
       } else {
         // Nothing runs for it (queued, or following another job): cancelled at once.
@@ -704,11 +778,17 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   std::lock_guard<std::mutex> lock(mu_);
   // Keyset pagination on seq: a page starts after the last seq seen, so jobs submitted or
   // deleted meanwhile never shift the pages (an offset would skip or repeat jobs).
+  // One parent's children come from its index (a few hundred rows sorted), not from a walk of
+  // every job after the token.
   DRILLBIF_ASSIGN_OR_RETURN(
       Query q, connection_.Prepare(SelectJobs(
                    "CASE WHEN ?4 THEN request ELSE x'' END",
-                   "WHERE seq > ?1 AND (?2 IS NULL OR state = ?2) AND (?3 = '' OR kind = ?3) "
-                   "ORDER BY seq LIMIT ?5")));
+                   request.parent.empty()
+                       ? "WHERE seq > ?1 AND (?2 IS NULL OR state = ?2) AND (?3 = '' OR kind = ?3) "
+                         "AND parent_id = ?6 ORDER BY seq LIMIT ?5"
+                       : "INDEXED BY jobs_by_parent WHERE parent_id = ?6 AND parent_id <> '' "
+                         "AND seq > ?1 AND (?2 IS NULL OR state = ?2) AND (?3 = '' OR kind = ?3) "
+                         "ORDER BY seq LIMIT ?5")));
   q.Bind(1, after_seq);
   if (request.state) {
     q.Bind(2, static_cast<int>(*request.state));
@@ -718,7 +798,8 @@ StatusOr<ListResult> SqliteStoreImpl::List(const ListRequest& request) {
   // page_size <= max_page_size (an int), so page_size + 1 is computed in 64 bits.
   q.Bind(3, request.kind)
       .Bind(4, request.include_request ? 1 : 0)
-      .Bind(5, static_cast<int64_t>(page_size) + 1);
+      .Bind(5, static_cast<int64_t>(page_size) + 1)
+      .Bind(6, request.parent);
   ListResult result;
   int64_t last_seq = 0;
   for (;;) {
@@ -740,13 +821,11 @@ StatusOr<RecoveryReport> SqliteStoreImpl::TakeBack(TakenBack why, int64_t now_ms
   DRILLBIF_ASSIGN_OR_RETURN(Transaction tx, Transaction::Begin(connection_, /*write=*/true));
   struct Interrupted {
     std::string id;
-    int attempts;
-    bool cancel_requested;
   };
   std::vector<Interrupted> interrupted;
   {
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("SELECT id, attempts, cancel_requested FROM jobs "
+        Query q, connection_.Prepare("SELECT id FROM jobs "
                                      "WHERE state = 1 AND shares IS NULL AND "
                                      "(?1 OR (lease_expires_ms > 0 AND lease_expires_ms < ?2)) "
                                      "ORDER BY seq"));
@@ -754,12 +833,16 @@ StatusOr<RecoveryReport> SqliteStoreImpl::TakeBack(TakenBack why, int64_t now_ms
     for (;;) {
       DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
       if (!row) break;
-      interrupted.push_back({q.Text(0), static_cast<int>(q.Int(1)), q.Int(2) != 0});
+      interrupted.push_back({q.Text(0)});
     }
   }
   RecoveryReport report;
   for (const Interrupted& job : interrupted) {
-    switch (TakeBackActionOf(job.cancel_requested, job.attempts, options_.max_attempts)) {
+    // Read again: taking back a parent earlier in this loop asked its running children to stop,
+    // and such a child must end CANCELLED, not be queued again without a running parent.
+    DRILLBIF_ASSIGN_OR_RETURN(const JobHead head, Head(job.id));
+    if (head.state != kRunning) continue;
+    switch (TakeBackActionOf(head.cancel_requested, head.attempts, options_.max_attempts)) {
       case TakeBackAction::kCancel:
         DRILLBIF_RETURN_IF_ERROR(CancelRunning(job.id));
         ++report.cancelled;
@@ -767,7 +850,7 @@ StatusOr<RecoveryReport> SqliteStoreImpl::TakeBack(TakenBack why, int64_t now_ms
       case TakeBackAction::kFail:
         DRILLBIF_RETURN_IF_ERROR(
             FailWithFollowers(job.id, StatusCode::kInternal,
-                              TooManyAttempts(why, job.attempts, options_.max_attempts)));
+                              TooManyAttempts(why, head.attempts, options_.max_attempts)));
         ++report.failed;
         break;
       case TakeBackAction::kRequeue:
@@ -816,13 +899,16 @@ StatusOr<StoreStats> SqliteStoreImpl::Stats() {
   }
   {
     DRILLBIF_ASSIGN_OR_RETURN(
-        Query q, connection_.Prepare("SELECT lane, COUNT(*) FROM jobs INDEXED BY jobs_claimable "
-                                     "WHERE state = 0 AND shares IS NULL GROUP BY lane"));
+        Query q, connection_.Prepare(
+                     "SELECT lane, COUNT(*) FROM jobs INDEXED BY jobs_claimable "
+                     "WHERE state = 0 AND shares IS NULL AND parent_id = '' GROUP BY lane "
+                     "UNION ALL SELECT lane, COUNT(*) FROM jobs INDEXED BY jobs_queued_children "
+                     "WHERE state = 0 AND parent_id <> '' GROUP BY lane"));
     for (;;) {
       DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
       if (!row) break;
       const int64_t lane = q.Int(0);
-      if (lane >= 0 && lane < kLaneCount) stats.queue_depth_by_lane[lane] = q.Int(1);
+      if (lane >= 0 && lane < kLaneCount) stats.queue_depth_by_lane[lane] += q.Int(1);
       stats.queue_depth += q.Int(1);
     }
   }

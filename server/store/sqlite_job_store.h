@@ -70,7 +70,7 @@ struct SqliteJobStoreOptions {
 class SqliteJobStore {
  public:
   // Highest schema version (PRAGMA user_version) this build knows.
-  static constexpr int kSchemaVersion = 3;
+  static constexpr int kSchemaVersion = 4;
   // PRAGMA application_id of drillbif store files ("DBif"), so that another program's SQLite
   // file is refused instead of being migrated.
   static constexpr int kApplicationId = 0x44426966;

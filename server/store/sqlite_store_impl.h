@@ -97,6 +97,9 @@ class SqliteStoreImpl final : public JobStore {
   Status RequeueWithFollowers(std::string_view id, bool count_attempt);
   Status FailWithFollowers(std::string_view id, StatusCode code, std::string_view message);
   Status CancelRunning(std::string_view id);
+  // Parent `id` leaves RUNNING, or is being cancelled: its QUEUED children become CANCELLED and
+  // its RUNNING ones get cancel_requested (their workers stop them and call MarkCancelled).
+  Status CancelChildren(std::string_view id);
   // RecoverAfterRestart (every RUNNING job) and ReclaimExpiredLeases (those whose lease expired
   // before now_ms).
   StatusOr<RecoveryReport> TakeBack(TakenBack why, int64_t now_ms);

@@ -29,6 +29,12 @@ using sqlite::Transaction;
 // and clients wait at most about one transaction (docs/store.md has the measured figures), and
 // each transaction's WAL stays small.
 constexpr int kEvictBatch = 256;
+
+// A finished job to delete, with its result's key (the result goes with its last job).
+struct Evictable {
+  std::string id;
+  std::string result_key;
+};
 constexpr int64_t kEvictTransactionBytes = 4 << 20;
 // Pages PRAGMA incremental_vacuum frees per step (4 MiB at 4 KiB pages): a step moves at most
 // that many pages, bounding both the lock hold and the WAL it writes before the checkpoint that
@@ -172,6 +178,24 @@ Status SqliteStoreImpl::Delete(std::string_view id) {
     return NotFinished(id, state);
   }
   DRILLBIF_RETURN_IF_ERROR(DeleteJobAndOrphanResult(id, head.result_key).status());
+  // Its finished children go with it; any still stopping after its cancel are left to Evict,
+  // which takes them once they finish (their parent is gone).
+  std::vector<Evictable> children;
+  {
+    DRILLBIF_ASSIGN_OR_RETURN(
+        Query q, connection_.Prepare("SELECT id, result_key FROM jobs INDEXED BY jobs_by_parent "
+                                     "WHERE parent_id = ?1 AND parent_id <> '' "
+                                     "AND state IN (2, 3, 4)"));
+    q.Bind(1, id);
+    for (;;) {
+      DRILLBIF_ASSIGN_OR_RETURN(bool row, q.Step());
+      if (!row) break;
+      children.push_back({q.Text(0), q.Text(1)});
+    }
+  }
+  for (const Evictable& child : children) {
+    DRILLBIF_RETURN_IF_ERROR(DeleteJobAndOrphanResult(child.id, child.result_key).status());
+  }
   return tx.Commit();
 }
 
@@ -207,17 +231,14 @@ int64_t SqliteStoreImpl::DiskBytes() const {
 namespace {
 
 // The oldest finished jobs (by finished_ms, then submission) that no QUEUED or RUNNING job
-// follows, finished before ?1, at most ?2 of them.
+// follows and whose parent (if any) is not QUEUED or RUNNING (it may still read their results),
+// finished before ?1, at most ?2 of them.
 constexpr const char* kEvictableJobs =
     "SELECT id, result_key FROM jobs j INDEXED BY jobs_finished WHERE state IN (2, 3, 4) AND "
     "finished_ms < ?1 "
     "AND NOT EXISTS (SELECT 1 FROM jobs f WHERE f.shares = j.id AND f.state IN (0, 1)) "
+    "AND NOT EXISTS (SELECT 1 FROM jobs p WHERE p.id = j.parent_id AND p.state IN (0, 1)) "
     "ORDER BY finished_ms, seq LIMIT ?2";
-
-struct Evictable {
-  std::string id;
-  std::string result_key;
-};
 
 StatusOr<std::vector<Evictable>> SelectEvictable(sqlite::Connection& connection,
                                                  int64_t finished_before) {

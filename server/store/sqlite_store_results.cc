@@ -116,6 +116,8 @@ Status SqliteStoreImpl::Complete(std::string_view id, int64_t run, std::string_v
       UpdateRunning("UPDATE jobs SET state = 2, progress = 1, points = ?2, finished_ms = ?3 "
                     "WHERE id = ?1 AND state = 1",
                     id, [&](Query& q) { q.Bind(2, points).Bind(3, now); }));
+  // Tasks still queued or running are no longer needed by anyone.
+  DRILLBIF_RETURN_IF_ERROR(CancelChildren(id));
   int followers = 0;
   {
     DRILLBIF_ASSIGN_OR_RETURN(

@@ -92,6 +92,27 @@ Status CheckSubmit(const SubmitRequest& request) {
   if (request.max_queued_per_client < 0) {
     return InvalidArgument("max_queued_per_client: must be >= 0 (0 = no limit)");
   }
+  DRILLBIF_RETURN_IF_ERROR(CheckText("parent", request.parent));
+  if (request.parent.empty()) {
+    if (request.parent_run != 0) return InvalidArgument("parent_run: set without a parent");
+    return Status::Ok();
+  }
+  if (request.parent_run < 1) {
+    return InvalidArgument("parent_run: must be >= 1 (the parent's run that submits the child)");
+  }
+  if (!request.cache_key.empty()) {
+    return InvalidArgument("cache_key: a child job neither uses nor fills the cache");
+  }
+  return Status::Ok();
+}
+
+Status CheckParent(std::string_view parent, int64_t parent_run, const JobHead* head) {
+  if (head == nullptr) return NotFound("parent: no job '" + std::string(parent) + "'");
+  DRILLBIF_RETURN_IF_ERROR(CheckRunning(parent, "submit a child of", parent_run, *head));
+  if (head->cancel_requested) {
+    return FailedPrecondition("cannot submit a child of job '" + std::string(parent) +
+                              "': its cancel was requested");
+  }
   return Status::Ok();
 }
 

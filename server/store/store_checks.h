@@ -59,7 +59,13 @@ std::string ResultKey(const SubmitRequest& request, const std::string& id);
 // bytes, which every database's text type holds as it is (PostgreSQL's refuses both, and a
 // driver passing C strings would cut the text at a NUL: two request_ids could become one).
 Status CheckText(const char* field, std::string_view text);
+// Includes the child rules that need no I/O: parent_run set exactly with parent, no cache_key.
 Status CheckSubmit(const SubmitRequest& request);
+// Whether run `parent_run` of job `parent` (its head, nullptr when there is no such job) may
+// submit a child: NOT_FOUND "parent: no job ..." for none; FAILED_PRECONDITION unless it is
+// RUNNING, runs itself, is at that run and has no cancel requested (a stale or stopping run must
+// not spawn work).
+Status CheckParent(std::string_view parent, int64_t parent_run, const JobHead* head);
 Status CheckProgress(double fraction, std::optional<double> current_value, int64_t points);
 Status CheckChunk(int64_t run, int stream, int64_t first_item, int64_t item_count);
 Status CheckChunkRead(int stream, int64_t first_item, int64_t max_bytes);
