@@ -14,6 +14,7 @@
 #include "jobs/simulate_job.h"
 #include "jobs/sweep_job.h"
 #include "jobs/trace_job.h"
+#include "jobs/trace_task_job.h"
 
 namespace drillbif::jobs {
 namespace {
@@ -101,6 +102,16 @@ void ClearPath(Message* message, std::string_view path) {
     message = reflection->MutableMessage(message, field);
     path.remove_prefix(dot + 1);
   }
+}
+
+// The kinds of child jobs: run by workers, never submitted by clients (not in Kinds()).
+std::vector<JobKindSpec> BuildChildKinds() {
+  std::vector<JobKindSpec> kinds;
+  kinds.push_back(Entry(v1::JOB_KIND_UNSPECIFIED, kTraceTaskKind, "", {}, PlanTraceTask,
+                        TraceTaskCost, RunTraceTaskJob));
+  // As long as the parent may run: a task is a part of it.
+  kinds.back().default_limits = Limits(1800);
+  return kinds;
 }
 
 const std::vector<JobKindSpec>& Kinds() {
@@ -203,6 +214,14 @@ const JobKindSpec* FindKind(v1::JobKind kind) {
 
 const JobKindSpec* FindKind(std::string_view name) {
   for (const JobKindSpec& k : Kinds()) {
+    if (k.name == name) return &k;
+  }
+  return nullptr;
+}
+
+const JobKindSpec* FindChildKind(std::string_view name) {
+  static const std::vector<JobKindSpec> kinds = BuildChildKinds();
+  for (const JobKindSpec& k : kinds) {
     if (k.name == name) return &k;
   }
   return nullptr;

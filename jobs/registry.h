@@ -82,6 +82,10 @@ const std::vector<const JobKindSpec*>& AllKinds();
 const JobKindSpec* FindKind(v1::JobKind kind);
 const JobKindSpec* FindKind(std::string_view name);
 const JobKindSpec* FindKind(const google::protobuf::Descriptor* request_or_result_type);
+// The kind of a child job by its store name ("trace_task", jobs/trace_task_job.h): what workers
+// run for a parent job; never a kind clients submit (FindKind and AllKinds do not know it). Null
+// for an unknown one.
+const JobKindSpec* FindChildKind(std::string_view name);
 
 // The submit-time checks of a request: every float and double field (at any depth) is finite
 // (else INVALID_ARGUMENT "request.params.xi: ...", `prefix` before the field's path), then the

@@ -11,6 +11,10 @@
 #include "drillbif/common/status.h"
 #include "drillbif/simulate/simulator.h"
 
+namespace drillbif {
+class TraceTaskRunner;  // continuation/trace_tasks.h
+}  // namespace drillbif
+
 namespace drillbif::jobs {
 
 class OptimumCache;
@@ -45,6 +49,9 @@ struct RunContext {
   OptimumCache* optimum_cache = nullptr;
   // Streamed result items; null: the result holds them all.
   ResultSink* sink = nullptr;
+  // Where a trace job's tasks run (continuation/trace_tasks.h: e.g. the store's child jobs, for
+  // any worker to take); null: the trace's own threads. Not owned.
+  TraceTaskRunner* trace_tasks = nullptr;
 };
 
 }  // namespace drillbif::jobs

@@ -242,7 +242,8 @@ double ReferenceSpan(const std::string& param) {
 }
 
 StatusOr<v1::TraceResult> Trace(const v1::TraceRequest& request, const RunContext& context) {
-  DRILLBIF_ASSIGN_OR_RETURN(const TracePlan plan, PlanTrace(request));
+  DRILLBIF_ASSIGN_OR_RETURN(TracePlan plan, PlanTrace(request));
+  plan.options.task_runner = context.trace_tasks;
   const ProgressCallback& progress = context.progress;
   OptimumCache* const cache = context.optimum_cache;
   // With a region, the curves take the first 90% of the progress bar.

@@ -577,6 +577,7 @@ std::string EncodeTraceTaskResult(const TraceTaskResult& result) {
         if constexpr (std::is_same_v<T, CandidateRun>) Encode(r, response.mutable_candidate_run());
       },
       result);
+  response.set_status("COMPLETED");
   return DeterministicBytes(response);
 }
 

@@ -1,0 +1,108 @@
+#include "jobs/trace_task_job.h"
+
+#include <string>
+#include <variant>
+
+#include "drillbif/continuation/trace_tasks.h"
+#include "drillbif/flow/exact_propagator.h"
+#include "jobs/job_common.h"
+#include "jobs/request_bytes.h"
+#include "jobs/trace_job.h"
+#include "jobs/trace_task_codec.h"
+
+namespace drillbif::jobs {
+
+namespace {
+
+// INVALID_ARGUMENT naming `field` unless the orbit's parameters and signature are the model's and
+// it has a start state and a duration per segment.
+Status CheckSignature(const std::string& field, const PeriodicOrbit& orbit) {
+  if (Status s = internal::Model().ValidateParams(orbit.params); !s.ok()) {
+    return InvalidArgument(field + ".params: " + s.message());
+  }
+  if (Status s = ValidateSignature(internal::Model(), orbit.signature); !s.ok()) {
+    return InvalidArgument(field + ".signature: " + s.message());
+  }
+  const size_t n = orbit.signature.segments.size();
+  if (orbit.starts.size() != n || orbit.durations.size() != n) {
+    return InvalidArgument(field + ": " + std::to_string(n) + " segments need as many starts (" +
+                           std::to_string(orbit.starts.size()) + ") and durations (" +
+                           std::to_string(orbit.durations.size()) + ")");
+  }
+  for (const StateVector& x : orbit.starts) {
+    if (x.size() != internal::Model().state_dim()) {
+      return InvalidArgument(field + ".starts: a state of " + std::to_string(x.size()) +
+                             " components, the model has " + std::to_string(internal::Model().state_dim()));
+    }
+  }
+  return Status::Ok();
+}
+
+Status CheckOrbits(const TraceTask& task) {
+  if (const auto* curve = std::get_if<CurveTask>(&task)) {
+    return CheckSignature("curve.start.point.orbit", curve->start.point.orbit);
+  }
+  if (const auto* at = std::get_if<CandidatesTask>(&task)) {
+    return CheckSignature("candidates.point.point.orbit", at->point.point.orbit);
+  }
+  const auto& run = std::get<CandidateTask>(task);
+  if (Status s = CheckSignature("candidate_run.point.point.orbit", run.point.point.orbit);
+      !s.ok() || !run.candidate.orbit.ok()) {
+    return s;
+  }
+  return CheckSignature("candidate_run.candidate.orbit", *run.candidate.orbit);
+}
+
+// The decoded task and the parent's plan.
+struct Decoded {
+  TracePlan plan;
+  TraceTask task;
+};
+
+StatusOr<Decoded> Decode(const v1::TraceTaskRequest& request) {
+  DRILLBIF_ASSIGN_OR_RETURN(DecodedTraceTask decoded,
+                            DecodeTraceTaskRequest(DeterministicBytes(request)));
+  v1::TraceRequest parent;
+  if (!parent.ParseFromString(decoded.trace_request)) {
+    return InvalidArgument("trace_request: not a drillbif.v1.TraceRequest");
+  }
+  StatusOr<TracePlan> plan = PlanTrace(parent);
+  if (!plan.ok()) return InvalidArgument("trace_request: " + plan.status().message());
+  if (Status s = CheckOrbits(decoded.task); !s.ok()) return s;
+  return Decoded{*std::move(plan), std::move(decoded.task)};
+}
+
+}  // namespace
+
+StatusOr<TraceTaskPlan> PlanTraceTask(const v1::TraceTaskRequest& request) {
+  DRILLBIF_ASSIGN_OR_RETURN(const Decoded decoded, Decode(request));
+  return TraceTaskPlan{request};
+}
+
+JobCost TraceTaskCost(const TraceTaskPlan&) { return JobCost{}; }
+
+StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& request,
+                                                const RunContext& context) {
+  DRILLBIF_ASSIGN_OR_RETURN(const Decoded decoded, Decode(request));
+  v1::TraceTaskResponse response;
+  // A task claimed after its parent stopped is not started.
+  if (context.progress && !context.progress(0.0)) {
+    response.set_status("CANCELLED");
+    return response;
+  }
+  ExactPropagator propagator(internal::Model());
+  ProgressThrottle throttle(context.progress);
+  propagator.set_progress(&throttle);
+  const TraceTaskResult result =
+      RunTraceTask(internal::Model(), propagator, decoded.plan.options, decoded.task);
+  if (throttle.stopped()) {
+    response.set_status("CANCELLED");
+    return response;
+  }
+  if (!response.ParseFromString(EncodeTraceTaskResult(result))) {
+    return Internal("a trace task's result did not encode");
+  }
+  return response;
+}
+
+}  // namespace drillbif::jobs

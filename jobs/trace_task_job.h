@@ -1,0 +1,35 @@
+// The child jobs of a fanned-out trace: each one task of the parent's trace
+// (continuation/trace_tasks.h), its request the parent's TraceRequest and the task, its result
+// the task's result (jobs/trace_task_codec.h, proto/drillbif/v1/trace_task.proto). Workers run
+// them like any job (the registry's child kind, FindChildKind); clients never submit them.
+#ifndef DRILLBIF_JOBS_TRACE_TASK_JOB_H_
+#define DRILLBIF_JOBS_TRACE_TASK_JOB_H_
+
+#include "drillbif/common/status.h"
+#include "drillbif/v1/trace_task.pb.h"
+#include "jobs/job_cost.h"
+#include "jobs/run_context.h"
+
+namespace drillbif::jobs {
+
+// The store's kind string of a trace's child jobs.
+inline constexpr char kTraceTaskKind[] = "trace_task";
+
+// A child job's request checked: the parent's trace request plans (PlanTrace) and the task's
+// orbits have signatures of the model. INVALID_ARGUMENT naming the field otherwise.
+struct TraceTaskPlan {
+  v1::TraceTaskRequest request;
+};
+StatusOr<TraceTaskPlan> PlanTraceTask(const v1::TraceTaskRequest& request);
+// Nothing is admitted on it: the parent was admitted with the whole trace's cost.
+JobCost TraceTaskCost(const TraceTaskPlan& plan);
+
+// Runs the task under the parent's options as the parent's trace would (RunTraceTask), on a
+// propagator of its own that polls `context.progress`: a stop gives status "CANCELLED" and no
+// result; else "COMPLETED" with the result. Errors: INVALID_ARGUMENT for a malformed request.
+StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& request,
+                                                const RunContext& context);
+
+}  // namespace drillbif::jobs
+
+#endif  // DRILLBIF_JOBS_TRACE_TASK_JOB_H_

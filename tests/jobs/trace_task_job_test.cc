@@ -1,0 +1,152 @@
+// The trace job with its tasks as child jobs, without a store: a runner that encodes every task as
+// a child job's request (jobs/trace_task_codec.h), runs it through the registry's child kind as a
+// worker does and decodes its result gives the result of the trace on its own threads; the child
+// kind's checks name the field; a stopped task is CANCELLED without a result.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <map>
+#include <string>
+
+#include "drillbif/continuation/trace_tasks.h"
+#include "jobs/registry.h"
+#include "jobs/request_bytes.h"
+#include "jobs/trace_job.h"
+#include "jobs/trace_task_codec.h"
+#include "jobs/trace_task_job.h"
+#include "support/same_result.h"
+#include "support/small_requests.h"
+
+namespace drillbif::jobs {
+namespace {
+
+using ::testing::HasSubstr;
+
+// Runs each task as a child job's bytes, when it is taken.
+class ChildJobRunner : public TraceTaskRunner {
+ public:
+  explicit ChildJobRunner(std::string parent_request) : parent_(std::move(parent_request)) {}
+  size_t window() const override { return 3; }
+  StatusOr<int64_t> Submit(const TraceTask& task) override {
+    requests_.emplace(next_, EncodeTraceTaskRequest(parent_, task));
+    return next_++;
+  }
+  bool Ready(int64_t) override { return false; }
+  StatusOr<TraceTaskResult> Take(int64_t ticket, const std::function<bool()>&) override {
+    const std::string request = requests_.at(ticket);
+    requests_.erase(ticket);
+    const JobKindSpec* kind = FindChildKind(kTraceTaskKind);
+    StatusOr<JobOutput> out = RunJob(*kind, request, {});
+    if (!out.ok()) return out.status();
+    EXPECT_EQ(out->status, "COMPLETED");
+    ++ran_;
+    return DecodeTraceTaskResult(DeterministicBytes(*out->result));
+  }
+  void Drop(int64_t ticket) override { requests_.erase(ticket); }
+  int ran() const { return ran_; }
+
+ private:
+  std::string parent_;
+  std::map<int64_t, std::string> requests_;
+  int64_t next_ = 0;
+  int ran_ = 0;
+};
+
+TEST(TraceTaskJob, TraceWithChildJobsEqualsTheTraceOnItsThreads) {
+  v1::TraceRequest request = testing::SmallBoxTrace();
+  StatusOr<v1::TraceResult> local = RunTrace(request);
+  ASSERT_TRUE(local.ok()) << local.status().ToString();
+  ChildJobRunner runner(DeterministicBytes(request));
+  StatusOr<v1::TraceResult> fanned = RunTrace(request, {.trace_tasks = &runner});
+  ASSERT_TRUE(fanned.ok()) << fanned.status().ToString();
+  EXPECT_EQ(fanned->status(), "COMPLETED");
+  EXPECT_GT(runner.ran(), 0);
+  testing::ExpectSameResult(*fanned, *local);
+}
+
+TEST(TraceTaskJob, ClientsCannotSubmitTheChildKind) {
+  EXPECT_EQ(FindKind(kTraceTaskKind), nullptr);
+  for (const JobKindSpec* k : AllKinds()) EXPECT_NE(k->name, kTraceTaskKind);
+  ASSERT_NE(FindChildKind(kTraceTaskKind), nullptr);
+  EXPECT_EQ(FindChildKind("trace"), nullptr);
+}
+
+// A child request whose task is taken from a real located point, damaged one way at a time.
+class TraceTaskChecks : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    v1::TraceRequest request = testing::SmallBoxTrace();
+    parent_ = DeterministicBytes(request);
+    ChildCapture capture;
+    StatusOr<v1::TraceResult> r = RunTrace(request, {.trace_tasks = &capture});
+    ASSERT_FALSE(capture.first.empty());
+    task_ = *DecodeTraceTaskRequest(capture.first);
+  }
+  StatusOr<JobOutput> Run(const std::string& parent, const TraceTask& task,
+                          const RunContext& context = {}) {
+    return RunJob(*FindChildKind(kTraceTaskKind), EncodeTraceTaskRequest(parent, task), context);
+  }
+  // Keeps the first task's request and fails the trace there.
+  struct ChildCapture : TraceTaskRunner {
+    size_t window() const override { return 1; }
+    StatusOr<int64_t> Submit(const TraceTask& task) override {
+      if (first.empty()) first = EncodeTraceTaskRequest(parent, task);
+      return Status(StatusCode::kUnavailable, "captured");
+    }
+    bool Ready(int64_t) override { return false; }
+    StatusOr<TraceTaskResult> Take(int64_t, const std::function<bool()>&) override {
+      return Status(StatusCode::kInternal, "none");
+    }
+    void Drop(int64_t) override {}
+    std::string parent = DeterministicBytes(testing::SmallBoxTrace());
+    std::string first;
+  };
+  std::string parent_;
+  DecodedTraceTask task_;
+};
+
+TEST_F(TraceTaskChecks, TheFirstTaskIsACurveThatRuns) {
+  ASSERT_TRUE(std::holds_alternative<CurveTask>(task_.task));
+  StatusOr<JobOutput> out = Run(parent_, task_.task);
+  ASSERT_TRUE(out.ok()) << out.status().ToString();
+  EXPECT_EQ(out->status, "COMPLETED");
+  StatusOr<TraceTaskResult> result = DecodeTraceTaskResult(DeterministicBytes(*out->result));
+  ASSERT_TRUE(result.ok());
+  EXPECT_FALSE(std::get<CurveResult>(*result).points.empty());
+}
+
+TEST_F(TraceTaskChecks, BadChildRequestsNameTheField) {
+  StatusOr<JobOutput> garbage = RunJob(*FindChildKind(kTraceTaskKind), "\xff\xff", {});
+  EXPECT_EQ(garbage.status().code(), StatusCode::kInvalidArgument);
+  v1::TraceRequest bad_box = testing::SmallBoxTrace();
+  bad_box.set_max(1, 0.0);
+  StatusOr<JobOutput> box = Run(DeterministicBytes(bad_box), task_.task);
+  EXPECT_EQ(box.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(box.status().message(), HasSubstr("trace_request: "));
+  CurveTask mode = std::get<CurveTask>(task_.task);
+  mode.start.point.orbit.signature.segments[0].mode = 99;
+  StatusOr<JobOutput> bad_mode = Run(parent_, mode);
+  EXPECT_EQ(bad_mode.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad_mode.status().message(), HasSubstr("curve.start.point.orbit.signature"));
+  CurveTask starts = std::get<CurveTask>(task_.task);
+  starts.start.point.orbit.starts.pop_back();
+  StatusOr<JobOutput> few = Run(parent_, starts);
+  EXPECT_EQ(few.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(few.status().message(), HasSubstr("curve.start.point.orbit: "));
+  CurveTask params = std::get<CurveTask>(task_.task);
+  params.start.point.orbit.params[0] = -1.0;
+  StatusOr<JobOutput> bad_params = Run(parent_, params);
+  EXPECT_EQ(bad_params.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad_params.status().message(), HasSubstr("curve.start.point.orbit.params"));
+}
+
+TEST_F(TraceTaskChecks, AStoppedTaskIsCancelledWithoutAResult) {
+  StatusOr<JobOutput> out = Run(parent_, task_.task, {.progress = [](double) { return false; }});
+  ASSERT_TRUE(out.ok()) << out.status().ToString();
+  EXPECT_EQ(out->status, "CANCELLED");
+  const auto& response = static_cast<const v1::TraceTaskResponse&>(*out->result);
+  EXPECT_EQ(response.result_case(), v1::TraceTaskResponse::RESULT_NOT_SET);
+}
+
+}  // namespace
+}  // namespace drillbif::jobs
