@@ -184,31 +184,11 @@ bool Traceable(SpecialPointKind kind) {
          kind == SpecialPointKind::kNeimarkSacker || internal::IsGrazing(kind);
 }
 
-// Whether the trace may read a curve's vertices whole after it is appended: the period-n PD
-// curves with 2n <= max_period, from whose vertices the period-2n grazing curves start.
-bool KeptWhole(int max_period, const TracedCurve& c) {
-  return c.curve.kind == CurveKind::kPeriodDoubling && !c.curve.points.empty() &&
-         2 * c.curve.points.front().orbit.signature.periods <= max_period;
-}
-
-// Drops the section states (PeriodicOrbit::starts) and monodromy of a curve's interior vertices
-// (TraceOptions::vertex_states false). The trace reads no more of them: its tests for known curves
-// read the outline; edge branches start from a curve's first and last vertices; switching from
-// codimension-2 points and unverified ends.
-void DropVertexStates(int max_period, TracedCurve* c) {
-  std::vector<CurvePoint>& points = c->curve.points;
-  if (points.size() < 3 || KeptWhole(max_period, *c)) return;
-  for (size_t k = 1; k + 1 < points.size(); ++k) {
-    std::vector<StateVector>().swap(points[k].orbit.starts);
-    points[k].stability.monodromy.resize(0, 0);
-  }
-}
-
 // Releases a handed-over curve's interior vertices (TraceOptions::vertex_states false): `points`
 // keeps its first and last.
 void ReleaseInterior(int max_period, TracedCurve* c) {
   std::vector<CurvePoint>& points = c->curve.points;
-  if (points.size() < 3 || KeptWhole(max_period, *c)) return;
+  if (points.size() < 3 || internal::KeptWhole(max_period, c->curve)) return;
   points.erase(points.begin() + 1, points.end() - 1);
   points.shrink_to_fit();
 }
@@ -226,7 +206,7 @@ class CurveStream {
   bool Flush(bool all) {
     std::vector<TracedCurve>& curves = result_.curves;
     for (; !options_.vertex_states && dropped_ < curves.size(); ++dropped_) {
-      DropVertexStates(options_.max_period, &curves[dropped_]);
+      internal::DropVertexStates(options_.max_period, &curves[dropped_].curve);
     }
     if (!on_curve_ || stopped_) return !stopped_;
     for (; next_ < curves.size(); ++next_) {

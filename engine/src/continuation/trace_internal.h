@@ -70,6 +70,16 @@ CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
 CurveResult CurveThroughStart(const HybridModel& model, Propagator& propagator,
                               const TraceOptions& options, const SpecialPoint& start, int axis);
 
+// Whether the trace may read a curve's vertices whole after it is appended: the period-n PD
+// curves with 2n <= max_period, from whose vertices the period-2n grazing curves start.
+bool KeptWhole(int max_period, const CurveResult& c);
+
+// Drops the section states (PeriodicOrbit::starts) and monodromy of a curve's interior vertices
+// (TraceOptions::vertex_states false), unless KeptWhole. The trace reads no more of them: its
+// tests for known curves read the outline; edge branches start from a curve's first and last
+// vertices; switching from codimension-2 points and unverified ends.
+void DropVertexStates(int max_period, CurveResult* c);
+
 // The curve options of the trace's switching: its curve options over its box.
 CurveOptions SwitchCurveOptions(const TraceOptions& options);
 

@@ -24,6 +24,20 @@ CurveResult CurveThroughStart(const HybridModel& model, Propagator& propagator,
   return ContinueCurve(model, propagator, start, co);
 }
 
+bool KeptWhole(int max_period, const CurveResult& c) {
+  return c.kind == CurveKind::kPeriodDoubling && !c.points.empty() &&
+         2 * c.points.front().orbit.signature.periods <= max_period;
+}
+
+void DropVertexStates(int max_period, CurveResult* c) {
+  std::vector<CurvePoint>& points = c->points;
+  if (points.size() < 3 || KeptWhole(max_period, *c)) return;
+  for (size_t k = 1; k + 1 < points.size(); ++k) {
+    std::vector<StateVector>().swap(points[k].orbit.starts);
+    points[k].stability.monodromy.resize(0, 0);
+  }
+}
+
 CurveOptions SwitchCurveOptions(const TraceOptions& options) {
   CurveOptions co = options.curve;
   co.box() = options.box();
@@ -32,8 +46,10 @@ CurveOptions SwitchCurveOptions(const TraceOptions& options) {
 
 }  // namespace internal
 
-TraceTaskResult RunTraceTask(const HybridModel& model, Propagator& propagator,
-                             const TraceOptions& options, const TraceTask& task) {
+namespace {
+
+TraceTaskResult Compute(const HybridModel& model, Propagator& propagator,
+                        const TraceOptions& options, const TraceTask& task) {
   if (const auto* curve = std::get_if<CurveTask>(&task)) {
     return internal::CurveThroughStart(model, propagator, options, curve->start, curve->axis);
   }
@@ -43,8 +59,25 @@ TraceTaskResult RunTraceTask(const HybridModel& model, Propagator& propagator,
   const auto& run = std::get<CandidateTask>(task);
   return internal::RunCandidate(model, propagator, options, internal::SwitchCurveOptions(options),
                                 model.ParamIndex(options.param1).value(),
-                                model.ParamIndex(options.param2).value(), run.point, run.candidate,
-                                run.last_resort);
+                                model.ParamIndex(options.param2).value(), run.point,
+                                run.candidate, run.last_resort);
+}
+
+}  // namespace
+
+TraceTaskResult RunTraceTask(const HybridModel& model, Propagator& propagator,
+                             const TraceOptions& options, const TraceTask& task) {
+  TraceTaskResult result = Compute(model, propagator, options, task);
+  // Without vertex_states the trace drops these at its next report anyway, before it reads them
+  // (internal::DropVertexStates): not carried, they do not cost the runner their bytes.
+  if (!options.vertex_states) {
+    if (auto* curve = std::get_if<CurveResult>(&result)) {
+      internal::DropVertexStates(options.max_period, curve);
+    } else if (auto* run = std::get_if<CandidateRun>(&result)) {
+      for (auto& [seed, tried] : run->tries) internal::DropVertexStates(options.max_period, &tried);
+    }
+  }
+  return result;
 }
 
 }  // namespace drillbif

@@ -68,7 +68,8 @@ using TraceTask = std::variant<CurveTask, CandidatesTask, CandidateTask>;
 using TraceTaskResult = std::variant<CurveResult, std::vector<SwitchCandidate>, CandidateRun>;
 
 // Computes a task as the trace does, on `propagator` (a stop of the propagator's throttle ends
-// it early: the result is then not to be used).
+// it early: the result is then not to be used). Without options.vertex_states, the curves' interior
+// vertices come without the states the trace would drop before reading them (less to carry).
 TraceTaskResult RunTraceTask(const HybridModel& model, Propagator& propagator,
                              const TraceOptions& options, const TraceTask& task);
 
