@@ -14,14 +14,26 @@ namespace drillbif::jobs {
 
 namespace {
 
-// INVALID_ARGUMENT naming `field` unless the orbit's parameters and signature are the model's and
-// it has a start state and a duration per segment.
+// INVALID_ARGUMENT naming `field` unless the orbit's parameters are the model's, its signature
+// names the model's modes and guards, and it has a start state and a duration per segment.
 Status CheckSignature(const std::string& field, const PeriodicOrbit& orbit) {
   if (Status s = internal::Model().ValidateParams(orbit.params); !s.ok()) {
     return InvalidArgument(field + ".params: " + s.message());
   }
-  if (Status s = ValidateSignature(internal::Model(), orbit.signature); !s.ok()) {
-    return InvalidArgument(field + ".signature: " + s.message());
+  // Indices only: the forms the trace passes between its steps need not be orbits a client may
+  // ask for (a candidate's tangent end may be followed by another mode: ValidateSignature refuses
+  // that).
+  const Signature& signature = orbit.signature;
+  if (signature.periods < 1 || signature.segments.empty()) {
+    return InvalidArgument(field + ".signature: needs periods >= 1 and a segment");
+  }
+  for (size_t i = 0; i < signature.segments.size(); ++i) {
+    const SegmentSpec& seg = signature.segments[i];
+    if (seg.mode < 0 || seg.mode >= internal::Model().num_modes() || seg.guard < -1 ||
+        seg.guard >= static_cast<int>(internal::Model().guards(seg.mode).size())) {
+      return InvalidArgument(field + ".signature: segment " + std::to_string(i) +
+                             " names no mode or guard of the model");
+    }
   }
   const size_t n = orbit.signature.segments.size();
   if (orbit.starts.size() != n || orbit.durations.size() != n) {

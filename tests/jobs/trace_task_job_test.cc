@@ -2,6 +2,8 @@
 // a child job's request (jobs/trace_task_codec.h), runs it through the registry's child kind as a
 // worker does and decodes its result gives the result of the trace on its own threads; the child
 // kind's checks name the field; a stopped task is CANCELLED without a result.
+#include "jobs/trace_task_job.h"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -9,11 +11,12 @@
 #include <string>
 
 #include "drillbif/continuation/trace_tasks.h"
+#include "drillbif/orbit/signature.h"
+#include "jobs/job_common.h"
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 #include "jobs/trace_job.h"
 #include "jobs/trace_task_codec.h"
-#include "jobs/trace_task_job.h"
 #include "support/same_result.h"
 #include "support/small_requests.h"
 
@@ -138,6 +141,30 @@ TEST_F(TraceTaskChecks, BadChildRequestsNameTheField) {
   StatusOr<JobOutput> bad_params = Run(parent_, params);
   EXPECT_EQ(bad_params.status().code(), StatusCode::kInvalidArgument);
   EXPECT_THAT(bad_params.status().message(), HasSubstr("curve.start.point.orbit.params"));
+}
+
+// The forms the trace passes between its steps are not all orbits a client may ask for: a
+// candidate whose tangent end is followed by a segment of another mode (as the switching at
+// grazings makes them) passes the child's checks, which refuse only indices the model does not
+// have.
+TEST_F(TraceTaskChecks, ACandidatesTangentEndBeforeAnotherModeIsAccepted) {
+  const CurveTask& curve = std::get<CurveTask>(task_.task);
+  PeriodicOrbit orbit = curve.start.point.orbit;
+  ASSERT_GE(orbit.signature.segments.size(), 2u);
+  ASSERT_NE(orbit.signature.segments[0].mode, orbit.signature.segments[1].mode);
+  orbit.signature.segments[0].tangent = true;
+  ASSERT_FALSE(ValidateSignature(internal::Model(), orbit.signature).ok());
+  CandidateTask run;
+  run.point.point.orbit = curve.start.point.orbit;
+  run.candidate.orbit = orbit;
+  v1::TraceTaskRequest request;
+  ASSERT_TRUE(request.ParseFromString(EncodeTraceTaskRequest(parent_, run)));
+  EXPECT_TRUE(PlanTraceTask(request).ok()) << PlanTraceTask(request).status().ToString();
+  run.candidate.orbit->signature.segments[0].guard = 99;
+  ASSERT_TRUE(request.ParseFromString(EncodeTraceTaskRequest(parent_, run)));
+  const StatusOr<TraceTaskPlan> bad = PlanTraceTask(request);
+  EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad.status().message(), HasSubstr("candidate_run.candidate.orbit.signature"));
 }
 
 TEST_F(TraceTaskChecks, AStoppedTaskIsCancelledWithoutAResult) {
