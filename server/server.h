@@ -70,6 +70,15 @@ struct ServerOptions {
   // does not take running jobs away, short enough that a crashed worker's jobs start again
   // within about 20 s.
   int64_t lease_ms = 15000;
+  // With a shared store, a trace job's tasks go to the store as child jobs, this many ahead of
+  // the one the trace applies, for every worker process to run (WorkerPoolOptions::
+  // trace_fan_out); 0: each trace runs on the threads of the worker that claimed it. Off by
+  // default: each task costs its trace ~3 ms of store calls (a submit, a claim, a delete; the
+  // reference box's 3181 tasks took 9.5 s of them against 18 s of engine time), so it pays for
+  // traces of long tasks (period 2: ~50 ms each) on several workers, not for the period-1 box
+  // (docs/scale.md). 32 is a good value where it pays. Unused with the SQLite file (one process:
+  // its threads do the same work without the store's round trips).
+  int trace_fan_out = 0;
   // Worker threads running jobs of any cost lane; 0: one per core
   // (std::thread::hardware_concurrency).
   int workers = 0;

@@ -12,6 +12,7 @@
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 #include "server/stored_results.h"
+#include "server/trace_fan_out.h"
 
 namespace drillbif::server {
 namespace {
@@ -51,6 +52,10 @@ Status WorkerPoolOptions::Validate() const {
   if (lease_ms != 0 && lease_ms < 300) {
     return InvalidArgument("lease_ms: must be 0 (no leases) or >= 300, got " +
                            std::to_string(lease_ms));
+  }
+  if (trace_fan_out < 0 || trace_fan_out > kMaxTraceFanOut) {
+    return InvalidArgument("trace_fan_out: must be 0 (off) .. " + std::to_string(kMaxTraceFanOut) +
+                           ", got " + std::to_string(trace_fan_out));
   }
   for (const auto& [name, limits] : limits) {
     if (Status s = limits.Validate(); !s.ok()) return InvalidArgument(name + "." + s.message());
@@ -170,7 +175,7 @@ void WorkerPool::Loop(const std::string& worker_id, const ClaimOptions& claim) {
         store_->Health().ok() ? store_->ClaimNext(worker_id, claim)
                               : StatusOr<std::optional<JobRecord>>(std::nullopt);
     if (claimed.ok() && claimed->has_value()) {
-      RunOne(**claimed);
+      RunOne(**claimed, worker_id);
       continue;
     }
     if (!claimed.ok()) {
@@ -204,10 +209,13 @@ class WorkerPool::Run {
  public:
   // `announce` is called once with the outcome's label just before the outcome is recorded (so
   // that metrics see a run before a client can see it finished).
-  Run(WorkerPool* pool, const JobRecord& job, const jobs::JobKindSpec& kind,
-      std::shared_ptr<Running> running, std::function<void(const char*, double)> announce)
-      : pool_(pool),
+  Run(WorkerPool* pool, const JobRecord& job, const std::string& worker_id,
+      const jobs::JobKindSpec& kind, std::shared_ptr<Running> running,
+      std::function<void(const char*, double)> announce, std::string* kept)
+      : kept_(kept),
+        pool_(pool),
         job_(job),
+        worker_id_(worker_id),
         kind_(kind),
         running_(std::move(running)),
         limits_(LimitsOf(pool->options_, kind)),
@@ -218,12 +226,35 @@ class WorkerPool::Run {
 
   // Runs the job and records its outcome; returns the outcome's label.
   const char* Execute() {
+    // A trace's tasks as child jobs (WorkerPoolOptions::trace_fan_out).
+    std::optional<StoreTaskRunner> fan_out;
+    if (kind_.kind == v1::TRACE && pool_->options_.trace_fan_out > 0) {
+      FanOutOptions o;
+      o.window = static_cast<size_t>(pool_->options_.trace_fan_out);
+      o.lease_ms = pool_->options_.lease_ms;
+      fan_out.emplace(
+          *pool_->store_, job_, worker_id_, o,
+          [this](const JobRecord& child) -> std::optional<std::string> {
+            std::string kept;
+            if (!pool_->RunOne(child, worker_id_, &kept)) return std::nullopt;
+            return kept;
+          },
+          [this] { pool_->Wake(); });
+    }
     StatusOr<jobs::JobOutput> output =
         jobs::RunJob(kind_, job_.request,
                      {.progress = [this](double f) { return Progress(f); },
                       .on_value = [this](double v) { OnValue(v); },
                       .optimum_cache = &pool_->optimum_cache_,
-                      .sink = &writer_});
+                      .sink = &writer_,
+                      .trace_tasks = fan_out ? &*fan_out : nullptr});
+    if (fan_out) {
+      spdlog::info(
+          "job {}: {} trace tasks stored, {} of them run by the trace itself ({:.2f} s); "
+          "{:.2f} s in the store's calls, {:.2f} s waiting for other workers",
+          job_.id, fan_out->submitted(), fan_out->ran_here(), fan_out->run_seconds(),
+          fan_out->store_seconds(), fan_out->sleep_seconds());
+    }
     return Finish(output);
   }
 
@@ -310,7 +341,8 @@ class WorkerPool::Run {
         spdlog::warn("job {}: final value not recorded: {}", job_.id, s.ToString());
       }
     }
-    const std::string summary = jobs::DeterministicBytes(result);
+    std::string summary = jobs::DeterministicBytes(result);
+    if (kept_ != nullptr) kept_->swap(summary);  // completed with an empty result
     Announce("succeeded");
     Status s = store().Complete(job_.id, job_.run, summary, writer_.items());
     if (s.code() == StatusCode::kResourceExhausted) {
@@ -321,6 +353,7 @@ class WorkerPool::Run {
     s = Store(
         "the result", [&] { return store().Complete(job_.id, job_.run, summary, writer_.items()); },
         s);
+    if (!s.ok() && kept_ != nullptr) kept_->clear();
     if (s.ok() && kind_.kind == v1::OPTIMUM && pool_->optimum_done_) {
       pool_->optimum_done_(job_.id, job_.cache_key);
     }
@@ -348,8 +381,10 @@ class WorkerPool::Run {
 
   JobStore& store() { return *pool_->store_; }
 
+  std::string* const kept_;
   WorkerPool* const pool_;
   const JobRecord& job_;
+  const std::string& worker_id_;
   const jobs::JobKindSpec& kind_;
   const std::shared_ptr<Running> running_;
   const jobs::KindLimits limits_;
@@ -362,7 +397,10 @@ class WorkerPool::Run {
   bool deadline_exceeded_ = false;
 };
 
-void WorkerPool::RunOne(const JobRecord& job) {
+bool WorkerPool::RunOne(const JobRecord& job, const std::string& worker_id, std::string* kept) {
+  // A trace's tasks (child jobs) are many and short: logged at debug level.
+  const bool child = !job.parent.empty();
+  const spdlog::level::level_enum level = child ? spdlog::level::debug : spdlog::level::info;
   auto running = std::make_shared<Running>();
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -372,9 +410,9 @@ void WorkerPool::RunOne(const JobRecord& job) {
     running_[job.id] = running;
   }
   hub_->Notify();  // QUEUED -> RUNNING
-  spdlog::info("job {} ({}, {} lane) started, attempt {}", job.id, job.kind, LaneName(job.lane),
-               job.attempts);
-  const jobs::JobKindSpec* kind = jobs::FindKind(job.kind);
+  spdlog::log(level, "job {} ({}, {} lane) started, attempt {}", job.id, job.kind,
+              LaneName(job.lane), job.attempts);
+  const jobs::JobKindSpec* kind = child ? jobs::FindChildKind(job.kind) : jobs::FindKind(job.kind);
   const char* outcome = "failed";
   double seconds = 0;
   if (kind == nullptr) {
@@ -384,13 +422,16 @@ void WorkerPool::RunOne(const JobRecord& job) {
     });
   } else {
     engine_runs_.fetch_add(1);
-    Run run(this, job, *kind, running, [&](const char* label, double s) {
-      if (run_done_) run_done_(job, label, s);
-    });
+    Run run(
+        this, job, worker_id, *kind, running,
+        [&](const char* label, double s) {
+          if (run_done_) run_done_(job, label, s);
+        },
+        kept);
     outcome = run.Execute();
     seconds = run.seconds();
   }
-  spdlog::info("job {} ({}) {} in {:.3f} s", job.id, job.kind, outcome, seconds);
+  spdlog::log(level, "job {} ({}) {} in {:.3f} s", job.id, job.kind, outcome, seconds);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     running_.erase(job.id);
@@ -398,8 +439,10 @@ void WorkerPool::RunOne(const JobRecord& job) {
   hub_->Notify();
   // A large job frees hundreds of MB on its way out (a region's grid, a branch's points), which
   // glibc keeps in its arenas; without this the server's resident memory after the largest trace
-  // stays near its peak although nothing holds it. malloc_trim returns the free pages (~ms).
-  malloc_trim(0);
+  // stays near its peak although nothing holds it. malloc_trim returns the free pages (~ms);
+  // not after each of a trace's tasks (the trace goes on holding its curves).
+  if (!child) malloc_trim(0);
+  return std::string_view(outcome) == "succeeded";
 }
 
 }  // namespace drillbif::server

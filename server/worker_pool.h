@@ -40,6 +40,9 @@
 
 namespace drillbif::server {
 
+// The most trace tasks a trace may keep in the store ahead of the one it applies.
+inline constexpr int kMaxTraceFanOut = 4096;
+
 // How the pool runs.
 struct WorkerPoolOptions {
   // Worker threads taking jobs of any lane, each running one job at a time. >= 1.
@@ -74,6 +77,11 @@ struct WorkerPoolOptions {
   // job was taken back) is stopped and records nothing. 0: no leases (a store one process owns:
   // its restart recovers the jobs). >= 300 when set: three beats must fit in it.
   int64_t lease_ms = 0;
+  // Trace jobs hand their tasks to the store as child jobs (server/trace_fan_out.h), this many
+  // ahead of the one they apply, for any worker of any process to run; 0: a trace runs its
+  // tasks on its own threads. For a store several processes share: in one process the threads
+  // do the same work without the store's round trips.
+  int trace_fan_out = 0;
 
   // INVALID_ARGUMENT naming the field when a value is out of range.
   Status Validate() const;
@@ -138,7 +146,10 @@ class WorkerPool {
   // ones, every lease_ms / 3, until the pool stops.
   void Heartbeat();
   void RenewLeases();
-  void RunOne(const JobRecord& job);
+  // Runs a claimed job (or child) on the calling thread, `worker_id`'s. With `kept`, a success
+  // completes the job with an empty result and leaves the result's bytes in *kept (a trace's task
+  // its parent ran: the parent reads it from memory, not the store). Whether it succeeded.
+  bool RunOne(const JobRecord& job, const std::string& worker_id, std::string* kept = nullptr);
   // Records an outcome with `record`, retrying while the store is faulty (see the header) until
   // it succeeds or answers for good (FAILED_PRECONDITION, NOT_FOUND, INVALID_ARGUMENT), or the
   // pool shuts down.

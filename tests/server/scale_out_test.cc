@@ -63,13 +63,16 @@ class ScaleOut : public ::testing::Test {
   std::string uri() const { return cluster_.Uri("jobs"); }
 
   // A process of `role` on the database, its files in dir/name.
-  std::unique_ptr<ServerProcess> Start(const std::string& name, const std::string& role) {
+  // `fan_out`: --trace-fan-out (0: off, the default).
+  std::unique_ptr<ServerProcess> Start(const std::string& name, const std::string& role,
+                                       int fan_out = 0) {
     const std::string sub = dir_.path() + "/" + name;
     std::filesystem::create_directories(sub);
     return std::make_unique<ServerProcess>(
         sub, sub + "/unused.db",
         std::vector<std::string>{"--store", uri(), "--role", role, "--workers", "1",
-                                 "--short-workers", "0", "--lease-ms", kLeaseMs});
+                                 "--short-workers", "0", "--lease-ms", kLeaseMs, "--trace-fan-out",
+                                 std::to_string(fan_out)});
   }
 
   // A connection of the test's own to the store, behind the processes' backs.
@@ -374,6 +377,183 @@ TEST_F(ScaleOut, AWorkerServesNoJobsAndAnApiProcessRunsNone) {
   // A worker that joins runs it.
   std::unique_ptr<ServerProcess> joined = Start("joined", "worker");
   EXPECT_EQ(MetadataOf(WaitDone(*operations, name)).state(), v1::SUCCEEDED);
+}
+
+namespace fan_out {
+
+// A period-2 trace of ~2 s on one thread (omega in [0.05, 0.45], a in [0.27, 0.32]): some hundred
+// tasks, switching at codimension-2 points and the period-2 curves' merge at flip-grazings.
+v1::TraceRequest PeriodTwoTrace() {
+  v1::TraceRequest r = drillbif::testing::SmallBoxTrace();
+  r.set_min(1, 0.27);
+  r.set_max(0, 0.45);
+  r.set_max(1, 0.32);
+  r.set_period2(true);
+  return r;
+}
+
+std::string SubmitTrace(v1::Jobs::Stub& jobs, const v1::TraceRequest& request) {
+  v1::SubmitTraceRequest submit;
+  *submit.mutable_request() = request;
+  Operation op;
+  auto context = ContextWithDeadline();
+  const grpc::Status s = jobs.SubmitTrace(context.get(), submit, &op);
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  return op.name();
+}
+
+// The parent's children in `state` (all states when empty), from the store.
+std::vector<JobRecord> Children(JobStore& store, const std::string& parent,
+                                std::optional<JobState> state = std::nullopt) {
+  ListRequest list;
+  list.parent = parent;
+  list.state = state;
+  list.page_size = 1000;
+  StatusOr<ListResult> page = store.List(list);
+  return page.ok() ? page->jobs : std::vector<JobRecord>{};
+}
+
+// Which of the processes claimed as `worker_id` (-1: neither).
+int ProcessOf(const std::string& worker_id,
+              const std::vector<std::unique_ptr<ServerProcess>>& workers) {
+  for (size_t w = 0; w < workers.size(); ++w) {
+    if (worker_id.find("-" + std::to_string(workers[w]->pid()) + "-worker") != std::string::npos) {
+      return static_cast<int>(w);
+    }
+  }
+  return -1;
+}
+
+}  // namespace fan_out
+
+// A trace's tasks go to the store as child jobs and run on both workers. A worker that claimed
+// one and vanished (this test's own claim, never renewed) loses it by its lease: it runs again
+// and the trace waits for it. The worker that runs tasks beside the trace's is killed with
+// kill -9. The trace's result equals a direct run's.
+TEST_F(ScaleOut, ATraceFansOutOverBothWorkersAndALostTaskRunsAgain) {
+  std::unique_ptr<ServerProcess> api = Start("api", "api");
+  std::vector<std::unique_ptr<ServerProcess>> workers;
+  workers.push_back(Start("worker0", "worker", 32));
+  workers.push_back(Start("worker1", "worker", 32));
+  ASSERT_TRUE(api->serving() && workers[0]->serving() && workers[1]->serving());
+  auto jobs = v1::Jobs::NewStub(api->channel());
+  auto operations = google::longrunning::Operations::NewStub(api->channel());
+  const v1::TraceRequest request = fan_out::PeriodTwoTrace();
+  const std::string name = fan_out::SubmitTrace(*jobs, request);
+  std::unique_ptr<JobStore> store = OpenStore();
+  const std::optional<JobRecord> parent = RunningJob(*store, {name});
+  ASSERT_TRUE(parent.has_value()) << "the trace never ran";
+  const int parent_worker = fan_out::ProcessOf(parent->worker_id, workers);
+  ASSERT_GE(parent_worker, 0) << parent->worker_id;
+  const int other = 1 - parent_worker;
+  // A worker that claims a task and is never heard of again: this test's own connection, with a
+  // lease it never renews.
+  std::optional<JobRecord> lost;
+  ClaimOptions claim;
+  claim.lease_ms = 1500;
+  claim.parent = parent->id;
+  for (auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+       !lost && std::chrono::steady_clock::now() < until;) {
+    StatusOr<std::optional<JobRecord>> claimed = store->ClaimNext("test-lost-worker", claim);
+    ASSERT_TRUE(claimed.ok()) << claimed.status().ToString();
+    if (claimed->has_value()) lost = **claimed;
+  }
+  ASSERT_TRUE(lost.has_value()) << "no task of the trace was queued";
+  // A task running on the other worker.
+  std::optional<JobRecord> task;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!task && std::chrono::steady_clock::now() < give_up) {
+    for (const JobRecord& c : fan_out::Children(*store, parent->id, JobState::kRunning)) {
+      if (fan_out::ProcessOf(c.worker_id, workers) == other) task = c;
+    }
+  }
+  ASSERT_TRUE(task.has_value()) << "no task of the trace ran on the second worker";
+  EXPECT_EQ(task->kind, "trace_task");
+  EXPECT_GT(task->lease_expires_ms, 0);
+  const int status = workers[other]->Kill(SIGKILL);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+
+  const Operation traced = WaitDone(*operations, name);
+  const v1::JobMetadata m = MetadataOf(traced);
+  ASSERT_EQ(m.state(), v1::SUCCEEDED);
+  EXPECT_EQ(m.attempts(), 1);  // the trace itself was not interrupted
+  StatusOr<v1::TraceResult> direct = jobs::RunTrace(request);
+  ASSERT_TRUE(direct.ok());
+  EXPECT_GT(direct->curves_size(), 10);
+  drillbif::testing::ExpectSameResult(drillbif::testing::ResponseOf<v1::TraceResult>(traced),
+                                      *direct);
+  // The lost worker's task was taken back when its lease expired: run again and taken (then
+  // deleted), or cancelled when the trace had dropped it; never completed by its first run.
+  StatusOr<JobRecord> retried = store->Get(lost->id);
+  if (retried.ok()) {
+    EXPECT_TRUE(retried->state == JobState::kCancelled || retried->run > lost->run)
+        << JobStateName(retried->state) << " run " << retried->run;
+  } else {
+    EXPECT_EQ(retried.status().code(), StatusCode::kNotFound);
+  }
+  EXPECT_EQ(store->Complete(lost->id, lost->run, "", 0).code(),
+            retried.ok() ? StatusCode::kFailedPrecondition : StatusCode::kNotFound);
+  for (const JobRecord& c : fan_out::Children(*store, parent->id)) {
+    EXPECT_TRUE(IsFinished(c.state)) << c.id;
+    EXPECT_NE(c.state, JobState::kSucceeded) << c.id;  // taken, so deleted
+  }
+  std::ifstream log(workers[parent_worker]->log_path());
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  const size_t line = text.find("trace tasks stored");
+  ASSERT_NE(line, std::string::npos) << text.substr(0, 2000);
+  const size_t from = text.rfind('\n', line) + 1;
+  std::printf("the trace's worker: %s\n", text.substr(from, text.find('\n', line) - from).c_str());
+}
+
+// Cancelling a fanned-out trace through the API cancels its tasks: within a second the trace is
+// CANCELLED and none of its tasks is queued; those running stop at their next poll.
+TEST_F(ScaleOut, CancellingAFannedOutTraceCancelsItsTasks) {
+  std::unique_ptr<ServerProcess> api = Start("api", "api");
+  std::unique_ptr<ServerProcess> worker0 = Start("worker0", "worker", 32);
+  std::unique_ptr<ServerProcess> worker1 = Start("worker1", "worker", 32);
+  auto jobs = v1::Jobs::NewStub(api->channel());
+  const std::string name = fan_out::SubmitTrace(*jobs, fan_out::PeriodTwoTrace());
+  std::unique_ptr<JobStore> store = OpenStore();
+  const std::optional<JobRecord> parent = RunningJob(*store, {name});
+  ASSERT_TRUE(parent.has_value()) << "the trace never ran";
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (fan_out::Children(*store, parent->id).empty() &&
+         std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_FALSE(fan_out::Children(*store, parent->id).empty()) << "no task was stored";
+  auto operations = google::longrunning::Operations::NewStub(api->channel());
+  google::longrunning::CancelOperationRequest cancel;
+  cancel.set_name(name);
+  google::protobuf::Empty empty;
+  const auto asked = std::chrono::steady_clock::now();
+  {
+    auto context = ContextWithDeadline();
+    ASSERT_TRUE(operations->CancelOperation(context.get(), cancel, &empty).ok());
+  }
+  // No task is queued from the cancel on (the store cancels them with the parent).
+  EXPECT_TRUE(fan_out::Children(*store, parent->id, JobState::kQueued).empty());
+  JobState state = JobState::kRunning;
+  while (state == JobState::kRunning &&
+         std::chrono::steady_clock::now() - asked < std::chrono::seconds(5)) {
+    state = store->Get(parent->id).value().state;
+    if (state == JobState::kRunning) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - asked).count();
+  EXPECT_EQ(state, JobState::kCancelled);
+  EXPECT_LT(ms, 1000.0);
+  // The tasks that ran stop at their next poll of the store's cancel flag (every 250 ms).
+  std::vector<JobRecord> running = fan_out::Children(*store, parent->id, JobState::kRunning);
+  while (!running.empty() && std::chrono::steady_clock::now() - asked < std::chrono::seconds(5)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    running = fan_out::Children(*store, parent->id, JobState::kRunning);
+  }
+  EXPECT_TRUE(running.empty());
+  for (const JobRecord& c : fan_out::Children(*store, parent->id)) {
+    EXPECT_TRUE(IsFinished(c.state)) << c.id;
+  }
+  std::printf("fanned-out trace cancelled after %.0f ms\n", ms);
 }
 
 }  // namespace

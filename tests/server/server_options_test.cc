@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "server/server.h"
+#include "server/worker_pool.h"
 
 namespace drillbif::server {
 namespace {
@@ -56,6 +57,23 @@ TEST(ServerOptions, AStoreUriWithAPasswordAndRolesWithoutAStoreAreRefused) {
   EXPECT_TRUE(options.Validate().ok());
   options.lease_ms = 100;
   EXPECT_THAT(options.Validate().message(), HasSubstr("lease_ms: must be >= 300"));
+}
+
+TEST(ServerOptions, TraceFanOutOutOfRangeIsRefusedNamingIt) {
+  ServerOptions options;
+  options.store_uri = "postgresql://u@db/d";
+  for (const int fan_out : {0, 32, kMaxTraceFanOut}) {
+    options.trace_fan_out = fan_out;
+    EXPECT_TRUE(options.Validate().ok()) << fan_out;
+  }
+  for (const int fan_out : {-1, kMaxTraceFanOut + 1}) {
+    options.trace_fan_out = fan_out;
+    EXPECT_THAT(options.Validate().message(), HasSubstr("trace_fan_out: must be 0 (off) .. "))
+        << fan_out;
+  }
+  WorkerPoolOptions pool;
+  pool.trace_fan_out = -1;
+  EXPECT_THAT(pool.Validate().message(), HasSubstr("trace_fan_out"));
 }
 
 }  // namespace
