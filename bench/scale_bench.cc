@@ -5,9 +5,11 @@
 //   worker thread each;
 // - submits: 400 small simulations submitted by 8 client threads through 1 and through 2 API
 //   processes (no worker: the submit path alone, admission and the store's insert).
+// - one trace of the reference box, run by 1 worker process on its thread, and fanned out as
+//   child jobs over 1 and 2 worker processes (each run's result must equal the first's).
 // Medians of `runs` (default 3) and their ratio. Not a Google Benchmark: each measurement starts
 // processes and a database.
-//   build/bench/scale_bench [runs]
+//   build/bench/scale_bench [runs] [fan-out]   (fan-out: the reference box only)
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -22,6 +25,7 @@
 
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
+#include "support/operations.h"
 #include "support/postgres_cluster.h"
 #include "support/server_process.h"
 #include "support/small_requests.h"
@@ -53,13 +57,15 @@ struct Setup {
     std::filesystem::remove_all(dir, ignored);
   }
 
-  ServerProcess& Start(const std::string& role) {
+  ServerProcess& Start(const std::string& role, int fan_out = 32) {
     const std::string sub = dir + "/p" + std::to_string(processes.size());
     std::filesystem::create_directories(sub);
     processes.push_back(std::make_unique<ServerProcess>(
         sub, sub + "/unused.db",
         std::vector<std::string>{"--store", cluster.Uri("jobs"), "--role", role, "--workers", "1",
-                                 "--short-workers", "0", "--log-level", "warn"}));
+                                 "--short-workers", "0", "--log-level",
+                                 role == "worker" ? "info" : "warn", "--trace-fan-out",
+                                 std::to_string(fan_out)}));
     return *processes.back();
   }
 };
@@ -86,6 +92,61 @@ double TraceSeconds(int workers) {
     if (!testing::WaitDone(*operations, name, 300).done()) std::exit(1);
   }
   return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// Seconds for one trace of the reference box (omega in [0.05, 2], a in [0.01, 8] at b = 0.15)
+// run by `workers` worker processes, its tasks fanned out `fan_out` ahead (0: on the threads of
+// the worker that claimed it, one thread each here).
+// The result each run gives, wall time cleared: every run must give the first one's.
+std::string first_result;
+
+double OneTraceSeconds(int workers, int fan_out) {
+  Setup setup;
+  ServerProcess& api = setup.Start("api");
+  for (int w = 0; w < workers; ++w) setup.Start("worker", fan_out);
+  auto jobs = v1::Jobs::NewStub(api.channel());
+  auto operations = google::longrunning::Operations::NewStub(api.channel());
+  v1::SubmitTraceRequest submit;
+  v1::TraceRequest& r = *submit.mutable_request();
+  r.add_trace_params(std::string("omega"));
+  r.add_trace_params(std::string("a"));
+  r.add_min(0.05);
+  r.add_min(0.01);
+  r.add_max(2);
+  r.add_max(8);
+  r.set_threads(1);
+  const Clock::time_point t0 = Clock::now();
+  google::longrunning::Operation op;
+  auto context = testing::ContextWithDeadline();
+  if (!jobs->SubmitTrace(context.get(), submit, &op).ok()) std::exit(1);
+  const google::longrunning::Operation done = testing::WaitDone(*operations, op.name(), 600);
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  // Where a fanned-out trace's time went, as its worker logs it.
+  for (const std::unique_ptr<ServerProcess>& p : setup.processes) {
+    std::ifstream log(p->log_path());
+    for (std::string line; std::getline(log, line);) {
+      if (line.find("trace tasks stored") != std::string::npos) {
+        std::printf("  %s\n", line.substr(line.find("] job") + 2).c_str());
+      }
+    }
+  }
+  const v1::JobMetadata m = testing::MetadataOf(done);
+  if (m.state() != v1::SUCCEEDED) {
+    std::fprintf(stderr, "the reference box's trace ended %s: %s\n",
+                 v1::JobState_Name(m.state()).c_str(), done.error().message().c_str());
+    std::exit(1);
+  }
+  v1::TraceResult result;
+  if (!done.response().UnpackTo(&result)) std::exit(1);
+  result.clear_wall_seconds();
+  const std::string bytes = result.SerializeAsString();
+  if (first_result.empty()) first_result = bytes;
+  if (bytes != first_result) {
+    std::fprintf(stderr, "the reference box's trace differs from the first run's (%d curves)\n",
+                 result.curves_size());
+    std::exit(1);
+  }
+  return seconds;
 }
 
 // Submits per second of 8 clients, 50 simulations each, over `apis` API processes.
@@ -124,22 +185,41 @@ double Median(std::vector<double> v) {
 
 int main(int argc, char** argv) {
   const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 3;
-  std::vector<double> trace1, trace2, submit1, submit2;
+  // "fan-out": only the reference box's trace, on 1 worker without fan-out and on 1 and 2
+  // workers with it.
+  const bool fan_out_only = argc > 2 && std::string(argv[2]) == "fan-out";
+  std::vector<double> trace1, trace2, submit1, submit2, box_local, box1, box2;
   for (int run = 0; run < runs; ++run) {
-    trace1.push_back(drillbif::TraceSeconds(1));
-    trace2.push_back(drillbif::TraceSeconds(2));
-    submit1.push_back(drillbif::SubmitsPerSecond(1, 2 * run));
-    submit2.push_back(drillbif::SubmitsPerSecond(2, 2 * run + 1));
-    std::printf("run %d: traces %.2f s / %.2f s, submits %.0f/s / %.0f/s\n", run, trace1.back(),
-                trace2.back(), submit1.back(), submit2.back());
+    if (!fan_out_only) {
+      trace1.push_back(drillbif::TraceSeconds(1));
+      trace2.push_back(drillbif::TraceSeconds(2));
+      submit1.push_back(drillbif::SubmitsPerSecond(1, 2 * run));
+      submit2.push_back(drillbif::SubmitsPerSecond(2, 2 * run + 1));
+      std::printf("run %d: traces %.2f s / %.2f s, submits %.0f/s / %.0f/s\n", run, trace1.back(),
+                  trace2.back(), submit1.back(), submit2.back());
+    }
+    box_local.push_back(drillbif::OneTraceSeconds(1, 0));
+    box1.push_back(drillbif::OneTraceSeconds(1, 32));
+    box2.push_back(drillbif::OneTraceSeconds(2, 32));
+    std::printf("run %d: reference box %.2f s on 1 worker, fanned out %.2f s on 1, %.2f s on 2\n",
+                run, box_local.back(), box1.back(), box2.back());
+    std::fflush(stdout);
   }
-  const double t1 = drillbif::Median(trace1), t2 = drillbif::Median(trace2);
-  const double s1 = drillbif::Median(submit1), s2 = drillbif::Median(submit2);
+  if (!fan_out_only) {
+    const double t1 = drillbif::Median(trace1), t2 = drillbif::Median(trace2);
+    const double s1 = drillbif::Median(submit1), s2 = drillbif::Median(submit2);
+    std::printf(
+        "8 traces: 1 worker process %.2f s (%.2f traces/s), 2 worker processes %.2f s "
+        "(%.2f traces/s): %.2fx\n",
+        t1, 8 / t1, t2, 8 / t2, t1 / t2);
+    std::printf("400 submits: 1 API process %.0f/s, 2 API processes %.0f/s: %.2fx\n", s1, s2,
+                s2 / s1);
+  }
+  const double b0 = drillbif::Median(box_local), b1 = drillbif::Median(box1),
+               b2 = drillbif::Median(box2);
   std::printf(
-      "8 traces: 1 worker process %.2f s (%.2f traces/s), 2 worker processes %.2f s "
-      "(%.2f traces/s): %.2fx\n",
-      t1, 8 / t1, t2, 8 / t2, t1 / t2);
-  std::printf("400 submits: 1 API process %.0f/s, 2 API processes %.0f/s: %.2fx\n", s1, s2,
-              s2 / s1);
+      "the reference box: 1 worker unfanned %.2f s, fanned out on 1 worker %.2f s, on 2 "
+      "workers %.2f s: %.2fx against unfanned\n",
+      b0, b1, b2, b0 / b2);
   return 0;
 }
