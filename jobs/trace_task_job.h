@@ -16,7 +16,7 @@ namespace drillbif::jobs {
 inline constexpr char kTraceTaskKind[] = "trace_task";
 
 // A child job's request checked: the parent's trace request plans (PlanTrace) and the task's
-// orbits have signatures of the model. INVALID_ARGUMENT naming the field otherwise.
+// orbits name the model's modes and guards. INVALID_ARGUMENT naming the field otherwise.
 struct TraceTaskPlan {
   v1::TraceTaskRequest request;
 };
