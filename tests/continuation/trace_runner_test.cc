@@ -16,6 +16,7 @@
 #include "problems/reference_box.h"
 #include "problems/reference_orbit.h"
 #include "support/same_curves.h"
+#include "support/small_trace_box.h"
 
 namespace drillbif {
 namespace {
@@ -96,26 +97,7 @@ class ShuffledRunner : public TraceTaskRunner {
   int64_t fail_after_ = -1;
 };
 
-class TraceRunner : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const StatusOr<PeriodicOrbit> orbit =
-        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
-    ASSERT_TRUE(orbit.ok()) << orbit.status().ToString();
-    start_ = *orbit;
-  }
-  // The small box of the trace stream tests (omega in [0.05, 0.2], a in [0.27, 0.32]: ~1 s, with
-  // a flip-grazing to switch at).
-  static TraceOptions SmallBox() {
-    TraceOptions o = testing::ReferenceBox();
-    o.max1 = 0.2;
-    o.min2 = 0.27, o.max2 = 0.32;
-    return o;
-  }
-  DO model_;
-  ExactPropagator prop_{model_};
-  PeriodicOrbit start_;
-};
+class TraceRunner : public testing::SmallTraceBox {};
 
 // Period 1 and period 2 (omega up to 0.45: period-2 curves, their switching and the merge at
 // flip-grazings): the runner's network equals one thread's, curve by curve to the bit, with the

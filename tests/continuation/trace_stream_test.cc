@@ -18,6 +18,7 @@
 #include "problems/reference_orbit.h"
 #include "support/cancel_probe.h"
 #include "support/same_curves.h"
+#include "support/small_trace_box.h"
 
 namespace drillbif {
 namespace {
@@ -30,26 +31,7 @@ using testing::SameBits;
 
 constexpr milliseconds kDelay(200);  // as in simulation_cancel_test.cc
 
-class TraceStream : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const StatusOr<PeriodicOrbit> orbit =
-        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
-    ASSERT_TRUE(orbit.ok()) << orbit.status().ToString();
-    start_ = *orbit;
-  }
-  // The small box of the trace runner's tests (omega in [0.05, 0.2], a in [0.27, 0.32]: ~1 s,
-  // with a flip-grazing to switch at).
-  static TraceOptions SmallBox() {
-    TraceOptions o = testing::ReferenceBox();
-    o.max1 = 0.2;
-    o.min2 = 0.27, o.max2 = 0.32;
-    return o;
-  }
-  DO model_;
-  ExactPropagator prop_{model_};
-  PeriodicOrbit start_;
-};
+class TraceStream : public testing::SmallTraceBox {};
 
 // The whole box of problems/reference_box.h (seconds of branches, hundreds of curves), stopped
 // 200 ms in.
