@@ -125,7 +125,7 @@ double OneTraceSeconds(int workers, int fan_out) {
   for (const std::unique_ptr<ServerProcess>& p : setup.processes) {
     std::ifstream log(p->log_path());
     for (std::string line; std::getline(log, line);) {
-      if (line.find("trace tasks stored") != std::string::npos) {
+      if (line.find(" trace tasks, ") != std::string::npos) {
         std::printf("  %s\n", line.substr(line.find("] job") + 2).c_str());
       }
     }

@@ -1,5 +1,6 @@
 #include "jobs/trace_task_job.h"
 
+#include <optional>
 #include <string>
 #include <variant>
 
@@ -44,7 +45,8 @@ Status CheckSignature(const std::string& field, const PeriodicOrbit& orbit) {
   for (const StateVector& x : orbit.starts) {
     if (x.size() != internal::Model().state_dim()) {
       return InvalidArgument(field + ".starts: a state of " + std::to_string(x.size()) +
-                             " components, the model has " + std::to_string(internal::Model().state_dim()));
+                             " components, the model has " +
+                             std::to_string(internal::Model().state_dim()));
     }
   }
   return Status::Ok();
@@ -93,28 +95,54 @@ StatusOr<TraceTaskPlan> PlanTraceTask(const v1::TraceTaskRequest& request) {
 
 JobCost TraceTaskCost(const TraceTaskPlan&) { return JobCost{}; }
 
+namespace {
+
+// The task under the plan's options on a propagator of its own that polls `progress`; nullopt
+// when a stop ended it (or came before it started).
+std::optional<TraceTaskResult> RunUnder(const TracePlan& plan, const TraceTask& task,
+                                        const ProgressCallback& progress) {
+  if (progress && !progress(0.0)) return std::nullopt;
+  ExactPropagator propagator(internal::Model());
+  ProgressThrottle throttle(progress);
+  propagator.set_progress(&throttle);
+  TraceTaskResult result = RunTraceTask(internal::Model(), propagator, plan.options, task);
+  if (throttle.stopped()) return std::nullopt;
+  return result;
+}
+
+}  // namespace
+
 StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& request,
                                                 const RunContext& context) {
   DRILLBIF_ASSIGN_OR_RETURN(const Decoded decoded, Decode(request));
   v1::TraceTaskResponse response;
-  // A task claimed after its parent stopped is not started.
-  if (context.progress && !context.progress(0.0)) {
+  const std::optional<TraceTaskResult> result =
+      RunUnder(decoded.plan, decoded.task, context.progress);
+  if (!result.has_value()) {
     response.set_status("CANCELLED");
     return response;
   }
-  ExactPropagator propagator(internal::Model());
-  ProgressThrottle throttle(context.progress);
-  propagator.set_progress(&throttle);
-  const TraceTaskResult result =
-      RunTraceTask(internal::Model(), propagator, decoded.plan.options, decoded.task);
-  if (throttle.stopped()) {
-    response.set_status("CANCELLED");
-    return response;
-  }
-  if (!response.ParseFromString(EncodeTraceTaskResult(result))) {
+  if (!response.ParseFromString(EncodeTraceTaskResult(*result))) {
     return Internal("a trace task's result did not encode");
   }
   return response;
+}
+
+StatusOr<LocalTraceTasks> LocalTraceTasks::ForRequest(std::string_view parent_request) {
+  v1::TraceRequest parent;
+  if (!parent.ParseFromArray(parent_request.data(), static_cast<int>(parent_request.size()))) {
+    return InvalidArgument("trace_request: not a drillbif.v1.TraceRequest");
+  }
+  DRILLBIF_ASSIGN_OR_RETURN(TracePlan plan, PlanTrace(parent));
+  return LocalTraceTasks(std::move(plan));
+}
+
+StatusOr<TraceTaskResult> LocalTraceTasks::Run(const TraceTask& task,
+                                               const std::function<bool()>& keep_going) const {
+  std::optional<TraceTaskResult> result =
+      RunUnder(plan_, task, [&keep_going](double) { return keep_going(); });
+  if (!result.has_value()) return Status(StatusCode::kCancelled, "the trace was stopped");
+  return *std::move(result);
 }
 
 }  // namespace drillbif::jobs

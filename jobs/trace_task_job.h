@@ -5,10 +5,16 @@
 #ifndef DRILLBIF_JOBS_TRACE_TASK_JOB_H_
 #define DRILLBIF_JOBS_TRACE_TASK_JOB_H_
 
+#include <functional>
+#include <string_view>
+#include <utility>
+
 #include "drillbif/common/status.h"
+#include "drillbif/continuation/trace_tasks.h"
 #include "drillbif/v1/trace_task.pb.h"
 #include "jobs/job_cost.h"
 #include "jobs/run_context.h"
+#include "jobs/trace_job.h"
 
 namespace drillbif::jobs {
 
@@ -29,6 +35,21 @@ JobCost TraceTaskCost(const TraceTaskPlan& plan);
 // result; else "COMPLETED" with the result. Errors: INVALID_ARGUMENT for a malformed request.
 StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& request,
                                                 const RunContext& context);
+
+// A fanned-out trace's tasks run in the parent's own process, as their child jobs would run them
+// (the same results): for the tasks the parent keeps rather than store.
+class LocalTraceTasks {
+ public:
+  // INVALID_ARGUMENT when the parent's serialized TraceRequest does not plan.
+  static StatusOr<LocalTraceTasks> ForRequest(std::string_view parent_request);
+  // The task's result; CANCELLED once `keep_going` (polled every few ms) returns false.
+  StatusOr<TraceTaskResult> Run(const TraceTask& task,
+                                const std::function<bool()>& keep_going) const;
+
+ private:
+  explicit LocalTraceTasks(TracePlan plan) : plan_(std::move(plan)) {}
+  TracePlan plan_;
+};
 
 }  // namespace drillbif::jobs
 

@@ -70,14 +70,13 @@ struct ServerOptions {
   // does not take running jobs away, short enough that a crashed worker's jobs start again
   // within about 20 s.
   int64_t lease_ms = 15000;
-  // With a shared store, a trace job's tasks go to the store as child jobs, this many ahead of
-  // the one the trace applies, for every worker process to run (WorkerPoolOptions::
-  // trace_fan_out); 0: each trace runs on the threads of the worker that claimed it. Off by
-  // default: each task costs its trace ~3 ms of store calls (a submit, a claim, a delete; the
-  // reference box's 3181 tasks took 9.5 s of them against 18 s of engine time), so it pays for
-  // traces of long tasks (period 2: ~50 ms each) on several workers, not for the period-1 box
-  // (docs/scale.md). 32 is a good value where it pays. Unused with the SQLite file (one process:
-  // its threads do the same work without the store's round trips).
+  // With a shared store, a trace job offers its tasks, up to this many ahead of the one it
+  // applies, to every worker process as child jobs (WorkerPoolOptions::trace_fan_out,
+  // server/trace_fan_out.h); 0: each trace runs on the threads of the worker that claimed it.
+  // Off by default: on this 2-core machine the reference box took 19.0 s fanned out on 1
+  // worker and 16.6 s on 2, against 17.7 s not fanned out (docs/scale.md); it is meant for
+  // traces of long tasks (period 2) on workers of their own machines. 32 where it is used.
+  // Unused with the SQLite file (one process: its threads do the same work without the store).
   int trace_fan_out = 0;
   // Worker threads running jobs of any cost lane; 0: one per core
   // (std::thread::hardware_concurrency).

@@ -2,11 +2,11 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <thread>
 #include <utility>
 
 #include "jobs/trace_task_codec.h"
-#include "jobs/trace_task_job.h"
 
 namespace drillbif::server {
 
@@ -30,21 +30,29 @@ class Timed {
 }  // namespace
 
 StoreTaskRunner::StoreTaskRunner(JobStore& store, const JobRecord& parent, std::string worker_id,
-                                 const FanOutOptions& options, RunClaimedChild run_child,
-                                 std::function<void()> submitted)
+                                 const jobs::LocalTraceTasks& local, const FanOutOptions& options,
+                                 RunClaimedChild run_child, std::function<void()> submitted)
     : store_(store),
       parent_(parent),
       worker_id_(std::move(worker_id)),
+      local_(local),
       options_(options),
       run_child_(std::move(run_child)),
       submitted_callback_(std::move(submitted)) {}
 
 StoreTaskRunner::~StoreTaskRunner() {
   // The trace takes or drops every ticket; what is left (a trace that threw) is cancelled.
-  for (const auto& [ticket, child] : children_) Forget(child.id);
+  for (const auto& [ticket, child] : children_) {
+    if (!child.id.empty()) Forget(child.id);
+  }
 }
 
 StatusOr<int64_t> StoreTaskRunner::Submit(const TraceTask& task) {
+  const int64_t ticket = next_++;
+  if (stored_open_ >= std::min(budget_, options_.window)) {
+    children_[ticket].task = task;  // kept: run here when needed
+    return ticket;
+  }
   SubmitRequest request;
   request.kind = jobs::kTraceTaskKind;
   request.request = jobs::EncodeTraceTaskRequest(parent_.request, task);
@@ -65,20 +73,14 @@ StatusOr<int64_t> StoreTaskRunner::Submit(const TraceTask& task) {
     return Status(submitted.status().code(),
                   "a trace task could not be stored: " + submitted.status().message());
   }
-  ++submitted_;
-  children_[next_] = Child{submitted->id};
+  ++stored_, ++stored_open_;
+  children_[ticket].id = submitted->id;
   if (submitted_callback_) submitted_callback_();
-  return next_++;
+  return ticket;
 }
 
 StatusOr<std::optional<TraceTaskResult>> StoreTaskRunner::ResultOf(Child& child) {
   Timed timed(store_seconds_);
-  // Run here and completed: succeeded, its result in memory.
-  if (const auto kept = kept_.find(child.id); kept != kept_.end()) {
-    const std::string bytes = std::move(kept->second);
-    kept_.erase(kept);
-    return Decoded(child, bytes);
-  }
   StatusOr<JobRecord> record = store_.Get(child.id, /*include_request=*/false);
   if (!record.ok()) {
     return Status(record.status().code(),
@@ -96,18 +98,13 @@ StatusOr<std::optional<TraceTaskResult>> StoreTaskRunner::ResultOf(Child& child)
     case JobState::kSucceeded:
       break;
   }
+  child.finished = true;
   StatusOr<std::string> bytes = store_.GetResult(child.id);
   if (!bytes.ok()) {
     return Status(bytes.status().code(),
                   "trace task " + child.id + ": " + bytes.status().message());
   }
-  return Decoded(child, *bytes);
-}
-
-StatusOr<std::optional<TraceTaskResult>> StoreTaskRunner::Decoded(Child& child,
-                                                                  const std::string& bytes) {
-  child.finished = true;
-  StatusOr<TraceTaskResult> result = jobs::DecodeTraceTaskResult(bytes);
+  StatusOr<TraceTaskResult> result = jobs::DecodeTraceTaskResult(*bytes);
   if (!result.ok()) {
     return Internal("trace task " + child.id +
                     ": its stored result does not decode: " + result.status().message());
@@ -117,7 +114,8 @@ StatusOr<std::optional<TraceTaskResult>> StoreTaskRunner::Decoded(Child& child,
 
 bool StoreTaskRunner::Ready(int64_t ticket) {
   Child& child = children_.at(ticket);
-  if (child.finished || kept_.count(child.id) > 0) return true;
+  if (child.result.has_value() || child.finished) return true;
+  if (child.id.empty()) return false;  // kept, not run yet
   // At most one look per poll interval per child: the trace asks for every queued point at each
   // step it applies.
   const auto now = std::chrono::steady_clock::now();
@@ -129,7 +127,7 @@ bool StoreTaskRunner::Ready(int64_t ticket) {
   return child.finished;
 }
 
-bool StoreTaskRunner::RunOneHere() {
+StatusOr<bool> StoreTaskRunner::ClaimOneHere() {
   ClaimOptions claim;
   claim.lease_ms = options_.lease_ms;
   claim.parent = parent_.id;
@@ -138,34 +136,92 @@ bool StoreTaskRunner::RunOneHere() {
     return store_.ClaimNext(worker_id_, claim);
   }();
   if (!claimed.ok() || !claimed->has_value()) return false;
-  ++ran_here_;
+  ++claimed_here_;
   Timed timed(run_seconds_);
-  std::optional<std::string> result = run_child_(**claimed);
-  if (result.has_value()) kept_[(*claimed)->id] = *std::move(result);
+  std::optional<std::string> bytes = run_child_(**claimed);
+  if (!bytes.has_value()) return true;  // not completed here: read from the store
+  const auto it = std::find_if(children_.begin(), children_.end(),
+                               [&](const auto& c) { return c.second.id == (*claimed)->id; });
+  if (it == children_.end()) return true;  // dropped meanwhile
+  StatusOr<TraceTaskResult> result = jobs::DecodeTraceTaskResult(*bytes);
+  if (!result.ok()) return result.status();
+  it->second.result = *std::move(result);
   return true;
+}
+
+StatusOr<bool> StoreTaskRunner::RunOneHere(const std::function<bool()>& keep_going) {
+  for (auto& [ticket, child] : children_) {
+    if (!child.task.has_value()) continue;
+    Timed timed(run_seconds_);
+    StatusOr<TraceTaskResult> result = local_.Run(*child.task, keep_going);
+    if (!result.ok()) return result.status();
+    child.task.reset();
+    child.result = *std::move(result);
+    return true;
+  }
+  return ClaimOneHere();
 }
 
 StatusOr<TraceTaskResult> StoreTaskRunner::Take(int64_t ticket,
                                                 const std::function<bool()>& keep_going) {
+  Child& child = children_.at(ticket);
+  if (!child.id.empty()) return TakeStored(ticket, keep_going);
+  if (!child.result.has_value()) {
+    Timed timed(run_seconds_);
+    StatusOr<TraceTaskResult> result = local_.Run(*child.task, keep_going);
+    if (!result.ok()) {
+      children_.erase(ticket);
+      return result.status();
+    }
+    child.result = *std::move(result);
+  }
+  TraceTaskResult result = *std::move(child.result);
+  children_.erase(ticket);
+  return result;
+}
+
+StatusOr<TraceTaskResult> StoreTaskRunner::TakeStored(int64_t ticket,
+                                                      const std::function<bool()>& keep_going) {
   const std::string id = children_.at(ticket).id;
   for (;;) {
-    StatusOr<std::optional<TraceTaskResult>> result = ResultOf(children_.at(ticket));
+    Child& child = children_.at(ticket);
+    if (child.result.has_value()) {  // claimed and run here
+      TraceTaskResult result = *std::move(child.result);
+      children_.erase(ticket);
+      Closed(/*run_elsewhere=*/false);
+      Timed timed(store_seconds_);
+      (void)store_.Delete(id);
+      return result;
+    }
+    StatusOr<std::optional<TraceTaskResult>> result = ResultOf(child);
     if (!result.ok() || result->has_value()) {
       children_.erase(ticket);
-      if (result.ok()) {
-        Timed timed(store_seconds_);
-        (void)store_.Delete(id);  // succeeded: nothing to cancel
-      } else {
+      Closed(/*run_elsewhere=*/result.ok());
+      if (!result.ok()) {
         Forget(id);
+        return result.status();
       }
-      if (!result.ok()) return result.status();
+      ++run_elsewhere_;
+      Timed timed(store_seconds_);
+      (void)store_.Delete(id);  // succeeded: nothing to cancel
       return **std::move(result);
     }
     if (!keep_going()) return Status(StatusCode::kCancelled, "the trace was stopped");
-    if (!RunOneHere()) {
+    StatusOr<bool> ran = RunOneHere(keep_going);
+    if (!ran.ok()) return ran.status();
+    if (!*ran) {
       Timed timed(sleep_seconds_);
       std::this_thread::sleep_for(options_.poll);
     }
+  }
+}
+
+void StoreTaskRunner::Closed(bool run_elsewhere) {
+  --stored_open_;
+  if (run_elsewhere) {
+    budget_ = std::min(budget_ + 1, options_.window);
+  } else if (budget_ > 1) {
+    --budget_;
   }
 }
 
@@ -174,7 +230,8 @@ void StoreTaskRunner::Drop(int64_t ticket) {
   if (it == children_.end()) return;
   const std::string id = it->second.id;
   children_.erase(it);
-  kept_.erase(id);
+  if (id.empty()) return;  // kept: nothing stored
+  --stored_open_;
   Forget(id);
 }
 

@@ -11,6 +11,7 @@
 
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
+#include "jobs/trace_task_job.h"
 #include "server/stored_results.h"
 #include "server/trace_fan_out.h"
 
@@ -226,14 +227,19 @@ class WorkerPool::Run {
 
   // Runs the job and records its outcome; returns the outcome's label.
   const char* Execute() {
-    // A trace's tasks as child jobs (WorkerPoolOptions::trace_fan_out).
+    // A trace's tasks offered to every worker as child jobs (WorkerPoolOptions::trace_fan_out).
+    std::optional<jobs::LocalTraceTasks> local;
     std::optional<StoreTaskRunner> fan_out;
     if (kind_.kind == v1::TRACE && pool_->options_.trace_fan_out > 0) {
+      StatusOr<jobs::LocalTraceTasks> planned = jobs::LocalTraceTasks::ForRequest(job_.request);
+      if (planned.ok()) local.emplace(*std::move(planned));  // else RunJob reports the error
+    }
+    if (local) {
       FanOutOptions o;
       o.window = static_cast<size_t>(pool_->options_.trace_fan_out);
       o.lease_ms = pool_->options_.lease_ms;
       fan_out.emplace(
-          *pool_->store_, job_, worker_id_, o,
+          *pool_->store_, job_, worker_id_, *local, o,
           [this](const JobRecord& child) -> std::optional<std::string> {
             std::string kept;
             if (!pool_->RunOne(child, worker_id_, &kept)) return std::nullopt;
@@ -250,10 +256,12 @@ class WorkerPool::Run {
                       .trace_tasks = fan_out ? &*fan_out : nullptr});
     if (fan_out) {
       spdlog::info(
-          "job {}: {} trace tasks stored, {} of them run by the trace itself ({:.2f} s); "
-          "{:.2f} s in the store's calls, {:.2f} s waiting for other workers",
-          job_.id, fan_out->submitted(), fan_out->ran_here(), fan_out->run_seconds(),
-          fan_out->store_seconds(), fan_out->sleep_seconds());
+          "job {}: {} trace tasks, {} of them stored ({} run by other workers, {} claimed back "
+          "by the trace); {:.2f} s running tasks, {:.2f} s in the store's calls, {:.2f} s "
+          "waiting for other workers",
+          job_.id, fan_out->tasks(), fan_out->stored(), fan_out->run_elsewhere(),
+          fan_out->claimed_here(), fan_out->run_seconds(), fan_out->store_seconds(),
+          fan_out->sleep_seconds());
     }
     return Finish(output);
   }

@@ -77,8 +77,8 @@ struct WorkerPoolOptions {
   // job was taken back) is stopped and records nothing. 0: no leases (a store one process owns:
   // its restart recovers the jobs). >= 300 when set: three beats must fit in it.
   int64_t lease_ms = 0;
-  // Trace jobs hand their tasks to the store as child jobs (server/trace_fan_out.h), this many
-  // ahead of the one they apply, for any worker of any process to run; 0: a trace runs its
+  // Trace jobs offer their tasks to every worker as child jobs of the store
+  // (server/trace_fan_out.h), up to this many ahead of the one they apply; 0: a trace runs its
   // tasks on its own threads. For a store several processes share: in one process the threads
   // do the same work without the store's round trips.
   int trace_fan_out = 0;

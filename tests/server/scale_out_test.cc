@@ -510,7 +510,7 @@ TEST_F(ScaleOut, ATraceFansOutOverBothWorkersAndALostTaskRunsAgain) {
   }
   std::ifstream log(workers[parent_worker]->log_path());
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
-  const size_t line = text.find("trace tasks stored");
+  const size_t line = text.find(" trace tasks, ");
   ASSERT_NE(line, std::string::npos) << text.substr(0, 2000);
   const size_t from = text.rfind('\n', line) + 1;
   std::printf("the trace's worker: %s\n", text.substr(from, text.find('\n', line) - from).c_str());
