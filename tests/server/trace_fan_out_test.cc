@@ -1,0 +1,142 @@
+// StoreTaskRunner on a SQLite store, without a server: the trace's result equals the trace on its
+// own thread whoever runs its tasks; alone, the trace stores only its budget's few tasks and runs
+// the rest itself; with another worker taking stored tasks, the budget grows and that worker runs
+// some; every stored child ends deleted or finished.
+#include "server/trace_fan_out.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "jobs/registry.h"
+#include "jobs/request_bytes.h"
+#include "jobs/trace_job.h"
+#include "jobs/trace_task_job.h"
+#include "server/store/sqlite_job_store.h"
+#include "support/same_result.h"
+#include "support/small_requests.h"
+#include "support/temp_dir.h"
+
+namespace drillbif::server {
+namespace {
+
+class TraceFanOut : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_FALSE(dir_.path().empty());
+    StatusOr<std::unique_ptr<JobStore>> opened = SqliteJobStore::Open(dir_.path() + "/jobs.db");
+    ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+    store_ = *std::move(opened);
+    request_ = drillbif::testing::SmallBoxTrace();
+    SubmitRequest submit;
+    submit.kind = "trace";
+    submit.request = jobs::DeterministicBytes(request_);
+    submit.lane = kLaneLong;
+    ASSERT_TRUE(store_->Submit(submit).ok());
+    StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("parent");
+    ASSERT_TRUE(claimed.ok() && claimed->has_value());
+    parent_ = **claimed;
+  }
+
+  // Runs a claimed child as a worker does and completes it: with `keep`, with an empty result,
+  // returning the result's bytes (the trace's own claims).
+  std::optional<std::string> RunChild(const JobRecord& child, bool keep) {
+    const jobs::JobKindSpec* kind = jobs::FindChildKind(child.kind);
+    StatusOr<jobs::JobOutput> out = jobs::RunJob(*kind, child.request, {});
+    if (!out.ok() || out->status != "COMPLETED") return std::nullopt;
+    const std::string bytes = jobs::DeterministicBytes(*out->result);
+    if (!store_->Complete(child.id, child.run, keep ? "" : bytes, 0).ok()) return std::nullopt;
+    return bytes;
+  }
+
+  StatusOr<v1::TraceResult> FannedOut(StoreTaskRunner& runner) {
+    return jobs::RunTrace(request_, {.trace_tasks = &runner});
+  }
+
+  // Every child of the parent is finished (those taken were deleted).
+  void ExpectNoChildLeftToRun() {
+    ListRequest list;
+    list.parent = parent_.id;
+    list.page_size = 1000;
+    StatusOr<ListResult> children = store_->List(list);
+    ASSERT_TRUE(children.ok());
+    for (const JobRecord& c : children->jobs) EXPECT_TRUE(IsFinished(c.state)) << c.id;
+  }
+
+  drillbif::testing::TempDir dir_{"drillbif_fan_out"};
+  std::unique_ptr<JobStore> store_;
+  v1::TraceRequest request_;
+  JobRecord parent_;
+};
+
+TEST_F(TraceFanOut, AloneTheTraceStoresFewTasksAndRunsTheRestItself) {
+  StatusOr<jobs::LocalTraceTasks> local =
+      jobs::LocalTraceTasks::ForRequest(jobs::DeterministicBytes(request_));
+  ASSERT_TRUE(local.ok());
+  StoreTaskRunner runner(*store_, parent_, "parent", *local, FanOutOptions{},
+                         [&](const JobRecord& child) { return RunChild(child, /*keep=*/true); },
+                         {});
+  StatusOr<v1::TraceResult> fanned = FannedOut(runner);
+  ASSERT_TRUE(fanned.ok()) << fanned.status().ToString();
+  StatusOr<v1::TraceResult> direct = jobs::RunTrace(request_);
+  ASSERT_TRUE(direct.ok());
+  drillbif::testing::ExpectSameResult(*fanned, *direct);
+  // Nobody else takes a stored task: each one the trace claims back lowers the budget to one
+  // open task, so a small share of the tasks is stored, all claimed back by the trace.
+  EXPECT_GT(runner.tasks(), 10);
+  EXPECT_GE(runner.stored(), 2);
+  EXPECT_LT(runner.stored(), runner.tasks() / 2);
+  EXPECT_EQ(runner.run_elsewhere(), 0);
+  EXPECT_GT(runner.claimed_here(), 0);
+  EXPECT_LE(runner.claimed_here(), runner.stored());  // the others were dropped
+  std::printf("alone: %lld tasks, %lld stored, %lld claimed back\n",
+              static_cast<long long>(runner.tasks()), static_cast<long long>(runner.stored()),
+              static_cast<long long>(runner.claimed_here()));
+  ExpectNoChildLeftToRun();
+}
+
+TEST_F(TraceFanOut, AnotherWorkerTakesStoredTasksAndTheBudgetGrows) {
+  StatusOr<jobs::LocalTraceTasks> local =
+      jobs::LocalTraceTasks::ForRequest(jobs::DeterministicBytes(request_));
+  ASSERT_TRUE(local.ok());
+  // Another worker: claims any child as soon as one is queued, runs it, stores its result.
+  std::atomic<bool> done{false};
+  std::atomic<int> ran{0};
+  std::thread other([&] {
+    while (!done.load()) {
+      StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("other");
+      if (claimed.ok() && claimed->has_value() && RunChild(**claimed, /*keep=*/false)) {
+        ++ran;
+      } else {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    }
+  });
+  StoreTaskRunner runner(*store_, parent_, "parent", *local, FanOutOptions{},
+                         [&](const JobRecord& child) { return RunChild(child, /*keep=*/true); },
+                         {});
+  StatusOr<v1::TraceResult> fanned = FannedOut(runner);
+  done = true;
+  other.join();
+  ASSERT_TRUE(fanned.ok()) << fanned.status().ToString();
+  StatusOr<v1::TraceResult> direct = jobs::RunTrace(request_);
+  ASSERT_TRUE(direct.ok());
+  drillbif::testing::ExpectSameResult(*fanned, *direct);
+  EXPECT_GT(ran.load(), 0);
+  EXPECT_GT(runner.run_elsewhere(), 0);
+  EXPECT_LE(runner.run_elsewhere(), ran.load());
+  // The budget grew past its start of 2 open tasks.
+  EXPECT_GT(runner.stored(), 2 + runner.claimed_here());
+  std::printf("with another worker: %lld tasks, %lld stored, %lld run by it, %lld claimed back\n",
+              static_cast<long long>(runner.tasks()), static_cast<long long>(runner.stored()),
+              static_cast<long long>(runner.run_elsewhere()),
+              static_cast<long long>(runner.claimed_here()));
+  ExpectNoChildLeftToRun();
+}
+
+}  // namespace
+}  // namespace drillbif::server
