@@ -52,7 +52,9 @@ class ShuffledRunner : public TraceTaskRunner {
       if (t > ticket) later.push_back(t);
     }
     for (auto it = later.rbegin(); it != later.rend(); ++it) Compute(*it);
-    if (!keep_going()) return Status(StatusCode::kCancelled, "stopped");
+    if (!keep_going() || (cancel_after_ >= 0 && taken_ > cancel_after_)) {
+      return Status(StatusCode::kCancelled, "stopped");
+    }
     Compute(ticket);
     TraceTaskResult r = std::move(done_.at(ticket));
     done_.erase(ticket);
@@ -67,6 +69,9 @@ class ShuffledRunner : public TraceTaskRunner {
   }
 
   void FailAfter(int64_t submits) { fail_after_ = submits; }
+  // Take answers CANCELLED from the given count of takes on, as a runner whose tasks were
+  // cancelled with their trace (the trace's own stop not seen yet).
+  void CancelAfter(int64_t takes) { cancel_after_ = takes; }
   int64_t submitted() const { return submitted_; }
   int64_t taken() const { return taken_; }
   int64_t dropped() const { return dropped_; }
@@ -95,6 +100,7 @@ class ShuffledRunner : public TraceTaskRunner {
   std::set<size_t> kinds_;
   int64_t next_ = 0, submitted_ = 0, taken_ = 0, dropped_ = 0, ready_calls_ = 0;
   int64_t fail_after_ = -1;
+  int64_t cancel_after_ = -1;
 };
 
 class TraceRunner : public testing::SmallTraceBox {};
@@ -154,6 +160,30 @@ TEST_F(TraceRunner, StopWhileWaitingCancelsTheTrace) {
   EXPECT_TRUE(r.summary.cancelled());
   EXPECT_FALSE(r.curves.empty());
   EXPECT_EQ(runner.taken() + runner.dropped(), runner.submitted());
+}
+
+// A runner that answers CANCELLED (its tasks cancelled with the trace) while the trace itself was
+// not stopped yet: the trace ends cancelled, in the curves' stage as in the switching rounds,
+// never completed with results missing.
+TEST_F(TraceRunner, ARunnersCancelEndsTheTraceCancelled) {
+  TraceOptions o = SmallBox();
+  int64_t total = 0;
+  {
+    ShuffledRunner all(o, 4);
+    o.task_runner = &all;
+    ASSERT_TRUE(TraceCurves(model_, prop_, start_, o).summary.completed());
+    total = all.taken();
+  }
+  ASSERT_GT(total, 4);
+  for (const int64_t after : {int64_t{1}, total / 2, total - 2}) {
+    ShuffledRunner runner(o, 4);
+    runner.CancelAfter(after);
+    o.task_runner = &runner;
+    const TraceResult r = TraceCurves(model_, prop_, start_, o);
+    EXPECT_TRUE(r.summary.cancelled())
+        << after << " of " << total << ": " << r.summary.BriefReport();
+    EXPECT_EQ(runner.taken() + runner.dropped(), runner.submitted());
+  }
 }
 
 }  // namespace

@@ -434,7 +434,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   TaskStage<Work> stage(workers);
   OrderedTasks<Work>& tasks = stage.tasks();
   // With a task runner (TraceOptions::task_runner) the tasks go there instead; a runner's error
-  // ends the trace failed with it.
+  // ends the trace failed with it, its CANCELLED (the trace was stopped) cancelled.
   std::optional<RunnerSwitchQueue> remote;
   if (options.task_runner != nullptr) {
     remote.emplace(
@@ -447,11 +447,15 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   }
   const size_t window = remote ? remote->window() : stage.window();
   auto fail = [&](const Status& why) {
-    if (why.code() != StatusCode::kCancelled) sum.Fail(why);
+    if (why.code() != StatusCode::kCancelled) {
+      sum.Fail(why);
+    } else if (!sum.cancelled()) {
+      sum.Cancel(kCancelledMessage);
+    }
     return false;
   };
   // How the round ended: false when cancelled or failed.
-  auto ended = [&] { return !propagator.stopped() && !sum.failed(); };
+  auto ended = [&] { return !propagator.stopped() && !sum.failed() && !sum.cancelled(); };
   std::deque<Item> items;
   auto queue = [&](Item item, CurveKind from_kind) {
     if (remote) {
@@ -504,8 +508,10 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
         if (remote) {
           StatusOr<CandidateRun> run = remote->TakeRun(i);
           if (run.ok()) return *std::move(run);
+          // The trace ends failed or cancelled below: what apply() makes of this empty run (a
+          // failed step-off in the tally) is never reported.
           taken = fail(run.status());
-          return CandidateRun{};  // not applied: the round ends below
+          return CandidateRun{};
         }
         return RunCandidate(model, propagator, options, co, i1, i2, item.point, candidate,
                             last_resort);

@@ -165,10 +165,10 @@ bool TraversedTwice(const HybridModel& model, Propagator& propagator, const Peri
 namespace {
 
 // The message of a cancelled trace: the curves traced until then are its result.
-constexpr char kCancelledMessage[] = "cancelled: the curves traced until then";
 
 using internal::DistanceToCurve;
 using internal::GrazingKind;
+using internal::kCancelledMessage;
 using internal::PeriodPrefix;
 using internal::SwapValues;
 using internal::SwitchAtCodim2;

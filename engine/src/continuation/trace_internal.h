@@ -14,6 +14,9 @@ namespace drillbif::internal {
 
 class WorkerPropagators;  // continuation/curve_tasks.h
 
+// The message of a trace that was stopped.
+inline constexpr char kCancelledMessage[] = "cancelled: the curves traced until then";
+
 // The outline of a curve's vertices (TracedCurve::outline).
 CurveOutline OutlineOf(const CurveResult& c);
 

@@ -59,8 +59,8 @@ TraceTaskResult Compute(const HybridModel& model, Propagator& propagator,
   const auto& run = std::get<CandidateTask>(task);
   return internal::RunCandidate(model, propagator, options, internal::SwitchCurveOptions(options),
                                 model.ParamIndex(options.param1).value(),
-                                model.ParamIndex(options.param2).value(), run.point,
-                                run.candidate, run.last_resort);
+                                model.ParamIndex(options.param2).value(), run.point, run.candidate,
+                                run.last_resort);
 }
 
 }  // namespace
