@@ -9,7 +9,9 @@
 //   child jobs over 1 and 2 worker processes (each run's result must equal the first's).
 // Medians of `runs` (default 3) and their ratio. Not a Google Benchmark: each measurement starts
 // processes and a database.
-//   build/bench/scale_bench [runs] [fan-out]   (fan-out: the reference box only)
+//   build/bench/scale_bench [runs] [fan-out | fan-out-period2]
+//   (fan-out: the reference box only; fan-out-period2: a period-2 box, unfanned on 1 worker
+//   against fanned out on 2)
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -100,6 +102,9 @@ double TraceSeconds(int workers) {
 // The result each run gives, wall time cleared: every run must give the first one's.
 std::string first_result;
 
+// The period-2 box: omega in [0.05, 0.6], a in [0.2, 1] with period 2 (~94 s on one core).
+bool period_two = false;
+
 double OneTraceSeconds(int workers, int fan_out) {
   Setup setup;
   ServerProcess& api = setup.Start("api");
@@ -111,9 +116,10 @@ double OneTraceSeconds(int workers, int fan_out) {
   r.add_trace_params(std::string("omega"));
   r.add_trace_params(std::string("a"));
   r.add_min(0.05);
-  r.add_min(0.01);
-  r.add_max(2);
-  r.add_max(8);
+  r.add_min(period_two ? 0.2 : 0.01);
+  r.add_max(period_two ? 0.6 : 2);
+  r.add_max(period_two ? 1 : 8);
+  r.set_period2(period_two);
   r.set_threads(1);
   const Clock::time_point t0 = Clock::now();
   google::longrunning::Operation op;
@@ -188,6 +194,23 @@ int main(int argc, char** argv) {
   // "fan-out": only the reference box's trace, on 1 worker without fan-out and on 1 and 2
   // workers with it.
   const bool fan_out_only = argc > 2 && std::string(argv[2]) == "fan-out";
+  // "fan-out-period2": the period-2 box instead, on 1 worker without fan-out and on 2 with it.
+  drillbif::period_two = argc > 2 && std::string(argv[2]) == "fan-out-period2";
+  if (drillbif::period_two) {
+    std::vector<double> local, two;
+    for (int run = 0; run < runs; ++run) {
+      local.push_back(drillbif::OneTraceSeconds(1, 0));
+      two.push_back(drillbif::OneTraceSeconds(2, 32));
+      std::printf("run %d: period-2 box %.2f s on 1 worker, fanned out %.2f s on 2\n", run,
+                  local.back(), two.back());
+      std::fflush(stdout);
+    }
+    const double l = drillbif::Median(local), t = drillbif::Median(two);
+    std::printf(
+        "the period-2 box: 1 worker unfanned %.2f s, fanned out on 2 workers %.2f s: %.2fx\n", l, t,
+        l / t);
+    return 0;
+  }
   std::vector<double> trace1, trace2, submit1, submit2, box_local, box1, box2;
   for (int run = 0; run < runs; ++run) {
     if (!fan_out_only) {
