@@ -7,6 +7,7 @@
 #include <chrono>
 #include <fstream>
 #include <string>
+#include <thread>
 
 #include "support/operations.h"
 #include "support/small_requests.h"
@@ -82,6 +83,16 @@ TEST(Fairness, AClientThatFillsItsQueueShareDoesNotRefuseOthers) {
   ASSERT_TRUE(with_tokens.ok());
   Operation op;
   ASSERT_TRUE(Submit(with_tokens, Long(0), &op, "alice-secret-1").ok());  // runs
+  // Claimed by the worker before the next submits (else it counts as waiting too).
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (MetadataOf(op).state() != v1::RUNNING && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    google::longrunning::GetOperationRequest get;
+    get.set_name(op.name());
+    auto context = TestServer::Context("alice-secret-1");
+    ASSERT_TRUE(with_tokens.operations().GetOperation(context.get(), get, &op).ok());
+  }
+  ASSERT_EQ(MetadataOf(op).state(), v1::RUNNING);
   ASSERT_TRUE(Submit(with_tokens, Long(1), &op, "alice-secret-1").ok());  // waits
   ASSERT_TRUE(Submit(with_tokens, Long(2), &op, "alice-secret-1").ok());  // waits
   const grpc::Status refused = Submit(with_tokens, Long(3), &op, "alice-secret-1");
