@@ -556,16 +556,24 @@ std::string EncodeTraceTaskRequest(std::string_view parent_trace_request, const 
 StatusOr<DecodedTraceTask> DecodeTraceTaskRequest(std::string_view bytes) {
   v1::TraceTaskRequest request;
   DRILLBIF_RETURN_IF_ERROR(Parse(bytes, "TraceTaskRequest", &request));
+  return DecodeTraceTaskRequest(request);
+}
+
+StatusOr<DecodedTraceTask> DecodeTraceTaskRequest(const v1::TraceTaskRequest& request) {
   v1::TraceRequest parent;
   DRILLBIF_RETURN_IF_ERROR(
       Within("TraceTaskRequest", Parse(request.trace_request(), "trace_request", &parent)));
   DecodedTraceTask decoded;
   DRILLBIF_RETURN_IF_ERROR(Within("TraceTaskRequest", DecodeTask(request, &decoded.task)));
-  decoded.trace_request = std::move(*request.mutable_trace_request());
+  decoded.trace_request = request.trace_request();
   return decoded;
 }
 
 std::string EncodeTraceTaskResult(const TraceTaskResult& result) {
+  return DeterministicBytes(TraceTaskResponseOf(result));
+}
+
+v1::TraceTaskResponse TraceTaskResponseOf(const TraceTaskResult& result) {
   v1::TraceTaskResponse response;
   std::visit(
       [&response](const auto& r) {
@@ -578,7 +586,7 @@ std::string EncodeTraceTaskResult(const TraceTaskResult& result) {
       },
       result);
   response.set_status("COMPLETED");
-  return DeterministicBytes(response);
+  return response;
 }
 
 StatusOr<TraceTaskResult> DecodeTraceTaskResult(std::string_view bytes) {

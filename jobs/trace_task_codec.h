@@ -24,6 +24,7 @@
 
 #include "drillbif/common/status.h"
 #include "drillbif/continuation/trace_tasks.h"
+#include "drillbif/v1/trace_task.pb.h"
 
 namespace drillbif::jobs {
 
@@ -40,9 +41,14 @@ struct DecodedTraceTask {
 // Decodes EncodeTraceTaskRequest's bytes. INVALID_ARGUMENT naming the field for malformed bytes,
 // including a trace_request that does not parse as a drillbif.v1.TraceRequest.
 StatusOr<DecodedTraceTask> DecodeTraceTaskRequest(std::string_view bytes);
+// The same for a request already parsed (a child job's run gets it so from the registry).
+StatusOr<DecodedTraceTask> DecodeTraceTaskRequest(const v1::TraceTaskRequest& request);
 
 // A task's result as a drillbif.v1.TraceTaskResponse (the alternative at the same index).
 std::string EncodeTraceTaskResult(const TraceTaskResult& result);
+// The same as a message (status "COMPLETED"), e.g. a child job's result before the store
+// serializes it.
+v1::TraceTaskResponse TraceTaskResponseOf(const TraceTaskResult& result);
 
 // Decodes EncodeTraceTaskResult's bytes. INVALID_ARGUMENT naming the field for malformed bytes.
 StatusOr<TraceTaskResult> DecodeTraceTaskResult(std::string_view bytes);

@@ -7,7 +7,6 @@
 #include "drillbif/continuation/trace_tasks.h"
 #include "drillbif/flow/exact_propagator.h"
 #include "jobs/job_common.h"
-#include "jobs/request_bytes.h"
 #include "jobs/trace_job.h"
 #include "jobs/trace_task_codec.h"
 
@@ -74,8 +73,7 @@ struct Decoded {
 };
 
 StatusOr<Decoded> Decode(const v1::TraceTaskRequest& request) {
-  DRILLBIF_ASSIGN_OR_RETURN(DecodedTraceTask decoded,
-                            DecodeTraceTaskRequest(DeterministicBytes(request)));
+  DRILLBIF_ASSIGN_OR_RETURN(DecodedTraceTask decoded, DecodeTraceTaskRequest(request));
   v1::TraceRequest parent;
   if (!parent.ParseFromString(decoded.trace_request)) {
     return InvalidArgument("trace_request: not a drillbif.v1.TraceRequest");
@@ -115,17 +113,12 @@ std::optional<TraceTaskResult> RunUnder(const TracePlan& plan, const TraceTask& 
 StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& request,
                                                 const RunContext& context) {
   DRILLBIF_ASSIGN_OR_RETURN(const Decoded decoded, Decode(request));
-  v1::TraceTaskResponse response;
   const std::optional<TraceTaskResult> result =
       RunUnder(decoded.plan, decoded.task, context.progress);
-  if (!result.has_value()) {
-    response.set_status("CANCELLED");
-    return response;
-  }
-  if (!response.ParseFromString(EncodeTraceTaskResult(*result))) {
-    return Internal("a trace task's result did not encode");
-  }
-  return response;
+  if (result.has_value()) return TraceTaskResponseOf(*result);
+  v1::TraceTaskResponse cancelled;
+  cancelled.set_status("CANCELLED");
+  return cancelled;
 }
 
 StatusOr<LocalTraceTasks> LocalTraceTasks::ForRequest(std::string_view parent_request) {
