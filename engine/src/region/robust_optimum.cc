@@ -43,6 +43,19 @@ struct Metric {
   }
 };
 
+Metric MetricOf(const OptimumOptions& options, const Eigen::Vector2d& min,
+                const Eigen::Vector2d& width) {
+  Metric metric;
+  metric.min = min;
+  if (options.scaled) {
+    metric.scale = options.margin[0] * width;
+  } else {
+    metric.scale = Eigen::Vector2d(options.margin.front(), options.margin.back());
+    metric.max_norm = true;
+  }
+  return metric;
+}
+
 }  // namespace
 
 Status OptimumOptions::Validate() const {
@@ -100,30 +113,18 @@ RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOpti
     return best;
   }
   const Eigen::Vector2d width(region.width1(), region.width2());
-  Metric metric;
-  metric.min = Eigen::Vector2d(region.min1, region.min2);
-  if (options.scaled) {
-    metric.scale = options.margin[0] * width;
-  } else {
-    metric.scale = Eigen::Vector2d(options.margin.front(), options.margin.back());
-    metric.max_norm = true;
-  }
+  const Metric metric = MetricOf(options, Eigen::Vector2d(region.min1, region.min2), width);
   const Eigen::Vector2d extent = width.cwiseQuotient(metric.scale);  // box size in metric units
 
   // Obstacles in metric coordinates, bucketed in cells of about one margin (at most 256 a side).
   const int nx = std::clamp(static_cast<int>(std::ceil(extent[0])), 1, 256);
   const int ny = std::clamp(static_cast<int>(std::ceil(extent[1])), 1, 256);
   internal::SegmentIndex obstacles(Eigen::Vector2d::Zero(), extent, nx, ny);
-  for (const RegionPolygon& ring : region.polygons) {
-    if (!throttle.Tick()) return cancelled();
-    const size_t n = ring.vertices.size();
-    for (size_t k = 0; k < n; ++k) {
-      const RegionVertex& a = ring.vertices[k];
-      const RegionVertex& b = ring.vertices[(k + 1) % n];
-      if (AlongBox(a, b, region)) continue;
-      obstacles.Add({metric.U(a.value1, a.value2), metric.U(b.value1, b.value2), EdgeCurve(a, b)});
-    }
+  if (!throttle.Tick()) return cancelled();
+  for (const BoundarySegment& e : RegionObstacles(region)) {
+    obstacles.Add({metric.U(e.a1, e.a2), metric.U(e.b1, e.b2), e.curve});
   }
+  if (!throttle.Tick()) return cancelled();
 
   std::vector<int> order;
   for (size_t k = 0; k < g.label.size(); ++k) {
@@ -208,6 +209,40 @@ RobustOptimum FindRobustOptimum(const StabilityRegion& region, const OptimumOpti
   best.near_box_edge = (u.array() < 1.0).any() || (u.array() > extent.array() - 1.0).any();
   best.summary.Complete();
   return best;
+}
+
+std::vector<BoundarySegment> RegionObstacles(const StabilityRegion& region) {
+  std::vector<BoundarySegment> out;
+  for (const RegionPolygon& ring : region.polygons) {
+    const size_t n = ring.vertices.size();
+    for (size_t k = 0; k < n; ++k) {
+      const RegionVertex& a = ring.vertices[k];
+      const RegionVertex& b = ring.vertices[(k + 1) % n];
+      if (AlongBox(a, b, region)) continue;
+      out.push_back({a.value1, a.value2, b.value1, b.value2, EdgeCurve(a, b)});
+    }
+  }
+  return out;
+}
+
+MarginMetric::MarginMetric(const OptimumOptions& options, double width1, double width2) {
+  const Metric metric = MetricOf(options, Eigen::Vector2d::Zero(), Eigen::Vector2d(width1, width2));
+  scale1_ = metric.scale[0];
+  scale2_ = metric.scale[1];
+  max_norm_ = metric.max_norm;
+}
+
+double MarginMetric::Distance(double v1, double v2, const BoundarySegment& s) const {
+  const Eigen::Vector2d scale(scale1_, scale2_);
+  const Eigen::Vector2d u = Eigen::Vector2d(v1, v2).cwiseQuotient(scale);
+  const Eigen::Vector2d p = Eigen::Vector2d(s.a1, s.a2).cwiseQuotient(scale);
+  const Eigen::Vector2d q = Eigen::Vector2d(s.b1, s.b2).cwiseQuotient(scale);
+  return max_norm_ ? internal::DistanceLinf(u, p, q) : internal::DistanceL2(u, p, q);
+}
+
+double MarginMetric::Distance(double v1, double v2, double w1, double w2) const {
+  const double d1 = (v1 - w1) / scale1_, d2 = (v2 - w2) / scale2_;
+  return max_norm_ ? std::max(std::abs(d1), std::abs(d2)) : std::hypot(d1, d2);
 }
 
 std::string OptimumSummary::BriefReport() const {

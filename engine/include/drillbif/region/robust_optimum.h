@@ -61,6 +61,34 @@ struct RobustOptimum {
   bool near_box_edge = false;  // the margin neighbourhood reaches beyond the box
 };
 
+// An edge of a stability region's boundary that is not on the box: an obstacle of the search, in
+// the trace parameters' units, from (a1, a2) to (b1, b2).
+struct BoundarySegment {
+  double a1 = 0.0, a2 = 0.0, b1 = 0.0, b2 = 0.0;
+  // The curve both ends lie on (or the one either end lies on), else RegionVertex::kSeam or
+  // kUntraced.
+  int curve = RegionVertex::kUntraced;
+};
+
+// The obstacles of `region`: every polygon edge that is not along the box, in polygon order.
+std::vector<BoundarySegment> RegionObstacles(const StabilityRegion& region);
+
+// The search's metric over a box of widths (width1, width2): distances normalised so that the
+// margin of `options` (valid) is 1, the max norm of (d1 / m1, d2 / m2) per parameter, the Euclidean
+// norm of (d1 / (m w1), d2 / (m w2)) scaled.
+class MarginMetric {
+ public:
+  MarginMetric(const OptimumOptions& options, double width1, double width2);
+  // From the point (v1, v2) to the segment.
+  double Distance(double v1, double v2, const BoundarySegment& s) const;
+  // Between two points.
+  double Distance(double v1, double v2, double w1, double w2) const;
+
+ private:
+  double scale1_, scale2_;
+  bool max_norm_;
+};
+
 // INVALID_ARGUMENT for bad options or a region without a grid; FAILED_PRECONDITION for a region
 // whose computation did not succeed. `progress` (optional, common/progress.h; through a
 // ProgressThrottle) receives the fraction of the nodes checked and can stop the search:
