@@ -104,7 +104,8 @@ StatusOr<std::string> ListFilter(const JobsListOptions& options) {
   }
   if (!options.kind.empty()) {
     bool known = false;
-    for (v1::JobKind kind : {v1::SIMULATE, v1::SWEEP, v1::CONTINUE, v1::TRACE, v1::OPTIMUM}) {
+    for (v1::JobKind kind :
+         {v1::SIMULATE, v1::SWEEP, v1::CONTINUE, v1::TRACE, v1::OPTIMUM, v1::OPTIMUM_MAP}) {
       known = known || KindText(kind) == options.kind;
     }
     if (!known) {

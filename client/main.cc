@@ -182,6 +182,13 @@ struct OptimumFlags {
   bool scaled = false;
 };
 
+// optimum-map: the conditions and their cells.
+struct MapFlags {
+  std::vector<std::string> over;
+  std::vector<double> from, to;
+  std::vector<int> steps;
+};
+
 // Accepts finite numbers > 0.
 CLI::Validator PositiveDouble() {
   return CLI::Validator(
@@ -542,6 +549,23 @@ int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const Mod
   return RunJob<v1::OptimumResult>(global, remote, request);
 }
 
+int RunOptimumMapCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
+                         const TraceFlags& t, const OptimumFlags& f, const MapFlags& map) {
+  v1::OptimumMapRequest request;
+  v1::OptimumRequest* optimum = request.mutable_optimum();
+  *optimum->mutable_trace() = ToTraceRequest(m, t);
+  optimum->mutable_trace()->set_threads(0);  // the map's threads run the cells
+  for (double v : f.margin) optimum->add_margin(v);
+  optimum->set_scaled(f.scaled);
+  for (int n : t.grid) optimum->add_grid(n);
+  for (const std::string& name : map.over) request.add_over(name);
+  for (double v : map.from) request.add_from(v);
+  for (double v : map.to) request.add_to(v);
+  for (int n : map.steps) request.add_steps(n);
+  request.set_threads(t.threads);
+  return RunJob<v1::OptimumMapResult>(global, remote, request);
+}
+
 // --grid n1,n2 of trace --region and optimum.
 void AddGridFlag(CLI::App* cmd, std::vector<int>* grid, const std::string& help,
                  const std::string& group) {
@@ -715,6 +739,26 @@ int RunJobsCommand(const GlobalFlags& global, RemoteClient& remote, JobsCommand 
   }
   if (!text.ok()) return ErrorStatus(text.status());
   return Write(global, *text) ? 0 : kExitFailed;
+}
+
+// The box, margin and grid flags of optimum and optimum-map.
+void AddOptimumFlags(CLI::App* cmd, TraceFlags* t, OptimumFlags* f) {
+  AddBoxFlags(cmd, t);
+  cmd->add_option("--margin", f->margin,
+                  "Margin in each parameter's units: one value for both or one per parameter "
+                  "(e.g. 0.02 or 0.01,0.05); with --scaled, one fraction of the box")
+      ->delimiter(',')
+      ->expected(1, 2)
+      ->check(PositiveDouble())
+      ->capture_default_str()
+      ->group("Optimum");
+  cmd->add_flag("--scaled", f->scaled,
+                "The margin is a Euclidean distance in the box scaled to the unit square")
+      ->group("Optimum");
+  AddGridFlag(cmd, &t->grid,
+              "Region grid nodes per parameter, e.g. 401,801 (default: a spacing of half the "
+              "margin, at most 1001 per parameter)",
+              "Optimum");
 }
 
 int Main(int argc, char** argv) {
@@ -927,26 +971,45 @@ int Main(int argc, char** argv) {
       "optimum",
       "The operating point of maximal ROP where the period-1 orbit is stable and at least a "
       "margin from every bifurcation curve bounding its stability region");
-  AddBoxFlags(optimum, &ot);
-  optimum
-      ->add_option("--margin", of.margin,
-                   "Margin in each parameter's units: one value for both or one per parameter "
-                   "(e.g. 0.02 or 0.01,0.05); with --scaled, one fraction of the box")
-      ->delimiter(',')
-      ->expected(1, 2)
-      ->check(PositiveDouble())
-      ->capture_default_str()
-      ->group("Optimum");
-  optimum
-      ->add_flag("--scaled", of.scaled,
-                 "The margin is a Euclidean distance in the box scaled to the unit square")
-      ->group("Optimum");
-  AddGridFlag(optimum, &ot.grid,
-              "Region grid nodes per parameter, e.g. 401,801 (default: a spacing of half the "
-              "margin, at most 1001 per parameter)",
-              "Optimum");
+  AddOptimumFlags(optimum, &ot, &of);
   AddModelFlags(optimum, &model);
   AddStartOrbitFlags(optimum, &model);
+
+  TraceFlags mt;
+  OptimumFlags mo;
+  MapFlags mf;
+  CLI::App* optimum_map = app.add_subcommand(
+      "optimum-map",
+      "The robust optimum at every cell of a grid of operating conditions (e.g. --over b "
+      "--from 0.14 --to 0.16 --steps 5), each cell an independent task; the server answers "
+      "optimum queries at any condition inside a stored map");
+  AddOptimumFlags(optimum_map, &mt, &mo);
+  optimum_map
+      ->add_option("--over", mf.over,
+                   "The conditions varied: one or two model parameters, e.g. b or b,xi")
+      ->delimiter(',')
+      ->expected(1, 2)
+      ->required()
+      ->group("Map");
+  optimum_map->add_option("--from", mf.from, "First value of each condition")
+      ->delimiter(',')
+      ->expected(1, 2)
+      ->required()
+      ->group("Map");
+  optimum_map->add_option("--to", mf.to, "Last value of each condition")
+      ->delimiter(',')
+      ->expected(1, 2)
+      ->required()
+      ->group("Map");
+  optimum_map
+      ->add_option("--steps", mf.steps,
+                   "Cells along each condition, >= 2 (both ends included; at most 10000 cells)")
+      ->delimiter(',')
+      ->expected(1, 2)
+      ->required()
+      ->group("Map");
+  AddModelFlags(optimum_map, &model);
+  AddStartOrbitFlags(optimum_map, &model);
 
   PlotFlags pf;
   CLI::App* plot = app.add_subcommand(
@@ -1056,6 +1119,9 @@ int Main(int argc, char** argv) {
   if (cont->parsed()) return RunContinueCommand(global, remote.get(), model, co);
   if (trace->parsed()) return RunTraceCommand(global, remote.get(), model, tr);
   if (optimum->parsed()) return RunOptimumCommand(global, remote.get(), model, ot, of);
+  if (optimum_map->parsed()) {
+    return RunOptimumMapCommand(global, remote.get(), model, mt, mo, mf);
+  }
   return RunSweepCommand(global, remote.get(), model, sw);
 }
 

@@ -836,6 +836,52 @@ class OptimumCsv final : public PageFormat {
   Status End(std::string*, const TextSink&) override { return Status::Ok(); }
 };
 
+// Optimum map CSV: a row per cell (in the order the cells finished): the conditions, the cell's
+// status, the optimum's parameters, ROP and margin. The counts go in the trailer.
+class OptimumMapCsv final : public PageFormat {
+ public:
+  Status Begin(const Message& summary, std::string* out) override {
+    summary_ = static_cast<const v1::OptimumMapResult&>(summary);
+    AppendStatus(summary_.status(), summary_.message(), out);
+    for (const std::string& name : summary_.over()) out->append(name + ",");
+    out->append("status,a,b,omega,xi,g,phi0,rop,margin1,margin2,signature\n");
+    return Status::Ok();
+  }
+  Status Items(int, const FieldDescriptor*, const Message& chunk, std::string* out) override {
+    for (const v1::OptimumMapCell& c : static_cast<const v1::OptimumMapResult&>(chunk).cells()) {
+      Row row(out);
+      for (double v : c.condition()) row.Num(v);
+      const v1::OptimumResult& o = c.optimum();
+      row.Str(o.status());
+      if (!o.has_params()) {
+        row.Str("").Str("").Str("").Str("").Str("").Str("").Str("").Str("").Str("").Str("").End();
+        continue;
+      }
+      const v1::ModelParams& p = o.params();
+      row.Num(p.a()).Num(p.b()).Num(p.omega()).Num(p.xi()).Num(p.g()).Num(p.phi0()).Num(o.rop());
+      for (int k = 0; k < 2; ++k) {
+        if (k < o.margin_size()) {
+          row.Num(o.margin(k));
+        } else {
+          row.Str("");
+        }
+      }
+      row.Str(o.signature()).End();
+    }
+    return Status::Ok();
+  }
+  Status End(std::string* out, const TextSink&) override {
+    AppendComment("cells_found=" + std::to_string(summary_.cells_found()) +
+                      " cells_not_found=" + std::to_string(summary_.cells_not_found()) +
+                      " cells_failed=" + std::to_string(summary_.cells_failed()),
+                  out);
+    return Status::Ok();
+  }
+
+ private:
+  v1::OptimumMapResult summary_;
+};
+
 StatusOr<std::unique_ptr<PageFormat>> MakeFormat(const Descriptor* type,
                                                  std::vector<const FieldDescriptor*> paged,
                                                  const PrintOptions& options) {
@@ -848,6 +894,9 @@ StatusOr<std::unique_ptr<PageFormat>> MakeFormat(const Descriptor* type,
   if (type == v1::ContinueResult::descriptor()) return std::unique_ptr<PageFormat>(new ContinueCsv);
   if (type == v1::TraceResult::descriptor()) return std::unique_ptr<PageFormat>(new TraceCsv);
   if (type == v1::OptimumResult::descriptor()) return std::unique_ptr<PageFormat>(new OptimumCsv);
+  if (type == v1::OptimumMapResult::descriptor()) {
+    return std::unique_ptr<PageFormat>(new OptimumMapCsv);
+  }
   return InvalidArgument("no CSV format for " + type->full_name());
 }
 

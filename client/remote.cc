@@ -303,6 +303,17 @@ StatusOr<Operation> RemoteClient::Submit(const v1::OptimumRequest& request) {
   return op;
 }
 
+StatusOr<Operation> RemoteClient::Submit(const v1::OptimumMapRequest& request) {
+  v1::SubmitOptimumMapRequest submit;
+  *submit.mutable_request() = request;
+  Operation op;
+  auto context = Context(options_.rpc_timeout_seconds);
+  if (grpc::Status s = jobs_->SubmitOptimumMap(context.get(), submit, &op); !s.ok()) {
+    return FromGrpc(s);
+  }
+  return op;
+}
+
 StatusOr<Operation> RemoteClient::Get(const std::string& name) {
   google::longrunning::GetOperationRequest request;
   request.set_name(name);
@@ -519,6 +530,8 @@ google::protobuf::Message* MutableResultOf(v1::GetResultResponse& response) {
       return response.mutable_trace();
     case v1::GetResultResponse::kOptimum:
       return response.mutable_optimum();
+    case v1::GetResultResponse::kOptimumMap:
+      return response.mutable_optimum_map();
     case v1::GetResultResponse::RESULT_NOT_SET:
       break;
   }

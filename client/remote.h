@@ -96,6 +96,7 @@ class RemoteClient {
   StatusOr<google::longrunning::Operation> Submit(const v1::ContinueRequest& request);
   StatusOr<google::longrunning::Operation> Submit(const v1::TraceRequest& request);
   StatusOr<google::longrunning::Operation> Submit(const v1::OptimumRequest& request);
+  StatusOr<google::longrunning::Operation> Submit(const v1::OptimumMapRequest& request);
 
   // Operations.GetOperation (with the result when done).
   StatusOr<google::longrunning::Operation> Get(const std::string& name);

@@ -69,9 +69,11 @@ std::pair<int, int> GridFor(const v1::OptimumRequest& request, const OptimumOpti
 
 // The coexistence check at the optimum (OptimumResult.attractors): fills `out` and returns the
 // message's sentence on it.
+// `orbit` (optional) gets the optimum's orbit when one of the starts settles on it.
 std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propagator,
                              const Params& params, const Signature& optimum,
-                             const ProgressCallback& progress, v1::OptimumResult* out) {
+                             const ProgressCallback& progress, v1::OptimumResult* out,
+                             std::optional<PeriodicOrbit>* orbit) {
   const auto start = std::chrono::steady_clock::now();
   const std::vector<StateVector> states = DriftingOscillator::SpreadStates(params);
   const StatusOr<AttractorSample> sample =
@@ -88,6 +90,7 @@ std::string CheckCoexistence(const DriftingOscillator& model, Propagator& propag
     p->set_stable(a.stable);
     p->set_reached_from(static_cast<int>(a.reached_from.size()));
     if (SameUpToSection(a.orbit.signature, optimum)) {
+      if (orbit != nullptr && !optimum_seen) *orbit = a.orbit;
       optimum_seen = true;
       continue;
     }
@@ -139,7 +142,8 @@ StatusOr<std::shared_ptr<const OptimumCurves>> CurvesFor(const TracePlan& plan,
   return curves;
 }
 
-StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const RunContext& context) {
+StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const RunContext& context,
+                                    OptimumDetail* detail) {
   DRILLBIF_ASSIGN_OR_RETURN(const OptimumPlan plan, PlanOptimum(request));
   const ProgressCallback& progress = context.progress;
   OptimumCache* const cache = context.optimum_cache;
@@ -229,7 +233,15 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
 
   const std::string coexistence =
       CheckCoexistence(model, propagator, params, optimum_signature,
-                       internal::StageProgress(progress, kQueryEnd, 1.0), &out);
+                       internal::StageProgress(progress, kQueryEnd, 1.0), &out,
+                       detail != nullptr ? &detail->orbit : nullptr);
+  if (detail != nullptr) {
+    detail->obstacles = RegionObstacles(region);
+    detail->kinds = curves.kinds;
+    detail->options = plan.options;
+    detail->width1 = region.width1();
+    detail->width2 = region.width2();
+  }
 
   if (progress && !progress(1.0)) {  // stopped during the coexistence check
     internal::SetRunEnd(Termination::kCancelled,
@@ -281,8 +293,13 @@ JobCost OptimumCost(const OptimumPlan& plan) {
 
 StatusOr<v1::OptimumResult> RunOptimum(const v1::OptimumRequest& request,
                                        const RunContext& context) {
+  return RunOptimumWithDetail(request, context, nullptr);
+}
+
+StatusOr<v1::OptimumResult> RunOptimumWithDetail(const v1::OptimumRequest& request,
+                                                 const RunContext& context, OptimumDetail* detail) {
   try {
-    return Optimum(request, context);
+    return Optimum(request, context, detail);
   } catch (const std::bad_alloc&) {
     return Internal("out of memory while computing the optimum");
   } catch (const std::exception& e) {

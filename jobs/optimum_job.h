@@ -5,6 +5,7 @@
 
 #include <optional>
 #include <utility>
+#include <vector>
 
 #include "drillbif/common/status.h"
 #include "drillbif/region/robust_optimum.h"
@@ -31,6 +32,16 @@ StatusOr<OptimumPlan> PlanOptimum(const v1::OptimumRequest& request);
 // coexistence check. (A run that reuses cached curves costs far less.)
 JobCost OptimumCost(const OptimumPlan& plan);
 
+// What an optimum run knows beyond its result, for an optimum map's cell (optimum_map_job.h): set
+// when the run completed its query.
+struct OptimumDetail {
+  std::optional<PeriodicOrbit> orbit;      // the optimum's orbit, when a start settled on it
+  std::vector<BoundarySegment> obstacles;  // the region's boundary off the box
+  std::vector<CurveKind> kinds;            // the kind of each traced curve (obstacles' `curve`)
+  OptimumOptions options;                  // the margin
+  double width1 = 0.0, width2 = 0.0;       // the box
+};
+
 // Errors: INVALID_ARGUMENT naming the field (margin, scaled, grid, trace.region, and every trace
 // error of RunTrace under trace.); FAILED_PRECONDITION when the start orbit is not a stable
 // period-1 orbit. A search that finds no node with the margin is a result (status NOT_FOUND).
@@ -39,6 +50,9 @@ JobCost OptimumCost(const OptimumPlan& plan);
 // region_reused), and those computed are put there.
 StatusOr<v1::OptimumResult> RunOptimum(const v1::OptimumRequest& request,
                                        const RunContext& context = {});
+// The same, and `detail` gets the above.
+StatusOr<v1::OptimumResult> RunOptimumWithDetail(const v1::OptimumRequest& request,
+                                                 const RunContext& context, OptimumDetail* detail);
 
 }  // namespace drillbif::jobs
 

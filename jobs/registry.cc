@@ -10,6 +10,7 @@
 
 #include "jobs/continue_job.h"
 #include "jobs/optimum_job.h"
+#include "jobs/optimum_map_job.h"
 #include "jobs/request_bytes.h"
 #include "jobs/simulate_job.h"
 #include "jobs/sweep_job.h"
@@ -80,6 +81,11 @@ std::vector<JobKindSpec> BuildKinds() {
       Entry(v1::OPTIMUM, "optimum", "SubmitOptimum", {}, PlanOptimum, OptimumCost, RunOptimum));
   kinds.back().default_limits = Limits(1800);
   kinds.back().key_neutral_fields = {"trace.threads"};
+  kinds.push_back(Entry(v1::OPTIMUM_MAP, "optimum-map", "SubmitOptimumMap", {"cells"},
+                        PlanOptimumMap, OptimumMapCost, RunOptimumMap));
+  // A map of many cells, each an optimum of up to ~30 s on one core.
+  kinds.back().default_limits = Limits(4 * 3600);
+  kinds.back().key_neutral_fields = {"threads", "optimum.trace.threads"};
   return kinds;
 }
 
@@ -111,6 +117,9 @@ std::vector<JobKindSpec> BuildChildKinds() {
                         TraceTaskCost, RunTraceTaskJob));
   // As long as the parent may run: a task is a part of it.
   kinds.back().default_limits = Limits(1800);
+  kinds.push_back(Entry(v1::JOB_KIND_UNSPECIFIED, kMapCellKind, "", {}, PlanOptimum, OptimumCost,
+                        RunMapCellJob));
+  kinds.back().default_limits = Limits(1800);  // an optimum's
   return kinds;
 }
 

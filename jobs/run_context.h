@@ -18,6 +18,7 @@ class TraceTaskRunner;  // continuation/trace_tasks.h
 namespace drillbif::jobs {
 
 class OptimumCache;
+class MapCellRunner;  // optimum_map_job.h
 
 // Receives the current value of the swept or continued parameter (a sweep: the grid point
 // finished last; a continuation: each accepted point), for progress displays: the service
@@ -52,6 +53,9 @@ struct RunContext {
   // Where a trace job's tasks run (continuation/trace_tasks.h: e.g. the store's child jobs, for
   // any worker to take); null: the trace's own threads. Not owned.
   TraceTaskRunner* trace_tasks = nullptr;
+  // Where an optimum map's cells run (e.g. the store's child jobs); null: the job's own threads.
+  // Not owned.
+  MapCellRunner* map_cells = nullptr;
 };
 
 }  // namespace drillbif::jobs

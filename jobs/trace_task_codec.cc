@@ -597,4 +597,10 @@ StatusOr<TraceTaskResult> DecodeTraceTaskResult(std::string_view bytes) {
   return result;
 }
 
+void EncodeOrbit(const PeriodicOrbit& orbit, v1::TaskOrbit* out) { Encode(orbit, out); }
+
+Status DecodeOrbit(const v1::TaskOrbit& in, PeriodicOrbit* out) {
+  return Within("orbit", Decode(in, out));
+}
+
 }  // namespace drillbif::jobs

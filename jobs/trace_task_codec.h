@@ -53,6 +53,12 @@ v1::TraceTaskResponse TraceTaskResponseOf(const TraceTaskResult& result);
 // Decodes EncodeTraceTaskResult's bytes. INVALID_ARGUMENT naming the field for malformed bytes.
 StatusOr<TraceTaskResult> DecodeTraceTaskResult(std::string_view bytes);
 
+// One orbit, exactly (an optimum map's cell keeps its optimum's orbit so).
+void EncodeOrbit(const PeriodicOrbit& orbit, v1::TaskOrbit* out);
+// INVALID_ARGUMENT naming the field (below "orbit.") for a malformed one. The signature is not
+// checked against the model.
+Status DecodeOrbit(const v1::TaskOrbit& in, PeriodicOrbit* out);
+
 }  // namespace drillbif::jobs
 
 #endif  // DRILLBIF_JOBS_TRACE_TASK_CODEC_H_

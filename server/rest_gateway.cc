@@ -405,6 +405,9 @@ struct RestGateway::Impl final : public HttpHandler {
       case kSubmitOptimum:
         return Unary<v1::SubmitOptimumRequest, Operation>(
             exchange, route, name, [j](auto... a) { j->SubmitOptimum(a...); });
+      case kSubmitOptimumMap:
+        return Unary<v1::SubmitOptimumMapRequest, Operation>(
+            exchange, route, name, [j](auto... a) { j->SubmitOptimumMap(a...); });
       case kGetResult:
         return Unary<v1::GetResultRequest, v1::GetResultResponse>(
             exchange, route, name, [j](auto... a) { j->GetResult(a...); });

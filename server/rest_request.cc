@@ -96,6 +96,7 @@ const RouteSpec kRoutes[kRouteCount] = {
     {"POST", "/v1/jobs:continue", Binding::kBody, Prototype<v1::SubmitContinueRequest>},
     {"POST", "/v1/jobs:trace", Binding::kBody, Prototype<v1::SubmitTraceRequest>},
     {"POST", "/v1/jobs:optimum", Binding::kBody, Prototype<v1::SubmitOptimumRequest>},
+    {"POST", "/v1/jobs:optimum-map", Binding::kBody, Prototype<v1::SubmitOptimumMapRequest>},
     {"GET", "/v1/{name=operations/*}:result", Binding::kQuery, Prototype<v1::GetResultRequest>},
     {"POST", "/v1/optimum:query", Binding::kBody, Prototype<v1::QueryOptimumRequest>},
     {"GET", "/v1/{name=operations/*}:watch", Binding::kQuery, Prototype<v1::WatchRequest>},

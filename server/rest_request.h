@@ -48,6 +48,7 @@ enum RouteIndex {
   kSubmitContinue,
   kSubmitTrace,
   kSubmitOptimum,
+  kSubmitOptimumMap,
   kGetResult,
   kQueryOptimum,
   kWatch,

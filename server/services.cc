@@ -491,6 +491,7 @@ JobsService::JobsService(ServiceState* state) : state_(state) {
   RegisterUnary("SubmitContinue", &JobsService::SubmitJob<v1::CONTINUE, SubmitContinueCall>);
   RegisterUnary("SubmitTrace", &JobsService::SubmitJob<v1::TRACE, SubmitTraceCall>);
   RegisterUnary("SubmitOptimum", &JobsService::SubmitJob<v1::OPTIMUM, SubmitOptimumCall>);
+  RegisterUnary("SubmitOptimumMap", &JobsService::SubmitJob<v1::OPTIMUM_MAP, SubmitOptimumMapCall>);
   RegisterUnary("GetResult", &JobsService::GetResult);
   RegisterUnary("QueryOptimum", &JobsService::QueryOptimum);
   MarkMethodRawCallback(

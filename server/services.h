@@ -88,6 +88,7 @@ using SubmitSweepCall = UnaryCall<v1::SubmitSweepRequest, google::longrunning::O
 using SubmitContinueCall = UnaryCall<v1::SubmitContinueRequest, google::longrunning::Operation>;
 using SubmitTraceCall = UnaryCall<v1::SubmitTraceRequest, google::longrunning::Operation>;
 using SubmitOptimumCall = UnaryCall<v1::SubmitOptimumRequest, google::longrunning::Operation>;
+using SubmitOptimumMapCall = UnaryCall<v1::SubmitOptimumMapRequest, google::longrunning::Operation>;
 using GetResultCall = UnaryCall<v1::GetResultRequest, v1::GetResultResponse>;
 using QueryOptimumCall = UnaryCall<v1::QueryOptimumRequest, v1::QueryOptimumResponse>;
 using ListOperationsCall = UnaryCall<google::longrunning::ListOperationsRequest,
