@@ -540,9 +540,22 @@ void AddOwnRoutes(Value* paths) {
                         "application/json", Obj({{"type", Str("object")}}))}}));
 }
 
-std::string ServiceComment(const Comments& comments, const char* name) {
-  const ServiceDescriptor* service = DescriptorPool::generated_pool()->FindServiceByName(name);
-  return service != nullptr ? comments.Of(service) : "";
+// A tag per served service (its operations carry it), described by the service's comment when
+// it has one, and one for the gateway's own routes.
+Value Tags(const Comments& comments) {
+  std::vector<Value> tags;
+  for (const char* name : kServices) {
+    const ServiceDescriptor* service = DescriptorPool::generated_pool()->FindServiceByName(name);
+    if (service == nullptr) continue;
+    Value tag = Obj({{"name", Str(service->name())}});
+    if (const std::string text = comments.Of(service); !text.empty()) {
+      Set(&tag, "description", Str(text));
+    }
+    tags.push_back(tag);
+  }
+  tags.push_back(Obj({{"name", Str("Server")},
+                      {"description", Str("Health, metrics and this document; no token.")}}));
+  return Arr(tags);
 }
 
 StatusOr<std::string> Build() {
@@ -604,13 +617,7 @@ StatusOr<std::string> Build() {
                     {"version", Str("v1")},
                     {"description", Str(description)}})},
       {"security", Arr({Obj({{kSecurityScheme, Arr({})}})})},
-      {"tags",
-       Arr({Obj({{"name", Str("Jobs")},
-                 {"description", Str(ServiceComment(comments, "drillbif.v1.Jobs"))}}),
-            Obj({{"name", Str("Operations")},
-                 {"description", Str(ServiceComment(comments, "google.longrunning.Operations"))}}),
-            Obj({{"name", Str("Server")},
-                 {"description", Str("Health, metrics and this document; no token.")}})})},
+      {"tags", Tags(comments)},
       {"paths", paths},
       {"components", components},
   });

@@ -57,8 +57,8 @@ struct RestOptions {
   int port = 8080;
   // The bearer tokens the API routes need ("Authorization: Bearer <token>"; server/tokens.h);
   // empty: none. Checked here first (so a request without one is refused before its body is
-  // read) and again by the services, which receive it as metadata. /metrics is open, like gRPC
-  // health. Never null.
+  // read) and again by the services, which receive it as metadata. /metrics, /healthz and
+  // /openapi.json are open, like gRPC health, and so are CORS preflights. Never null.
   std::shared_ptr<const TokenSet> tokens = std::make_shared<TokenSet>();
   // PEM file of the server's certificate (chain). With tls_key_file (both or neither), the port
   // serves HTTPS only (GnuTLS through libmicrohttpd); empty: plain HTTP.
