@@ -487,6 +487,15 @@ Value OperationOf(const HttpBinding& binding, const OpenApiPath& path, int index
         Obj({{"required", Bool(path.bound.empty())},
              {"content", Obj({{"application/json", Obj({{"schema", schema}})}})}}));
   }
+  if (!method->server_streaming()) {
+    // The gateway's deadline of the call (a stream has none: it lasts as long as the job).
+    parameters.push_back(Obj(
+        {{"name", Str("X-Server-Timeout")},
+         {"in", Str("header")},
+         {"description", Str("Deadline of the call in seconds (default 60, at most 600).")},
+         {"schema",
+          Obj({{"type", Str("number")}, {"exclusiveMinimum", Bool(true)}, {"minimum", Num(0)}})}}));
+  }
   if (!parameters.empty()) Set(&operation, "parameters", Arr(parameters));
 
   Value ok;

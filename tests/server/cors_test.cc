@@ -59,6 +59,10 @@ std::string ErrorMessage(const httplib::Response& response, const char* code) {
   google::protobuf::Struct body;
   EXPECT_TRUE(google::protobuf::util::JsonStringToMessage(response.body, &body).ok())
       << response.body;
+  if (body.fields().count("code") == 0 || body.fields().count("message") == 0) {
+    ADD_FAILURE() << "not an error body: " << response.body;
+    return "";
+  }
   EXPECT_EQ(body.fields().at("code").string_value(), code) << response.body;
   return body.fields().at("message").string_value();
 }
@@ -209,10 +213,14 @@ TEST_F(CorsTest, RequestsFromAnotherOriginAreServedWithoutCorsHeaders) {
 }
 
 TEST_F(CorsTest, OnlyAnExactOriginIsEverEchoed) {
-  // Near misses: case, a trailing slash, a longer host, the allowed origin followed by 6 KB.
-  const std::vector<std::string> near = {
-      "HTTPS://DASH.EXAMPLE.COM", std::string(kDash) + "/", std::string(kDash) + ".evil.com",
-      "http://dash.example.com", std::string(kDash) + std::string(6000, 'a')};
+  // Near misses: case, a trailing slash, a longer host, another scheme, the allowed origin
+  // followed by 6 KB or by bytes that are not UTF-8 and a control character.
+  const std::vector<std::string> near = {"HTTPS://DASH.EXAMPLE.COM",
+                                         std::string(kDash) + "/",
+                                         std::string(kDash) + ".evil.com",
+                                         "http://dash.example.com",
+                                         std::string(kDash) + std::string(6000, 'a'),
+                                         std::string(kDash) + "\xff\xfe\x01"};
   for (const std::string& origin : near) {
     SCOPED_TRACE(origin.substr(0, 60));
     httplib::Result actual = Get("/v1/operations", origin);
@@ -223,8 +231,10 @@ TEST_F(CorsTest, OnlyAnExactOriginIsEverEchoed) {
     ASSERT_TRUE(preflight);
     EXPECT_EQ(preflight->status, 403);
     EXPECT_THAT(CorsHeaderNames(*preflight), ::testing::IsEmpty());
-    // The error names the origin cut to a bounded echo: the 6 KB one is not sent back whole.
+    // The error names the origin cut to a bounded echo (the 6 KB one is not sent back whole),
+    // made valid UTF-8 without control characters: still a JSON body.
     EXPECT_LT(preflight->body.size(), 300u);
+    ErrorMessage(*preflight, "PERMISSION_DENIED");
   }
   // The server still serves.
   httplib::Result after = Preflight("/v1/operations", kDash, "GET");

@@ -214,6 +214,10 @@ TEST_F(OpenApiTest, PathTemplatesBecomePathParametersAndTheRestQueryParameters) 
   EXPECT_EQ(At(*parameters["page_size"], "in").string_value(), "query");
   EXPECT_EQ(At(At(*parameters["page_size"], "schema"), "type").string_value(), "integer");
   EXPECT_EQ(parameters.count("page_token"), 1u);
+  ASSERT_EQ(parameters.count("X-Server-Timeout"), 1u);
+  EXPECT_EQ(At(*parameters["X-Server-Timeout"], "in").string_value(), "header");
+  // Nothing else: the request's other fields are the path's or the query's.
+  EXPECT_EQ(parameters.size(), 4u);
   EXPECT_FALSE(Has(result, "requestBody"));
 
   // {name=operations} has no wildcard: the literal path, and no parameter for name.
