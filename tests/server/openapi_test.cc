@@ -362,6 +362,10 @@ TEST_F(OpenApiTest, WellKnownTypesAreInTheirJsonForm) {
   EXPECT_TRUE(Has(Schemas(), "google.rpc.Status"));
   EXPECT_EQ(RefName(At(At(At(Schemas(), "google.longrunning.Operation"), "properties"), "error")),
             "google.rpc.Status");
+  // A oneof's members say so (the JSON mapping has no oneof: at most one member is present).
+  EXPECT_THAT(
+      At(At(At(Schemas(), "google.longrunning.Operation"), "properties"), "response").DebugString(),
+      HasSubstr("oneof `result`"));
   // The result types an Operation's Any response holds (operation_info) are described too.
   EXPECT_TRUE(Has(Schemas(), "drillbif.v1.SweepResult"));
 }
