@@ -20,6 +20,7 @@
 #include <sstream>
 #include <thread>
 
+#include "server/cors.h"
 #include "server/http_guard.h"
 #include "server/rest_gateway.h"
 
@@ -236,6 +237,8 @@ class HttpServer::Impl::Exchange final : public HttpExchange,
                                                  MHD_RESPMEM_MUST_COPY);
     }
     if (response == nullptr) return MHD_NO;
+    // Every answer, the server's own errors included, so that a browser script can read them.
+    AddCorsHeaders(server_->options.cors_origins, header("Origin"), &answer);
     if (!answer.content_type.empty()) {
       MHD_add_response_header(response, MHD_HTTP_HEADER_CONTENT_TYPE, answer.content_type.c_str());
     }

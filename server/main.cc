@@ -65,6 +65,12 @@ int main(int argc, char** argv) {
   app.add_option("--http-write-timeout-ms", http.write_timeout_ms,
                  "An HTTP answer must be taken by the socket within this time")
       ->capture_default_str();
+  app.add_option("--cors-origins", http.cors_origins,
+                 "Browser origins allowed to call the REST API (CORS), comma-separated, each "
+                 "exact scheme://host[:port] (e.g. https://dash.example.com), or * alone for any "
+                 "origin (never with credentials: no cookies are allowed, the token goes in the "
+                 "Authorization header); none: no CORS headers")
+      ->delimiter(',');
   app.add_option("--tls-cert", options.tls_cert_file,
                  "PEM certificate (chain): both ports use TLS (with --tls-key)");
   app.add_option("--tls-key", options.tls_key_file, "PEM private key of --tls-cert");

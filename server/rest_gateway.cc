@@ -18,9 +18,11 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "google/rpc/status.pb.h"
+#include "server/cors.h"
 #include "server/executor.h"
 #include "server/http_server.h"
 #include "server/http_text.h"
+#include "server/openapi.h"
 #include "server/rest_request.h"
 #include "server/services.h"
 
@@ -98,6 +100,9 @@ Status RestOptions::Validate() const {
     return InvalidArgument(std::string(name) + ": must be in [" + std::to_string(low) + ", " +
                            std::to_string(high) + "], got " + std::to_string(value));
   };
+  if (Status s = ValidateCorsOrigins(cors_origins); !s.ok()) {
+    return InvalidArgument("cors_origins (" + s.message() + ")");
+  }
   for (const Status& s : {
            in_range("threads", threads, 1, 64),
            in_range("connection_limit", connection_limit, 1, 1 << 20),
@@ -355,8 +360,30 @@ struct RestGateway::Impl final : public HttpHandler {
                        });
   }
 
+  // A CORS preflight (OPTIONS with Origin and Access-Control-Request-Method on a served path,
+  // CORS on): answered here, before the token check, since browsers send no Authorization on
+  // a preflight. nullopt for any other request (an OPTIONS that is not a preflight, or on an
+  // unknown path, then gets FindRoute's 405 or 404).
+  std::optional<HttpResponse> Preflight(HttpExchange& exchange) const {
+    if (options.cors_origins.empty() || exchange.method() != "OPTIONS") return std::nullopt;
+    const std::string* origin = exchange.header("Origin");
+    if (origin == nullptr || exchange.header("Access-Control-Request-Method") == nullptr) {
+      return std::nullopt;
+    }
+    const std::vector<int> routes = RoutesOf(exchange.target().path);
+    if (routes.empty()) return std::nullopt;
+    std::string methods;
+    for (int route : routes) {
+      if (methods.find(kRoutes[route].method) != std::string::npos) continue;
+      methods += (methods.empty() ? "" : ", ") + std::string(kRoutes[route].method);
+    }
+    exchange.set_route_label(kRoutes[routes.front()].label);
+    return CorsPreflight(options.cors_origins, *origin, methods);
+  }
+
   // HttpHandler: route, method and token, before the body is read.
   std::optional<HttpResponse> OnHeaders(HttpExchange& exchange) override {
+    if (std::optional<HttpResponse> preflight = Preflight(exchange)) return preflight;
     std::string name;
     const StatusOr<int> found = FindRoute(exchange.method(), exchange.target().path, &name);
     if (!found.ok()) {
@@ -370,7 +397,8 @@ struct RestGateway::Impl final : public HttpHandler {
       std::lock_guard<std::mutex> lock(mutex);
       if (stopping) return ShuttingDown();
     }
-    if (route == kMetrics || route == kHealth) return std::nullopt;  // Open, like gRPC health.
+    // Open, like gRPC health; the document is the contract, not data.
+    if (route == kMetrics || route == kHealth || route == kOpenApi) return std::nullopt;
     if (grpc::Status s = Authorize(exchange); !s.ok()) return ErrorResponse(s);
     return std::nullopt;
   }
@@ -432,6 +460,11 @@ struct RestGateway::Impl final : public HttpHandler {
         return ServeMetrics(exchange);
       case kHealth:
         return ServeHealth(exchange);
+      case kOpenApi: {
+        StatusOr<std::string> document = OpenApiJson();
+        return exchange->Respond(document.ok() ? JsonResponse(200, std::move(document).value())
+                                               : ErrorResponse(ToGrpc(document.status())));
+      }
       default:
         // OnHeaders refused every other path.
         return exchange->Respond(

@@ -21,6 +21,8 @@
 //   DELETE /v1/{name=operations/**}                           DeleteOperation
 //   POST   /v1/{name=operations/**}:cancel                    body: {} (CancelOperation)
 //   GET    /metrics                                           Prometheus text format 0.0.4
+//   GET    /openapi.json                                      OpenAPI 3.0 (server/openapi.h)
+//   OPTIONS any of these                                       CORS preflight (server/cors.h)
 //
 // Threads: HTTP is served by libmicrohttpd (server/http_server.h) on a few epoll threads that
 // only move bytes and convert JSON; no thread waits for an answer. A call into the services uses
@@ -37,6 +39,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "drillbif/common/status.h"
 #include "server/metrics.h"
@@ -54,14 +57,19 @@ struct RestOptions {
   int port = 8080;
   // The bearer tokens the API routes need ("Authorization: Bearer <token>"; server/tokens.h);
   // empty: none. Checked here first (so a request without one is refused before its body is
-  // read) and again by the services, which receive it as metadata. /metrics is open, like gRPC
-  // health. Never null.
+  // read) and again by the services, which receive it as metadata. /metrics, /healthz and
+  // /openapi.json are open, like gRPC health, and so are CORS preflights. Never null.
   std::shared_ptr<const TokenSet> tokens = std::make_shared<TokenSet>();
   // PEM file of the server's certificate (chain). With tls_key_file (both or neither), the port
   // serves HTTPS only (GnuTLS through libmicrohttpd); empty: plain HTTP.
   std::string tls_cert_file;
   // PEM file of the certificate's private key (unencrypted).
   std::string tls_key_file;
+  // Browser origins allowed to call the API from scripts (CORS, server/cors.h): each exact,
+  // "scheme://host[:port]" as browsers send it, or "*" alone for any origin (never with
+  // credentials: the gateway allows no cookies, the token goes in the Authorization header).
+  // Empty: no CORS header at all, and OPTIONS is not served.
+  std::vector<std::string> cors_origins;
   // Event-loop (epoll) threads. They parse requests, print answers and move bytes; no request
   // ever waits on one, so a few suffice whatever the number of clients. 2: one per core of the
   // machines the service is sized for.

@@ -110,6 +110,7 @@ const RouteSpec kRoutes[kRouteCount] = {
      Prototype<google::longrunning::DeleteOperationRequest>},
     {"GET", "/metrics", Binding::kQuery, nullptr},
     {"GET", "/healthz", Binding::kQuery, nullptr},
+    {"GET", "/openapi.json", Binding::kQuery, nullptr},
 };
 
 int MatchRoute(std::string_view method, std::string_view path, std::string* name,
@@ -125,6 +126,15 @@ int MatchRoute(std::string_view method, std::string_view path, std::string* name
     *path_known = true;
   }
   return -1;
+}
+
+std::vector<int> RoutesOf(std::string_view path) {
+  std::vector<int> routes;
+  for (int i = 0; i < kRouteCount; ++i) {
+    std::string value;
+    if (MatchTemplate(kRoutes[i].label, path, &value)) routes.push_back(i);
+  }
+  return routes;
 }
 
 StatusOr<int> FindRoute(std::string_view method, std::string_view path, std::string* name) {

@@ -58,6 +58,7 @@ enum RouteIndex {
   kDeleteOperation,
   kMetrics,
   kHealth,
+  kOpenApi,
   kRouteCount,
 };
 extern const RouteSpec kRoutes[kRouteCount];
@@ -66,6 +67,9 @@ extern const RouteSpec kRoutes[kRouteCount];
 // a route without one), and `*path_known` tells whether some route serves the path with another
 // method (405 rather than 404).
 int MatchRoute(std::string_view method, std::string_view path, std::string* name, bool* path_known);
+
+// Every route whose template matches `path`, whatever its method, in matching order.
+std::vector<int> RoutesOf(std::string_view path);
 
 // MatchRoute with the gateway's errors: NOT_FOUND "no route for <method> <path>", or
 // UNIMPLEMENTED "method <method> is not served on <path>" (answered 405) when other methods serve
