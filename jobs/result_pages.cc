@@ -52,8 +52,16 @@ void KeepItems(const JobKindSpec& kind, int64_t begin, int64_t end, Message* res
 }
 
 Message* MutableResultOf(const JobKindSpec& kind, v1::GetResultResponse* response) {
-  const FieldDescriptor* field = response->GetDescriptor()->FindFieldByName(kind.name);
-  return response->GetReflection()->MutableMessage(response, field);
+  // The member of the `result` oneof of the kind's result type.
+  const google::protobuf::OneofDescriptor* oneof =
+      response->GetDescriptor()->FindOneofByName("result");
+  for (int i = 0; i < oneof->field_count(); ++i) {
+    const FieldDescriptor* field = oneof->field(i);
+    if (field->message_type() == kind.result_type) {
+      return response->GetReflection()->MutableMessage(response, field);
+    }
+  }
+  return nullptr;
 }
 
 Status PageResult(const JobKindSpec& kind, std::string_view result_bytes, int page_size,

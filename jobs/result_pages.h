@@ -29,7 +29,8 @@ StatusOr<int64_t> ParsePageToken(std::string_view token);
 void KeepItems(const JobKindSpec& kind, int64_t begin, int64_t end,
                google::protobuf::Message* result);
 
-// The kind's member of GetResultResponse's `result` oneof, cleared and set (by name).
+// The kind's member of GetResultResponse's `result` oneof (the one of its result type), cleared
+// and set.
 google::protobuf::Message* MutableResultOf(const JobKindSpec& kind,
                                            v1::GetResultResponse* response);
 
