@@ -312,6 +312,7 @@ struct Server::Impl {
       if (Status s = state.optimum_index.Load(*store); !s.ok()) {
         spdlog::warn("retention: the optimum index was not reloaded: {}", s.ToString());
       }
+      state.map_index.Clear();  // reloaded by the next query that needs a map
     }
   }
 
@@ -360,6 +361,9 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
                  recovered->requeued, recovered->cancelled, recovered->failed);
   }
   if (Status s = impl->state.optimum_index.Load(*impl->store); !s.ok()) return s;
+  if (Status s = impl->state.map_index.Refresh(*impl->store, o.pages, /*force=*/true); !s.ok()) {
+    return s;
+  }
 
   impl->hub = std::make_unique<WatchHub>(impl->store.get(), o.watch_poll_ms);
   WorkerPoolOptions pool_options;
@@ -389,6 +393,9 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
       },
       [raw](const JobRecord& job, std::string_view outcome, double seconds) {
         raw->metrics.ObserveJob(job.kind, outcome, seconds);
+        if (outcome == "succeeded" && job.kind == jobs::FindKind(v1::OPTIMUM_MAP)->name) {
+          raw->state.map_index.MarkStale();
+        }
       });
   impl->executor = std::make_unique<BoundedExecutor>(o.executor);
   impl->state.store = impl->store.get();

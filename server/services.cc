@@ -398,6 +398,41 @@ grpc::Status AnswerFromStore(ServiceState& state, const std::string& key, const 
   return grpc::Status::OK;
 }
 
+// Answers `request` from the stored optimum maps into `response` (`optimum` set) when one covers
+// its conditions; a verification failure with on_map_failure COMPUTE sets *compute instead.
+// *nearest names the nearest map of the same box when none covers them. On the executor: a
+// refresh reads the store and the verification runs the engine (~1 ms).
+grpc::Status AnswerFromMaps(ServiceState& state, const v1::QueryOptimumRequest& request,
+                            const std::string& key, v1::QueryOptimumResponse* response,
+                            bool* compute, std::string* nearest) {
+  std::shared_ptr<const jobs::LoadedMap> map = state.map_index.Find(request.request(), nearest);
+  if (map == nullptr) {
+    if (Status s = state.map_index.Refresh(*state.store, state.options.pages); !s.ok()) {
+      return ToGrpc(s);
+    }
+    map = state.map_index.Find(request.request(), nearest);
+    if (map == nullptr) return grpc::Status::OK;
+  }
+  const bool nearest_cell = request.on_map_failure() == v1::QueryOptimumRequest::NEAREST_CELL;
+  jobs::MapQueryAnswer answer = jobs::AnswerFromMap(*map, request.request(), nearest_cell);
+  if (!answer.from_map.verified() && !nearest_cell) {
+    *compute = true;
+    return grpc::Status::OK;
+  }
+  if (answer.optimum.status() == "FAILED" && !answer.optimum.has_params()) {
+    return Error(
+        grpc::StatusCode::FAILED_PRECONDITION,
+        "the optimum map " + map->operation +
+            " covers these conditions but cannot answer: " + answer.from_map.verification());
+  }
+  *response->mutable_optimum() = std::move(answer.optimum);
+  *response->mutable_from_map() = std::move(answer.from_map);
+  response->set_operation(map->operation);
+  response->set_stored(false);
+  state.map_index.KeepAnswer(key, *response);
+  return grpc::Status::OK;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -550,14 +585,23 @@ void JobsService::QueryOptimum(QueryOptimumCall* call) {
     response->set_stored(true);
     return call->Finish(grpc::Status::OK);
   }
+  // The same query answered from a map before: from memory too.
+  const bool maps = !request.no_maps();
+  if (!known && maps) {
+    if (std::optional<v1::QueryOptimumResponse> kept = state_->map_index.Answer(key)) {
+      *response = *std::move(kept);
+      return call->Finish(grpc::Status::OK);
+    }
+  }
   // Computing it is a submit: the same limits apply (a stored answer is served whatever its cost).
   const Status affordable = jobs::CheckCost(*cost, state_->options.LimitsOf(optimum), "optimum");
   const Clock::time_point deadline = WaitDeadline(call->context(), &request.timeout());
   ServiceState* state = state_;
   const bool submitted = state_->executor->TrySubmit([=] {
+    bool compute = request.compute();
     if (known) {
       grpc::Status s = AnswerFromStore(*state, key, id, /*stored=*/true, response);
-      if (s.ok() || !request.compute()) return call->Finish(s);
+      if (s.ok() || !compute) return call->Finish(s);
       state->optimum_index.RemoveJob(id);  // Deleted meanwhile: compute it again.
     } else {
       // Not in this process's index: another process sharing the store may have computed it.
@@ -567,9 +611,17 @@ void JobsService::QueryOptimum(QueryOptimumCall* call) {
         grpc::Status s = AnswerFromStore(*state, key, **found, /*stored=*/true, response);
         if (s.ok()) return call->Finish(s);
       }
-      if (!request.compute()) {
-        return call->Finish(Error(grpc::StatusCode::NOT_FOUND,
-                                  "no stored optimum for this request; set compute to run it"));
+      std::string nearest;
+      if (maps) {
+        grpc::Status s = AnswerFromMaps(*state, request, key, response, &compute, &nearest);
+        if (!s.ok() || response->has_optimum()) return call->Finish(s);
+      }
+      if (!compute) {
+        return call->Finish(
+            Error(grpc::StatusCode::NOT_FOUND,
+                  "no stored optimum for this request and no optimum map covers its conditions" +
+                      (nearest.empty() ? std::string() : " (nearest: " + nearest + ")") +
+                      "; set compute to run it"));
       }
       if (!affordable.ok()) return call->Finish(ToGrpc(affordable));
     }
@@ -685,6 +737,7 @@ void OperationsService::DeleteOperation(DeleteOperationCall* call) {
     if (!id.ok()) return ToGrpc(id.status());
     if (Status s = state_->store->Delete(*id); !s.ok()) return ToGrpc(s);
     state_->optimum_index.RemoveJob(*id);
+    state_->map_index.RemoveJob(*id);
     state_->hub->Notify();
     return grpc::Status::OK;
   });

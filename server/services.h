@@ -22,6 +22,7 @@
 #include "google/longrunning/operations.grpc.pb.h"
 #include "server/executor.h"
 #include "server/grpc_calls.h"
+#include "server/map_index.h"
 #include "server/metrics.h"
 #include "server/server.h"
 #include "server/store/job_store.h"
@@ -69,6 +70,8 @@ struct ServiceState {
   // Counts refusals at submit (null in tests that need no metrics).
   Metrics* metrics = nullptr;
   OptimumIndex optimum_index;
+  // Stored optimum maps, for queries between their cells.
+  MapIndex map_index;
   // Set by Server::Shutdown: submits fail with UNAVAILABLE.
   std::atomic<bool> shutting_down{false};
 };
