@@ -180,6 +180,8 @@ struct TraceFlags {
 struct OptimumFlags {
   std::vector<double> margin = OptimumOptions().margin;
   bool scaled = false;
+  bool no_maps = false;         // server mode: never answer from an optimum map
+  bool compute_on_map = false;  // a map's answer that fails verification: compute instead
 };
 
 // optimum-map: the conditions and their cells.
@@ -539,6 +541,29 @@ int RunTraceCommand(const GlobalFlags& global, RemoteClient* remote, const Model
   return RunJob<v1::TraceResult>(global, remote, request);
 }
 
+// An optimum the server answered without a job: the result as a job's, and on stderr where it
+// came from (a stored result, or an optimum map and how it was verified).
+int PrintOptimumAnswer(const GlobalFlags& global, v1::QueryOptimumResponse& answer) {
+  if (answer.has_from_map()) {
+    std::cerr << "drillctl: answered from the optimum map " << answer.from_map().map() << ": "
+              << answer.from_map().verification() << "\n";
+  } else {
+    std::cerr << "drillctl: answered from the stored result of " << answer.operation() << "\n";
+  }
+  OutputStream output(global.output);
+  PrintOptions options;
+  options.csv = global.format == "csv";
+  options.pretty = !global.compact;
+  StatusOr<std::unique_ptr<ResultPrinter>> printer =
+      ResultPrinter::Create(v1::OptimumResult::descriptor(), options, output.Sink());
+  if (!printer.ok()) return ErrorStatus(printer.status());
+  Status printed = (*printer)->AddPage(*answer.mutable_optimum());
+  if (printed.ok()) printed = (*printer)->Finish();
+  if (!printed.ok()) return PrintError(output, printed);
+  if (const std::string& error = output.Close(); !error.empty()) return Error(error, kExitFailed);
+  return Finish((*printer)->status(), (*printer)->message());
+}
+
 int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const ModelFlags& m,
                       const TraceFlags& t, const OptimumFlags& f) {
   v1::OptimumRequest request;
@@ -546,6 +571,21 @@ int RunOptimumCommand(const GlobalFlags& global, RemoteClient* remote, const Mod
   for (double v : f.margin) request.add_margin(v);
   request.set_scaled(f.scaled);
   for (int n : t.grid) request.add_grid(n);
+  if (remote != nullptr && !global.detach) {
+    // A stored answer, or one from an optimum map covering these conditions, before a job.
+    v1::QueryOptimumRequest query;
+    *query.mutable_request() = request;
+    query.set_no_maps(f.no_maps);
+    query.set_on_map_failure(f.compute_on_map ? v1::QueryOptimumRequest::COMPUTE
+                                              : v1::QueryOptimumRequest::NEAREST_CELL);
+    StatusOr<v1::QueryOptimumResponse> answer = remote->QueryOptimum(query);
+    if (answer.ok() && answer->has_optimum()) return PrintOptimumAnswer(global, *answer);
+    if (!answer.ok() && answer.status().code() == StatusCode::kFailedPrecondition) {
+      std::cerr << "drillctl: " << answer.status().message() << "; computing it\n";
+    } else if (!answer.ok() && answer.status().code() != StatusCode::kNotFound) {
+      return ErrorStatus(answer.status());
+    }
+  }
   return RunJob<v1::OptimumResult>(global, remote, request);
 }
 
@@ -972,6 +1012,16 @@ int Main(int argc, char** argv) {
       "The operating point of maximal ROP where the period-1 orbit is stable and at least a "
       "margin from every bifurcation curve bounding its stability region");
   AddOptimumFlags(optimum, &ot, &of);
+  optimum
+      ->add_flag("--no-maps", of.no_maps,
+                 "Server mode: never answer from an optimum map (a stored result of this exact "
+                 "request, else a job)")
+      ->group("Optimum");
+  optimum
+      ->add_flag("--compute-on-map-failure", of.compute_on_map,
+                 "Server mode: when a map's interpolated answer fails its verification, compute "
+                 "the optimum (default: the nearest cell's point, checked the same way)")
+      ->group("Optimum");
   AddModelFlags(optimum, &model);
   AddStartOrbitFlags(optimum, &model);
 

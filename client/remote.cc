@@ -314,6 +314,16 @@ StatusOr<Operation> RemoteClient::Submit(const v1::OptimumMapRequest& request) {
   return op;
 }
 
+StatusOr<v1::QueryOptimumResponse> RemoteClient::QueryOptimum(
+    const v1::QueryOptimumRequest& request) {
+  v1::QueryOptimumResponse response;
+  auto context = Context(options_.rpc_timeout_seconds);
+  if (grpc::Status s = jobs_->QueryOptimum(context.get(), request, &response); !s.ok()) {
+    return FromGrpc(s);
+  }
+  return response;
+}
+
 StatusOr<Operation> RemoteClient::Get(const std::string& name) {
   google::longrunning::GetOperationRequest request;
   request.set_name(name);

@@ -97,6 +97,9 @@ class RemoteClient {
   StatusOr<google::longrunning::Operation> Submit(const v1::TraceRequest& request);
   StatusOr<google::longrunning::Operation> Submit(const v1::OptimumRequest& request);
   StatusOr<google::longrunning::Operation> Submit(const v1::OptimumMapRequest& request);
+  // QueryOptimum: a stored optimum, or one answered from a stored optimum map (no computation
+  // unless the request asks for it). NOT_FOUND when neither exists.
+  StatusOr<v1::QueryOptimumResponse> QueryOptimum(const v1::QueryOptimumRequest& request);
 
   // Operations.GetOperation (with the result when done).
   StatusOr<google::longrunning::Operation> Get(const std::string& name);
