@@ -21,6 +21,7 @@
 //   DELETE /v1/{name=operations/**}                           DeleteOperation
 //   POST   /v1/{name=operations/**}:cancel                    body: {} (CancelOperation)
 //   GET    /metrics                                           Prometheus text format 0.0.4
+//   GET    / and the dashboard's files                        static, no token (dashboard.h)
 //
 // Threads: HTTP is served by libmicrohttpd (server/http_server.h) on a few epoll threads that
 // only move bytes and convert JSON; no thread waits for an answer. A call into the services uses
