@@ -246,6 +246,7 @@ async function submit(event) {
   const body = readForm(kind, $('job-fields'));
   const error = $('form-error');
   error.hidden = true;
+  $('form-status').textContent = 'submitting...';
   try {
     const operation = await api.call(FORMS[kind].route, {method: 'POST', body});
     requests[operation.name] = {kind, request: body.request};
@@ -266,6 +267,7 @@ async function submit(event) {
     // INVALID_ARGUMENT names the field at fault: shown next to the form.
     error.textContent = e instanceof api.ApiError ? e.describe() : String(e);
     error.hidden = false;
+    $('form-status').textContent = '';
   }
 }
 
