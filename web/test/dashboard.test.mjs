@@ -31,7 +31,9 @@ after(async () => {
   await server?.stop();
 });
 
-// The operation the form submitted last (the status line names its id's first 8 digits).
+// The operation the form submitted last (the status line names its id's first 8 digits; the
+// page sets it to "submitting..." when the submit starts, so an earlier submit's line is never
+// read).
 async function submittedOperation(page) {
   await page.waitForFunction(
       () => /submitted [0-9a-f]{8}/.test(document.querySelector('#form-status').textContent),
@@ -109,6 +111,44 @@ test('a continuation submitted from the form is plotted with its stability and s
       assert.equal(specials[0].points, result.specialPoints.length);
       assert.ok(result.specialPoints.length > 0, 'the default box has special points to mark');
     });
+
+test('an optimum of the traced box is drawn with its margin over the trace\'s curves',
+    async () => {
+      const {page} = session;
+      // The optimum form's box is the trace form's: the trace submitted above gives the curves.
+      await submitForm(page, 'optimum');
+      const name = await submittedOperation(page);
+      const chart = await waitForPlot(page, 'optimum');
+      const {optimum} = await server.call(`/v1/${name}:result`);
+      assert.equal(optimum.status, 'COMPLETED');
+      const marker = chart.datasets.find((d) => d.label === 'optimum');
+      assert.equal(marker.points, 1);
+      assert.deepEqual(marker.first, {x: optimum.params.omega, y: optimum.params.a});
+      assert.equal(chart.datasets.find((d) => d.label === 'margin').points, 5);  // closed
+      const curves = chart.datasets.filter((d) => /^(FOLD|PERIOD_DOUBLING|GRAZING)/.test(d.label));
+      assert.equal(curves.length, optimum.curves);
+    });
+
+test('a simulation\'s trajectory and a sweep\'s samples are plotted', async () => {
+  const {page} = session;
+  await submitForm(page, 'simulate');
+  let name = await submittedOperation(page);
+  let chart = await waitForPlot(page, 'simulate');
+  const {simulate} = await server.call(`/v1/${name}:result`);
+  assert.ok(simulate.trajectory.length > 100);
+  assert.deepEqual(chart.datasets.map((d) => d.points),
+      [simulate.trajectory.length, simulate.trajectory.length]);
+
+  await submitForm(page, 'sweep');
+  name = await submittedOperation(page);
+  chart = await waitForPlot(page, 'sweep');
+  const {sweep} = await server.call(`/v1/${name}:result`);
+  const samples = (points) => points.reduce((n, p) => n + (p.samples?.length ?? 0), 0);
+  assert.ok(samples(sweep.up) > 0 && samples(sweep.down) > 0);
+  assert.deepEqual(chart.datasets.map((d) => [d.label, d.points, d.drawn]),
+      [['up', samples(sweep.up), samples(sweep.up)],
+        ['down', samples(sweep.down), samples(sweep.down)]]);
+});
 
 test('a field outside its domain shows the server\'s INVALID_ARGUMENT beside the form',
     async () => {

@@ -150,8 +150,8 @@ export async function submitForm(page, kind, values = {}) {
 
 /**
  * What the chart on display holds (Chart.getChart on the plot's canvas): per dataset its label,
- * number of points, dash, and how many of its points were laid out at finite pixels inside the
- * chart area (what was drawn).
+ * number of points, dash, first point, and how many of its points were laid out at finite pixels
+ * inside the chart area (what was drawn).
  */
 export async function chartContents(page) {
   return page.evaluate(() => {
@@ -167,6 +167,7 @@ export async function chartContents(page) {
         label: dataset.label,
         points: dataset.data.length,
         dashed: (dataset.borderDash ?? []).length > 0,
+        first: dataset.data[0] ? {x: dataset.data[0].x, y: dataset.data[0].y} : null,
         drawn: chart.getDatasetMeta(i).data.filter((e) => Number.isFinite(e.x) &&
             Number.isFinite(e.y) && e.x >= area.left - 1 && e.x <= area.right + 1 &&
             e.y >= area.top - 1 && e.y <= area.bottom + 1).length,
