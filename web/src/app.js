@@ -7,6 +7,11 @@ import * as plots from './plots.js';
 const $ = (id) => document.getElementById(id);
 const FINAL = new Set(['SUCCEEDED', 'FAILED', 'CANCELLED']);
 const REQUESTS_KEY = 'drillbif.requests';
+// Watch streams open at once, besides the one of the job submitted last. Each holds one of the
+// browser's 6 connections to the server (HTTP/1.1), and the page's calls need the others.
+const MAX_WATCHES = 3;
+// How often the list reloads while it has running or queued jobs no stream follows.
+const REFRESH_MS = 5000;
 
 // The requests this tab submitted, by operation name ({kind, request}): the result messages do
 // not repeat them, and the plots want the parameters' names and the box.
@@ -106,8 +111,11 @@ function follow(job) {
     renderRow(job);
   }, controller.signal).then(async () => {
     if (controller.signal.aborted) return;
-    // Final: the operation holds the error (or the response) the metadata does not.
-    job.operation = await api.call(`/v1/${name}`);
+    // Final. A failed or cancelled operation holds the error the metadata does not (a
+    // succeeded one its whole result, which is not needed here: :result pages it).
+    if (metadataOf(job.operation).state !== 'SUCCEEDED') {
+      job.operation = await api.call(`/v1/${name}`);
+    }
     renderRow(job);
     if (pendingPlot === name && metadataOf(job.operation).state === 'SUCCEEDED') {
       pendingPlot = null;
@@ -117,7 +125,30 @@ function follow(job) {
     if (!controller.signal.aborted) showApiError(error);
   }).finally(() => {
     if (job.watch === controller) job.watch = null;
+    if (!controller.signal.aborted) followSome();
   });
+}
+
+// Follows the live jobs, the running and newest first, up to MAX_WATCHES streams; the others
+// are updated by reloading the list every REFRESH_MS while they last.
+let refreshTimer = null;
+function followSome() {
+  const state = (job) => metadataOf(job.operation).state;
+  const live = [...jobs.values()].reverse().filter((job) => !FINAL.has(state(job)));
+  live.sort((p, q) => (state(q) === 'RUNNING') - (state(p) === 'RUNNING'));
+  let open = live.filter((job) => job.watch).length;
+  for (const job of live) {
+    if (job.watch || open >= MAX_WATCHES) continue;
+    follow(job);
+    ++open;
+  }
+  const unfollowed = live.some((job) => !job.watch);
+  if (unfollowed && refreshTimer === null) {
+    refreshTimer = setTimeout(() => {
+      refreshTimer = null;
+      refreshJobs();
+    }, REFRESH_MS);
+  }
 }
 
 /** Reloads the job list (every page) and follows the running jobs. */
@@ -131,7 +162,7 @@ async function refreshJobs() {
       jobs.set(operation.name, job);
     }
     renderJobs();
-    for (const job of jobs.values()) follow(job);
+    followSome();
     $('jobs-note').textContent = truncated ? 'Only the oldest jobs are listed.' : '';
   } catch (error) {
     showApiError(error);
@@ -261,6 +292,7 @@ async function submit(event) {
       pendingPlot = null;
       await showResult(operation.name);
     } else {
+      // Followed whatever the other streams: its plot appears when it succeeds.
       follow(job);
     }
   } catch (e) {
