@@ -19,6 +19,7 @@ const JOB_TIMEOUT_MS = 30000;
 let server;
 let browser;
 let session;  // the page with the token, shared by the tests in order
+let traceName;  // the trace the form submitted
 
 before(async () => {
   server = await Server.start();
@@ -76,6 +77,7 @@ test('a trace submitted from the form completes and its curves are plotted', asy
   const {page} = session;
   await submitForm(page, 'trace');
   const name = await submittedOperation(page);
+  traceName = name;
   const chart = await waitForPlot(page, 'trace');
   const {trace} = await server.call(`/v1/${name}:result`);
   assert.ok(trace.curves.length > 0, 'the small box has curves');
@@ -179,6 +181,49 @@ test('a running job\'s progress follows its watch stream, and Cancel cancels it'
   const operation = await server.call(`/v1/${name}`);
   assert.equal(operation.metadata.state, 'CANCELLED');
 });
+
+test('with more live jobs than streams the page still answers, and the list catches up',
+    async () => {
+      const {page} = session;
+      // Watch streams open now (each holds one of Chromium's 6 connections to the server).
+      const open = new Set();
+      const track = (request) => request.url().endsWith(':watch') && open.add(request);
+      const untrack = (request) => open.delete(request);
+      page.on('request', track);
+      page.on('requestfinished', untrack);
+      page.on('requestfailed', untrack);
+      let mostOpen = 0;
+      const sample = setInterval(() => {
+        mostOpen = Math.max(mostOpen, open.size);
+      }, 20);
+      // 8 long sweeps from another client: 2 run (2 workers), 6 queue.
+      const sweep = {request: {param: 'b', min: 0, max: 0.2, steps: 100000, samplePeriods: 1}};
+      const names = [];
+      for (let i = 0; i < 8; ++i) {
+        sweep.requestId = `dashboard-live-${i}`;
+        names.push((await server.call('/v1/jobs:sweep', {method: 'POST', body: sweep})).name);
+      }
+      await page.click('#jobs-refresh');
+      await page.waitForFunction((n) => n.every((name) =>
+        document.querySelector(`#jobs-body tr[data-name="${name}"]`)), {timeout: JOB_TIMEOUT_MS},
+      names);
+      // Calls still get a connection: the trace's result is fetched and plotted again.
+      await page.click(`#jobs-body tr[data-name="${traceName}"] .plot-button`);
+      await waitForPlot(page, 'trace');
+      for (const name of names) await server.call(`/v1/${name}:cancel`, {method: 'POST', body: {}});
+      // Every row reaches its final state: from its stream, or from a stream opened as another
+      // ends, or from the list's periodic reload.
+      await page.waitForFunction((n) => n.every((name) => document.querySelector(
+          `#jobs-body tr[data-name="${name}"]`)?.dataset.state === 'CANCELLED'),
+      {timeout: JOB_TIMEOUT_MS}, names);
+      clearInterval(sample);
+      page.off('request', track);
+      page.off('requestfinished', untrack);
+      page.off('requestfailed', untrack);
+      // At most 3 streams (MAX_WATCHES in app.js); at least one: the running ones are followed.
+      console.log(`# at most ${mostOpen} watch streams open at once`);
+      assert.ok(mostOpen >= 1 && mostOpen <= 3, `${mostOpen} watch streams at once`);
+    });
 
 test('the session with the token logged no console error or warning', () => {
   // Chromium logs the refused submit of the invalid field as a failed resource (400): that one,
