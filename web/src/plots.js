@@ -189,7 +189,7 @@ function traceDatasets(result, plane) {
       if (ring.length) ring.push(ring[0]);
       datasets.push({label: 'stable period-1 region', data: ring, showLine: true, fill: 'shape',
         borderColor: 'rgba(42, 157, 143, 0.6)', backgroundColor: 'rgba(42, 157, 143, 0.15)',
-        borderWidth: 1, pointRadius: 0, legend: i === 0});
+        borderWidth: 1, pointRadius: 0, legend: i === 0, order: 1});  // below the curves
     });
   }
   const seen = new Set();
