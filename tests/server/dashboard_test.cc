@@ -8,6 +8,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <regex>
 #include <set>
@@ -106,6 +109,26 @@ TEST_F(DashboardTest, EveryEmbeddedFileIsServedWithItsBytesAndType) {
     EXPECT_NE(DashboardContentType(file.path), "application/octet-stream");
     EXPECT_EQ(result->get_header_value("Content-Security-Policy"), kDashboardCsp);
   }
+}
+
+TEST_F(DashboardTest, TheEmbeddedFilesAreTheSourceTreesPage) {
+  // Every file of web/src/ is embedded at its name, with the bytes on disk now (the build
+  // re-embeds a changed file).
+  int files = 0;
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::string(DRILLBIF_SOURCE_DIR) + "/web/src")) {
+    const std::string path = "/" + entry.path().filename().string();
+    SCOPED_TRACE(path);
+    ++files;
+    const DashboardFile* file = FileAt(path);
+    ASSERT_NE(file, nullptr);
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string on_disk((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(file->data), file->size), on_disk);
+  }
+  // The page's files and Chart.js: nothing else is served.
+  EXPECT_EQ(kDashboardFileCount, files + 1);
+  EXPECT_NE(FileAt("/vendor/chart.umd.min.js"), nullptr);
 }
 
 TEST_F(DashboardTest, TheChartingLibraryIsServedAsJavaScript) {
