@@ -11,11 +11,21 @@ packages=(
   libssl-dev libcpp-httplib-dev libmicrohttpd-dev libutfcpp-dev prometheus-cpp-dev openssl
   gnuplot-nox python3-yaml docker-compose
   clang libclang-rt-14-dev
+  nodejs npm chromium
 )
+
+# A package counts as present when installed, or when an installed package provides it (e.g.
+# NodeSource's nodejs provides npm and conflicts with Debian's).
+# (The list is read whole first: grep -q leaving early would fail the pipe under pipefail.)
+installed_provides=$(dpkg-query -W -f='${db:Status-Abbrev} ${Provides}\n' 2>/dev/null | grep '^ii' || true)
+provided() {
+  grep -qE "[ ,]$1( \(|,|$)" <<< "$installed_provides"
+}
 
 missing=()
 for p in "${packages[@]}"; do
-  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" &&
+     ! provided "$p"; then
     missing+=("$p")
   fi
 done

@@ -19,6 +19,7 @@
 #include "google/longrunning/operations.grpc.pb.h"
 #include "google/rpc/status.pb.h"
 #include "server/cors.h"
+#include "server/dashboard.h"
 #include "server/executor.h"
 #include "server/http_server.h"
 #include "server/http_text.h"
@@ -386,6 +387,17 @@ struct RestGateway::Impl final : public HttpHandler {
     if (std::optional<HttpResponse> preflight = Preflight(exchange)) return preflight;
     std::string name;
     const StatusOr<int> found = FindRoute(exchange.method(), exchange.target().path, &name);
+    if (!found.ok() && found.status().code() == StatusCode::kNotFound) {
+      // No API route: the dashboard's static files (open: they hold no data), or its 404 /
+      // 405. A file is answered in OnRequest: an answer given before the (empty) body is read
+      // would close the connection, and a browser loads several files.
+      if (std::optional<HttpResponse> file = ServeDashboard(
+              exchange.method(), exchange.target().path, exchange.header("If-None-Match"))) {
+        exchange.set_route_label("dashboard");
+        if (file->status >= 400) return file;
+        return std::nullopt;
+      }
+    }
     if (!found.ok()) {
       // A path served with other methods is 405 (UNIMPLEMENTED alone would be 501).
       return ErrorResponse(ToGrpc(found.status()),
@@ -466,7 +478,11 @@ struct RestGateway::Impl final : public HttpHandler {
                                                : ErrorResponse(ToGrpc(document.status())));
       }
       default:
-        // OnHeaders refused every other path.
+        // The dashboard's files; OnHeaders refused every other path.
+        if (std::optional<HttpResponse> file = ServeDashboard(
+                exchange->method(), exchange->target().path, exchange->header("If-None-Match"))) {
+          return exchange->Respond(std::move(*file));
+        }
         return exchange->Respond(
             ErrorResponse(grpc::Status(grpc::StatusCode::INTERNAL, "request reached no route")));
     }

@@ -23,6 +23,7 @@
 //   GET    /metrics                                           Prometheus text format 0.0.4
 //   GET    /openapi.json                                      OpenAPI 3.0 (server/openapi.h)
 //   OPTIONS any of these                                       CORS preflight (server/cors.h)
+//   GET    / and the dashboard's files                        static, no token (dashboard.h)
 //
 // Threads: HTTP is served by libmicrohttpd (server/http_server.h) on a few epoll threads that
 // only move bytes and convert JSON; no thread waits for an answer. A call into the services uses

@@ -1,0 +1,335 @@
+// The dashboard: token, submit forms, the job list with live progress, and the plot of a
+// finished job's result. Everything goes through the REST API (api.js).
+import * as api from './api.js';
+import {FORMS, readForm, renderForm} from './forms.js';
+import * as plots from './plots.js';
+
+const $ = (id) => document.getElementById(id);
+const FINAL = new Set(['SUCCEEDED', 'FAILED', 'CANCELLED']);
+const REQUESTS_KEY = 'drillbif.requests';
+// Watch streams open at once, besides the one of the job submitted last. Each holds one of the
+// browser's 6 connections to the server (HTTP/1.1), and the page's calls need the others.
+const MAX_WATCHES = 3;
+// How often the list reloads while it has running or queued jobs no stream follows.
+const REFRESH_MS = 5000;
+
+// The requests this tab submitted, by operation name ({kind, request}): the result messages do
+// not repeat them, and the plots want the parameters' names and the box.
+const requests = JSON.parse(sessionStorage.getItem(REQUESTS_KEY) ?? '{}');
+const jobs = new Map();  // operation name -> {operation, row, watch: AbortController}
+let kind = 'trace';
+let shown = null;  // the operation whose result is on display
+let pendingPlot = null;  // the operation submitted last: plotted when it succeeds
+
+function showApiError(error) {
+  const box = $('api-error');
+  if (error) {
+    box.textContent = error instanceof api.ApiError ? error.describe() : String(error);
+    box.hidden = false;
+  } else {
+    box.hidden = true;
+  }
+}
+
+function shortName(name) {
+  return name.replace(/^operations\//, '').slice(0, 8);
+}
+
+function metadataOf(operation) {
+  return operation.metadata ?? {};
+}
+
+// --- Jobs ----------------------------------------------------------------------------------------
+
+function renderRow(job) {
+  const {operation} = job;
+  const meta = metadataOf(operation);
+  const state = meta.state ?? 'QUEUED';
+  const row = job.row ?? document.createElement('tr');
+  job.row = row;
+  row.dataset.name = operation.name;
+  row.dataset.state = state;
+  row.classList.toggle('selected', operation.name === shown);
+  const progress = document.createElement('progress');
+  progress.max = 1;
+  progress.value = meta.progress ?? 0;
+  const progressCell = document.createElement('td');
+  progressCell.append(progress, ` ${Math.round((meta.progress ?? 0) * 100)}%`);
+  if (meta.currentValue !== undefined) progressCell.append(` at ${meta.currentValue.toPrecision(4)}`);
+  const stateCell = document.createElement('td');
+  stateCell.className = `state state-${state}`;
+  stateCell.textContent = state + (meta.cacheHit ? ' (cached)' : '');
+  if (operation.error) stateCell.title = operation.error.message ?? '';
+  const actions = document.createElement('td');
+  if (state === 'SUCCEEDED') {
+    const plot = document.createElement('button');
+    plot.textContent = 'Plot';
+    plot.className = 'plot-button';
+    plot.addEventListener('click', () => showResult(operation.name));
+    actions.append(plot);
+  }
+  if (!FINAL.has(state)) {
+    const cancel = document.createElement('button');
+    cancel.textContent = 'Cancel';
+    cancel.className = 'cancel-button';
+    cancel.addEventListener('click', () => cancelJob(operation.name));
+    actions.append(cancel);
+  }
+  if (state === 'FAILED' && operation.error) {
+    const why = document.createElement('span');
+    why.className = 'error';
+    why.textContent = ` ${operation.error.message ?? ''}`;
+    actions.append(why);
+  }
+  const cell = (text, className = '') => {
+    const td = document.createElement('td');
+    td.textContent = text;
+    td.className = className;
+    return td;
+  };
+  const created = meta.createTime ? new Date(meta.createTime).toLocaleTimeString() : '';
+  row.replaceChildren(cell(shortName(operation.name), 'name'),
+      cell((meta.kind ?? '').toLowerCase(), 'kind'), stateCell, progressCell, cell(created),
+      actions);
+  return row;
+}
+
+// Shows the job list newest first.
+function renderJobs() {
+  const rows = [...jobs.values()].reverse().map(renderRow);
+  $('jobs-body').replaceChildren(...rows);
+}
+
+// Follows a running job's :watch stream, updating its row until it is final.
+function follow(job) {
+  if (job.watch || FINAL.has(metadataOf(job.operation).state)) return;
+  const controller = new AbortController();
+  job.watch = controller;
+  const name = job.operation.name;
+  api.watch(name, (meta) => {
+    job.operation = {...job.operation, metadata: meta};
+    renderRow(job);
+  }, controller.signal).then(async () => {
+    if (controller.signal.aborted) return;
+    // Final. A failed or cancelled operation holds the error the metadata does not (a
+    // succeeded one its whole result, which is not needed here: :result pages it).
+    if (metadataOf(job.operation).state !== 'SUCCEEDED') {
+      job.operation = await api.call(`/v1/${name}`);
+    }
+    renderRow(job);
+    if (pendingPlot === name && metadataOf(job.operation).state === 'SUCCEEDED') {
+      pendingPlot = null;
+      await showResult(name);
+    }
+  }).catch((error) => {
+    if (!controller.signal.aborted) showApiError(error);
+  }).finally(() => {
+    if (job.watch === controller) job.watch = null;
+    if (!controller.signal.aborted) followSome();
+  });
+}
+
+// Follows the live jobs, the running and newest first, up to MAX_WATCHES streams; the others
+// are updated by reloading the list every REFRESH_MS while they last.
+let refreshTimer = null;
+function followSome() {
+  const state = (job) => metadataOf(job.operation).state;
+  const live = [...jobs.values()].reverse().filter((job) => !FINAL.has(state(job)));
+  live.sort((p, q) => (state(q) === 'RUNNING') - (state(p) === 'RUNNING'));
+  let open = live.filter((job) => job.watch).length;
+  for (const job of live) {
+    if (job.watch || open >= MAX_WATCHES) continue;
+    follow(job);
+    ++open;
+  }
+  const unfollowed = live.some((job) => !job.watch);
+  if (unfollowed && refreshTimer === null) {
+    refreshTimer = setTimeout(() => {
+      refreshTimer = null;
+      refreshJobs();
+    }, REFRESH_MS);
+  }
+}
+
+/** Reloads the job list (every page) and follows the running jobs. */
+async function refreshJobs() {
+  try {
+    const {operations, truncated} = await api.listOperations();
+    showApiError(null);
+    for (const operation of operations) {
+      const job = jobs.get(operation.name) ?? {};
+      job.operation = operation;
+      jobs.set(operation.name, job);
+    }
+    renderJobs();
+    followSome();
+    $('jobs-note').textContent = truncated ? 'Only the oldest jobs are listed.' : '';
+  } catch (error) {
+    showApiError(error);
+  }
+}
+
+async function cancelJob(name) {
+  try {
+    await api.call(`/v1/${name}:cancel`, {method: 'POST', body: {}});
+  } catch (error) {
+    showApiError(error);
+  }
+}
+
+// --- Results -------------------------------------------------------------------------------------
+
+// The TraceResult of a finished trace this tab submitted with the same trace request as an
+// optimum (the curves of its box; a stability region asked for too does not change them), or
+// null.
+async function traceOfBox(traceRequest) {
+  const curvesOf = (request) => JSON.stringify({...request, region: undefined});
+  const wanted = curvesOf(traceRequest);
+  for (const [name, {kind: k, request}] of Object.entries(requests)) {
+    if (k !== 'trace' || curvesOf(request) !== wanted) continue;
+    const job = jobs.get(name);
+    if (metadataOf(job?.operation ?? {}).state !== 'SUCCEEDED') continue;
+    return (await api.getResult(name)).result;
+  }
+  return null;
+}
+
+function summaryOf(kind, result) {
+  const parts = [`status ${result.status ?? '?'}`];
+  if (result.message) parts.push(result.message);
+  // A trace's and an optimum's messages already say what they found; a continuation's says
+  // how its directions ended.
+  if (kind === 'continue') {
+    parts.push(`${(result.points ?? []).length} points, ` +
+      `${(result.specialPoints ?? []).length} special points`);
+  } else if (kind === 'trace' && !result.message) {
+    parts.push(`${(result.curves ?? []).length} curves, ` +
+      `${(result.codim2Points ?? []).length} codimension-2 points`);
+  } else if (kind === 'optimum' && !result.message && result.params) {
+    parts.push(`ROP ${Number(result.rop ?? 0).toPrecision(5)} at ${JSON.stringify(result.params)}`);
+  }
+  if (result.wallSeconds !== undefined) parts.push(`${result.wallSeconds.toFixed(2)} s`);
+  return parts.join(' · ');
+}
+
+/** Fetches the result of `name` and plots it. */
+async function showResult(name) {
+  shown = name;
+  for (const job of jobs.values()) job.row?.classList.toggle('selected', job.operation.name === name);
+  $('result-name').textContent = shortName(name);
+  $('result-summary').textContent = 'loading...';
+  $('result-controls').replaceChildren();
+  const container = $('plot');
+  plots.clearPlot(container);
+  try {
+    const {kind: resultKind, result} = await api.getResult(name);
+    if (shown !== name) return;
+    const request = requests[name]?.request;
+    $('result-summary').textContent = summaryOf(resultKind, result);
+    switch (resultKind) {
+      case 'continue': {
+        const select = document.createElement('select');
+        select.id = 'measure';
+        for (const [value, text] of Object.entries(plots.CONTINUE_MEASURES)) {
+          select.add(new Option(text, value));
+        }
+        select.addEventListener('change',
+            () => plots.plotContinue(container, result, request, select.value));
+        $('result-controls').append('Measure: ', select);
+        plots.plotContinue(container, result, request, select.value);
+        break;
+      }
+      case 'trace':
+        plots.plotTrace(container, result, request);
+        break;
+      case 'optimum':
+        plots.plotOptimum(container, result, request,
+            request ? await traceOfBox(request.trace) : null);
+        break;
+      case 'simulate':
+        plots.plotSimulate(container, result);
+        break;
+      case 'sweep':
+        plots.plotSweep(container, result, request);
+        break;
+    }
+    showApiError(null);
+  } catch (error) {
+    $('result-summary').textContent = '';
+    showApiError(error);
+  }
+}
+
+// --- Submit --------------------------------------------------------------------------------------
+
+function selectKind(next) {
+  kind = next;
+  for (const button of $('kind-tabs').children) {
+    button.setAttribute('aria-selected', String(button.dataset.kind === kind));
+  }
+  renderForm(kind, $('job-fields'));
+  $('form-error').hidden = true;
+  $('form-status').textContent = '';
+}
+
+async function submit(event) {
+  event.preventDefault();
+  const body = readForm(kind, $('job-fields'));
+  const error = $('form-error');
+  error.hidden = true;
+  $('form-status').textContent = 'submitting...';
+  try {
+    const operation = await api.call(FORMS[kind].route, {method: 'POST', body});
+    requests[operation.name] = {kind, request: body.request};
+    sessionStorage.setItem(REQUESTS_KEY, JSON.stringify(requests));
+    $('form-status').textContent = `submitted ${shortName(operation.name)}`;
+    pendingPlot = operation.name;
+    const job = jobs.get(operation.name) ?? {};
+    job.operation = operation;
+    jobs.set(operation.name, job);
+    renderJobs();
+    if (metadataOf(operation).state === 'SUCCEEDED') {
+      pendingPlot = null;
+      await showResult(operation.name);
+    } else {
+      // Followed whatever the other streams: its plot appears when it succeeds.
+      follow(job);
+    }
+  } catch (e) {
+    // INVALID_ARGUMENT names the field at fault: shown next to the form.
+    error.textContent = e instanceof api.ApiError ? e.describe() : String(e);
+    error.hidden = false;
+    $('form-status').textContent = '';
+  }
+}
+
+// --- Start ---------------------------------------------------------------------------------------
+
+function start() {
+  for (const name of Object.keys(FORMS)) {
+    const button = document.createElement('button');
+    button.type = 'button';
+    button.role = 'tab';
+    button.dataset.kind = name;
+    button.textContent = name;
+    button.addEventListener('click', () => selectKind(name));
+    $('kind-tabs').append(button);
+  }
+  selectKind(kind);
+  $('job-form').addEventListener('submit', submit);
+  $('jobs-refresh').addEventListener('click', refreshJobs);
+  $('token').value = api.token();
+  $('token-form').addEventListener('submit', (event) => {
+    event.preventDefault();
+    api.setToken($('token').value.trim());
+    for (const job of jobs.values()) {
+      job.watch?.abort();
+      job.watch = null;
+    }
+    refreshJobs();
+  });
+  plots.clearPlot($('plot'));
+  refreshJobs();
+}
+
+start();

@@ -1,0 +1,251 @@
+// Browser tests of the dashboard (web/src/) served by a real drillbif-server: headless Chromium
+// loads the page, submits jobs from its forms and checks the plots, the job list's live
+// progress, cancel, and the errors a missing token or a bad field gives.
+//
+//   DRILLBIF_SERVER_BINARY=build/server/drillbif-server DRILLBIF_WEB_MODULES=build/web \
+//     node web/test/dashboard.test.mjs
+//
+// Registered with CTest as dashboard_browser_test (web/CMakeLists.txt). The jobs are small
+// (the trace box omega in [0.05, 0.2], a in [0.27, 0.32] takes well under a second).
+import assert from 'node:assert/strict';
+import {after, before, test} from 'node:test';
+
+import {chartContents, launchBrowser, openDashboard, Server, submitForm, TOKEN} from './harness.mjs';
+
+// How long a small job may take from submit to plot on a loaded 2-core machine: the jobs take
+// well under a second alone, so 30 s only bounds a hang.
+const JOB_TIMEOUT_MS = 30000;
+
+let server;
+let browser;
+let session;  // the page with the token, shared by the tests in order
+let traceName;  // the trace the form submitted
+
+before(async () => {
+  server = await Server.start();
+  browser = await launchBrowser();
+  session = await openDashboard(browser, server.url, TOKEN);
+});
+
+after(async () => {
+  await browser?.close();
+  await server?.stop();
+});
+
+// The operation the form submitted last (the status line names its id's first 8 digits; the
+// page sets it to "submitting..." when the submit starts, so an earlier submit's line is never
+// read).
+async function submittedOperation(page) {
+  await page.waitForFunction(
+      () => /submitted [0-9a-f]{8}/.test(document.querySelector('#form-status').textContent),
+      {timeout: JOB_TIMEOUT_MS});
+  const prefix = (await page.$eval('#form-status', (e) => e.textContent)).split(' ').at(-1);
+  const {operations} = await server.call('/v1/operations?page_size=1000');
+  const found = operations.filter((o) => o.name.startsWith(`operations/${prefix}`));
+  assert.equal(found.length, 1, `one operation starts with ${prefix}`);
+  return found[0].name;
+}
+
+async function waitForPlot(page, kind) {
+  await page.waitForFunction((k) => {
+    const plot = document.querySelector('#plot');
+    return plot.dataset.kind === k && Number(plot.dataset.series) > 0;
+  }, {timeout: JOB_TIMEOUT_MS}, kind);
+  return chartContents(page);
+}
+
+test('the page and its files are served with the CSP, without a token', async () => {
+  const {response, page} = session;
+  assert.equal(response.status(), 200);
+  assert.match(response.headers()['content-type'], /^text\/html/);
+  assert.match(response.headers()['content-security-policy'], /default-src 'self'/);
+  assert.equal(await page.title(), 'drillbif dashboard');
+  // Chart.js came from the server (the page has no other source) and defined its global.
+  assert.equal(await page.evaluate(() => typeof globalThis.Chart), 'function');
+  const library = await fetch(`${server.url}/vendor/chart.umd.min.js`);
+  assert.equal(library.status, 200);
+  assert.match(library.headers.get('content-type'), /^text\/javascript/);
+});
+
+test('with the token the job list loads without an error', async () => {
+  const {page, problems} = session;
+  assert.equal(await page.$eval('#api-error', (e) => e.hidden), true);
+  assert.deepEqual(problems, []);
+});
+
+test('a trace submitted from the form completes and its curves are plotted', async () => {
+  const {page} = session;
+  await submitForm(page, 'trace');
+  const name = await submittedOperation(page);
+  traceName = name;
+  const chart = await waitForPlot(page, 'trace');
+  const {trace} = await server.call(`/v1/${name}:result`);
+  assert.ok(trace.curves.length > 0, 'the small box has curves');
+  // One polyline per curve, then the codimension-2 markers when there are any.
+  const codim2 = trace.codim2Points?.length ?? 0;
+  assert.equal(chart.datasets.length, trace.curves.length + (codim2 > 0 ? 1 : 0));
+  trace.curves.forEach((curve, i) => {
+    assert.equal(chart.datasets[i].points, curve.points.length, `curve ${i}`);
+    assert.equal(chart.datasets[i].drawn, curve.points.length, `curve ${i} laid out`);
+  });
+  if (codim2 > 0) assert.equal(chart.datasets.at(-1).points, codim2);
+  assert.ok(chart.width > 0 && chart.height > 0);
+});
+
+test('a continuation submitted from the form is plotted with its stability and special points',
+    async () => {
+      const {page} = session;
+      await submitForm(page, 'continue');
+      const name = await submittedOperation(page);
+      const chart = await waitForPlot(page, 'continue');
+      const result = (await server.call(`/v1/${name}:result`)).continue;
+      const branch = chart.datasets.filter((d) => d.label.startsWith('branch,'));
+      const specials = chart.datasets.filter((d) => d.label === 'branch: special points');
+      // Runs of equal stability share their end points: one more point per run after the first.
+      const drawn = branch.reduce((n, d) => n + d.points, 0) - (branch.length - 1);
+      assert.equal(drawn, result.points.length);
+      assert.ok(branch.every((d) => d.drawn === d.points));
+      // Unstable runs are dashed, stable ones solid.
+      for (const d of branch) assert.equal(d.dashed, d.label.endsWith('unstable'), d.label);
+      const unstable = result.points.some((p) => !p.stable);
+      assert.equal(branch.some((d) => d.dashed), unstable);
+      assert.equal(specials.length, 1);
+      assert.equal(specials[0].points, result.specialPoints.length);
+      assert.ok(result.specialPoints.length > 0, 'the default box has special points to mark');
+    });
+
+test('an optimum of the traced box is drawn with its margin over the trace\'s curves',
+    async () => {
+      const {page} = session;
+      // The optimum form's box is the trace form's: the trace submitted above gives the curves.
+      await submitForm(page, 'optimum');
+      const name = await submittedOperation(page);
+      const chart = await waitForPlot(page, 'optimum');
+      const {optimum} = await server.call(`/v1/${name}:result`);
+      assert.equal(optimum.status, 'COMPLETED');
+      const marker = chart.datasets.find((d) => d.label === 'optimum');
+      assert.equal(marker.points, 1);
+      assert.deepEqual(marker.first, {x: optimum.params.omega, y: optimum.params.a});
+      assert.equal(chart.datasets.find((d) => d.label === 'margin').points, 5);  // closed
+      const curves = chart.datasets.filter((d) => /^(FOLD|PERIOD_DOUBLING|GRAZING)/.test(d.label));
+      assert.equal(curves.length, optimum.curves);
+    });
+
+test('a simulation\'s trajectory and a sweep\'s samples are plotted', async () => {
+  const {page} = session;
+  await submitForm(page, 'simulate');
+  let name = await submittedOperation(page);
+  let chart = await waitForPlot(page, 'simulate');
+  const {simulate} = await server.call(`/v1/${name}:result`);
+  assert.ok(simulate.trajectory.length > 100);
+  assert.deepEqual(chart.datasets.map((d) => d.points),
+      [simulate.trajectory.length, simulate.trajectory.length]);
+
+  await submitForm(page, 'sweep');
+  name = await submittedOperation(page);
+  chart = await waitForPlot(page, 'sweep');
+  const {sweep} = await server.call(`/v1/${name}:result`);
+  const samples = (points) => points.reduce((n, p) => n + (p.samples?.length ?? 0), 0);
+  assert.ok(samples(sweep.up) > 0 && samples(sweep.down) > 0);
+  assert.deepEqual(chart.datasets.map((d) => [d.label, d.points, d.drawn]),
+      [['up', samples(sweep.up), samples(sweep.up)],
+        ['down', samples(sweep.down), samples(sweep.down)]]);
+});
+
+test('a field outside its domain shows the server\'s INVALID_ARGUMENT beside the form',
+    async () => {
+      const {page} = session;
+      // max < min: the server names the bounds.
+      await submitForm(page, 'continue', {'request.min': 0.5, 'request.max': 0.4});
+      await page.waitForFunction(() => !document.querySelector('#form-error').hidden,
+          {timeout: JOB_TIMEOUT_MS});
+      const text = await page.$eval('#form-error', (e) => e.textContent);
+      assert.match(text, /^400 INVALID_ARGUMENT: .*max/);
+    });
+
+test('a running job\'s progress follows its watch stream, and Cancel cancels it', async () => {
+  const {page} = session;
+  // A sweep of 20000 values: minutes alone, so it is running when cancelled.
+  await submitForm(page, 'sweep', {'request.steps': 20000, 'request.direction': 'UP'});
+  const name = await submittedOperation(page);
+  const row = `#jobs-body tr[data-name="${name}"]`;
+  // Progress above 0 reaches the row only through the :watch stream (the list is not reloaded).
+  await page.waitForFunction((selector) => {
+    const progress = document.querySelector(`${selector} progress`);
+    return progress && progress.value > 0;
+  }, {timeout: JOB_TIMEOUT_MS}, row);
+  await page.click(`${row} .cancel-button`);
+  await page.waitForFunction((selector) =>
+    document.querySelector(selector)?.dataset.state === 'CANCELLED',
+  {timeout: JOB_TIMEOUT_MS}, row);
+  const operation = await server.call(`/v1/${name}`);
+  assert.equal(operation.metadata.state, 'CANCELLED');
+});
+
+test('with more live jobs than streams the page still answers, and the list catches up',
+    async () => {
+      const {page} = session;
+      // Watch streams open now (each holds one of Chromium's 6 connections to the server).
+      const open = new Set();
+      const track = (request) => request.url().endsWith(':watch') && open.add(request);
+      const untrack = (request) => open.delete(request);
+      page.on('request', track);
+      page.on('requestfinished', untrack);
+      page.on('requestfailed', untrack);
+      let mostOpen = 0;
+      const sample = setInterval(() => {
+        mostOpen = Math.max(mostOpen, open.size);
+      }, 20);
+      // 8 long sweeps from another client: 2 run (2 workers), 6 queue.
+      const sweep = {request: {param: 'b', min: 0, max: 0.2, steps: 100000, samplePeriods: 1}};
+      const names = [];
+      for (let i = 0; i < 8; ++i) {
+        sweep.requestId = `dashboard-live-${i}`;
+        names.push((await server.call('/v1/jobs:sweep', {method: 'POST', body: sweep})).name);
+      }
+      await page.click('#jobs-refresh');
+      await page.waitForFunction((n) => n.every((name) =>
+        document.querySelector(`#jobs-body tr[data-name="${name}"]`)), {timeout: JOB_TIMEOUT_MS},
+      names);
+      // Calls still get a connection: the trace's result is fetched and plotted again.
+      await page.click(`#jobs-body tr[data-name="${traceName}"] .plot-button`);
+      await waitForPlot(page, 'trace');
+      for (const name of names) await server.call(`/v1/${name}:cancel`, {method: 'POST', body: {}});
+      // Every row reaches its final state: from its stream, or from a stream opened as another
+      // ends, or from the list's periodic reload.
+      await page.waitForFunction((n) => n.every((name) => document.querySelector(
+          `#jobs-body tr[data-name="${name}"]`)?.dataset.state === 'CANCELLED'),
+      {timeout: JOB_TIMEOUT_MS}, names);
+      clearInterval(sample);
+      page.off('request', track);
+      page.off('requestfinished', untrack);
+      page.off('requestfailed', untrack);
+      // At most 3 streams (MAX_WATCHES in app.js); at least one: the running ones are followed.
+      console.log(`# at most ${mostOpen} watch streams open at once`);
+      assert.ok(mostOpen >= 1 && mostOpen <= 3, `${mostOpen} watch streams at once`);
+    });
+
+test('the session with the token logged no console error or warning', () => {
+  // Chromium logs the refused submit of the invalid field as a failed resource (400): that one,
+  // and nothing else.
+  const refused = session.problems.filter((p) => /status of 400 \(Bad Request\)/.test(p));
+  assert.equal(refused.length, 1);
+  assert.deepEqual(session.problems.filter((p) => !refused.includes(p)), []);
+});
+
+test('without the token the page shows the 401 message', async () => {
+  const {page, problems, context} = await openDashboard(browser, server.url, '');
+  await page.waitForFunction(() => !document.querySelector('#api-error').hidden,
+      {timeout: JOB_TIMEOUT_MS});
+  const text = await page.$eval('#api-error', (e) => e.textContent);
+  assert.match(text, /^401 UNAUTHENTICATED: .*token/);
+  // Chromium reports each refused call as a failed resource; nothing else may appear.
+  const others = problems.filter((p) => !/status of 401/.test(p));
+  assert.deepEqual(others, []);
+  // Typing the token fixes it.
+  await page.type('#token', TOKEN);
+  await page.click('#token-form button');
+  await page.waitForFunction(() => document.querySelector('#api-error').hidden &&
+      document.querySelectorAll('#jobs-body tr').length > 0, {timeout: JOB_TIMEOUT_MS});
+  await context.close();
+});
