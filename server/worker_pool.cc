@@ -12,6 +12,7 @@
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 #include "jobs/trace_task_job.h"
+#include "server/map_fan_out.h"
 #include "server/stored_results.h"
 #include "server/trace_fan_out.h"
 
@@ -138,6 +139,10 @@ void WorkerPool::Cancel(const std::string& id) {
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = running_.find(id);
   if (it != running_.end()) it->second->cancel = true;
+  // Its children running here stop at once too (the store asks those elsewhere).
+  for (auto& [child, running] : running_) {
+    if (running->parent == id) running->cancel = true;
+  }
 }
 
 void WorkerPool::Shutdown() {
@@ -234,6 +239,14 @@ class WorkerPool::Run {
       StatusOr<jobs::LocalTraceTasks> planned = jobs::LocalTraceTasks::ForRequest(job_.request);
       if (planned.ok()) local.emplace(*std::move(planned));  // else RunJob reports the error
     }
+    // An optimum map's cells as child jobs: any worker computes them, a later run resumes them.
+    std::optional<StoreMapCells> map_cells;
+    if (kind_.kind == v1::OPTIMUM_MAP) {
+      map_cells.emplace(
+          *pool_->store_, job_, worker_id_, pool_->options_.lease_ms,
+          [this](const JobRecord& child) { return pool_->RunOne(child, worker_id_); },
+          [this] { pool_->Wake(); });
+    }
     if (local) {
       FanOutOptions o;
       o.window = static_cast<size_t>(pool_->options_.trace_fan_out);
@@ -253,7 +266,8 @@ class WorkerPool::Run {
                       .on_value = [this](double v) { OnValue(v); },
                       .optimum_cache = &pool_->optimum_cache_,
                       .sink = &writer_,
-                      .trace_tasks = fan_out ? &*fan_out : nullptr});
+                      .trace_tasks = fan_out ? &*fan_out : nullptr,
+                      .map_cells = map_cells ? &*map_cells : nullptr});
     if (fan_out) {
       spdlog::info(
           "job {}: {} trace tasks, {} of them stored ({} run by other workers, {} claimed back "
@@ -262,6 +276,10 @@ class WorkerPool::Run {
           job_.id, fan_out->tasks(), fan_out->stored(), fan_out->run_elsewhere(),
           fan_out->claimed_here(), fan_out->run_seconds(), fan_out->store_seconds(),
           fan_out->sleep_seconds());
+    }
+    if (map_cells) {
+      spdlog::info("job {}: {} map cells from earlier runs, {} stored, {} of them run here",
+                   job_.id, map_cells->resumed(), map_cells->stored(), map_cells->run_here());
     }
     return Finish(output);
   }
@@ -415,6 +433,7 @@ bool WorkerPool::RunOne(const JobRecord& job, const std::string& worker_id, std:
     // A shutdown that began between the claim and now still requeues this job.
     running->shutdown = stopping_;
     running->run = job.run;
+    running->parent = job.parent;
     running_[job.id] = running;
   }
   hub_->Notify();  // QUEUED -> RUNNING

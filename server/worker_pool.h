@@ -135,6 +135,7 @@ class WorkerPool {
   // A job running on a worker.
   struct Running {
     int64_t run = 0;                    // Its run (JobRecord::run): the lease's fence.
+    std::string parent;                 // A child's parent (JobRecord::parent), else empty.
     std::atomic<bool> cancel{false};    // Stop it and record CANCELLED.
     std::atomic<bool> shutdown{false};  // Stop it and requeue it.
     std::atomic<bool> lost{false};      // Its lease was lost: stop it and record nothing.

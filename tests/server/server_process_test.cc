@@ -11,7 +11,9 @@
 #include <signal.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <thread>
@@ -20,6 +22,7 @@
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
 #include "jobs/continue_job.h"
+#include "jobs/optimum_map_job.h"
 #include "jobs/simulate_job.h"
 #include "jobs/sweep_job.h"
 #include "server/store/sqlite_job_store.h"
@@ -157,6 +160,73 @@ TEST(ServerProcess, SigtermRequeuesTheRunningJobAndExitsCleanly) {
   }
   ServerProcess restarted(dir.path(), db, kOneWorker);
   ExpectAllCompleteOnce(restarted, requests, names, /*expected_first_attempts=*/1);
+}
+
+// An optimum map of six cells on the small box over b: ~0.5 s a cell on one worker.
+v1::OptimumMapRequest SixCellMap() {
+  v1::OptimumMapRequest r;
+  v1::OptimumRequest* o = r.mutable_optimum();
+  *o->mutable_trace() = drillbif::testing::SmallBoxTrace();
+  o->add_margin(0.01);
+  o->add_margin(0.02);
+  o->add_grid(41);
+  o->add_grid(41);
+  r.add_over(std::string("b"));
+  r.add_from(0.14);
+  r.add_to(0.165);
+  r.add_steps(6);
+  return r;
+}
+
+// The cells a map finished before kill -9 are not computed again by the restarted server: they
+// are its children in the store, read back; the result equals a map computed in one go.
+TEST(ServerProcess, KillNineDuringAnOptimumMapThenRestartResumesItsFinishedCells) {
+  TempDir dir("drillbif_process");
+  const std::string db = dir.path() + "/jobs.db";
+  std::string name;
+  double progress = 0;
+  {
+    ServerProcess server(dir.path(), db, kOneWorker);
+    auto jobs = v1::Jobs::NewStub(server.channel());
+    auto operations = google::longrunning::Operations::NewStub(server.channel());
+    v1::SubmitOptimumMapRequest submit;
+    *submit.mutable_request() = SixCellMap();
+    Operation op;
+    ASSERT_TRUE(jobs->SubmitOptimumMap(ContextWithDeadline().get(), submit, &op).ok());
+    name = op.name();
+    // Two cells done (progress counts the cells in), not all.
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (std::chrono::steady_clock::now() < give_up && progress < 2.0 / 6) {
+      progress = MetadataOf(GetOperation(*operations, name)).progress();
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    ASSERT_GE(progress, 2.0 / 6);
+    ASSERT_LT(progress, 1.0);
+    server.Kill(SIGKILL);
+  }
+  ServerProcess restarted(dir.path(), db, kOneWorker);
+  auto operations = google::longrunning::Operations::NewStub(restarted.channel());
+  const Operation op = WaitDone(*operations, name);
+  ASSERT_TRUE(op.has_response()) << op.error().message();
+  EXPECT_EQ(MetadataOf(op).attempts(), 2);
+  v1::OptimumMapResult served;
+  ASSERT_TRUE(op.response().UnpackTo(&served));
+  EXPECT_EQ(served.status(), "COMPLETED") << served.message();
+  std::printf("killed at progress %.2f; %lld of 6 cells resumed\n", progress,
+              static_cast<long long>(served.cells_resumed()));
+  EXPECT_GE(served.cells_resumed(), static_cast<int64_t>(progress * 6 + 1e-9));
+  EXPECT_LT(served.cells_resumed(), 6);
+  ASSERT_EQ(served.cells_size(), 6);
+  const StatusOr<v1::OptimumMapResult> direct = jobs::RunOptimumMap(SixCellMap());
+  ASSERT_TRUE(direct.ok());
+  for (const v1::OptimumMapCell& cell : served.cells()) {
+    const auto same = std::find_if(direct->cells().begin(), direct->cells().end(),
+                                   [&](const auto& c) { return c.index(0) == cell.index(0); });
+    ASSERT_NE(same, direct->cells().end());
+    EXPECT_EQ(cell.optimum().params().SerializeAsString(),
+              same->optimum().params().SerializeAsString());
+    EXPECT_EQ(cell.optimum().rop(), same->optimum().rop());
+  }
 }
 
 }  // namespace
