@@ -1100,7 +1100,7 @@ int Main(int argc, char** argv) {
                    "Only jobs in this state: QUEUED, RUNNING, SUCCEEDED, FAILED, CANCELLED")
       ->check(CLI::IsMember({"QUEUED", "RUNNING", "SUCCEEDED", "FAILED", "CANCELLED"}));
   jobs_list->add_option("--kind", jf.list.kind, "Only jobs of this kind, e.g. sweep")
-      ->check(CLI::IsMember({"simulate", "sweep", "continue", "trace", "optimum"}));
+      ->check(CLI::IsMember({"simulate", "sweep", "continue", "trace", "optimum", "optimum-map"}));
   jobs_list->add_option("--page-size", jf.list.page_size, "Jobs per page (0: the server's 50)")
       ->check(CLI::Range(0, 1000));
   jobs_list->add_option("--page-token", jf.list.page_token, "Token of the page to list");

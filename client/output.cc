@@ -836,14 +836,14 @@ class OptimumCsv final : public PageFormat {
   Status End(std::string*, const TextSink&) override { return Status::Ok(); }
 };
 
-// Optimum map CSV: a row per cell (in the order the cells finished): the conditions, the cell's
-// status, the optimum's parameters, ROP and margin. The counts go in the trailer.
+// Optimum map CSV: a row per cell (in the order the cells finished): the conditions
+// ("condition_b", ...), the cell's status, the optimum's parameters, ROP and margin. The counts go in the trailer.
 class OptimumMapCsv final : public PageFormat {
  public:
   Status Begin(const Message& summary, std::string* out) override {
     summary_ = static_cast<const v1::OptimumMapResult&>(summary);
     AppendStatus(summary_.status(), summary_.message(), out);
-    for (const std::string& name : summary_.over()) out->append(name + ",");
+    for (const std::string& name : summary_.over()) out->append("condition_" + name + ",");
     out->append("status,a,b,omega,xi,g,phi0,rop,margin1,margin2,signature\n");
     return Status::Ok();
   }

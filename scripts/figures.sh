@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates the example figures of the README (docs/figures/*.png) with drillctl --local and
+# Regenerates the example figures of the docs (docs/figures/*.png; docs/guide.md, README.md) with drillctl --local and
 # drillctl plot (needs gnuplot: scripts/setup.sh installs it). About 5 s. Usage:
 #   scripts/figures.sh [BUILD_DIR]     (default: build)
 set -euo pipefail
