@@ -125,16 +125,36 @@ export function recordProblems(page) {
   return messages;
 }
 
-/** Opens the dashboard with `token` in the tab's sessionStorage (none: no token). */
-export async function openDashboard(browser, url, token) {
+/**
+ * Opens the dashboard with `token` in the tab's sessionStorage (none: no token). `requests`
+ * lists every request the page made, from the start ({method, path, body}). With `openapi`
+ * ({status, body}), the page's GET /openapi.json is answered with it instead of the server's.
+ */
+export async function openDashboard(browser, url, token, {openapi} = {}) {
   const context = await browser.createBrowserContext();
   const page = await context.newPage();
   const problems = recordProblems(page);
+  const requests = [];
+  page.on('request', (request) => {
+    const {pathname, search} = new URL(request.url());
+    requests.push({method: request.method(), path: pathname + search, body: request.postData()});
+  });
+  if (openapi) {
+    await page.setRequestInterception(true);
+    page.on('request', (request) => {
+      if (new URL(request.url()).pathname === '/openapi.json') {
+        request.respond({status: openapi.status, contentType: 'application/json',
+          body: openapi.body});
+      } else {
+        request.continue();
+      }
+    });
+  }
   if (token) {
     await page.evaluateOnNewDocument((t) => sessionStorage.setItem('drillbif.token', t), token);
   }
   const response = await page.goto(`${url}/`, {waitUntil: 'networkidle0'});
-  return {context, page, problems, response};
+  return {context, page, problems, requests, response};
 }
 
 /** Submits the form of `kind` with `values` (field path -> value) typed over its defaults. */
