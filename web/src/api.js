@@ -188,7 +188,9 @@ export class ApiDescription {
     this.operations = new Map();
     for (const [path, item] of Object.entries(document.paths ?? {})) {
       for (const [method, operation] of Object.entries(item)) {
-        if (operation?.operationId) this.operations.set(operation.operationId, {method, path, operation});
+        if (operation?.operationId) {
+          this.operations.set(operation.operationId, {method, path, operation});
+        }
       }
     }
     // The kinds: every Submit* operation (POST, a path without parameters), named by its
@@ -270,6 +272,7 @@ export async function loadDescription() {
   try {
     return new ApiDescription(await response.json());
   } catch (e) {
-    throw new ApiError(response.status, 'INTERNAL', `/openapi.json is not a usable API description (${e.message})`);
+    throw new ApiError(response.status, 'INTERNAL',
+        `/openapi.json is not a usable API description (${e.message})`);
   }
 }

@@ -209,7 +209,7 @@ function summaryOf(kind, result) {
       `${(result.codim2Points ?? []).length} codimension-2 points`);
   } else if (kind === 'optimum' && !result.message && result.params) {
     parts.push(`ROP ${Number(result.rop ?? 0).toPrecision(5)} at ${JSON.stringify(result.params)}`);
-  } else if (kind === 'optimumMap') {
+  } else if (kind === 'optimumMap' && !result.message) {
     // int64 counters are JSON strings.
     parts.push(`${(result.cells ?? []).length} cells over ${(result.over ?? []).join(', ')}: ` +
       `${Number(result.cellsFound ?? 0)} found, ${Number(result.cellsNotFound ?? 0)} not found, ` +
@@ -226,6 +226,7 @@ async function showResult(name) {
   $('result-name').textContent = shortName(name);
   $('result-summary').textContent = 'loading...';
   $('result-controls').replaceChildren();
+  $('result-panel').replaceChildren();
   const container = $('plot');
   plots.clearPlot(container);
   try {
@@ -283,6 +284,12 @@ function optimumAt(optimum, over, values) {
   return {...optimum, trace: {...(optimum.trace ?? {}), params}};
 }
 
+// A condition value as a person reads it: 0.145, not 0.14500000000000002.
+function short(value) {
+  return String(Number(Number(value).toPrecision(10)));
+}
+
+// The rows of the answer table of a QueryOptimumResponse at condition values `values`.
 function answerRows(answer, over, values) {
   const rows = [];
   const {optimum = {}, fromMap} = answer;
@@ -296,7 +303,7 @@ function answerRows(answer, over, values) {
     tr.append(th, td);
     rows.push(tr);
   };
-  row('asked', over.map((c, i) => `${c} = ${values[i]}`).join(', '), 'map-answer-asked');
+  row('asked', over.map((c, i) => `${c} = ${short(values[i])}`).join(', '), 'map-answer-asked');
   row('status', optimum.status ?? '(none)', 'map-answer-status');
   if (fromMap) {
     row('verified', fromMap.verified ? 'yes' : 'no', 'map-answer-verified');
@@ -313,7 +320,7 @@ function answerRows(answer, over, values) {
   if (optimum.signature) row('signature', optimum.signature);
   if (fromMap) {
     row('cells used', (fromMap.cells ?? []).map((c) =>
-      `[${(c.index ?? []).join(', ')}] at ${(c.condition ?? []).join(', ')} (weight ` +
+      `[${(c.index ?? []).join(', ')}] at ${(c.condition ?? []).map(short).join(', ')} (weight ` +
       `${Number(c.weight ?? 0).toFixed(3)})`).join('; '), 'map-answer-cells');
     row('largest multiplier', Number(fromMap.maxMultiplier ?? 0).toPrecision(4));
   }
@@ -326,7 +333,7 @@ function answerRows(answer, over, values) {
  * at those values; the answer is listed and marked on the map's plot.
  */
 function showMapQuery(name, result, request) {
-  const controls = $('result-controls');
+  const controls = $('result-panel');
   const over = result.over ?? [];
   const panel = document.createElement('div');
   panel.id = 'map-query';
@@ -340,8 +347,9 @@ function showMapQuery(name, result, request) {
     const from = result.from[i];
     const to = result.to[i];
     const steps = result.steps[i];
-    // Halfway between the first two cells: an answer interpolated between neighbours.
-    const start = from + 0.5 * (to - from) / (steps - 1);
+    // Halfway between the first two cells: an answer interpolated between neighbours (rounded:
+    // 0.1425, not 0.14250000000000002).
+    const start = Number((from + 0.5 * (to - from) / (steps - 1)).toPrecision(6));
     const slider = document.createElement('input');
     slider.type = 'range';
     slider.min = String(from);

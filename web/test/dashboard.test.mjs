@@ -228,6 +228,39 @@ test('a query between two cells shows the verified answer QueryOptimum gives and
       assert.equal(marker.drawn, 1);
     });
 
+test('map cells without an optimum are gaps and crosses; two conditions give one square per cell',
+    async () => {
+      const {page} = session;
+      // The map above, drawn again by plots.js with its third cell made NOT_FOUND and its
+      // fourth FAILED: what a map of a harder box gives, without computing one.
+      const map = await wholeResult(mapName);
+      const cells = [...map.cells].sort((p, q) => p.index[0] - q.index[0]);
+      cells[2].optimum.status = 'NOT_FOUND';
+      cells[3].optimum.status = 'FAILED';
+      const draw = (result) => page.evaluate(async (r, request) => {
+        const plots = await import('/plots.js');
+        plots.plotOptimumMap(document.querySelector('#plot'), r, request, null);
+      }, result, mapRequest);
+      await draw({...map, cells});
+      let chart = await chartContents(page);
+      assert.equal(chart.datasets.find((d) => d.label === 'ROP').drawn, 3);
+      const missing = chart.datasets.find((d) => d.label === 'optimum not found / failed');
+      assert.equal(missing.points, 2);
+      assert.equal(missing.drawn, 2);
+      assert.equal(missing.first.x, cells[2].condition[0]);
+      // Two conditions (b and a made-up second one): a square per found cell, a cross per other.
+      const twoD = cells.map((c, k) => ({...c, index: [k % 3, Math.floor(k / 3)],
+        condition: [c.condition[0], 0.04 + 0.01 * Math.floor(k / 3)]}));
+      await draw({...map, over: ['b', 'xi'], from: [0.14, 0.04], to: [0.16, 0.05], steps: [3, 2],
+        cells: twoD});
+      chart = await chartContents(page);
+      assert.equal(chart.datasets[0].drawn, 3);
+      assert.deepEqual(chart.datasets[0].first, {x: twoD[0].condition[0], y: 0.04});
+      assert.equal(chart.datasets[1].drawn, 2);
+      // The map's own plot again (the tests after this one plot other kinds).
+      await draw(map);
+    });
+
 test('a simulation\'s trajectory and a sweep\'s samples are plotted', async () => {
   const {page} = session;
   await submitForm(page, 'simulate');

@@ -171,7 +171,7 @@ export async function submitForm(page, kind, values = {}) {
 /**
  * What the chart on display holds (Chart.getChart on the plot's canvas): per dataset its label,
  * number of points, dash, first point, and how many of its points were laid out at finite pixels
- * inside the chart area (what was drawn).
+ * inside the chart area and not skipped (what was drawn).
  */
 export async function chartContents(page) {
   return page.evaluate(() => {
@@ -188,7 +188,8 @@ export async function chartContents(page) {
         points: dataset.data.length,
         dashed: (dataset.borderDash ?? []).length > 0,
         first: dataset.data[0] ? {x: dataset.data[0].x, y: dataset.data[0].y} : null,
-        drawn: chart.getDatasetMeta(i).data.filter((e) => Number.isFinite(e.x) &&
+        // A point whose value is null (a gap in its line) is laid out but marked skip.
+        drawn: chart.getDatasetMeta(i).data.filter((e) => !e.skip && Number.isFinite(e.x) &&
             Number.isFinite(e.y) && e.x >= area.left - 1 && e.x <= area.right + 1 &&
             e.y >= area.top - 1 && e.y <= area.bottom + 1).length,
       })),
