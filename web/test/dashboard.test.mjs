@@ -400,6 +400,25 @@ test('the submit route is the document\'s: a trace goes where /openapi.json says
   await context.close();
 });
 
+test('a kind the page has no form for is submitted from a JSON box to the document\'s route',
+    async () => {
+      // SubmitTrace renamed: a kind "trace-by-hand" the page does not know, at /v1/jobs:trace.
+      const {document} = await documentKinds();
+      document.paths['/v1/jobs:trace'].post.operationId = 'SubmitTraceByHand';
+      const {page, requests, context} = await openDashboard(browser, server.url, TOKEN,
+          {openapi: {status: 200, body: JSON.stringify(document)}});
+      const tabs = await page.$$eval('#kind-tabs button', (b) => b.map((e) => e.dataset.kind));
+      assert.ok(tabs.includes('trace-by-hand') && !tabs.includes('trace'), tabs.join(' '));
+      const request = {params: {a: 0.3, b: 0.15, omega: 0.1}, traceParams: ['omega', 'a'],
+        min: [0.05, 0.27], max: [0.2, 0.32]};
+      await submitForm(page, 'trace-by-hand', {request: JSON.stringify(request)});
+      const name = await submittedOperation(page);
+      assert.deepEqual(JSON.parse(requests.findLast((r) => r.method === 'POST').body),
+          {request});
+      assert.equal((await server.call(`/v1/${name}`)).metadata.kind, 'TRACE');
+      await context.close();
+    });
+
 test('when /openapi.json fails the page says so and offers no form', async () => {
   const {page, problems, context} = await openDashboard(browser, server.url, TOKEN,
       {openapi: {status: 503, body: '{"code": "UNAVAILABLE", "message": "shutting down"}'}});
