@@ -7,14 +7,16 @@
 //     node web/test/dashboard.test.mjs
 //
 // Registered with CTest as dashboard_browser_test (web/CMakeLists.txt). The jobs are small
-// (the trace box omega in [0.05, 0.2], a in [0.27, 0.32] takes well under a second).
+// (the trace box omega in [0.05, 0.2], a in [0.27, 0.32] takes well under a second; the optimum
+// map of 5 cells a few seconds).
 import assert from 'node:assert/strict';
 import {after, before, test} from 'node:test';
 
 import {chartContents, launchBrowser, openDashboard, Server, submitForm, TOKEN} from './harness.mjs';
 
 // How long a small job may take from submit to plot on a loaded 2-core machine: the jobs take
-// well under a second alone, so 30 s only bounds a hang.
+// at most a few seconds alone (the optimum map's 5 cells the longest, 2 to 4 s), so 30 s only
+// bounds a hang.
 const JOB_TIMEOUT_MS = 30000;
 
 let server;
