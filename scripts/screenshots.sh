@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Saves screenshots of the dashboard into docs/figures/dashboard-*.png: starts drillbif-server
 # (build/server/drillbif-server) on free ports with a temporary store and a token, submits a
-# trace, a continuation, an optimum, a simulation and a sweep from the page's forms in headless
-# Chromium (puppeteer-core from build/web, as the browser tests), and captures each plot and the
-# whole page. Needs a build (scripts/build.sh); takes about half a minute.
+# trace, a continuation, an optimum, an optimum map (queried from its panel), a simulation and a
+# sweep from the page's forms in headless Chromium (puppeteer-core from build/web, as the browser
+# tests), and captures each plot and the whole page. Needs a build (scripts/build.sh); takes about half a minute.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -90,14 +90,18 @@ export async function listOperations({pageSize = 100, maxPages = 20} = {}) {
   return {operations, truncated: true};
 }
 
-// The paged fields of each result (GetResultRequest): their items are split over the pages.
+// The paged fields of each result (GetResultRequest's comment: the document describes the
+// fields, not which of them are split over the pages). A kind missing here is read whole.
 const PAGED = {
   simulate: ['poincare', 'events', 'periodModes', 'trajectory'],
   sweep: ['up', 'down'],
   continue: ['points'],
   trace: ['curves'],
   optimum: [],
+  optimumMap: ['cells'],
 };
+// The fields of a GetResultResponse that are not its result (its oneof holds the result).
+const RESULT_ENVELOPE = new Set(['name', 'totalPoints', 'nextPageToken']);
 
 /**
  * The whole result of a SUCCEEDED operation (GET :result, following next_page_token and
@@ -111,13 +115,13 @@ export async function getResult(name) {
     const query = new URLSearchParams();
     if (pageToken) query.set('page_token', pageToken);
     const page = await call(`/v1/${name}:result?${query}`);
-    const pageKind = Object.keys(PAGED).find((k) => k in page);
-    if (pageKind === undefined) throw new ApiError(200, 'UNKNOWN', `${name}: result of no known kind`);
+    const pageKind = Object.keys(page).find((k) => !RESULT_ENVELOPE.has(k));
+    if (pageKind === undefined) throw new ApiError(200, 'UNKNOWN', `${name}: a result of no kind`);
     if (result === null) {
       kind = pageKind;
       result = page[kind];
     } else {
-      for (const field of PAGED[kind]) {
+      for (const field of PAGED[kind] ?? []) {
         if (page[kind][field]) result[field] = (result[field] ?? []).concat(page[kind][field]);
       }
     }
@@ -169,5 +173,106 @@ export async function watch(name, onMetadata, signal) {
     throw e;
   } finally {
     reader.releaseLock();
+  }
+}
+
+/**
+ * What the page takes from the server's OpenAPI document (GET /openapi.json, open: no token):
+ * the job kinds and their submit routes, the routes of other operations by operationId, and
+ * the schemas of request fields (enum values, parameter names).
+ */
+export class ApiDescription {
+  constructor(document) {
+    this.document = document;
+    // operationId -> {method, path, operation}
+    this.operations = new Map();
+    for (const [path, item] of Object.entries(document.paths ?? {})) {
+      for (const [method, operation] of Object.entries(item)) {
+        if (operation?.operationId) {
+          this.operations.set(operation.operationId, {method, path, operation});
+        }
+      }
+    }
+    // The kinds: every Submit* operation (POST, a path without parameters), named by its
+    // operationId ("SubmitOptimumMap" -> "optimum-map"), in the document's order. The route is
+    // the operation's path, whatever it is.
+    this.kinds = new Map();  // kind -> {route, operationId}
+    for (const [operationId, {method, path}] of this.operations) {
+      const match = /^Submit([A-Z][A-Za-z0-9]*)$/.exec(operationId);
+      if (method === 'post' && match && !path.includes('{')) {
+        const kind = match[1].replace(/(?<!^)([A-Z])/g, '-$1').toLowerCase();
+        this.kinds.set(kind, {route: path, operationId});
+      }
+    }
+    if (this.kinds.size === 0) throw new Error('/openapi.json: no Submit operation');
+  }
+
+  /** The path of the operation `operationId` (a literal path: no path parameter). */
+  route(operationId) {
+    const found = this.operations.get(operationId);
+    if (!found) throw new Error(`/openapi.json: no operation ${operationId}`);
+    return found.path;
+  }
+
+  // The schema `schema` stands for: $ref followed, a described reference's allOf unwrapped.
+  resolve(schema) {
+    let node = schema;
+    for (let hops = 0; node && hops < 16; ++hops) {
+      if (node.$ref) {
+        const name = node.$ref.replace(/^#\/components\/schemas\//, '');
+        node = this.document.components?.schemas?.[name];
+      } else if (node.allOf?.length === 1) {
+        node = node.allOf[0];
+      } else {
+        return node;
+      }
+    }
+    return node ?? null;
+  }
+
+  /**
+   * The schema of the field at `path` ("request.trace.curveSteps") of the body of the submit
+   * operation of `kind` (an array's items for a repeated field), or null when there is none.
+   */
+  fieldSchema(kind, path) {
+    const route = this.kinds.get(kind)?.route;
+    const body = this.document.paths?.[route]?.post?.requestBody;
+    let node = this.resolve(body?.content?.['application/json']?.schema);
+    for (const key of path.split('.')) {
+      node = this.resolve(node?.properties?.[key]);
+      if (node?.type === 'array') node = this.resolve(node.items);
+    }
+    return node ?? null;
+  }
+
+  /** The values of an enum field, without its *_UNSPECIFIED (unset: the server's default). */
+  enumValues(kind, path) {
+    return (this.fieldSchema(kind, path)?.enum ?? []).filter((v) => !v.endsWith('_UNSPECIFIED'));
+  }
+
+  /** The fields' (JSON) names of the message schema `name` ("drillbif.v1.ModelParams"). */
+  fieldsOf(name) {
+    return Object.keys(this.document.components?.schemas?.[name]?.properties ?? {});
+  }
+}
+
+/** Loads /openapi.json: an ApiDescription, or throws ApiError (the page cannot work without). */
+export async function loadDescription() {
+  let response;
+  try {
+    response = await fetch('/openapi.json');
+  } catch (e) {
+    throw new ApiError(0, 'UNAVAILABLE', `/openapi.json cannot be loaded (${e.message})`);
+  }
+  if (!response.ok) {
+    const error = await errorOf(response);
+    error.message = `/openapi.json: ${error.message}`;
+    throw error;
+  }
+  try {
+    return new ApiDescription(await response.json());
+  } catch (e) {
+    throw new ApiError(response.status, 'INTERNAL',
+        `/openapi.json is not a usable API description (${e.message})`);
   }
 }

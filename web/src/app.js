@@ -1,7 +1,8 @@
 // The dashboard: token, submit forms, the job list with live progress, and the plot of a
-// finished job's result. Everything goes through the REST API (api.js).
+// finished job's result, with a query panel on an optimum map. Everything goes through the REST
+// API (api.js), whose routes and kinds come from the server's /openapi.json at load.
 import * as api from './api.js';
-import {FORMS, readForm, renderForm} from './forms.js';
+import {readForm, renderForm} from './forms.js';
 import * as plots from './plots.js';
 
 const $ = (id) => document.getElementById(id);
@@ -18,6 +19,7 @@ const REFRESH_MS = 5000;
 const requests = JSON.parse(sessionStorage.getItem(REQUESTS_KEY) ?? '{}');
 const jobs = new Map();  // operation name -> {operation, row, watch: AbortController}
 let kind = 'trace';
+let description = null;  // api.ApiDescription: the kinds and routes, once /openapi.json loaded
 let shown = null;  // the operation whose result is on display
 let pendingPlot = null;  // the operation submitted last: plotted when it succeeds
 
@@ -207,6 +209,11 @@ function summaryOf(kind, result) {
       `${(result.codim2Points ?? []).length} codimension-2 points`);
   } else if (kind === 'optimum' && !result.message && result.params) {
     parts.push(`ROP ${Number(result.rop ?? 0).toPrecision(5)} at ${JSON.stringify(result.params)}`);
+  } else if (kind === 'optimumMap' && !result.message) {
+    // int64 counters are JSON strings.
+    parts.push(`${(result.cells ?? []).length} cells over ${(result.over ?? []).join(', ')}: ` +
+      `${Number(result.cellsFound ?? 0)} found, ${Number(result.cellsNotFound ?? 0)} not found, ` +
+      `${Number(result.cellsFailed ?? 0)} failed`);
   }
   if (result.wallSeconds !== undefined) parts.push(`${result.wallSeconds.toFixed(2)} s`);
   return parts.join(' · ');
@@ -219,6 +226,7 @@ async function showResult(name) {
   $('result-name').textContent = shortName(name);
   $('result-summary').textContent = 'loading...';
   $('result-controls').replaceChildren();
+  $('result-panel').replaceChildren();
   const container = $('plot');
   plots.clearPlot(container);
   try {
@@ -252,12 +260,153 @@ async function showResult(name) {
       case 'sweep':
         plots.plotSweep(container, result, request);
         break;
+      case 'optimumMap':
+        plots.plotOptimumMap(container, result, request, null);
+        showMapQuery(name, result, request);
+        break;
     }
     showApiError(null);
   } catch (error) {
     $('result-summary').textContent = '';
     showApiError(error);
   }
+}
+
+// --- Optimum map queries -------------------------------------------------------------------------
+
+// The optimum request of a map (OptimumMapRequest.optimum) at condition values `values` (one per
+// condition of `over`): what QueryOptimum answers from the map.
+function optimumAt(optimum, over, values) {
+  const params = {...(optimum.trace?.params ?? {})};
+  over.forEach((condition, i) => {
+    params[condition] = values[i];
+  });
+  return {...optimum, trace: {...(optimum.trace ?? {}), params}};
+}
+
+// A condition value as a person reads it: 0.145, not 0.14500000000000002.
+function short(value) {
+  return String(Number(Number(value).toPrecision(10)));
+}
+
+// The rows of the answer table of a QueryOptimumResponse at condition values `values`.
+function answerRows(answer, over, values) {
+  const rows = [];
+  const {optimum = {}, fromMap} = answer;
+  const row = (label, text, id) => {
+    const tr = document.createElement('tr');
+    const th = document.createElement('th');
+    th.textContent = label;
+    const td = document.createElement('td');
+    td.textContent = text;
+    if (id) td.id = id;
+    tr.append(th, td);
+    rows.push(tr);
+  };
+  row('asked', over.map((c, i) => `${c} = ${short(values[i])}`).join(', '), 'map-answer-asked');
+  row('status', optimum.status ?? '(none)', 'map-answer-status');
+  if (fromMap) {
+    row('verified', fromMap.verified ? 'yes' : 'no', 'map-answer-verified');
+    row('verification', fromMap.verification ?? '', 'map-answer-verification');
+    row('interpolated', fromMap.interpolated ? 'yes' : 'no (the nearest cell)');
+  } else {
+    row('from map', 'no (a stored or computed optimum)', 'map-answer-verified');
+  }
+  row('ROP', Number(optimum.rop ?? 0).toPrecision(6), 'map-answer-rop');
+  const params = optimum.params ?? {};
+  row('params', Object.entries(params).map(([k, v]) => `${k} = ${Number(v).toPrecision(6)}`)
+      .join(', '), 'map-answer-params');
+  if (optimum.margin) row('margin', optimum.margin.map((m) => m.toPrecision(4)).join(', '));
+  if (optimum.signature) row('signature', optimum.signature);
+  if (fromMap) {
+    row('cells used', (fromMap.cells ?? []).map((c) =>
+      `[${(c.index ?? []).join(', ')}] at ${(c.condition ?? []).map(short).join(', ')} (weight ` +
+      `${Number(c.weight ?? 0).toFixed(3)})`).join('; '), 'map-answer-cells');
+    row('largest multiplier', Number(fromMap.maxMultiplier ?? 0).toPrecision(4));
+  }
+  return rows;
+}
+
+/**
+ * The query panel of the map `name` on display: a value of each condition within [from, to]
+ * (slider and number kept together), Query -> POST QueryOptimum with the map's optimum request
+ * at those values; the answer is listed and marked on the map's plot.
+ */
+function showMapQuery(name, result, request) {
+  const controls = $('result-panel');
+  const over = result.over ?? [];
+  const panel = document.createElement('div');
+  panel.id = 'map-query';
+  if (!request?.optimum) {
+    panel.textContent = 'Query: this map was not submitted from this tab, so its optimum ' +
+      'request (box, margin, grid) is not known here.';
+    controls.append(panel);
+    return;
+  }
+  const inputs = over.map((condition, i) => {
+    const from = result.from[i];
+    const to = result.to[i];
+    const steps = result.steps[i];
+    // Halfway between the first two cells: an answer interpolated between neighbours (rounded:
+    // 0.1425, not 0.14250000000000002).
+    const start = Number((from + 0.5 * (to - from) / (steps - 1)).toPrecision(6));
+    const slider = document.createElement('input');
+    slider.type = 'range';
+    slider.min = String(from);
+    slider.max = String(to);
+    slider.step = String((to - from) / 1000);
+    slider.value = String(start);
+    slider.id = `map-query-slider-${i}`;
+    const number = document.createElement('input');
+    number.type = 'number';
+    number.min = String(from);
+    number.max = String(to);
+    number.step = 'any';
+    number.value = String(start);
+    number.id = `map-query-value-${i}`;
+    slider.addEventListener('input', () => {
+      number.value = slider.value;
+    });
+    number.addEventListener('input', () => {
+      slider.value = number.value;
+    });
+    const label = document.createElement('label');
+    label.htmlFor = number.id;
+    label.textContent = `${condition} in [${from}, ${to}]`;
+    const row = document.createElement('div');
+    row.className = 'query-condition';
+    row.append(label, slider, number);
+    return {row, number};
+  });
+  const button = document.createElement('button');
+  button.type = 'button';
+  button.id = 'map-query-button';
+  button.textContent = 'Query';
+  const status = document.createElement('span');
+  status.id = 'map-query-status';
+  status.className = 'status';
+  const answer = document.createElement('table');
+  answer.id = 'map-answer';
+  answer.className = 'answer';
+  button.addEventListener('click', async () => {
+    const values = inputs.map(({number}) => Number(number.value));
+    status.textContent = ' querying...';
+    answer.replaceChildren();
+    try {
+      const response = await api.call(description.route('QueryOptimum'), {method: 'POST',
+        body: {request: optimumAt(request.optimum, over, values)}});
+      if (shown !== name) return;
+      status.textContent = '';
+      answer.replaceChildren(...answerRows(response, over, values));
+      plots.plotOptimumMap($('plot'), result, request, {values, answer: response});
+    } catch (error) {
+      status.textContent = ` ${error instanceof api.ApiError ? error.describe() : String(error)}`;
+    }
+  });
+  const heading = document.createElement('h3');
+  heading.textContent = 'Query the map';
+  panel.append(heading, ...inputs.map(({row}) => row), button, status, answer);
+  controls.append(panel);
 }
 
 // --- Submit --------------------------------------------------------------------------------------
@@ -267,19 +416,27 @@ function selectKind(next) {
   for (const button of $('kind-tabs').children) {
     button.setAttribute('aria-selected', String(button.dataset.kind === kind));
   }
-  renderForm(kind, $('job-fields'));
   $('form-error').hidden = true;
   $('form-status').textContent = '';
+  try {
+    renderForm(kind, $('job-fields'), description);
+    $('job-submit').disabled = false;
+  } catch (e) {
+    $('job-fields').replaceChildren();
+    $('job-submit').disabled = true;
+    $('form-error').textContent = String(e.message ?? e);
+    $('form-error').hidden = false;
+  }
 }
 
 async function submit(event) {
   event.preventDefault();
-  const body = readForm(kind, $('job-fields'));
   const error = $('form-error');
   error.hidden = true;
   $('form-status').textContent = 'submitting...';
   try {
-    const operation = await api.call(FORMS[kind].route, {method: 'POST', body});
+    const body = readForm(kind, $('job-fields'));
+    const operation = await api.call(description.kinds.get(kind).route, {method: 'POST', body});
     requests[operation.name] = {kind, request: body.request};
     sessionStorage.setItem(REQUESTS_KEY, JSON.stringify(requests));
     $('form-status').textContent = `submitted ${shortName(operation.name)}`;
@@ -305,8 +462,21 @@ async function submit(event) {
 
 // --- Start ---------------------------------------------------------------------------------------
 
-function start() {
-  for (const name of Object.keys(FORMS)) {
+async function start() {
+  $('token').value = api.token();
+  $('job-submit').disabled = true;
+  plots.clearPlot($('plot'));
+  try {
+    description = await api.loadDescription();
+  } catch (error) {
+    // No made-up routes: without the document the page cannot submit.
+    showApiError(error);
+    $('form-error').textContent = 'The API description (/openapi.json) did not load: ' +
+      'nothing can be submitted. Reload the page when the server answers.';
+    $('form-error').hidden = false;
+    return;
+  }
+  for (const name of description.kinds.keys()) {
     const button = document.createElement('button');
     button.type = 'button';
     button.role = 'tab';
@@ -315,10 +485,9 @@ function start() {
     button.addEventListener('click', () => selectKind(name));
     $('kind-tabs').append(button);
   }
-  selectKind(kind);
+  selectKind(description.kinds.has(kind) ? kind : description.kinds.keys().next().value);
   $('job-form').addEventListener('submit', submit);
   $('jobs-refresh').addEventListener('click', refreshJobs);
-  $('token').value = api.token();
   $('token-form').addEventListener('submit', (event) => {
     event.preventDefault();
     api.setToken($('token').value.trim());
@@ -328,7 +497,6 @@ function start() {
     }
     refreshJobs();
   });
-  plots.clearPlot($('plot'));
   refreshJobs();
 }
 

@@ -67,8 +67,11 @@ function markers(label, points, color, {style = 'circle', radius = 4, labelled =
     pointStyle: style, pointRadius: radius, labelled, legend: true};
 }
 
-/** Draws `datasets` in `container` (its canvas) with axis titles, replacing the last plot. */
-function draw(container, kind, datasets, xTitle, yTitle) {
+/**
+ * Draws `datasets` in `container` (its canvas) with axis titles, replacing the last plot. With
+ * `y2Title`, a second y axis on the right for the datasets whose yAxisID is 'y2'.
+ */
+function draw(container, kind, datasets, xTitle, yTitle, {y2Title} = {}) {
   const canvas = container.querySelector('canvas');
   if (chart) chart.destroy();
   const drawn = datasets.filter((d) => d.data.length > 0);
@@ -82,6 +85,8 @@ function draw(container, kind, datasets, xTitle, yTitle) {
       scales: {
         x: {type: 'linear', title: {display: true, text: xTitle}},
         y: {type: 'linear', title: {display: true, text: yTitle}},
+        ...(y2Title ? {y2: {type: 'linear', position: 'right', grid: {drawOnChartArea: false},
+          title: {display: true, text: y2Title}}} : {}),
       },
       plugins: {
         legend: {
@@ -100,7 +105,9 @@ function draw(container, kind, datasets, xTitle, yTitle) {
   });
   container.dataset.kind = kind;
   container.dataset.series = String(drawn.length);
-  container.dataset.points = String(drawn.reduce((n, d) => n + d.data.length, 0));
+  // Points with a value (a null y is a gap in its line).
+  container.dataset.points = String(drawn.reduce((n, d) => n + d.data.filter(
+      (point) => point.y !== null).length, 0));
 }
 
 // Splits a branch's points into runs of equal stability (each run shares its end point with the
@@ -257,6 +264,89 @@ export function plotSweep(container, result, request) {
     markers('down', samples(result.down), COLORS.unstable,
         {style: 'crossRot', radius: 3, labelled: false}),
   ], request?.param ?? 'parameter', 'p at the Poincare section');
+}
+
+// A colour for `t` in [0, 1] from light yellow (low) to dark blue (high): the ROP of a map of
+// two conditions.
+function heat(t) {
+  const low = [240, 228, 66];
+  const high = [31, 63, 153];
+  const mix = low.map((l, i) => Math.round(l + (high[i] - l) * Math.min(1, Math.max(0, t))));
+  return `rgb(${mix.join(', ')})`;
+}
+
+/**
+ * An OptimumMapResult. One condition: the optimum's ROP (left axis) and its two trace
+ * parameters (right axis) against the condition, one point per cell in condition order; a cell
+ * whose optimum was not found or failed is a gap in the lines and a cross on the ROP axis' lowest
+ * found value, labelled with its status. Two conditions: one square per cell at its two
+ * condition values, coloured by ROP (light low, dark high), crosses where none was found.
+ * `query` ({values, answer}: a QueryOptimum answer at those condition values) is marked with a
+ * star.
+ */
+export function plotOptimumMap(container, result, request, query) {
+  const over = result.over ?? [];
+  const cells = [...(result.cells ?? [])].sort((p, q) => {
+    const [pi, qi] = [p.index ?? [], q.index ?? []];
+    return (pi[0] ?? 0) - (qi[0] ?? 0) || (pi[1] ?? 0) - (qi[1] ?? 0);
+  });
+  const found = (cell) => cell.optimum?.status === 'COMPLETED';
+  const rops = cells.filter(found).map((cell) => Number(cell.optimum.rop ?? 0));
+  const missing = cells.filter((cell) => !found(cell));
+  const statusOf = (cell) => cell.optimum?.status ?? 'FAILED';
+  const answer = query?.answer?.optimum;
+  const traceParams = request?.optimum?.trace?.traceParams?.length === 2 ?
+    request.optimum.trace.traceParams : ['omega', 'a'];
+  if (over.length === 1) {
+    const [condition] = over;
+    const at = (cell) => cell.condition?.[0] ?? 0;
+    const bottom = rops.length ? Math.min(...rops) : 0;
+    const datasets = [
+      {...line('ROP', cells.map((cell) => ({x: at(cell),
+        y: found(cell) ? Number(cell.optimum.rop ?? 0) : null})), COLORS.optimum),
+      pointRadius: 3},
+      ...traceParams.map((param, i) => ({...line(`${param} at the optimum`, cells.map((cell) =>
+        ({x: at(cell), y: found(cell) ? (cell.optimum.params?.[param] ?? 0) : null})),
+      i === 0 ? COLORS.stable : COLORS.period2, {dashed: i === 1}), pointRadius: 3,
+      yAxisID: 'y2'})),
+      markers('optimum not found / failed', missing.map((cell) => ({x: at(cell), y: bottom,
+        label: statusOf(cell)})), COLORS.unstable, {style: 'crossRot', radius: 7}),
+    ];
+    if (answer) {
+      const x = query.values[0];
+      datasets.push(markers('query (ROP)', [{x, y: Number(answer.rop ?? 0),
+        label: `query ROP ${Number(answer.rop ?? 0).toPrecision(4)}`}], COLORS.special,
+      {style: 'star', radius: 10}));
+      datasets.push({...markers('query (trace parameters)', traceParams.map((param) => ({x,
+        y: answer.params?.[param] ?? 0})), COLORS.special, {style: 'star', radius: 8,
+        labelled: false}), yAxisID: 'y2'});
+    }
+    draw(container, 'optimum-map', datasets, condition, 'ROP at the optimum',
+        {y2Title: `optimum's ${traceParams.join(', ')}`});
+    return;
+  }
+  const [c1, c2] = over;
+  const low = rops.length ? Math.min(...rops) : 0;
+  const high = rops.length ? Math.max(...rops) : 1;
+  const points = cells.filter(found).map((cell) => {
+    const rop = Number(cell.optimum.rop ?? 0);
+    return {x: cell.condition?.[0] ?? 0, y: cell.condition?.[1] ?? 0,
+      label: `ROP ${rop.toPrecision(4)}`, color: heat(high > low ? (rop - low) / (high - low) : 1)};
+  });
+  const datasets = [
+    {...markers(`ROP (light ${low.toPrecision(3)} to dark ${high.toPrecision(3)})`, points,
+        COLORS.stable, {style: 'rect', radius: 8, labelled: false}),
+    backgroundColor: points.map((p) => p.color), borderColor: points.map((p) => p.color)},
+    markers('optimum not found / failed', missing.map((cell) => ({x: cell.condition?.[0] ?? 0,
+      y: cell.condition?.[1] ?? 0, label: statusOf(cell)})), COLORS.unstable,
+    {style: 'crossRot', radius: 7, labelled: false}),
+  ];
+  if (answer) {
+    datasets.push(markers('query', [{x: query.values[0], y: query.values[1],
+      label: `ROP ${Number(answer.rop ?? 0).toPrecision(4)}`}], COLORS.special,
+    {style: 'star', radius: 10}));
+  }
+  draw(container, 'optimum-map', datasets, c1, c2);
 }
 
 /** Removes the plot. */

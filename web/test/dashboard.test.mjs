@@ -1,19 +1,22 @@
 // Browser tests of the dashboard (web/src/) served by a real drillbif-server: headless Chromium
-// loads the page, submits jobs from its forms and checks the plots, the job list's live
-// progress, cancel, and the errors a missing token or a bad field gives.
+// loads the page, submits jobs from its forms and checks the plots, an optimum map's plot and
+// query panel, the job list's live progress, cancel, the errors a missing token or a bad field
+// gives, and that the kinds and submit routes come from the server's /openapi.json.
 //
 //   DRILLBIF_SERVER_BINARY=build/server/drillbif-server DRILLBIF_WEB_MODULES=build/web \
 //     node web/test/dashboard.test.mjs
 //
 // Registered with CTest as dashboard_browser_test (web/CMakeLists.txt). The jobs are small
-// (the trace box omega in [0.05, 0.2], a in [0.27, 0.32] takes well under a second).
+// (the trace box omega in [0.05, 0.2], a in [0.27, 0.32] takes well under a second; the optimum
+// map of 5 cells a few seconds).
 import assert from 'node:assert/strict';
 import {after, before, test} from 'node:test';
 
 import {chartContents, launchBrowser, openDashboard, Server, submitForm, TOKEN} from './harness.mjs';
 
 // How long a small job may take from submit to plot on a loaded 2-core machine: the jobs take
-// well under a second alone, so 30 s only bounds a hang.
+// at most a few seconds alone (the optimum map's 5 cells the longest, 2 to 4 s), so 30 s only
+// bounds a hang.
 const JOB_TIMEOUT_MS = 30000;
 
 let server;
@@ -131,6 +134,135 @@ test('an optimum of the traced box is drawn with its margin over the trace\'s cu
       assert.equal(curves.length, optimum.curves);
     });
 
+// The whole result of `name` (every page of :result), as this test reads it itself.
+async function wholeResult(name) {
+  let result = null;
+  let pageToken = '';
+  do {
+    const page = await server.call(`/v1/${name}:result?page_size=1${pageToken ?
+      `&page_token=${encodeURIComponent(pageToken)}` : ''}`);
+    if (result === null) {
+      result = page.optimumMap;
+    } else {
+      result.cells.push(...page.optimumMap.cells);
+    }
+    pageToken = page.nextPageToken ?? '';
+  } while (pageToken);
+  return result;
+}
+
+// The map the form submitted and its request, for the query test below.
+let mapName;
+let mapRequest;
+
+test('an optimum map submitted from the form completes and its plot has one point per cell',
+    async () => {
+      const {page, requests} = session;
+      const started = Date.now();
+      await submitForm(page, 'optimum-map');
+      mapName = await submittedOperation(page);
+      const chart = await waitForPlot(page, 'optimum-map');
+      console.log(`# optimum map: ${Date.now() - started} ms from submit to plot`);
+      mapRequest = JSON.parse(requests.findLast((r) => r.method === 'POST' &&
+        r.path === '/v1/jobs:optimum-map').body).request;
+      // Paged one cell at a time: the page must follow next_page_token to get every cell.
+      const map = await wholeResult(mapName);
+      assert.equal(map.status, 'COMPLETED');
+      assert.deepEqual(map.over, ['b']);
+      assert.equal(map.cells.length, 5);
+      const cells = [...map.cells].sort((p, q) => p.index[0] - q.index[0]);
+      const found = cells.filter((c) => c.optimum.status === 'COMPLETED');
+      assert.ok(found.length >= 1, 'the small box has an optimum at some b');
+      const rop = chart.datasets.find((d) => d.label === 'ROP');
+      // One point per cell in b order; a cell without an optimum is a gap (not laid out).
+      assert.equal(rop.points, cells.length);
+      assert.equal(rop.drawn, found.length);
+      const drawnRop = await page.evaluate(() => globalThis.Chart.getChart(
+          document.querySelector('#plot canvas')).data.datasets[0].data);
+      assert.deepEqual(drawnRop, cells.map((c) => ({x: c.condition[0],
+        y: c.optimum.status === 'COMPLETED' ? c.optimum.rop : null})));
+      for (const param of ['omega', 'a']) {
+        const series = chart.datasets.find((d) => d.label === `${param} at the optimum`);
+        assert.equal(series.drawn, found.length, param);
+      }
+      const missing = chart.datasets.find((d) => d.label === 'optimum not found / failed');
+      assert.equal(missing?.points ?? 0, cells.length - found.length);
+    });
+
+test('a query between two cells shows the verified answer QueryOptimum gives and marks it',
+    async () => {
+      const {page, requests} = session;
+      assert.ok(mapName, 'the map test ran first');
+      // Halfway between the cells at b = 0.145 and 0.15 (the panel's own default is between
+      // the first two): the answer is interpolated from neighbours, not a cell's own.
+      const b = 0.1475;
+      await page.$eval('#map-query-value-0', (input, v) => {
+        input.value = v;
+        input.dispatchEvent(new Event('input'));
+      }, String(b));
+      assert.equal(Number(await page.$eval('#map-query-slider-0', (e) => e.value)), b);
+      await page.click('#map-query-button');
+      await page.waitForSelector('#map-answer-rop', {timeout: JOB_TIMEOUT_MS});
+      // The same query made here: the map's optimum request with b set.
+      const optimum = structuredClone(mapRequest.optimum);
+      optimum.trace.params.b = b;
+      const sent = JSON.parse(requests.findLast((r) => r.method === 'POST' &&
+        r.path === '/v1/optimum:query').body);
+      assert.deepEqual(sent, {request: optimum});
+      const answer = await server.call('/v1/optimum:query', {method: 'POST',
+        body: {request: optimum}});
+      assert.equal(answer.operation, mapName);
+      assert.equal(answer.fromMap.verified, true, answer.fromMap.verification);
+      const text = async (id) => page.$eval(`#${id}`, (e) => e.textContent);
+      assert.equal(await text('map-answer-verified'), 'yes');
+      assert.equal(await text('map-answer-verification'), answer.fromMap.verification);
+      assert.equal(await text('map-answer-rop'), answer.optimum.rop.toPrecision(6));
+      assert.match(await text('map-answer-params'),
+          new RegExp(`omega = ${answer.optimum.params.omega.toPrecision(6)}.*` +
+          `a = ${answer.optimum.params.a.toPrecision(6)}|a = ${answer.optimum.params.a
+              .toPrecision(6)}.*omega = ${answer.optimum.params.omega.toPrecision(6)}`));
+      const cellsText = await text('map-answer-cells');
+      assert.equal(cellsText.split('; ').length, answer.fromMap.cells.length);
+      for (const cell of answer.fromMap.cells) assert.ok(cellsText.includes(`[${cell.index[0]}]`));
+      const chart = await chartContents(page);
+      const marker = chart.datasets.find((d) => d.label === 'query (ROP)');
+      assert.deepEqual(marker.first, {x: b, y: answer.optimum.rop});
+      assert.equal(marker.drawn, 1);
+    });
+
+test('map cells without an optimum are gaps and crosses; two conditions give one square per cell',
+    async () => {
+      const {page} = session;
+      // The map above, drawn again by plots.js with its third cell made NOT_FOUND and its
+      // fourth FAILED: what a map of a harder box gives, without computing one.
+      const map = await wholeResult(mapName);
+      const cells = [...map.cells].sort((p, q) => p.index[0] - q.index[0]);
+      cells[2].optimum.status = 'NOT_FOUND';
+      cells[3].optimum.status = 'FAILED';
+      const draw = (result) => page.evaluate(async (r, request) => {
+        const plots = await import('/plots.js');
+        plots.plotOptimumMap(document.querySelector('#plot'), r, request, null);
+      }, result, mapRequest);
+      await draw({...map, cells});
+      let chart = await chartContents(page);
+      assert.equal(chart.datasets.find((d) => d.label === 'ROP').drawn, 3);
+      const missing = chart.datasets.find((d) => d.label === 'optimum not found / failed');
+      assert.equal(missing.points, 2);
+      assert.equal(missing.drawn, 2);
+      assert.equal(missing.first.x, cells[2].condition[0]);
+      // Two conditions (b and a made-up second one): a square per found cell, a cross per other.
+      const twoD = cells.map((c, k) => ({...c, index: [k % 3, Math.floor(k / 3)],
+        condition: [c.condition[0], 0.04 + 0.01 * Math.floor(k / 3)]}));
+      await draw({...map, over: ['b', 'xi'], from: [0.14, 0.04], to: [0.16, 0.05], steps: [3, 2],
+        cells: twoD});
+      chart = await chartContents(page);
+      assert.equal(chart.datasets[0].drawn, 3);
+      assert.deepEqual(chart.datasets[0].first, {x: twoD[0].condition[0], y: 0.04});
+      assert.equal(chart.datasets[1].drawn, 2);
+      // The map's own plot again (the tests after this one plot other kinds).
+      await draw(map);
+    });
+
 test('a simulation\'s trajectory and a sweep\'s samples are plotted', async () => {
   const {page} = session;
   await submitForm(page, 'simulate');
@@ -224,6 +356,85 @@ test('with more live jobs than streams the page still answers, and the list catc
       console.log(`# at most ${mostOpen} watch streams open at once`);
       assert.ok(mostOpen >= 1 && mostOpen <= 3, `${mostOpen} watch streams at once`);
     });
+
+// The kinds the document lists: its Submit* operations, "SubmitOptimumMap" -> "optimum-map".
+async function documentKinds() {
+  const document = await (await fetch(`${server.url}/openapi.json`)).json();
+  const kinds = new Map();
+  for (const [path, item] of Object.entries(document.paths)) {
+    const id = item.post?.operationId ?? '';
+    if (id.startsWith('Submit')) {
+      kinds.set(id.slice(6).replace(/(?<!^)([A-Z])/g, '-$1').toLowerCase(), path);
+    }
+  }
+  return {document, kinds};
+}
+
+test('the page read /openapi.json and every submit went to its Submit operation\'s path',
+    async () => {
+      const {page, requests} = session;
+      assert.ok(requests.some((r) => r.method === 'GET' && r.path === '/openapi.json'));
+      const {kinds} = await documentKinds();
+      assert.ok(kinds.size >= 6, 'simulate, sweep, continue, trace, optimum, optimum-map');
+      const tabs = await page.$$eval('#kind-tabs button', (buttons) =>
+        buttons.map((b) => b.dataset.kind));
+      assert.deepEqual(tabs, [...kinds.keys()]);
+      const submits = requests.filter((r) => r.method === 'POST' && r.path.startsWith('/v1/jobs'));
+      assert.ok(submits.length >= 6);
+      const routes = new Set(kinds.values());
+      for (const r of submits) assert.ok(routes.has(r.path), r.path);
+    });
+
+test('the submit route is the document\'s: a trace goes where /openapi.json says', async () => {
+  // The server's document with SubmitTrace moved to a path the server does not serve: the page
+  // posts there (and shows the 404), so the route cannot be built in.
+  const {document} = await documentKinds();
+  document.paths['/v1/jobs:trace-moved'] = document.paths['/v1/jobs:trace'];
+  delete document.paths['/v1/jobs:trace'];
+  const {page, requests, context} = await openDashboard(browser, server.url, TOKEN,
+      {openapi: {status: 200, body: JSON.stringify(document)}});
+  await submitForm(page, 'trace');
+  await page.waitForFunction(() => !document.querySelector('#form-error').hidden,
+      {timeout: JOB_TIMEOUT_MS});
+  assert.match(await page.$eval('#form-error', (e) => e.textContent), /^404 NOT_FOUND/);
+  const posts = requests.filter((r) => r.method === 'POST').map((r) => r.path);
+  assert.deepEqual(posts, ['/v1/jobs:trace-moved']);
+  await context.close();
+});
+
+test('a kind the page has no form for is submitted from a JSON box to the document\'s route',
+    async () => {
+      // SubmitTrace renamed: a kind "trace-by-hand" the page does not know, at /v1/jobs:trace.
+      const {document} = await documentKinds();
+      document.paths['/v1/jobs:trace'].post.operationId = 'SubmitTraceByHand';
+      const {page, requests, context} = await openDashboard(browser, server.url, TOKEN,
+          {openapi: {status: 200, body: JSON.stringify(document)}});
+      const tabs = await page.$$eval('#kind-tabs button', (b) => b.map((e) => e.dataset.kind));
+      assert.ok(tabs.includes('trace-by-hand') && !tabs.includes('trace'), tabs.join(' '));
+      const request = {params: {a: 0.3, b: 0.15, omega: 0.1}, traceParams: ['omega', 'a'],
+        min: [0.05, 0.27], max: [0.2, 0.32]};
+      await submitForm(page, 'trace-by-hand', {request: JSON.stringify(request)});
+      const name = await submittedOperation(page);
+      assert.deepEqual(JSON.parse(requests.findLast((r) => r.method === 'POST').body),
+          {request});
+      assert.equal((await server.call(`/v1/${name}`)).metadata.kind, 'TRACE');
+      await context.close();
+    });
+
+test('when /openapi.json fails the page says so and offers no form', async () => {
+  const {page, problems, context} = await openDashboard(browser, server.url, TOKEN,
+      {openapi: {status: 503, body: '{"code": "UNAVAILABLE", "message": "shutting down"}'}});
+  await page.waitForFunction(() => !document.querySelector('#api-error').hidden,
+      {timeout: JOB_TIMEOUT_MS});
+  assert.equal(await page.$eval('#api-error', (e) => e.textContent),
+      '503 UNAVAILABLE: /openapi.json: shutting down');
+  assert.equal(await page.$$eval('#kind-tabs button', (b) => b.length), 0);
+  assert.equal(await page.$eval('#job-submit', (e) => e.disabled), true);
+  assert.match(await page.$eval('#form-error', (e) => e.textContent), /openapi\.json/);
+  // Chromium logs the refused document as a failed resource; nothing else may appear.
+  assert.deepEqual(problems.filter((p) => !/status of 503/.test(p)), []);
+  await context.close();
+});
 
 test('the session with the token logged no console error or warning', () => {
   // Chromium logs the refused submit of the invalid field as a failed resource (400): that one,

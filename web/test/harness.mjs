@@ -125,16 +125,36 @@ export function recordProblems(page) {
   return messages;
 }
 
-/** Opens the dashboard with `token` in the tab's sessionStorage (none: no token). */
-export async function openDashboard(browser, url, token) {
+/**
+ * Opens the dashboard with `token` in the tab's sessionStorage (none: no token). `requests`
+ * lists every request the page made, from the start ({method, path, body}). With `openapi`
+ * ({status, body}), the page's GET /openapi.json is answered with it instead of the server's.
+ */
+export async function openDashboard(browser, url, token, {openapi} = {}) {
   const context = await browser.createBrowserContext();
   const page = await context.newPage();
   const problems = recordProblems(page);
+  const requests = [];
+  page.on('request', (request) => {
+    const {pathname, search} = new URL(request.url());
+    requests.push({method: request.method(), path: pathname + search, body: request.postData()});
+  });
+  if (openapi) {
+    await page.setRequestInterception(true);
+    page.on('request', (request) => {
+      if (new URL(request.url()).pathname === '/openapi.json') {
+        request.respond({status: openapi.status, contentType: 'application/json',
+          body: openapi.body});
+      } else {
+        request.continue();
+      }
+    });
+  }
   if (token) {
     await page.evaluateOnNewDocument((t) => sessionStorage.setItem('drillbif.token', t), token);
   }
   const response = await page.goto(`${url}/`, {waitUntil: 'networkidle0'});
-  return {context, page, problems, response};
+  return {context, page, problems, requests, response};
 }
 
 /** Submits the form of `kind` with `values` (field path -> value) typed over its defaults. */
@@ -151,7 +171,7 @@ export async function submitForm(page, kind, values = {}) {
 /**
  * What the chart on display holds (Chart.getChart on the plot's canvas): per dataset its label,
  * number of points, dash, first point, and how many of its points were laid out at finite pixels
- * inside the chart area (what was drawn).
+ * inside the chart area and not skipped (what was drawn).
  */
 export async function chartContents(page) {
   return page.evaluate(() => {
@@ -168,7 +188,8 @@ export async function chartContents(page) {
         points: dataset.data.length,
         dashed: (dataset.borderDash ?? []).length > 0,
         first: dataset.data[0] ? {x: dataset.data[0].x, y: dataset.data[0].y} : null,
-        drawn: chart.getDatasetMeta(i).data.filter((e) => Number.isFinite(e.x) &&
+        // A point whose value is null (a gap in its line) is laid out but marked skip.
+        drawn: chart.getDatasetMeta(i).data.filter((e) => !e.skip && Number.isFinite(e.x) &&
             Number.isFinite(e.y) && e.x >= area.left - 1 && e.x <= area.right + 1 &&
             e.y >= area.top - 1 && e.y <= area.bottom + 1).length,
       })),

@@ -1,5 +1,6 @@
 // Saves PNGs of the dashboard into docs/figures/dashboard-*.png (scripts/screenshots.sh): a
-// server with a token, a few small jobs submitted from the page's forms, each plot captured.
+// server with a token, a few small jobs submitted from the page's forms, each plot captured
+// (an optimum map with a query answered from its panel).
 import fs from 'node:fs';
 import path from 'node:path';
 import {fileURLToPath} from 'node:url';
@@ -34,6 +35,11 @@ try {
   await save(page, 'continue', '#result');
   await plotOf(page, 'optimum');
   await save(page, 'optimum', '#result');
+  // An optimum map over b, queried between two cells: the answer listed and starred.
+  await plotOf(page, 'optimum-map');
+  await page.click('#map-query-button');
+  await page.waitForSelector('#map-answer-rop', {timeout: 60000});
+  await save(page, 'map', '#result');
   await plotOf(page, 'simulate');
   await save(page, 'simulate', '#result');
   // A sweep left running in the list, then the whole page.
