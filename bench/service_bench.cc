@@ -1,6 +1,7 @@
 // Service load (docs/performance.md): latency of a cached QueryOptimum at 1000 requests per second,
-// and throughput of small simulate jobs, against a real server (Server::Start, 127.0.0.1, port 0,
-// a SQLite file in a temp dir, 2 workers). Run:
+// of QueryOptimum answered from an optimum map at the same rate, and throughput of small simulate
+// jobs, against a real server (Server::Start, 127.0.0.1, port 0, a SQLite file in a temp dir, 2
+// workers). Run:
 //   build/bench/service_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 // Counters: p50_ms, p99_ms (latency of the 1000 queries of one iteration, sent open-loop at 1 ms
 // intervals by 4 client threads), stored (queries answered from the store: all of them);
@@ -133,6 +134,86 @@ void BM_CachedQueryOptimumAt1000PerSecond(benchmark::State& state) {
   if (failed > 0) state.SkipWithError("some queries failed");
 }
 BENCHMARK(BM_CachedQueryOptimumAt1000PerSecond)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// The optimum map of the small box over b in [0.14, 0.16] (5 cells; margins 0.01, 0.02, a 41 x 41
+// grid), computed once; `b` the condition of a query.
+v1::QueryOptimumRequest MapQuery(double b) {
+  v1::QueryOptimumRequest q = Query();
+  q.mutable_request()->clear_grid();
+  q.mutable_request()->add_grid(41);
+  q.mutable_request()->add_grid(41);
+  q.mutable_request()->mutable_trace()->mutable_params()->set_b(b);
+  return q;
+}
+
+bool ComputeMap(Service& service) {
+  static const bool done = [&] {
+    auto jobs = v1::Jobs::NewStub(service.channel);
+    auto operations = google::longrunning::Operations::NewStub(service.channel);
+    v1::SubmitOptimumMapRequest submit;
+    *submit.mutable_request()->mutable_optimum() = MapQuery(0.15).request();
+    submit.mutable_request()->add_over(std::string("b"));
+    submit.mutable_request()->add_from(0.14);
+    submit.mutable_request()->add_to(0.16);
+    submit.mutable_request()->add_steps(5);
+    google::longrunning::Operation op;
+    if (!jobs->SubmitOptimumMap(Context(30).get(), submit, &op).ok()) return false;
+    google::longrunning::WaitOperationRequest wait;
+    wait.set_name(op.name());
+    wait.mutable_timeout()->set_seconds(120);
+    return operations->WaitOperation(Context(150).get(), wait, &op).ok() && op.has_response();
+  }();
+  return done;
+}
+
+// QueryOptimum answered from the map at 1000 requests per second (open loop, 4 client threads):
+// at one condition between cells (range(0) = 0: the kept answer after the first), or each at its
+// own condition (range(0) = 1: b spread over the map, every answer interpolated and verified
+// afresh). Counters as for the cached query, and `verified` (answers from the map, verified).
+void BM_MapQueryAt1000PerSecond(benchmark::State& state) {
+  Service& service = Shared();
+  if (!service.server || !ComputeMap(service)) {
+    state.SkipWithError("the server or the map failed");
+    return;
+  }
+  const bool distinct = state.range(0) == 1;
+  constexpr int kRequests = 1000, kThreads = 4;
+  std::vector<double> latencies;
+  std::atomic<int> verified{0}, failed{0};
+  static int round = 0;
+  for (auto _ : state) {
+    ++round;
+    latencies.assign(kRequests, 0.0);
+    verified = 0;
+    const auto start = Clock::now();
+    std::vector<std::thread> threads;
+    for (int t = 0; t < kThreads; ++t) {
+      threads.emplace_back([&, t] {
+        auto stub = v1::Jobs::NewStub(service.channel);
+        for (int i = t; i < kRequests; i += kThreads) {
+          // Distinct conditions never asked before (a new offset each round).
+          const double b =
+              distinct ? 0.1401 + 0.0198 * (i + 0.5 * round / kRequests) / kRequests : 0.1475;
+          const v1::QueryOptimumRequest query = MapQuery(b);
+          std::this_thread::sleep_until(start + std::chrono::microseconds(1000 * i));
+          const auto sent = Clock::now();
+          v1::QueryOptimumResponse response;
+          auto context = Context(10);
+          if (!stub->QueryOptimum(context.get(), query, &response).ok()) ++failed;
+          if (response.from_map().verified()) ++verified;
+          latencies[i] = std::chrono::duration<double, std::milli>(Clock::now() - sent).count();
+        }
+      });
+    }
+    for (std::thread& th : threads) th.join();
+  }
+  std::sort(latencies.begin(), latencies.end());
+  state.counters["p50_ms"] = latencies[kRequests / 2];
+  state.counters["p99_ms"] = latencies[kRequests * 99 / 100];
+  state.counters["verified"] = verified.load();
+  if (failed > 0) state.SkipWithError("some queries failed");
+}
+BENCHMARK(BM_MapQueryAt1000PerSecond)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 void BM_SmallSimulateJobs(benchmark::State& state) {
   Service& service = Shared();

@@ -257,5 +257,37 @@ TEST_F(MapQuery, KeysMatchTheSameBoxAndMarginAtAnyCondition) {
   EXPECT_NEAR(CellsOutside(*map_, QueryConditions(*map_, QueryAt(0.17))), 2.0, 1e-12);
 }
 
+// Two conditions (b and the rock's damping xi), four cells: a query inside is interpolated
+// bilinearly from all four and agrees with an optimum computed afresh there, to one grid spacing
+// and 1% in ROP as in one condition.
+TEST(MapQueryTwoConditions, InsideTheCellsAgreesWithAFreshOptimum) {
+  v1::OptimumMapRequest request = MapRequest(2);
+  request.set_to(0, 0.145);
+  request.add_over("xi");
+  request.add_from(0.048);
+  request.add_to(0.052);
+  request.add_steps(2);
+  const StatusOr<v1::OptimumMapResult> r = RunOptimumMap(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(r->cells_found(), 4) << r->message();
+  const LoadedMap map =
+      LoadMap("operations/map2", request, {r->cells().begin(), r->cells().end()}).value();
+  v1::OptimumRequest q = request.optimum();
+  q.mutable_trace()->mutable_params()->set_b(0.1425);
+  q.mutable_trace()->mutable_params()->set_xi(0.0505);
+  const MapQueryAnswer a = AnswerFromMap(map, q, false);
+  ASSERT_TRUE(a.from_map.verified()) << a.from_map.verification();
+  ASSERT_EQ(a.from_map.cells_size(), 4);
+  double weights = 0.0;
+  for (const v1::MapCellWeight& w : a.from_map.cells()) weights += w.weight();
+  EXPECT_NEAR(weights, 1.0, 1e-12);
+  const StatusOr<v1::OptimumResult> fresh = RunOptimum(q);
+  ASSERT_TRUE(fresh.ok());
+  ASSERT_EQ(fresh->status(), "COMPLETED");
+  EXPECT_LE(std::abs(a.optimum.params().omega() - fresh->params().omega()), fresh->spacing(0));
+  EXPECT_LE(std::abs(a.optimum.params().a() - fresh->params().a()), fresh->spacing(1));
+  EXPECT_LE(std::abs(a.optimum.rop() - fresh->rop()), 0.01 * fresh->rop());
+}
+
 }  // namespace
 }  // namespace drillbif::jobs

@@ -14,6 +14,7 @@
 #include <iterator>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -575,6 +576,54 @@ TEST_F(ScaleOut, CancellingAFannedOutTraceCancelsItsTasks) {
     EXPECT_TRUE(IsFinished(c.state)) << c.id;
   }
   std::printf("fanned-out trace cancelled after %.0f ms\n", ms);
+}
+
+// An optimum map's cells are child jobs that both workers run; a query between its cells through
+// another API process is answered from the map, which that process finds in the store.
+TEST_F(ScaleOut, AnOptimumMapsCellsRunOnBothWorkersAndAnotherApiProcessAnswersFromIt) {
+  std::unique_ptr<ServerProcess> api0 = Start("api0", "api");
+  std::unique_ptr<ServerProcess> api1 = Start("api1", "api");
+  std::vector<std::unique_ptr<ServerProcess>> workers;
+  workers.push_back(Start("worker0", "worker"));
+  workers.push_back(Start("worker1", "worker"));
+  v1::OptimumMapRequest map;
+  v1::OptimumRequest* optimum = map.mutable_optimum();
+  *optimum->mutable_trace() = drillbif::testing::SmallBoxTrace();
+  optimum->add_margin(0.01);
+  optimum->add_margin(0.02);
+  optimum->add_grid(41);
+  optimum->add_grid(41);
+  map.add_over(std::string("b"));
+  map.add_from(0.14);
+  map.add_to(0.165);
+  map.add_steps(6);
+  v1::SubmitOptimumMapRequest submit;
+  *submit.mutable_request() = map;
+  Operation op;
+  auto jobs0 = v1::Jobs::NewStub(api0->channel());
+  ASSERT_TRUE(jobs0->SubmitOptimumMap(ContextWithDeadline().get(), submit, &op).ok());
+  auto operations = google::longrunning::Operations::NewStub(api0->channel());
+  const Operation done = WaitDone(*operations, op.name());
+  ASSERT_TRUE(done.has_response()) << done.error().message();
+  EXPECT_EQ(drillbif::testing::ResponseOf<v1::OptimumMapResult>(done).cells_found(), 6);
+
+  std::unique_ptr<JobStore> store = OpenStore();
+  const std::vector<JobRecord> cells =
+      fan_out::Children(*store, JobId(op.name()), JobState::kSucceeded);
+  ASSERT_EQ(cells.size(), 6u);
+  std::set<int> ran_on;
+  for (const JobRecord& c : cells) ran_on.insert(fan_out::ProcessOf(c.worker_id, workers));
+  EXPECT_EQ(ran_on, (std::set<int>{0, 1})) << "both workers ran cells";
+
+  v1::QueryOptimumRequest query;
+  *query.mutable_request() = *optimum;
+  query.mutable_request()->mutable_trace()->mutable_params()->set_b(0.1525);
+  v1::QueryOptimumResponse answer;
+  auto jobs1 = v1::Jobs::NewStub(api1->channel());
+  const grpc::Status s = jobs1->QueryOptimum(ContextWithDeadline().get(), query, &answer);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_EQ(answer.operation(), op.name());
+  EXPECT_TRUE(answer.from_map().verified()) << answer.from_map().verification();
 }
 
 }  // namespace
