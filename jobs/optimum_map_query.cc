@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -309,50 +310,61 @@ MapQueryAnswer AnswerFromMap(const LoadedMap& map, const v1::OptimumRequest& que
     from.set_verification(why);
     return answer;
   };
-  std::string signature;
+  // The neighbours with an optimum to start from, heaviest first; the interpolation needs every
+  // neighbour, all on one orbit (else `why_not` says why it is not tried).
+  std::vector<Neighbour> usable;
+  std::string why_not;
   for (const Neighbour& n : neighbours) {
     const std::optional<v1::OptimumMapCell>& cell = map.cells[n.cell];
     if (!cell || cell->optimum().status() != "COMPLETED" || !cell->has_orbit()) {
-      return fail("cell " + std::to_string(n.cell) + " has no verified optimum to start from" +
-                  (cell ? ": " + cell->optimum().message() : std::string()));
+      if (why_not.empty()) {
+        why_not = "cell " + std::to_string(n.cell) + " has no verified optimum to start from" +
+                  (cell ? ": " + cell->optimum().message() : std::string());
+      }
+      continue;
     }
-    if (!signature.empty() && cell->optimum().signature() != signature) {
-      if (!nearest_on_failure) return fail("the neighbouring cells' optima lie on other orbits");
-      signature = "differ";
-      break;
+    if (!usable.empty() && why_not.empty() &&
+        cell->optimum().signature() != map.cells[usable.front().cell]->optimum().signature()) {
+      why_not = "the neighbouring cells' optima lie on other orbits";
     }
-    signature = cell->optimum().signature();
+    usable.push_back(n);
   }
+  if (usable.empty() || (!why_not.empty() && !nearest_on_failure)) return fail(why_not);
   const StatusOr<OptimumPlan> plan = PlanOptimum(query);
   if (!plan.ok()) return fail(plan.status().message());
-  double v1 = 0.0, v2 = 0.0;
-  for (const Neighbour& n : neighbours) {
-    const auto [c1, c2] =
-        TraceValues(query, internal::ToEngineParams(map.cells[n.cell]->optimum().params()));
-    v1 += n.weight * c1;
-    v2 += n.weight * c2;
-  }
+  const auto cell_point = [&](const Neighbour& n) {
+    return TraceValues(query, internal::ToEngineParams(map.cells[n.cell]->optimum().params()));
+  };
   Check c;
-  if (signature != "differ") {
+  double v1 = 0.0, v2 = 0.0;
+  if (why_not.empty()) {
+    for (const Neighbour& n : neighbours) {
+      const auto [c1, c2] = cell_point(n);
+      v1 += n.weight * c1;
+      v2 += n.weight * c2;
+    }
     c = CheckPoint(map, neighbours, query, plan->options, v1, v2);
     from.set_interpolated(true);
   } else {
-    c.reason = "the neighbouring cells' optima lie on other orbits";
+    c.reason = why_not;
   }
-  if (!c.passed && nearest_on_failure && neighbours.size() > 1) {
+  if (!c.passed && nearest_on_failure && (!why_not.empty() || neighbours.size() > 1)) {
+    // The nearest cell with an optimum: its point, checked at the conditions asked.
     const std::string first = c.reason;
-    const auto [c1, c2] = TraceValues(
-        query, internal::ToEngineParams(map.cells[neighbours.front().cell]->optimum().params()));
-    c = CheckPoint(map, neighbours, query, plan->options, c1, c2);
+    std::tie(v1, v2) = cell_point(usable.front());
+    c = CheckPoint(map, {{usable.front().cell, 1.0}}, query, plan->options, v1, v2);
     from.set_interpolated(false);
     c.reason = "interpolation: " + first + (c.passed ? "" : "; nearest cell: " + c.reason);
   }
   if (!c.passed && c.params.size() == 0) return fail(c.reason);
-  FillOptimum(map, neighbours.front(), plan->options, c, &answer.optimum);
+  FillOptimum(map, usable.front(), plan->options, c, &answer.optimum);
   from.set_verified(c.passed);
   from.set_max_multiplier(c.max_multiplier);
-  std::string what = from.interpolated() ? "interpolated from " : "the nearest cell of ";
-  what += std::to_string(neighbours.size()) + " cell(s) of " + map.operation;
+  const std::string what = from.interpolated()
+                               ? "interpolated from " + std::to_string(neighbours.size()) +
+                                     " cell(s) of " + map.operation
+                               : "the optimum of cell " + std::to_string(usable.front().cell) +
+                                     " of " + map.operation + " (the nearest with one)";
   if (c.passed) {
     from.set_verification(what + "; verified: Newton converged in " + std::to_string(c.iterations) +
                           " iterations, stable (max |mu| = " + Num(c.max_multiplier) +

@@ -235,6 +235,15 @@ TEST_F(MapQuery, AFailedInterpolationFallsBackToTheNearestCellOrSaysWhy) {
   EXPECT_THAT(nearest.from_map.verification(), HasSubstr("interpolation: "));
   // The nearest cell's point is on the doctored segment's side too: it fails, and says so.
   EXPECT_FALSE(nearest.from_map.verified());
+  // Without cell 1, the nearest cell with an optimum answers: cell 0's point, checked at b.
+  LoadedMap one_missing = *map_;
+  one_missing.cells[1].reset();
+  const MapQueryAnswer fallback = AnswerFromMap(one_missing, QueryAt(0.1431), true);
+  EXPECT_TRUE(fallback.from_map.verified()) << fallback.from_map.verification();
+  EXPECT_FALSE(fallback.from_map.interpolated());
+  EXPECT_EQ(fallback.optimum.params().a(), map_->cells[0]->optimum().params().a());
+  EXPECT_EQ(fallback.optimum.params().b(), 0.1431);
+  EXPECT_FALSE(AnswerFromMap(one_missing, QueryAt(0.1431), false).from_map.verified());
   doctored.cells[1].reset();
   const MapQueryAnswer missing = AnswerFromMap(doctored, QueryAt(0.1431), true);
   EXPECT_FALSE(missing.from_map.verified());
