@@ -238,6 +238,8 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   if (detail != nullptr) {
     detail->obstacles = RegionObstacles(region);
     detail->kinds = curves.kinds;
+    detail->region = held;
+    detail->curves = *found;
     detail->options = plan.options;
     detail->width1 = region.width1();
     detail->width2 = region.width2();

@@ -38,8 +38,10 @@ struct OptimumDetail {
   std::optional<PeriodicOrbit> orbit;      // the optimum's orbit, when a start settled on it
   std::vector<BoundarySegment> obstacles;  // the region's boundary off the box
   std::vector<CurveKind> kinds;            // the kind of each traced curve (obstacles' `curve`)
-  OptimumOptions options;                  // the margin
-  double width1 = 0.0, width2 = 0.0;       // the box
+  std::shared_ptr<const StabilityRegion> region;  // the region searched
+  std::shared_ptr<const OptimumCurves> curves;    // the curves it was bounded by
+  OptimumOptions options;                         // the margin
+  double width1 = 0.0, width2 = 0.0;              // the box
 };
 
 // Errors: INVALID_ARGUMENT naming the field (margin, scaled, grid, trace.region, and every trace

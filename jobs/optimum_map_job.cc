@@ -10,6 +10,7 @@
 #include <exception>
 #include <mutex>
 #include <new>
+#include <set>
 #include <string>
 #include <thread>
 #include <utility>
@@ -18,6 +19,7 @@
 #include "drillbif/common/threads.h"
 #include "drillbif/version.h"
 #include "jobs/job_common.h"
+#include "jobs/region_output.h"
 #include "jobs/trace_task_codec.h"
 
 namespace drillbif::jobs {
@@ -116,6 +118,31 @@ std::pair<double, double> TraceValues(const v1::OptimumRequest& request,
 std::string BoundaryKind(int curve, const std::vector<CurveKind>& kinds) {
   if (curve >= 0 && curve < static_cast<int>(kinds.size())) return CurveKindName(kinds[curve]);
   return curve == RegionVertex::kSeam ? "SEAM" : "UNTRACED";
+}
+
+// The cell's stability region without its grid, and the curves its polygons lie on.
+void AddRegion(const OptimumDetail& detail, v1::OptimumMapCell* cell) {
+  v1::StabilityRegion* region = cell->mutable_region();
+  ToProto(internal::Model(), *detail.region, region);
+  region->clear_values1();
+  region->clear_values2();
+  region->clear_label();
+  region->clear_rop();
+  std::set<int> bounding;
+  for (const RegionPolygon& ring : detail.region->polygons) {
+    for (const RegionVertex& v : ring.vertices) {
+      if (v.curve >= 0) bounding.insert(v.curve);
+    }
+  }
+  const std::vector<RegionCurve>& polylines = detail.curves->region_curves;
+  for (int k : bounding) {
+    if (k >= static_cast<int>(polylines.size())) continue;
+    v1::BoundingCurve* c = cell->add_curves();
+    c->set_curve(k);
+    c->set_kind(BoundaryKind(k, detail.kinds));
+    *c->mutable_values1() = {polylines[k].values1.begin(), polylines[k].values1.end()};
+    *c->mutable_values2() = {polylines[k].values2.begin(), polylines[k].values2.end()};
+  }
 }
 
 // Runs the cells on the job's own threads; the calling thread hands them on and reports progress.
@@ -269,8 +296,13 @@ JobCost OptimumMapCost(const OptimumMapPlan& plan) {
   cost.memory_bytes = {plan.threads * cell.memory_bytes.amount,
                        "request.threads: " + std::to_string(plan.threads) + " cells at once of " +
                            cell.memory_bytes.driver};
-  // A cell: the optimum (a few kB), its orbit and the boundary segments near it (~1 kB each).
-  cost.result_bytes = {cells * 3e4, driver + "~30 kB"};
+  // A cell: the optimum and its orbit (a few kB), the boundary segments near it, the region's
+  // polygons and the bounding curves' polylines: ~100 kB on the small test box with a 41 x 41 grid,
+  // the polygons growing with the grid's perimeter.
+  const auto [n1, n2] = plan.cell.grid;
+  const double per_cell = 1e5 + 100.0 * (n1 + n2);
+  cost.result_bytes = {cells * per_cell,
+                       driver + HumanBytes(per_cell) + " (request.optimum.grid: the region)"};
   return cost;
 }
 
@@ -331,6 +363,7 @@ v1::OptimumMapCell RunMapCell(const v1::OptimumRequest& request, const ProgressC
       b->set_kind(BoundaryKind(s.curve, detail.kinds));
     }
   }
+  if (detail.region != nullptr && optimum.has_params()) AddRegion(detail, &cell);
   cell.set_wall_seconds(Seconds(start));
   return cell;
 }

@@ -33,6 +33,9 @@ StatusOr<std::shared_ptr<const jobs::LoadedMap>> MapIndex::Load(JobStore& store,
     v1::GetResultResponse page;
     DRILLBIF_RETURN_IF_ERROR(ReadResultPage(store, kind, job.id, 0, token, pages, &page));
     for (v1::OptimumMapCell& cell : *page.mutable_optimum_map()->mutable_cells()) {
+      // Queries read the optimum, the orbit and the boundary near it, not the whole region.
+      cell.clear_region();
+      cell.clear_curves();
       cells.push_back(std::move(cell));
     }
     token = page.next_page_token();

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -132,6 +133,22 @@ TEST(RunOptimumMap, EachCellIsTheOptimumAtItsConditionOnAnyNumberOfThreads) {
               cells_one.at(k).optimum().params().SerializeAsString());
     EXPECT_TRUE(cell.has_orbit()) << "the coexistence check found the optimum's orbit";
     EXPECT_GT(cell.boundary_size(), 0);
+    // The region without its grid, and every curve its polygons lie on, with its polyline.
+    EXPECT_GT(cell.region().polygons_size(), 0);
+    EXPECT_EQ(cell.region().label_size(), 0);
+    EXPECT_EQ(cell.region().values1_size(), 0);
+    std::set<int> on, given;
+    for (const v1::RegionPolygon& p : cell.region().polygons()) {
+      for (const v1::RegionVertex& v : p.vertices()) {
+        if (v.curve() >= 0) on.insert(v.curve());
+      }
+    }
+    for (const v1::BoundingCurve& c : cell.curves()) {
+      given.insert(c.curve());
+      EXPECT_EQ(c.values1_size(), c.values2_size());
+      EXPECT_GT(c.values1_size(), 1);
+    }
+    EXPECT_EQ(on, given);
   }
 }
 
