@@ -17,6 +17,7 @@
 #include "google/longrunning/operations.grpc.pb.h"
 #include "jobs/optimum_map_job.h"
 #include "server/server.h"
+#include "support/small_requests.h"
 
 namespace drillbif {
 namespace {
@@ -24,24 +25,7 @@ namespace {
 constexpr int kCells = 8;
 
 v1::OptimumMapRequest Map(int round) {
-  v1::OptimumMapRequest r;
-  v1::OptimumRequest* o = r.mutable_optimum();
-  v1::TraceRequest* t = o->mutable_trace();
-  t->add_trace_params(std::string("omega"));  // not ("omega"): GCC 12 -Wrestrict false positive
-  t->add_trace_params(std::string("a"));
-  t->add_min(0.05);
-  t->add_min(0.25);
-  t->add_max(0.15);
-  t->add_max(0.6);
-  o->add_margin(0.01);
-  o->add_margin(0.02);
-  o->add_grid(41);
-  o->add_grid(41);
-  r.add_over(std::string("b"));
-  r.add_from(0.14);
-  r.add_to(0.16 + 1e-9 * round);
-  r.add_steps(kCells);
-  return r;
+  return testing::SmallBoxMap(0.14, 0.16 + 1e-9 * round, kCells);
 }
 
 int NextRound() {
@@ -81,8 +65,7 @@ void BM_MapOnWorkers(benchmark::State& state) {
     state.SkipWithError("the server did not start");
     return;
   }
-  auto channel =
-      grpc::CreateChannel((*server)->grpc_address(), grpc::InsecureChannelCredentials());
+  auto channel = grpc::CreateChannel((*server)->grpc_address(), grpc::InsecureChannelCredentials());
   auto jobs = v1::Jobs::NewStub(channel);
   auto operations = google::longrunning::Operations::NewStub(channel);
   for (auto _ : state) {

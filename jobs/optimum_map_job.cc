@@ -107,13 +107,6 @@ StatusOr<OptimumPlan> PlanCell(const v1::OptimumMapRequest& request, const Optim
                 "from, to: the cell at " + at + ": optimum." + planned.status().message());
 }
 
-// The trace parameters' values of an optimum's params.
-std::pair<double, double> TraceValues(const v1::OptimumRequest& request,
-                                      const v1::ModelParams& params) {
-  return {GetParam(request.trace().trace_params(0), params),
-          GetParam(request.trace().trace_params(1), params)};
-}
-
 // The kind of a boundary segment's curve, as OptimumResult.nearest_curve_kind names it.
 std::string BoundaryKind(int curve, const std::vector<CurveKind>& kinds) {
   if (curve >= 0 && curve < static_cast<int>(kinds.size())) return CurveKindName(kinds[curve]);
@@ -153,7 +146,8 @@ class ThreadCells final : public MapCellRunner {
   Status Run(const std::vector<v1::OptimumRequest>& requests, const CellDone& done,
              const ProgressCallback& progress) override {
     const int64_t n = static_cast<int64_t>(requests.size());
-    std::vector<double> fraction(requests.size(), 0.0);  // of each cell, under mutex_
+    // Of each running cell (0 once it finished), under mutex_.
+    std::vector<double> fraction(requests.size(), 0.0);
     std::vector<std::thread> pool;
     for (int t = 0; t < std::min<int64_t>(threads_, n); ++t) {
       pool.emplace_back([&] {
@@ -164,6 +158,7 @@ class ThreadCells final : public MapCellRunner {
             return !stop_.load();
           });
           std::lock_guard<std::mutex> lock(mutex_);
+          fraction[k] = 0.0;  // counted as a whole cell once handed on
           finished_.emplace_back(k, std::move(cell));
           wake_.notify_one();
         }
@@ -195,7 +190,7 @@ class ThreadCells final : public MapCellRunner {
         ++handed;
       }
       double sum = static_cast<double>(handed);
-      for (double f : fraction) sum += f < 1.0 ? f : 0.0;
+      for (double f : fraction) sum += f;  // the cells running
       lock.unlock();
       const bool go_on = !progress || progress(std::min(sum / n, 1.0));
       lock.lock();
@@ -354,7 +349,7 @@ v1::OptimumMapCell RunMapCell(const v1::OptimumRequest& request, const ProgressC
   const v1::OptimumResult& optimum = cell.optimum();
   if (optimum.has_params() && detail.width1 > 0.0) {
     if (detail.orbit) EncodeOrbit(*detail.orbit, cell.mutable_orbit());
-    const auto [v1, v2] = TraceValues(request, optimum.params());
+    const auto [v1, v2] = TracePoint(request, optimum.params());
     const MarginMetric metric(detail.options, detail.width1, detail.width2);
     for (const BoundarySegment& s : detail.obstacles) {
       if (metric.Distance(v1, v2, s) > kBoundaryReach) continue;
@@ -366,6 +361,12 @@ v1::OptimumMapCell RunMapCell(const v1::OptimumRequest& request, const ProgressC
   if (detail.region != nullptr && optimum.has_params()) AddRegion(detail, &cell);
   cell.set_wall_seconds(Seconds(start));
   return cell;
+}
+
+std::pair<double, double> TracePoint(const v1::OptimumRequest& request,
+                                     const v1::ModelParams& params) {
+  return {GetParam(request.trace().trace_params(0), params),
+          GetParam(request.trace().trace_params(1), params)};
 }
 
 StatusOr<v1::OptimumMapCell> RunMapCellJob(const v1::OptimumRequest& request,

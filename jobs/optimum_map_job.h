@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "drillbif/common/status.h"
@@ -50,6 +51,11 @@ std::vector<int> CellIndex(const OptimumMapPlan& plan, int64_t cell);
 std::vector<double> CellCondition(const OptimumMapPlan& plan, int64_t cell);
 v1::OptimumRequest CellRequest(const v1::OptimumMapRequest& request, const OptimumMapPlan& plan,
                                int64_t cell);
+
+// The values of `request`'s two trace parameters in `params` (every field set, as in an
+// OptimumResult).
+std::pair<double, double> TracePoint(const v1::OptimumRequest& request,
+                                     const v1::ModelParams& params);
 
 // One cell: the optimum of `request` with its orbit and the boundary segments within four margins.
 // A run that fails (e.g. no stable start orbit at that condition) is a cell whose optimum says so

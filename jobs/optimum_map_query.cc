@@ -60,13 +60,6 @@ std::vector<Neighbour> NeighboursOf(const OptimumMapPlan& plan,
   return out;
 }
 
-// The trace parameters' values of `params`.
-std::pair<double, double> TraceValues(const v1::OptimumRequest& request, const Params& params) {
-  const auto& model = Model();
-  return {params[model.ParamIndex(request.trace().trace_params(0)).value()],
-          params[model.ParamIndex(request.trace().trace_params(1)).value()]};
-}
-
 // What the checks of one point found.
 struct Check {
   bool passed = false;
@@ -143,7 +136,7 @@ Check CheckPoint(const LoadedMap& map, const std::vector<Neighbour>& neighbours,
   const MarginMetric unit_metric(unit, w1, w2);
   for (const Neighbour& n : neighbours) {
     const v1::OptimumMapCell& cell = *map.cells[n.cell];
-    const auto [c1, c2] = TraceValues(query, internal::ToEngineParams(cell.optimum().params()));
+    const auto [c1, c2] = TracePoint(query, cell.optimum().params());
     const double from_cell = metric.Distance(v1, v2, c1, c2);
     if (from_cell > kMaxDistanceFromCell) {
       c.reason = "the point is " + Num(from_cell) + " margins from the optimum of cell " +
@@ -333,7 +326,7 @@ MapQueryAnswer AnswerFromMap(const LoadedMap& map, const v1::OptimumRequest& que
   const StatusOr<OptimumPlan> plan = PlanOptimum(query);
   if (!plan.ok()) return fail(plan.status().message());
   const auto cell_point = [&](const Neighbour& n) {
-    return TraceValues(query, internal::ToEngineParams(map.cells[n.cell]->optimum().params()));
+    return TracePoint(query, map.cells[n.cell]->optimum().params());
   };
   Check c;
   double v1 = 0.0, v2 = 0.0;

@@ -361,9 +361,6 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
                  recovered->requeued, recovered->cancelled, recovered->failed);
   }
   if (Status s = impl->state.optimum_index.Load(*impl->store); !s.ok()) return s;
-  if (Status s = impl->state.map_index.Refresh(*impl->store, o.pages, /*force=*/true); !s.ok()) {
-    return s;
-  }
 
   impl->hub = std::make_unique<WatchHub>(impl->store.get(), o.watch_poll_ms);
   WorkerPoolOptions pool_options;

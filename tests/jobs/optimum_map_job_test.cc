@@ -21,20 +21,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-v1::OptimumMapRequest MapRequest(int steps) {
-  v1::OptimumMapRequest r;
-  v1::OptimumRequest* o = r.mutable_optimum();
-  *o->mutable_trace() = testing::SmallBoxTrace();
-  o->add_margin(0.01);
-  o->add_margin(0.02);
-  o->add_grid(41);
-  o->add_grid(41);
-  r.add_over(std::string("b"));
-  r.add_from(0.14);
-  r.add_to(0.16);
-  r.add_steps(steps);
-  return r;
-}
+v1::OptimumMapRequest MapRequest(int steps) { return testing::SmallBoxMap(0.14, 0.16, steps); }
 
 void ExpectInvalid(const v1::OptimumMapRequest& request, const std::string& names) {
   const StatusOr<OptimumMapPlan> plan = PlanOptimumMap(request);
@@ -196,6 +183,19 @@ class MapQuery : public ::testing::Test {
 v1::OptimumMapRequest* MapQuery::request_ = nullptr;
 LoadedMap* MapQuery::map_ = nullptr;
 
+// A map's answer to `q` against an optimum computed afresh there: the same orbit, the parameters
+// within one grid spacing, the ROP within 1% (derived below), the margin at least the one asked.
+void ExpectAgreesWithAFreshOptimum(const MapQueryAnswer& a, const v1::OptimumRequest& q) {
+  const StatusOr<v1::OptimumResult> fresh = RunOptimum(q);
+  ASSERT_TRUE(fresh.ok());
+  ASSERT_EQ(fresh->status(), "COMPLETED");
+  EXPECT_LE(std::abs(a.optimum.params().omega() - fresh->params().omega()), fresh->spacing(0));
+  EXPECT_LE(std::abs(a.optimum.params().a() - fresh->params().a()), fresh->spacing(1));
+  EXPECT_LE(std::abs(a.optimum.rop() - fresh->rop()), 0.01 * fresh->rop());
+  EXPECT_EQ(a.optimum.signature(), fresh->signature());
+  EXPECT_GE(a.optimum.margin(0), q.margin(0));  // in omega's units
+}
+
 // The acceptance of a map: between cells, the answer agrees with an optimum computed afresh at
 // that condition to the grid's resolution in the parameters (one spacing: the fresh optimum is a
 // grid node, the answer interpolates two) and to 1% in ROP (here one spacing of a changes the
@@ -210,14 +210,7 @@ TEST_F(MapQuery, BetweenCellsAgreesWithAFreshOptimum) {
     EXPECT_EQ(a.optimum.status(), "COMPLETED");
     EXPECT_EQ(a.from_map.cells_size(), 2);
     EXPECT_EQ(a.optimum.params().b(), b);
-    const StatusOr<v1::OptimumResult> fresh = RunOptimum(q);
-    ASSERT_TRUE(fresh.ok());
-    ASSERT_EQ(fresh->status(), "COMPLETED");
-    EXPECT_LE(std::abs(a.optimum.params().omega() - fresh->params().omega()), fresh->spacing(0));
-    EXPECT_LE(std::abs(a.optimum.params().a() - fresh->params().a()), fresh->spacing(1));
-    EXPECT_LE(std::abs(a.optimum.rop() - fresh->rop()), 0.01 * fresh->rop());
-    EXPECT_EQ(a.optimum.signature(), fresh->signature());
-    EXPECT_GE(a.optimum.margin(0), 0.01);  // the margin asked, in omega's units
+    ExpectAgreesWithAFreshOptimum(a, q);
   }
 }
 
@@ -307,12 +300,7 @@ TEST(MapQueryTwoConditions, InsideTheCellsAgreesWithAFreshOptimum) {
   double weights = 0.0;
   for (const v1::MapCellWeight& w : a.from_map.cells()) weights += w.weight();
   EXPECT_NEAR(weights, 1.0, 1e-12);
-  const StatusOr<v1::OptimumResult> fresh = RunOptimum(q);
-  ASSERT_TRUE(fresh.ok());
-  ASSERT_EQ(fresh->status(), "COMPLETED");
-  EXPECT_LE(std::abs(a.optimum.params().omega() - fresh->params().omega()), fresh->spacing(0));
-  EXPECT_LE(std::abs(a.optimum.params().a() - fresh->params().a()), fresh->spacing(1));
-  EXPECT_LE(std::abs(a.optimum.rop() - fresh->rop()), 0.01 * fresh->rop());
+  ExpectAgreesWithAFreshOptimum(a, q);
 }
 
 }  // namespace

@@ -24,20 +24,7 @@ namespace {
 using google::longrunning::Operation;
 using ::testing::HasSubstr;
 
-v1::OptimumMapRequest MapRequest() {
-  v1::OptimumMapRequest r;
-  v1::OptimumRequest* o = r.mutable_optimum();
-  *o->mutable_trace() = testing::SmallBoxTrace();
-  o->add_margin(0.01);
-  o->add_margin(0.02);
-  o->add_grid(41);
-  o->add_grid(41);
-  r.add_over(std::string("b"));
-  r.add_from(0.14);
-  r.add_to(0.16);
-  r.add_steps(3);
-  return r;
-}
+v1::OptimumMapRequest MapRequest() { return testing::SmallBoxMap(0.14, 0.16, 3); }
 
 v1::QueryOptimumRequest QueryAt(double b) {
   v1::QueryOptimumRequest q;

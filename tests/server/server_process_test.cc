@@ -163,20 +163,7 @@ TEST(ServerProcess, SigtermRequeuesTheRunningJobAndExitsCleanly) {
 }
 
 // An optimum map of six cells on the small box over b: ~0.5 s a cell on one worker.
-v1::OptimumMapRequest SixCellMap() {
-  v1::OptimumMapRequest r;
-  v1::OptimumRequest* o = r.mutable_optimum();
-  *o->mutable_trace() = drillbif::testing::SmallBoxTrace();
-  o->add_margin(0.01);
-  o->add_margin(0.02);
-  o->add_grid(41);
-  o->add_grid(41);
-  r.add_over(std::string("b"));
-  r.add_from(0.14);
-  r.add_to(0.165);
-  r.add_steps(6);
-  return r;
-}
+v1::OptimumMapRequest SixCellMap() { return drillbif::testing::SmallBoxMap(0.14, 0.165, 6); }
 
 // The cells a map finished before kill -9 are not computed again by the restarted server: they
 // are its children in the store, read back; the result equals a map computed in one go.
