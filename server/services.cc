@@ -574,6 +574,11 @@ void JobsService::QueryOptimum(QueryOptimumCall* call) {
   const jobs::JobKindSpec& optimum = *jobs::FindKind(v1::OPTIMUM);
   StatusOr<jobs::JobCost> cost = jobs::CheckRequest(optimum, request.request());
   if (!cost.ok()) return call->Finish(ToGrpc(cost.status()));
+  if (!v1::QueryOptimumRequest::OnMapFailure_IsValid(request.on_map_failure())) {
+    return call->Finish(Error(grpc::StatusCode::INVALID_ARGUMENT,
+                              "on_map_failure: " + std::to_string(request.on_map_failure()) +
+                                  " is not NEAREST_CELL (0) or COMPUTE (1)"));
+  }
   const std::string key = jobs::CacheKeyOf(optimum, request.request());
   std::string id;
   std::shared_ptr<const v1::OptimumResult> cached;

@@ -133,6 +133,12 @@ TEST(OptimumMapService, OutsideEveryMapIsNotFoundNamingTheNearestAndADeletedMapS
   EXPECT_THAT(outside.error_message(), HasSubstr(map.name()));
   EXPECT_THAT(outside.error_message(), HasSubstr("1 cells outside"));
 
+  v1::QueryOptimumRequest unknown = QueryAt(0.1475);
+  unknown.set_on_map_failure(static_cast<v1::QueryOptimumRequest::OnMapFailure>(7));
+  grpc::Status refused = s.Query(unknown, &answer);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(refused.error_message(), HasSubstr("on_map_failure"));
+
   v1::QueryOptimumRequest no_maps = QueryAt(0.1475);
   no_maps.set_no_maps(true);
   EXPECT_EQ(s.Query(no_maps, &answer).error_code(), grpc::StatusCode::NOT_FOUND);
