@@ -218,6 +218,7 @@ StatusOr<v1::OptimumMapResult> Map(const v1::OptimumMapRequest& request,
   *out.mutable_from() = request.from();
   *out.mutable_to() = request.to();
   *out.mutable_steps() = request.steps();
+  *out.mutable_optimum() = request.optimum();
   out.set_engine_version(EngineVersion());
   auto done = [&](int64_t k, v1::OptimumMapCell cell, bool resumed) -> Status {
     for (int i : CellIndex(plan, k)) cell.add_index(i);

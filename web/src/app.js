@@ -232,7 +232,9 @@ async function showResult(name) {
   try {
     const {kind: resultKind, result} = await api.getResult(name);
     if (shown !== name) return;
-    const request = requests[name]?.request;
+    // A map's result repeats its optimum request: a map submitted anywhere can be queried.
+    const request = requests[name]?.request ??
+        (resultKind === 'optimumMap' && result.optimum ? {optimum: result.optimum} : undefined);
     $('result-summary').textContent = summaryOf(resultKind, result);
     switch (resultKind) {
       case 'continue': {
@@ -338,8 +340,8 @@ function showMapQuery(name, result, request) {
   const panel = document.createElement('div');
   panel.id = 'map-query';
   if (!request?.optimum) {
-    panel.textContent = 'Query: this map was not submitted from this tab, so its optimum ' +
-      'request (box, margin, grid) is not known here.';
+    panel.textContent = 'Query: this map\'s result does not say its optimum request (box, ' +
+      'margin, grid).';
     controls.append(panel);
     return;
   }

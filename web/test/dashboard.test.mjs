@@ -230,6 +230,26 @@ test('a query between two cells shows the verified answer QueryOptimum gives and
       assert.equal(marker.drawn, 1);
     });
 
+test('a map opened in another tab can be queried: its result repeats its optimum request',
+    async () => {
+      assert.ok(mapName, 'the map test ran first');
+      const map = await wholeResult(mapName);
+      assert.deepEqual(map.optimum.margin, mapRequest.optimum.margin);
+      assert.deepEqual(map.optimum.trace.min, mapRequest.optimum.trace.min);
+      const other = await openDashboard(browser, server.url, TOKEN);
+      try {
+        const row = `#jobs-body tr[data-name="${mapName}"]`;
+        await other.page.waitForSelector(`${row} .plot-button`, {timeout: JOB_TIMEOUT_MS});
+        await other.page.click(`${row} .plot-button`);
+        await other.page.waitForSelector('#map-query-button', {timeout: JOB_TIMEOUT_MS});
+        await other.page.click('#map-query-button');
+        await other.page.waitForSelector('#map-answer-rop', {timeout: JOB_TIMEOUT_MS});
+        assert.equal(await other.page.$eval('#map-answer-verified', (e) => e.textContent), 'yes');
+      } finally {
+        await other.context.close();
+      }
+    });
+
 test('map cells without an optimum are gaps and crosses; two conditions give one square per cell',
     async () => {
       const {page} = session;
