@@ -837,7 +837,8 @@ class OptimumCsv final : public PageFormat {
 };
 
 // Optimum map CSV: a row per cell (in the order the cells finished): the conditions
-// ("condition_b", ...), the cell's status, the optimum's parameters, ROP and margin. The counts go in the trailer.
+// ("condition_b", ...), the cell's status, the optimum's parameters, ROP and margin. The counts go
+// in the trailer.
 class OptimumMapCsv final : public PageFormat {
  public:
   Status Begin(const Message& summary, std::string* out) override {

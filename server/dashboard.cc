@@ -51,10 +51,6 @@ HttpResponse Error(int http_status, grpc::StatusCode code, const std::string& me
   return response;
 }
 
-bool EndsWith(std::string_view text, std::string_view suffix) {
-  return text.size() >= suffix.size() && text.substr(text.size() - suffix.size()) == suffix;
-}
-
 }  // namespace
 
 std::string DashboardContentType(std::string_view path) {
@@ -67,7 +63,7 @@ std::string DashboardContentType(std::string_view path) {
       {".json", "application/json"},
   };
   for (const auto& [extension, type] : kTypes) {
-    if (EndsWith(path, extension)) return type;
+    if (path.ends_with(extension)) return type;
   }
   return "application/octet-stream";
 }

@@ -2,8 +2,9 @@
 // (jobs/optimum_map_query.h). Every SUCCEEDED optimum-map job of the store is loaded (its request
 // and cells, read page by page) by a refresh, which a query that finds no map asks for: the first
 // one (not the start-up, which a large store would slow), then at most once a second, or at once
-// after this process completed a map; so maps completed by other processes are found too. Answers are kept by the query's cache key until a map is dropped. Bounded:
-// maps beyond `max_bytes` of cells are not loaded (logged). Thread-safe.
+// after this process completed a map; so maps completed by other processes are found too. Answers
+// are kept by the query's cache key until a map is dropped. Bounded: maps beyond `max_bytes` of
+// cells are not loaded (logged). Thread-safe.
 #ifndef DRILLBIF_SERVER_MAP_INDEX_H_
 #define DRILLBIF_SERVER_MAP_INDEX_H_
 
