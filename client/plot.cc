@@ -647,6 +647,70 @@ StatusOr<std::string> SimulateScript(const v1::SimulateResult& r, const PlotOpti
   return s.Text("drillctl plot: phase portrait");
 }
 
+// An optimum map over one condition: the optimum's ROP against the condition (left axis) and its
+// two trace parameters (right axis), one point per cell in the condition's order; a cell without
+// an optimum is a gap in the lines and a cross on the axis. Over two conditions: each cell a
+// square at its two conditions, coloured by ROP (crosses where none).
+StatusOr<std::string> MapScript(const v1::OptimumMapResult& r, const PlotOptions& options) {
+  std::vector<const v1::OptimumMapCell*> cells;
+  for (const v1::OptimumMapCell& c : r.cells()) cells.push_back(&c);
+  std::stable_sort(cells.begin(), cells.end(), [](const auto* x, const auto* y) {
+    return std::lexicographical_compare(x->condition().rbegin(), x->condition().rend(),
+                                        y->condition().rbegin(), y->condition().rend());
+  });
+  if (r.over_size() < 1 || r.over_size() > 2) {
+    return InvalidArgument("the optimum map names no condition (over) to draw against");
+  }
+  const std::string p1 = r.optimum().trace().trace_params_size() == 2
+                             ? r.optimum().trace().trace_params(0)
+                             : std::string("omega");
+  const std::string p2 = r.optimum().trace().trace_params_size() == 2
+                             ? r.optimum().trace().trace_params(1)
+                             : std::string("a");
+  std::string found, missing;
+  for (const v1::OptimumMapCell* c : cells) {
+    std::string at;
+    for (double v : c->condition()) at += Num(v) + " ";
+    if (c->optimum().status() == "COMPLETED" && c->optimum().has_params()) {
+      found += at + Num(c->optimum().rop()) + " " + Num(ParamValue(c->optimum().params(), p1)) +
+               " " + Num(ParamValue(c->optimum().params(), p2)) + "\n";
+    } else {
+      found += r.over_size() == 1 ? "\n" : "";  // a gap in the lines
+      missing += at + "0\n";
+    }
+  }
+  const bool two = r.over_size() == 2;
+  StatusOr<Script> begun =
+      Begin(options,
+            "Robust ROP optimum over " + r.over(0) + (two ? " and " + r.over(1) : std::string()) +
+                " (" + std::to_string(cells.size()) + " cells)",
+            ParamLabel(r.over(0)), two ? ParamLabel(r.over(1)) : std::string("ROP at the optimum"));
+  if (!begun.ok()) return begun.status();
+  Script s = std::move(begun).value();
+  s.Data("found", found);
+  if (two) {
+    s.Set("set cblabel 'ROP at the optimum'");
+    s.Plot("$found using 1:2:3 with points pt 5 ps 3 lc palette title 'optimum found'");
+    if (!missing.empty()) s.Data("missing", missing);
+    if (!missing.empty())
+      s.Plot(
+          "$missing using 1:2 with points pt 2 ps 2 lc rgb '#000000' "
+          "title 'no optimum'");
+  } else {
+    s.Set("set y2label '" + p1 + ", " + p2 + " at the optimum'");
+    s.Set("set y2tics");
+    s.Set("set ytics nomirror");
+    s.Plot("$found using 1:2 with linespoints pt 7 lc rgb '#1f4e9c' title 'ROP'");
+    s.Plot("$found using 1:3 axes x1y2 with linespoints pt 4 lc rgb '#d62728' title '" + p1 + "'");
+    s.Plot("$found using 1:4 axes x1y2 with linespoints pt 6 lc rgb '#2ca02c' title '" + p2 + "'");
+    if (!missing.empty()) {
+      s.Data("missing", missing);
+      s.Plot("$missing using 1:2 with points pt 2 ps 2 lc rgb '#000000' title 'no optimum'");
+    }
+  }
+  return s.Text("drillctl plot: optimum map over " + r.over(0));
+}
+
 template <typename T>
 bool TryParse(const std::string& json, T* message) {
   google::protobuf::util::JsonParseOptions options;
@@ -657,8 +721,8 @@ bool TryParse(const std::string& json, T* message) {
 }  // namespace
 
 std::string ResultKindName(const AnyResult& result) {
-  constexpr std::array<const char*, 5> kNames = {"continue", "sweep", "trace", "simulate",
-                                                 "optimum"};
+  constexpr std::array<const char*, 6> kNames = {"continue", "sweep",   "trace",
+                                                 "simulate", "optimum", "optimum-map"};
   return kNames[result.index()];
 }
 
@@ -674,6 +738,7 @@ StatusOr<AnyResult> ParseResultJson(const std::string& json) {
     return AnyResult(r);
   }
   if (v1::OptimumResult r; TryParse(json, &r) && r.has_params()) return AnyResult(r);
+  if (v1::OptimumMapResult r; TryParse(json, &r) && r.cells_size() > 0) return AnyResult(r);
 
   google::protobuf::Struct object;
   const auto status = google::protobuf::util::JsonStringToMessage(json, &object);
@@ -684,7 +749,7 @@ StatusOr<AnyResult> ParseResultJson(const std::string& json) {
       "unknown result kind: its fields (" + keys +
       ") are those of no drillctl result with something to draw (a continue result with "
       "points, a sweep with up or down, a trace with curves or region, a simulation with "
-      "trajectory or poincare, an optimum)");
+      "trajectory or poincare, an optimum, an optimum map with cells)");
 }
 
 StatusOr<std::string> BuildPlotScript(const AnyResult& result, const PlotOptions& options) {
@@ -692,6 +757,7 @@ StatusOr<std::string> BuildPlotScript(const AnyResult& result, const PlotOptions
   if (const auto* r = std::get_if<v1::SweepResult>(&result)) return SweepScript(*r, options);
   if (const auto* r = std::get_if<v1::TraceResult>(&result)) return TraceScript(*r, options);
   if (const auto* r = std::get_if<v1::SimulateResult>(&result)) return SimulateScript(*r, options);
+  if (const auto* r = std::get_if<v1::OptimumMapResult>(&result)) return MapScript(*r, options);
   return InvalidArgument(
       "an optimum result alone has nothing to draw but a point: plot the trace of the same box "
       "with its region (drillctl trace --region ... -o trace.json) and mark the optimum on it: "

@@ -26,6 +26,7 @@
 #include "drillbif/common/status.h"
 #include "drillbif/v1/continue.pb.h"
 #include "drillbif/v1/optimum.pb.h"
+#include "drillbif/v1/optimum_map.pb.h"
 #include "drillbif/v1/simulate.pb.h"
 #include "drillbif/v1/sweep.pb.h"
 #include "drillbif/v1/trace.pb.h"
@@ -34,14 +35,15 @@ namespace drillbif::client {
 
 // Any result drillctl prints.
 using AnyResult = std::variant<v1::ContinueResult, v1::SweepResult, v1::TraceResult,
-                               v1::SimulateResult, v1::OptimumResult>;
+                               v1::SimulateResult, v1::OptimumResult, v1::OptimumMapResult>;
 
-// "continue", "sweep", "trace", "simulate" or "optimum".
+// "continue", "sweep", "trace", "simulate", "optimum" or "optimum-map".
 std::string ResultKindName(const AnyResult& result);
 
 // Parses a result printed by drillctl as JSON: each result type is tried with unknown fields
 // refused, and the first that parses and has its characteristic fields wins (continue: points;
-// sweep: up or down; trace: curves or region; simulate: trajectory or poincare; optimum: params).
+// sweep: up or down; trace: curves or region; simulate: trajectory or poincare; optimum: params;
+// optimum map: cells).
 // INVALID_ARGUMENT when the text is not JSON or is no result with anything to draw; the message
 // says what was tried.
 StatusOr<AnyResult> ParseResultJson(const std::string& json);

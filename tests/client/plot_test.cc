@@ -18,9 +18,9 @@
 
 #include "client/output.h"
 #include "jobs/continue_job.h"
+#include "jobs/optimum_job.h"
 #include "jobs/simulate_job.h"
 #include "jobs/sweep_job.h"
-#include "jobs/optimum_job.h"
 #include "jobs/trace_job.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
@@ -183,6 +183,36 @@ TEST(BuildPlotScript, SimulatePhasePortraitColouredByMode) {
   }
 }
 
+// A map over b of three cells, finished out of order, the middle one without an optimum.
+v1::OptimumMapResult ThreeCellMap() {
+  v1::OptimumMapResult map;
+  map.add_over("b");
+  map.mutable_optimum()->mutable_trace()->add_trace_params("omega");
+  map.mutable_optimum()->mutable_trace()->add_trace_params("a");
+  for (int k : {2, 0, 1}) {
+    v1::OptimumMapCell* c = map.add_cells();
+    c->add_index(k);
+    c->add_condition(0.125 + 0.0625 * k);  // exact in binary: the rows are compared as text
+    c->mutable_optimum()->set_status(k == 1 ? "FAILED" : "COMPLETED");
+    if (k == 1) continue;
+    c->mutable_optimum()->set_rop(1.25 + k);
+    c->mutable_optimum()->mutable_params()->set_omega(0.05);
+    c->mutable_optimum()->mutable_params()->set_a(0.375 + 0.125 * k);
+  }
+  return map;
+}
+
+TEST(BuildPlotScript, MapDrawsTheOptimumAgainstItsConditionWithGaps) {
+  const std::string s = Script(ThreeCellMap(), PlotOptions());
+  EXPECT_THAT(s, HasSubstr("Robust ROP optimum over b (3 cells)"));
+  // The cells in b order, the failed one a blank line (a gap) and a cross.
+  EXPECT_THAT(s, HasSubstr("$found << EOD\n0.125 1.25 0.05 0.375\n\n0.25 3.25 0.05 0.625\nEOD"));
+  EXPECT_THAT(s, HasSubstr("$missing << EOD\n0.1875 0\nEOD"));
+  EXPECT_THAT(s, HasSubstr("$found using 1:3 axes x1y2 with linespoints pt 4 lc rgb '#d62728' "
+                           "title 'omega'"));
+  EXPECT_THAT(s, HasSubstr("title 'no optimum'"));
+}
+
 TEST(ParseResultJson, DetectsEachKindFromItsFields) {
   const StatusOr<std::string> json = ToJson(ReferenceContinuation(), true);
   ASSERT_TRUE(json.ok());
@@ -201,6 +231,10 @@ TEST(ParseResultJson, DetectsEachKindFromItsFields) {
   parsed = ParseResultJson(*ToJson(optimum, false));
   ASSERT_TRUE(parsed.ok());
   EXPECT_EQ(ResultKindName(*parsed), "optimum");
+
+  parsed = ParseResultJson(*ToJson(ThreeCellMap(), false));
+  ASSERT_TRUE(parsed.ok()) << parsed.status().ToString();
+  EXPECT_EQ(ResultKindName(*parsed), "optimum-map");
 
   v1::SimulateResult simulate;
   simulate.add_trajectory()->set_p(1.0);
