@@ -24,7 +24,7 @@ StatusOr<std::shared_ptr<const jobs::LoadedMap>> MapIndex::Load(JobStore& store,
                                                                 const PageOptions& pages) {
   v1::OptimumMapRequest request;
   if (!request.ParseFromString(job.request)) {
-    return Internal("the stored request of map " + job.id + " does not parse");
+    return InvalidArgument("the stored request of map " + job.id + " does not parse");
   }
   const jobs::JobKindSpec& kind = *jobs::FindKind(v1::OPTIMUM_MAP);
   std::vector<v1::OptimumMapCell> cells;
@@ -73,6 +73,13 @@ Status MapIndex::Refresh(JobStore& store, const PageOptions& pages, bool force) 
       StatusOr<std::shared_ptr<const jobs::LoadedMap>> map = Load(store, job, pages);
       if (!map.ok()) {
         spdlog::warn("optimum map {} not loaded: {}", job.id, map.status().ToString());
+        if (map.status().code() != StatusCode::kInvalidArgument) {
+          // A store fault: tried again by the next refresh. (A map that no longer plans, or
+          // whose bytes do not parse, is not.)
+          std::lock_guard<std::mutex> lock(mutex_);
+          seen_.erase(job.id);
+          seen_.erase(job.cache_key);
+        }
         continue;
       }
       std::lock_guard<std::mutex> lock(mutex_);
