@@ -429,7 +429,9 @@ grpc::Status AnswerFromMaps(ServiceState& state, const v1::QueryOptimumRequest& 
   *response->mutable_from_map() = std::move(answer.from_map);
   response->set_operation(map->operation);
   response->set_stored(false);
-  state.map_index.KeepAnswer(key, *response);
+  // Only a verified answer is kept: an unverified one depends on on_map_failure (COMPUTE would
+  // not take it).
+  if (response->from_map().verified()) state.map_index.KeepAnswer(key, *response);
   return grpc::Status::OK;
 }
 

@@ -174,5 +174,46 @@ TEST(OptimumMapService, ARestartedServerAnswersFromTheMapsOfItsStore) {
   EXPECT_TRUE(answer.from_map().verified()) << answer.from_map().verification();
 }
 
+// Between a cell without an optimum (b = 0.11: no stable period-1 start orbit from rest) and one
+// with (b = 0.12), the nearest cell's point fails its check at b = 0.1145 (one margin from it the
+// orbit is no longer stable): NEAREST_CELL answers it unverified, and COMPUTE does not get that
+// answer back but runs an optimum job at b = 0.1145 instead, whose optimum lies lower in a.
+TEST(OptimumMapService, AnUnverifiedAnswerIsNotKeptForACallerWhoAsksToCompute) {
+  testing::TempDir dir("drillbif_map");
+  MapServer s(dir.path() + "/jobs.db");
+  ASSERT_TRUE(s.ok());
+  v1::SubmitOptimumMapRequest submit;
+  *submit.mutable_request() = testing::SmallBoxMap(0.11, 0.12, 2);
+  Operation map;
+  ASSERT_TRUE(s.jobs_->SubmitOptimumMap(MapServer::Context().get(), submit, &map).ok());
+  google::longrunning::WaitOperationRequest wait;
+  wait.set_name(map.name());
+  wait.mutable_timeout()->set_seconds(60);
+  ASSERT_TRUE(s.operations_->WaitOperation(MapServer::Context(90).get(), wait, &map).ok());
+  ASSERT_TRUE(map.has_response()) << map.error().message();
+
+  v1::QueryOptimumRequest query;
+  *query.mutable_request() = submit.request().optimum();
+  query.mutable_request()->mutable_trace()->mutable_params()->set_b(0.1145);
+  v1::QueryOptimumResponse nearest;
+  ASSERT_TRUE(s.Query(query, &nearest).ok());
+  ASSERT_EQ(nearest.operation(), map.name());
+  EXPECT_FALSE(nearest.from_map().interpolated());
+  ASSERT_FALSE(nearest.from_map().verified()) << nearest.from_map().verification();
+  EXPECT_EQ(nearest.optimum().status(), "FAILED");
+
+  query.set_on_map_failure(v1::QueryOptimumRequest::COMPUTE);
+  v1::QueryOptimumResponse computed;
+  const grpc::Status status = s.Query(query, &computed);
+  // An optimum job computed there (the box has one at b = 0.1145, at a lower a than the cell's),
+  // not the map's unverified answer again.
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_NE(computed.operation(), map.name());
+  EXPECT_FALSE(computed.has_from_map());
+  EXPECT_EQ(computed.optimum().status(), "COMPLETED");
+  EXPECT_EQ(computed.optimum().params().b(), 0.1145);
+  EXPECT_LT(computed.optimum().params().a(), nearest.optimum().params().a());
+}
+
 }  // namespace
 }  // namespace drillbif::server
