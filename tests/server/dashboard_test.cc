@@ -18,7 +18,7 @@
 
 #include "server/dashboard_files.h"
 #include "server/server.h"
-#include "support/temp_dir.h"
+#include "support/test_server.h"
 
 // Last: httplib.h includes <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>
@@ -34,26 +34,16 @@ constexpr char kToken[] = "dashboard-test-token";
 class DashboardTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new testing::TempDir("dashboard_test");
     ServerOptions options;
-    options.host = "127.0.0.1";
-    options.grpc_port = 0;
-    options.http_port = 0;
-    options.db_path = dir_->path() + "/jobs.db";
     options.token = kToken;
     options.workers = 1;
-    StatusOr<std::unique_ptr<Server>> server = Server::Start(options);
-    ASSERT_TRUE(server.ok()) << server.status().ToString();
-    server_ = std::move(server).value().release();
+    server_ = new testing::TestServer(options, "dashboard_test");
   }
-  static void TearDownTestSuite() {
-    delete server_;
-    delete dir_;
-  }
+  static void TearDownTestSuite() { delete server_; }
 
   void SetUp() override {
-    ASSERT_NE(server_, nullptr);
-    http_ = std::make_unique<httplib::Client>("127.0.0.1", server_->http_port());
+    ASSERT_TRUE(server_ != nullptr && server_->ok());
+    http_ = std::make_unique<httplib::Client>("127.0.0.1", server_->server().http_port());
     http_->set_read_timeout(std::chrono::seconds(30));
   }
 
@@ -71,13 +61,11 @@ class DashboardTest : public ::testing::Test {
     return nullptr;
   }
 
-  static testing::TempDir* dir_;
-  static Server* server_;
+  static testing::TestServer* server_;
   std::unique_ptr<httplib::Client> http_;
 };
 
-testing::TempDir* DashboardTest::dir_ = nullptr;
-Server* DashboardTest::server_ = nullptr;
+testing::TestServer* DashboardTest::server_ = nullptr;
 
 TEST_F(DashboardTest, RootIsTheIndexPageWithTheCspAndNoToken) {
   httplib::Result result = Get("/");

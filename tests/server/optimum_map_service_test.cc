@@ -17,6 +17,7 @@
 #include "support/operations.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
+#include "support/test_server.h"
 
 namespace drillbif::server {
 namespace {
@@ -33,62 +34,33 @@ v1::QueryOptimumRequest QueryAt(double b) {
   return q;
 }
 
-// A server of its own over `db`, and stubs.
-class MapServer {
- public:
-  explicit MapServer(const std::string& db) {
-    ServerOptions options;
-    options.grpc_port = 0;
-    options.http_port = 0;
-    options.db_path = db;
-    options.workers = 2;
-    StatusOr<std::unique_ptr<Server>> server = Server::Start(options);
-    EXPECT_TRUE(server.ok()) << server.status().ToString();
-    if (!server.ok()) return;
-    server_ = std::move(server).value();
-    auto channel = grpc::CreateChannel(server_->grpc_address(), grpc::InsecureChannelCredentials());
-    jobs_ = v1::Jobs::NewStub(channel);
-    operations_ = google::longrunning::Operations::NewStub(channel);
-  }
-  bool ok() const { return server_ != nullptr; }
-  Server& server() { return *server_; }
+using drillbif::testing::TestServer;
 
-  static std::unique_ptr<grpc::ClientContext> Context(double seconds = 60) {
-    auto context = std::make_unique<grpc::ClientContext>();
-    context->set_deadline(std::chrono::system_clock::now() +
-                          std::chrono::milliseconds(static_cast<int>(seconds * 1000)));
-    return context;
-  }
+// Two workers, so that the map's cells run two at a time.
+ServerOptions TwoWorkers() {
+  ServerOptions options;
+  options.workers = 2;
+  return options;
+}
 
-  // Submits the map and waits until it is done.
-  Operation RunMap() {
-    v1::SubmitOptimumMapRequest submit;
-    *submit.mutable_request() = MapRequest();
-    Operation op;
-    EXPECT_TRUE(jobs_->SubmitOptimumMap(Context().get(), submit, &op).ok());
-    google::longrunning::WaitOperationRequest wait;
-    wait.set_name(op.name());
-    wait.mutable_timeout()->set_seconds(60);
-    EXPECT_TRUE(operations_->WaitOperation(Context(90).get(), wait, &op).ok());
-    return op;
-  }
+// Submits `map` and waits until it is done.
+Operation RunMap(TestServer& s, const v1::OptimumMapRequest& map = MapRequest()) {
+  v1::SubmitOptimumMapRequest submit;
+  *submit.mutable_request() = map;
+  Operation op;
+  EXPECT_TRUE(s.jobs().SubmitOptimumMap(TestServer::Context().get(), submit, &op).ok());
+  return s.WaitDone(op.name());
+}
 
-  grpc::Status Query(const v1::QueryOptimumRequest& q, v1::QueryOptimumResponse* response) {
-    return jobs_->QueryOptimum(Context().get(), q, response);
-  }
-
-  std::unique_ptr<v1::Jobs::Stub> jobs_;
-  std::unique_ptr<google::longrunning::Operations::Stub> operations_;
-
- private:
-  std::unique_ptr<Server> server_;
-};
+grpc::Status Query(TestServer& s, const v1::QueryOptimumRequest& q,
+                   v1::QueryOptimumResponse* response) {
+  return s.jobs().QueryOptimum(TestServer::Context().get(), q, response);
+}
 
 TEST(OptimumMapService, QueriesBetweenCellsAreAnsweredFromTheMapVerified) {
-  testing::TempDir dir("drillbif_map");
-  MapServer s(dir.path() + "/jobs.db");
+  TestServer s(TwoWorkers(), "drillbif_map");
   ASSERT_TRUE(s.ok());
-  const Operation map = s.RunMap();
+  const Operation map = RunMap(s);
   ASSERT_TRUE(map.done());
   ASSERT_TRUE(map.has_response()) << map.error().message();
   const auto result = testing::ResponseOf<v1::OptimumMapResult>(map);
@@ -96,7 +68,7 @@ TEST(OptimumMapService, QueriesBetweenCellsAreAnsweredFromTheMapVerified) {
 
   const int64_t runs = s.server().engine_runs();
   v1::QueryOptimumResponse answer;
-  ASSERT_TRUE(s.Query(QueryAt(0.1475), &answer).ok());
+  ASSERT_TRUE(Query(s, QueryAt(0.1475), &answer).ok());
   ASSERT_TRUE(answer.has_optimum());
   EXPECT_EQ(answer.operation(), map.name());
   EXPECT_FALSE(answer.stored());
@@ -117,59 +89,59 @@ TEST(OptimumMapService, QueriesBetweenCellsAreAnsweredFromTheMapVerified) {
 
   // Asked again: the kept answer.
   v1::QueryOptimumResponse again;
-  ASSERT_TRUE(s.Query(QueryAt(0.1475), &again).ok());
+  ASSERT_TRUE(Query(s, QueryAt(0.1475), &again).ok());
   EXPECT_EQ(again.SerializeAsString(), answer.SerializeAsString());
 }
 
 TEST(OptimumMapService, OutsideEveryMapIsNotFoundNamingTheNearestAndADeletedMapStopsAnswering) {
-  testing::TempDir dir("drillbif_map");
-  MapServer s(dir.path() + "/jobs.db");
+  TestServer s(TwoWorkers(), "drillbif_map");
   ASSERT_TRUE(s.ok());
-  const Operation map = s.RunMap();
+  const Operation map = RunMap(s);
   ASSERT_TRUE(map.has_response());
   v1::QueryOptimumResponse answer;
-  grpc::Status outside = s.Query(QueryAt(0.17), &answer);
+  grpc::Status outside = Query(s, QueryAt(0.17), &answer);
   EXPECT_EQ(outside.error_code(), grpc::StatusCode::NOT_FOUND);
   EXPECT_THAT(outside.error_message(), HasSubstr(map.name()));
   EXPECT_THAT(outside.error_message(), HasSubstr("1 cells outside"));
 
   v1::QueryOptimumRequest unknown = QueryAt(0.1475);
   unknown.set_on_map_failure(static_cast<v1::QueryOptimumRequest::OnMapFailure>(7));
-  grpc::Status refused = s.Query(unknown, &answer);
+  grpc::Status refused = Query(s, unknown, &answer);
   EXPECT_EQ(refused.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(refused.error_message(), HasSubstr("on_map_failure"));
 
   v1::QueryOptimumRequest no_maps = QueryAt(0.1475);
   no_maps.set_no_maps(true);
-  EXPECT_EQ(s.Query(no_maps, &answer).error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(Query(s, no_maps, &answer).error_code(), grpc::StatusCode::NOT_FOUND);
 
   v1::QueryOptimumRequest other_margin = QueryAt(0.1475);
   other_margin.mutable_request()->set_margin(0, 0.02);
-  grpc::Status other = s.Query(other_margin, &answer);
+  grpc::Status other = Query(s, other_margin, &answer);
   EXPECT_EQ(other.error_code(), grpc::StatusCode::NOT_FOUND);
   EXPECT_THAT(other.error_message(), ::testing::Not(HasSubstr(map.name())));
 
-  ASSERT_TRUE(s.Query(QueryAt(0.1475), &answer).ok());  // an answer kept in memory ...
+  ASSERT_TRUE(Query(s, QueryAt(0.1475), &answer).ok());  // an answer kept in memory ...
   google::longrunning::DeleteOperationRequest del;
   del.set_name(map.name());
   google::protobuf::Empty empty;
-  ASSERT_TRUE(s.operations_->DeleteOperation(MapServer::Context().get(), del, &empty).ok());
-  EXPECT_EQ(s.Query(QueryAt(0.1475), &answer).error_code(), grpc::StatusCode::NOT_FOUND)
+  ASSERT_TRUE(s.operations().DeleteOperation(TestServer::Context().get(), del, &empty).ok());
+  EXPECT_EQ(Query(s, QueryAt(0.1475), &answer).error_code(), grpc::StatusCode::NOT_FOUND)
       << "... is dropped with its map";
 }
 
 TEST(OptimumMapService, ARestartedServerAnswersFromTheMapsOfItsStore) {
   testing::TempDir dir("drillbif_map");
+  const std::string db = dir.path() + "/jobs.db";
   std::string name;
   {
-    MapServer first(dir.path() + "/jobs.db");
+    TestServer first(TwoWorkers(), "drillbif_map", db);
     ASSERT_TRUE(first.ok());
-    name = first.RunMap().name();
+    name = RunMap(first).name();
   }
-  MapServer second(dir.path() + "/jobs.db");
+  TestServer second(TwoWorkers(), "drillbif_map", db);
   ASSERT_TRUE(second.ok());
   v1::QueryOptimumResponse answer;
-  ASSERT_TRUE(second.Query(QueryAt(0.1525), &answer).ok());
+  ASSERT_TRUE(Query(second, QueryAt(0.1525), &answer).ok());
   EXPECT_EQ(answer.operation(), name);
   EXPECT_TRUE(answer.from_map().verified()) << answer.from_map().verification();
 }
@@ -179,24 +151,17 @@ TEST(OptimumMapService, ARestartedServerAnswersFromTheMapsOfItsStore) {
 // orbit is no longer stable): NEAREST_CELL answers it unverified, and COMPUTE does not get that
 // answer back but runs an optimum job at b = 0.1145 instead, whose optimum lies lower in a.
 TEST(OptimumMapService, AnUnverifiedAnswerIsNotKeptForACallerWhoAsksToCompute) {
-  testing::TempDir dir("drillbif_map");
-  MapServer s(dir.path() + "/jobs.db");
+  TestServer s(TwoWorkers(), "drillbif_map");
   ASSERT_TRUE(s.ok());
-  v1::SubmitOptimumMapRequest submit;
-  *submit.mutable_request() = testing::SmallBoxMap(0.11, 0.12, 2);
-  Operation map;
-  ASSERT_TRUE(s.jobs_->SubmitOptimumMap(MapServer::Context().get(), submit, &map).ok());
-  google::longrunning::WaitOperationRequest wait;
-  wait.set_name(map.name());
-  wait.mutable_timeout()->set_seconds(60);
-  ASSERT_TRUE(s.operations_->WaitOperation(MapServer::Context(90).get(), wait, &map).ok());
+  const v1::OptimumMapRequest request = testing::SmallBoxMap(0.11, 0.12, 2);
+  const Operation map = RunMap(s, request);
   ASSERT_TRUE(map.has_response()) << map.error().message();
 
   v1::QueryOptimumRequest query;
-  *query.mutable_request() = submit.request().optimum();
+  *query.mutable_request() = request.optimum();
   query.mutable_request()->mutable_trace()->mutable_params()->set_b(0.1145);
   v1::QueryOptimumResponse nearest;
-  ASSERT_TRUE(s.Query(query, &nearest).ok());
+  ASSERT_TRUE(Query(s, query, &nearest).ok());
   ASSERT_EQ(nearest.operation(), map.name());
   EXPECT_FALSE(nearest.from_map().interpolated());
   ASSERT_FALSE(nearest.from_map().verified()) << nearest.from_map().verification();
@@ -204,7 +169,7 @@ TEST(OptimumMapService, AnUnverifiedAnswerIsNotKeptForACallerWhoAsksToCompute) {
 
   query.set_on_map_failure(v1::QueryOptimumRequest::COMPUTE);
   v1::QueryOptimumResponse computed;
-  const grpc::Status status = s.Query(query, &computed);
+  const grpc::Status status = Query(s, query, &computed);
   // An optimum job computed there (the box has one at b = 0.1145, at a lower a than the cell's),
   // not the map's unverified answer again.
   ASSERT_TRUE(status.ok()) << status.error_message();

@@ -83,12 +83,11 @@ class ScaleOut : public ::testing::Test {
   TempDir dir_{"drillbif_scale_out"};
 };
 
-std::string Submit(v1::Jobs::Stub& jobs, const v1::SweepRequest& sweep) {
-  v1::SubmitSweepRequest submit;
-  *submit.mutable_request() = sweep;
+// Submits `request` (of any kind) through the API process `api`; the operation's name.
+std::string Submit(const ServerProcess& api, const google::protobuf::Message& request) {
   Operation op;
-  auto context = ContextWithDeadline();
-  const grpc::Status s = jobs.SubmitSweep(context.get(), submit, &op);
+  const grpc::Status s =
+      drillbif::testing::Submit(api, *jobs::FindKind(request.GetDescriptor()), request, &op);
   EXPECT_TRUE(s.ok()) << s.error_message();
   return op.name();
 }
@@ -102,22 +101,16 @@ TEST_F(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinish
   workers.push_back(Start("worker0", "worker"));
   workers.push_back(Start("worker1", "worker"));
   ASSERT_TRUE(api->serving() && workers[0]->serving() && workers[1]->serving());
-  auto jobs = v1::Jobs::NewStub(api->channel());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
 
   // Two long sweeps (about a second of engine time each) first, then 40 short ones.
   std::vector<v1::SweepRequest> requests = {SmallSweep(0.0, 300), SmallSweep(0.001, 300)};
   for (int i = 0; i < 40; ++i) requests.push_back(SmallSweep(0.1 + 0.001 * i, 5));
   std::vector<std::string> names;
-  for (const v1::SweepRequest& sweep : requests) names.push_back(Submit(*jobs, sweep));
+  for (const v1::SweepRequest& sweep : requests) names.push_back(Submit(*api, sweep));
   // And a trace, whose result must equal a direct run's whoever runs it.
-  v1::SubmitTraceRequest trace;
-  *trace.mutable_request() = drillbif::testing::SmallBoxTrace();
-  Operation trace_op;
-  {
-    auto context = ContextWithDeadline();
-    ASSERT_TRUE(jobs->SubmitTrace(context.get(), trace, &trace_op).ok());
-  }
+  const v1::TraceRequest trace = drillbif::testing::SmallBoxTrace();
+  const std::string trace_name = Submit(*api, trace);
 
   // Once a long one runs and has reported progress, kill its worker.
   std::unique_ptr<JobStore> store = OpenStore();
@@ -159,9 +152,9 @@ TEST_F(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinish
     direct.value().clear_wall_seconds();
     EXPECT_TRUE(MessageDifferencer::Equals(served, *direct)) << names[i];
   }
-  const Operation traced = WaitDone(*operations, trace_op.name());
+  const Operation traced = WaitDone(*operations, trace_name);
   ASSERT_EQ(MetadataOf(traced).state(), v1::SUCCEEDED);
-  StatusOr<v1::TraceResult> direct_trace = jobs::RunTrace(trace.request());
+  StatusOr<v1::TraceResult> direct_trace = jobs::RunTrace(trace);
   ASSERT_TRUE(direct_trace.ok());
   drillbif::testing::ExpectSameResult(drillbif::testing::ResponseOf<v1::TraceResult>(traced),
                                       *direct_trace);
@@ -176,7 +169,7 @@ TEST_F(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinish
   google::longrunning::ListOperationsResponse page;
   auto context = ContextWithDeadline();
   ASSERT_TRUE(operations->ListOperations(context.get(), list, &page).ok());
-  names.push_back(trace_op.name());
+  names.push_back(trace_name);
   ASSERT_EQ(page.operations_size(), static_cast<int>(names.size()));
   for (int i = 0; i < page.operations_size(); ++i) {
     EXPECT_EQ(page.operations(i).name(), names[i]);
@@ -202,10 +195,9 @@ TEST_F(ScaleOut, AWorkerPausedPastItsLeaseCannotFinishTheJobTheOtherTookOver) {
   std::vector<std::unique_ptr<ServerProcess>> workers;
   workers.push_back(Start("worker0", "worker"));
   workers.push_back(Start("worker1", "worker"));
-  auto jobs = v1::Jobs::NewStub(api->channel());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
   const v1::SweepRequest request = SmallSweep(0.0, 300);
-  const std::string name = Submit(*jobs, request);
+  const std::string name = Submit(*api, request);
   std::unique_ptr<JobStore> store = OpenStore();
   const std::optional<JobRecord> running = RunningJob(*store, {name});
   ASSERT_TRUE(running.has_value()) << "the job never ran";
@@ -255,8 +247,7 @@ TEST_F(ScaleOut, ACancelThroughAnyApiProcessStopsTheRunOnItsWorkerWithinASecond)
   std::unique_ptr<ServerProcess> api0 = Start("api0", "api");
   std::unique_ptr<ServerProcess> api1 = Start("api1", "api");
   std::unique_ptr<ServerProcess> worker = Start("worker", "worker");
-  auto jobs = v1::Jobs::NewStub(api0->channel());
-  const std::string name = Submit(*jobs, drillbif::testing::LongSweep());  // minutes of work
+  const std::string name = Submit(*api0, drillbif::testing::LongSweep());  // minutes of work
   std::unique_ptr<JobStore> store = OpenStore();
   ASSERT_TRUE(RunningJob(*store, {name}).has_value()) << "the job never ran";
   auto operations = google::longrunning::Operations::NewStub(api1->channel());
@@ -370,9 +361,8 @@ TEST_F(ScaleOut, AWorkerServesNoJobsAndAnApiProcessRunsNone) {
 
   // With no worker, a job submitted to an API process stays queued.
   std::unique_ptr<ServerProcess> api = Start("api", "api");
-  auto jobs = v1::Jobs::NewStub(api->channel());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
-  const std::string name = Submit(*jobs, SmallSweep(0.1, 5));
+  const std::string name = Submit(*api, SmallSweep(0.1, 5));
   std::this_thread::sleep_for(std::chrono::milliseconds(1000));
   EXPECT_EQ(MetadataOf(GetOperation(*operations, name)).state(), v1::QUEUED);
   // A worker that joins runs it.
@@ -400,16 +390,6 @@ v1::TraceRequest ReferenceBoxTrace() {
   r.set_max(0, 2);
   r.set_max(1, 8);
   return r;
-}
-
-std::string SubmitTrace(v1::Jobs::Stub& jobs, const v1::TraceRequest& request) {
-  v1::SubmitTraceRequest submit;
-  *submit.mutable_request() = request;
-  Operation op;
-  auto context = ContextWithDeadline();
-  const grpc::Status s = jobs.SubmitTrace(context.get(), submit, &op);
-  EXPECT_TRUE(s.ok()) << s.error_message();
-  return op.name();
 }
 
 // The parent's children in `state` (all states when empty), from the store.
@@ -446,10 +426,9 @@ TEST_F(ScaleOut, ATraceFansOutOverBothWorkersAndALostTaskRunsAgain) {
   workers.push_back(Start("worker0", "worker", 32));
   workers.push_back(Start("worker1", "worker", 32));
   ASSERT_TRUE(api->serving() && workers[0]->serving() && workers[1]->serving());
-  auto jobs = v1::Jobs::NewStub(api->channel());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
   const v1::TraceRequest request = fan_out::PeriodTwoTrace();
-  const std::string name = fan_out::SubmitTrace(*jobs, request);
+  const std::string name = Submit(*api, request);
   std::unique_ptr<JobStore> store = OpenStore();
   const std::optional<JobRecord> parent = RunningJob(*store, {name});
   ASSERT_TRUE(parent.has_value()) << "the trace never ran";
@@ -524,10 +503,9 @@ TEST_F(ScaleOut, CancellingAFannedOutTraceCancelsItsTasks) {
   std::unique_ptr<ServerProcess> api = Start("api", "api");
   std::unique_ptr<ServerProcess> worker0 = Start("worker0", "worker", 32);
   std::unique_ptr<ServerProcess> worker1 = Start("worker1", "worker", 32);
-  auto jobs = v1::Jobs::NewStub(api->channel());
   // Long, so that the cancel comes long before its end (a trace that has all its results when
   // the cancel arrives may finish first, as any job may).
-  const std::string name = fan_out::SubmitTrace(*jobs, fan_out::ReferenceBoxTrace());
+  const std::string name = Submit(*api, fan_out::ReferenceBoxTrace());
   std::unique_ptr<JobStore> store = OpenStore();
   const std::optional<JobRecord> parent = RunningJob(*store, {name});
   ASSERT_TRUE(parent.has_value()) << "the trace never ran";
@@ -588,19 +566,14 @@ TEST_F(ScaleOut, AnOptimumMapsCellsRunOnBothWorkersAndAnotherApiProcessAnswersFr
   workers.push_back(Start("worker1", "worker"));
   const v1::OptimumMapRequest map = drillbif::testing::SmallBoxMap(0.14, 0.165, 6);
   const v1::OptimumRequest* optimum = &map.optimum();
-  v1::SubmitOptimumMapRequest submit;
-  *submit.mutable_request() = map;
-  Operation op;
-  auto jobs0 = v1::Jobs::NewStub(api0->channel());
-  ASSERT_TRUE(jobs0->SubmitOptimumMap(ContextWithDeadline().get(), submit, &op).ok());
+  const std::string name = Submit(*api0, map);
   auto operations = google::longrunning::Operations::NewStub(api0->channel());
-  const Operation done = WaitDone(*operations, op.name());
+  const Operation done = WaitDone(*operations, name);
   ASSERT_TRUE(done.has_response()) << done.error().message();
   EXPECT_EQ(drillbif::testing::ResponseOf<v1::OptimumMapResult>(done).cells_found(), 6);
 
   std::unique_ptr<JobStore> store = OpenStore();
-  const std::vector<JobRecord> cells =
-      fan_out::Children(*store, JobId(op.name()), JobState::kSucceeded);
+  const std::vector<JobRecord> cells = fan_out::Children(*store, JobId(name), JobState::kSucceeded);
   ASSERT_EQ(cells.size(), 6u);
   std::set<int> ran_on;
   for (const JobRecord& c : cells) ran_on.insert(fan_out::ProcessOf(c.worker_id, workers));
@@ -613,7 +586,7 @@ TEST_F(ScaleOut, AnOptimumMapsCellsRunOnBothWorkersAndAnotherApiProcessAnswersFr
   auto jobs1 = v1::Jobs::NewStub(api1->channel());
   const grpc::Status s = jobs1->QueryOptimum(ContextWithDeadline().get(), query, &answer);
   ASSERT_TRUE(s.ok()) << s.error_message();
-  EXPECT_EQ(answer.operation(), op.name());
+  EXPECT_EQ(answer.operation(), name);
   EXPECT_TRUE(answer.from_map().verified()) << answer.from_map().verification();
 }
 

@@ -21,14 +21,16 @@ namespace drillbif::testing {
 
 class TestServer {
  public:
-  // Starts a server with `options`, whose ports, host and store path are replaced; ok() tells
-  // whether it started (a test failure otherwise).
-  explicit TestServer(server::ServerOptions options, const std::string& name = "drillbif_server")
+  // Starts a server with `options`, whose ports, host and store path are replaced (the store:
+  // `db` when given, e.g. to start a server again on an earlier one's file; else a file in a
+  // temporary directory); ok() tells whether it started (a test failure otherwise).
+  explicit TestServer(server::ServerOptions options, const std::string& name = "drillbif_server",
+                      const std::string& db = "")
       : dir_(name) {
     options.host = "127.0.0.1";
     options.grpc_port = 0;
     options.http_port = 0;
-    options.db_path = dir_.path() + "/jobs.db";
+    options.db_path = db.empty() ? dir_.path() + "/jobs.db" : db;
     StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
     EXPECT_TRUE(started.ok()) << started.status().ToString();
     if (!started.ok()) return;
