@@ -156,8 +156,11 @@ StatusOr<v1::OptimumResult> Optimum(const v1::OptimumRequest& request, const Run
   const std::string key = cache != nullptr ? OptimumCache::KeyOf(request.trace()) : "";
   const auto trace_start = std::chrono::steady_clock::now();
   bool reused = false, cancelled = false;
+  // The trace's tasks run where the context says (a server's workers, as a trace job's do).
+  TracePlan trace = plan.trace;
+  trace.options.task_runner = context.trace_tasks;
   StatusOr<std::shared_ptr<const OptimumCurves>> found =
-      CurvesFor(plan.trace, key, curves_progress, cache, &reused, &cancelled);
+      CurvesFor(trace, key, curves_progress, cache, &reused, &cancelled);
   if (!found.ok()) return found.status();
   v1::OptimumResult out;
   out.set_engine_version(EngineVersion());

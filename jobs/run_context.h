@@ -50,8 +50,9 @@ struct RunContext {
   OptimumCache* optimum_cache = nullptr;
   // Streamed result items; null: the result holds them all.
   ResultSink* sink = nullptr;
-  // Where a trace job's tasks run (continuation/trace_tasks.h: e.g. the store's child jobs, for
-  // any worker to take); null: the trace's own threads. Not owned.
+  // Where the tasks of a trace job's trace, or an optimum job's, run (continuation/trace_tasks.h:
+  // e.g. the store's child jobs, for any worker to take); null: the trace's own threads. Not
+  // owned.
   TraceTaskRunner* trace_tasks = nullptr;
   // Where an optimum map's cells run (e.g. the store's child jobs); null: the job's own threads.
   // Not owned.

@@ -6,7 +6,9 @@
 
 #include "drillbif/continuation/trace_tasks.h"
 #include "drillbif/flow/exact_propagator.h"
+#include "drillbif/v1/optimum.pb.h"
 #include "jobs/job_common.h"
+#include "jobs/request_bytes.h"
 #include "jobs/trace_job.h"
 #include "jobs/trace_task_codec.h"
 
@@ -121,13 +123,26 @@ StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& requ
   return cancelled;
 }
 
-StatusOr<LocalTraceTasks> LocalTraceTasks::ForRequest(std::string_view parent_request) {
+StatusOr<LocalTraceTasks> LocalTraceTasks::ForRequest(std::string_view trace_request) {
   v1::TraceRequest parent;
-  if (!parent.ParseFromArray(parent_request.data(), static_cast<int>(parent_request.size()))) {
+  if (!parent.ParseFromArray(trace_request.data(), static_cast<int>(trace_request.size()))) {
     return InvalidArgument("trace_request: not a drillbif.v1.TraceRequest");
   }
   DRILLBIF_ASSIGN_OR_RETURN(TracePlan plan, PlanTrace(parent));
-  return LocalTraceTasks(std::move(plan));
+  return LocalTraceTasks(std::move(plan), std::string(trace_request));
+}
+
+StatusOr<LocalTraceTasks> LocalTraceTasks::ForJob(v1::JobKind kind, std::string_view request) {
+  if (kind == v1::TRACE) return ForRequest(request);
+  if (kind != v1::OPTIMUM) {
+    return Status(StatusCode::kNotFound,
+                  std::string(v1::JobKind_Name(kind)) + " jobs have no trace to fan out");
+  }
+  v1::OptimumRequest optimum;
+  if (!optimum.ParseFromArray(request.data(), static_cast<int>(request.size()))) {
+    return InvalidArgument("request: not a drillbif.v1.OptimumRequest");
+  }
+  return ForRequest(DeterministicBytes(optimum.trace()));
 }
 
 StatusOr<TraceTaskResult> LocalTraceTasks::Run(const TraceTask& task,

@@ -6,11 +6,13 @@
 #define DRILLBIF_JOBS_TRACE_TASK_JOB_H_
 
 #include <functional>
+#include <string>
 #include <string_view>
 #include <utility>
 
 #include "drillbif/common/status.h"
 #include "drillbif/continuation/trace_tasks.h"
+#include "drillbif/v1/service.pb.h"
 #include "drillbif/v1/trace_task.pb.h"
 #include "jobs/job_cost.h"
 #include "jobs/run_context.h"
@@ -41,14 +43,22 @@ StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& requ
 class LocalTraceTasks {
  public:
   // INVALID_ARGUMENT when the parent's serialized TraceRequest does not plan.
-  static StatusOr<LocalTraceTasks> ForRequest(std::string_view parent_request);
+  static StatusOr<LocalTraceTasks> ForRequest(std::string_view trace_request);
+  // The tasks of a job of `kind` whose trace fans out: a trace (its request), an optimum (its
+  // request's trace). INVALID_ARGUMENT for a request that does not plan, NOT_FOUND for a kind
+  // with no trace of its own.
+  static StatusOr<LocalTraceTasks> ForJob(v1::JobKind kind, std::string_view request);
+  // The serialized TraceRequest the tasks run under: what a child job's request carries.
+  const std::string& trace_request() const { return trace_request_; }
   // The task's result; CANCELLED once `keep_going` (polled every few ms) returns false.
   StatusOr<TraceTaskResult> Run(const TraceTask& task,
                                 const std::function<bool()>& keep_going) const;
 
  private:
-  explicit LocalTraceTasks(TracePlan plan) : plan_(std::move(plan)) {}
+  LocalTraceTasks(TracePlan plan, std::string trace_request)
+      : plan_(std::move(plan)), trace_request_(std::move(trace_request)) {}
   TracePlan plan_;
+  std::string trace_request_;
 };
 
 }  // namespace drillbif::jobs

@@ -92,9 +92,9 @@ int main(int argc, char** argv) {
                  "loses it to the others")
       ->capture_default_str();
   app.add_option("--trace-fan-out", options.trace_fan_out,
-                 "With --store: trace tasks stored ahead as child jobs for every worker "
-                 "process to run, e.g. 32 (pays for period-2 traces on several workers); 0: a "
-                 "trace runs on the threads of its worker")
+                 "With --store: the tasks of a trace (and of an optimum's trace) stored ahead as "
+                 "child jobs for every worker process to run, e.g. 32 (pays for period-2 traces "
+                 "on several workers); 0: a trace runs on the threads of its worker")
       ->capture_default_str();
   app.add_option("--workers", options.workers, "Worker threads; 0: one per core")
       ->capture_default_str();

@@ -72,7 +72,8 @@ struct ServerOptions {
   int64_t lease_ms = 15000;
   // With a shared store, a trace job offers its tasks, up to this many ahead of the one it
   // applies, to every worker process as child jobs (WorkerPoolOptions::trace_fan_out,
-  // server/trace_fan_out.h); 0: each trace runs on the threads of the worker that claimed it.
+  // server/trace_fan_out.h; an optimum's trace too); 0: each trace runs on the threads of the
+  // worker that claimed it.
   // Off by default: on this 2-core machine the reference box took 19.0 s fanned out on 1
   // worker and 16.6 s on 2, against 17.7 s not fanned out (docs/scale.md); it is meant for
   // traces of long tasks (period 2) on workers of their own machines. 32 where it is used.

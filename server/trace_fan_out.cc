@@ -55,7 +55,7 @@ StatusOr<int64_t> StoreTaskRunner::Submit(const TraceTask& task) {
   }
   SubmitRequest request;
   request.kind = jobs::kTraceTaskKind;
-  request.request = jobs::EncodeTraceTaskRequest(parent_.request, task);
+  request.request = jobs::EncodeTraceTaskRequest(local_.trace_request(), task);
   request.client = parent_.client;
   request.lane = parent_.lane;
   request.parent = parent_.id;

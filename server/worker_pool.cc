@@ -232,11 +232,14 @@ class WorkerPool::Run {
 
   // Runs the job and records its outcome; returns the outcome's label.
   const char* Execute() {
-    // A trace's tasks offered to every worker as child jobs (WorkerPoolOptions::trace_fan_out).
+    // A trace's tasks, and an optimum's trace's, offered to every worker as child jobs
+    // (WorkerPoolOptions::trace_fan_out).
     std::optional<jobs::LocalTraceTasks> local;
     std::optional<StoreTaskRunner> fan_out;
-    if (kind_.kind == v1::TRACE && pool_->options_.trace_fan_out > 0) {
-      StatusOr<jobs::LocalTraceTasks> planned = jobs::LocalTraceTasks::ForRequest(job_.request);
+    if ((kind_.kind == v1::TRACE || kind_.kind == v1::OPTIMUM) &&
+        pool_->options_.trace_fan_out > 0) {
+      StatusOr<jobs::LocalTraceTasks> planned =
+          jobs::LocalTraceTasks::ForJob(kind_.kind, job_.request);
       if (planned.ok()) local.emplace(*std::move(planned));  // else RunJob reports the error
     }
     // An optimum map's cells as child jobs: any worker computes them, a later run resumes them.

@@ -77,7 +77,8 @@ struct WorkerPoolOptions {
   // job was taken back) is stopped and records nothing. 0: no leases (a store one process owns:
   // its restart recovers the jobs). >= 300 when set: three beats must fit in it.
   int64_t lease_ms = 0;
-  // Trace jobs offer their tasks to every worker as child jobs of the store
+  // Trace jobs, and optimum jobs for their trace, offer their tasks to every worker as child jobs
+  // of the store
   // (server/trace_fan_out.h), up to this many ahead of the one they apply; 0: a trace runs its
   // tasks on its own threads. For a store several processes share: in one process the threads
   // do the same work without the store's round trips.

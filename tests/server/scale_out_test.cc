@@ -21,6 +21,7 @@
 
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
+#include "jobs/optimum_job.h"
 #include "jobs/sweep_job.h"
 #include "jobs/trace_job.h"
 #include "server/store/postgres_job_store.h"
@@ -554,6 +555,55 @@ TEST_F(ScaleOut, CancellingAFannedOutTraceCancelsItsTasks) {
     EXPECT_TRUE(IsFinished(c.state)) << c.id;
   }
   std::printf("fanned-out trace cancelled after %.0f ms\n", ms);
+}
+
+// An optimum's trace fans out like a trace's: its tasks are child jobs that the other worker runs
+// too, and the optimum equals a direct run's.
+TEST_F(ScaleOut, AnOptimumsTraceFansOutOverBothWorkers) {
+  std::unique_ptr<ServerProcess> api = Start("api", "api");
+  std::vector<std::unique_ptr<ServerProcess>> workers;
+  workers.push_back(Start("worker0", "worker", 32));
+  workers.push_back(Start("worker1", "worker", 32));
+  ASSERT_TRUE(api->serving() && workers[0]->serving() && workers[1]->serving());
+  v1::OptimumRequest request;
+  *request.mutable_trace() = drillbif::testing::SmallBoxTrace();
+  request.mutable_trace()->set_max(0, 0.45);  // omega in [0.05, 0.45]: ~2 s on one thread
+  request.add_margin(0.01);
+  request.add_margin(0.02);
+  request.add_grid(41);
+  request.add_grid(41);
+  const std::string name = Submit(*api, request);
+  std::unique_ptr<JobStore> store = OpenStore();
+  const std::optional<JobRecord> parent = RunningJob(*store, {name});
+  ASSERT_TRUE(parent.has_value()) << "the optimum never ran";
+  auto operations = google::longrunning::Operations::NewStub(api->channel());
+  const Operation done = WaitDone(*operations, name);
+  ASSERT_EQ(MetadataOf(done).state(), v1::SUCCEEDED);
+  StatusOr<v1::OptimumResult> direct = jobs::RunOptimum(request);
+  ASSERT_TRUE(direct.ok());
+  EXPECT_EQ(direct->status(), "COMPLETED");
+  drillbif::testing::ExpectSameResult(drillbif::testing::ResponseOf<v1::OptimumResult>(done),
+                                      *direct);
+  // The optimum's worker says how many of its trace's tasks it stored and the other one ran.
+  const int parent_worker = fan_out::ProcessOf(parent->worker_id, workers);
+  ASSERT_GE(parent_worker, 0) << parent->worker_id;
+  std::ifstream log(workers[parent_worker]->log_path());
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  const size_t line = text.find("job " + parent->id + ": ");
+  ASSERT_NE(line, std::string::npos) << text.substr(0, 2000);
+  long long tasks = 0, stored = 0, elsewhere = 0;
+  ASSERT_EQ(std::sscanf(text.c_str() + line + 4 + parent->id.size() + 2,
+                        "%lld trace tasks, %lld of them stored (%lld run by other workers", &tasks,
+                        &stored, &elsewhere),
+            3)
+      << text.substr(line, 200);
+  EXPECT_GT(tasks, 10);
+  EXPECT_GT(elsewhere, 0);
+  std::printf("the optimum's trace: %lld tasks, %lld stored, %lld run by the other worker\n", tasks,
+              stored, elsewhere);
+  for (const JobRecord& c : fan_out::Children(*store, parent->id)) {
+    EXPECT_TRUE(IsFinished(c.state)) << c.id;
+  }
 }
 
 // An optimum map's cells are child jobs that both workers run; a query between its cells through

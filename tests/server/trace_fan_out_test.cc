@@ -12,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "jobs/optimum_job.h"
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 #include "jobs/trace_job.h"
@@ -57,10 +58,33 @@ class TraceFanOut : public ::testing::Test {
     return jobs::RunTrace(request_, {.trace_tasks = &runner});
   }
 
-  // Every child of the parent is finished (those taken were deleted).
-  void ExpectNoChildLeftToRun() {
+  // Runs `body` while another worker claims any child as soon as one is queued, runs it and
+  // stores its result; *ran: the children it ran.
+  template <typename Body>
+  auto WithAnotherWorker(const Body& body, int* ran) {
+    std::atomic<bool> done{false};
+    std::atomic<int> count{0};
+    std::thread other([&] {
+      while (!done.load()) {
+        StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("other");
+        if (claimed.ok() && claimed->has_value() && RunChild(**claimed, /*keep=*/false)) {
+          ++count;
+        } else {
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        }
+      }
+    });
+    auto result = body();
+    done = true;
+    other.join();
+    *ran = count.load();
+    return result;
+  }
+
+  // Every child of `parent` (default: the trace) is finished (those taken were deleted).
+  void ExpectNoChildLeftToRun(const std::string& parent = "") {
     ListRequest list;
-    list.parent = parent_.id;
+    list.parent = parent.empty() ? parent_.id : parent;
     list.page_size = 1000;
     StatusOr<ListResult> children = store_->List(list);
     ASSERT_TRUE(children.ok());
@@ -103,32 +127,18 @@ TEST_F(TraceFanOut, AnotherWorkerTakesStoredTasksAndTheBudgetGrows) {
   StatusOr<jobs::LocalTraceTasks> local =
       jobs::LocalTraceTasks::ForRequest(jobs::DeterministicBytes(request_));
   ASSERT_TRUE(local.ok());
-  // Another worker: claims any child as soon as one is queued, runs it, stores its result.
-  std::atomic<bool> done{false};
-  std::atomic<int> ran{0};
-  std::thread other([&] {
-    while (!done.load()) {
-      StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("other");
-      if (claimed.ok() && claimed->has_value() && RunChild(**claimed, /*keep=*/false)) {
-        ++ran;
-      } else {
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
-    }
-  });
   StoreTaskRunner runner(*store_, parent_, "parent", *local, FanOutOptions{},
                          [&](const JobRecord& child) { return RunChild(child, /*keep=*/true); },
                          {});
-  StatusOr<v1::TraceResult> fanned = FannedOut(runner);
-  done = true;
-  other.join();
+  int ran = 0;
+  StatusOr<v1::TraceResult> fanned = WithAnotherWorker([&] { return FannedOut(runner); }, &ran);
   ASSERT_TRUE(fanned.ok()) << fanned.status().ToString();
   StatusOr<v1::TraceResult> direct = jobs::RunTrace(request_);
   ASSERT_TRUE(direct.ok());
   drillbif::testing::ExpectSameResult(*fanned, *direct);
-  EXPECT_GT(ran.load(), 0);
+  EXPECT_GT(ran, 0);
   EXPECT_GT(runner.run_elsewhere(), 0);
-  EXPECT_LE(runner.run_elsewhere(), ran.load());
+  EXPECT_LE(runner.run_elsewhere(), ran);
   // The budget grew past its start of 2 open tasks.
   EXPECT_GT(runner.stored(), 2 + runner.claimed_here());
   std::printf("with another worker: %lld tasks, %lld stored, %lld run by it, %lld claimed back\n",
@@ -136,6 +146,53 @@ TEST_F(TraceFanOut, AnotherWorkerTakesStoredTasksAndTheBudgetGrows) {
               static_cast<long long>(runner.run_elsewhere()),
               static_cast<long long>(runner.claimed_here()));
   ExpectNoChildLeftToRun();
+}
+
+// An optimum job's trace fans out like a trace job's: the tasks are stored as children under the
+// optimum, another worker runs some, and the optimum equals the one computed on its own thread.
+TEST_F(TraceFanOut, AnOptimumsTraceFansOutWithTheSameOptimum) {
+  v1::OptimumRequest request;
+  *request.mutable_trace() = request_;
+  request.add_margin(0.01);
+  request.add_margin(0.02);
+  request.add_grid(41);
+  request.add_grid(41);
+  SubmitRequest submit;
+  submit.kind = "optimum";
+  submit.request = jobs::DeterministicBytes(request);
+  submit.lane = kLaneLong;
+  ASSERT_TRUE(store_->Submit(submit).ok());
+  StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("optimum parent");
+  ASSERT_TRUE(claimed.ok() && claimed->has_value());
+  const JobRecord optimum = **claimed;
+  ASSERT_EQ(optimum.kind, "optimum");
+  StatusOr<jobs::LocalTraceTasks> local =
+      jobs::LocalTraceTasks::ForJob(v1::OPTIMUM, optimum.request);
+  ASSERT_TRUE(local.ok()) << local.status().ToString();
+  // The children carry the optimum's trace request, not the optimum's own.
+  EXPECT_EQ(local->trace_request(), jobs::DeterministicBytes(request_));
+  StoreTaskRunner runner(*store_, optimum, "optimum parent", *local, FanOutOptions{},
+                         [&](const JobRecord& child) { return RunChild(child, /*keep=*/true); },
+                         {});
+  int ran = 0;
+  StatusOr<v1::OptimumResult> fanned =
+      WithAnotherWorker([&] { return jobs::RunOptimum(request, {.trace_tasks = &runner}); }, &ran);
+  ASSERT_TRUE(fanned.ok()) << fanned.status().ToString();
+  StatusOr<v1::OptimumResult> direct = jobs::RunOptimum(request);
+  ASSERT_TRUE(direct.ok());
+  EXPECT_EQ(direct->status(), "COMPLETED");
+  drillbif::testing::ExpectSameResult(*fanned, *direct);
+  EXPECT_GT(runner.tasks(), 10);
+  EXPECT_GT(runner.run_elsewhere(), 0);
+  EXPECT_LE(runner.run_elsewhere(), ran);
+  ExpectNoChildLeftToRun(optimum.id);
+}
+
+TEST(TraceTasksOfAJob, OnlyTracesAndOptimaHaveThem) {
+  EXPECT_EQ(jobs::LocalTraceTasks::ForJob(v1::SWEEP, "").status().code(), StatusCode::kNotFound);
+  const StatusOr<jobs::LocalTraceTasks> garbage =
+      jobs::LocalTraceTasks::ForJob(v1::OPTIMUM, std::string("\xff\xff", 2));
+  EXPECT_EQ(garbage.status().code(), StatusCode::kInvalidArgument);
 }
 
 }  // namespace
