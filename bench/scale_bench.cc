@@ -9,9 +9,9 @@
 //   child jobs over 1 and 2 worker processes (each run's result must equal the first's).
 // Medians of `runs` (default 3) and their ratio. Not a Google Benchmark: each measurement starts
 // processes and a database.
-//   build/bench/scale_bench [runs] [fan-out | fan-out-period2]
+//   build/bench/scale_bench [runs] [fan-out | fan-out-period2 | fan-out-optimum]
 //   (fan-out: the reference box only; fan-out-period2: a period-2 box, unfanned on 1 worker
-//   against fanned out on 2)
+//   against fanned out on 2; fan-out-optimum: the reference box's optimum from scratch, the same)
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -27,8 +27,10 @@
 
 #include "drillbif/v1/service.grpc.pb.h"
 #include "google/longrunning/operations.grpc.pb.h"
+#include "jobs/registry.h"
 #include "support/operations.h"
 #include "support/postgres_cluster.h"
+#include "support/same_result.h"
 #include "support/server_process.h"
 #include "support/small_requests.h"
 
@@ -96,23 +98,38 @@ double TraceSeconds(int workers) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// Seconds for one trace of the reference box (omega in [0.05, 2], a in [0.01, 8] at b = 0.15)
-// run by `workers` worker processes, its tasks fanned out `fan_out` ahead (0: on the threads of
-// the worker that claimed it, one thread each here).
-// The result each run gives, wall time cleared: every run must give the first one's.
-std::string first_result;
+// Seconds for one trace of the reference box (omega in [0.05, 2], a in [0.01, 8] at b = 0.15), or
+// with `optimum` for the robust optimum over it from scratch (its trace, region and query; the
+// default margin and grid), run by `workers` worker processes, the trace's tasks fanned out
+// `fan_out` ahead (0: on the threads of the worker that claimed it, one thread each here).
+// The result each run gives, times cleared: every run must give the first one's.
+std::string first_result[2];
 
 // The period-2 box: omega in [0.05, 0.6], a in [0.2, 1] with period 2 (~94 s on one core).
 bool period_two = false;
 
-double OneTraceSeconds(int workers, int fan_out) {
+// The result of a finished job, its times cleared, serialized; exits unless it SUCCEEDED.
+template <typename Result>
+std::string ResultBytes(const google::longrunning::Operation& done) {
+  const v1::JobMetadata m = testing::MetadataOf(done);
+  if (m.state() != v1::SUCCEEDED) {
+    std::fprintf(stderr, "the job ended %s: %s\n", v1::JobState_Name(m.state()).c_str(),
+                 done.error().message().c_str());
+    std::exit(1);
+  }
+  Result result;
+  if (!done.response().UnpackTo(&result)) std::exit(1);
+  testing::ClearTimes(&result);
+  return result.SerializeAsString();
+}
+
+double OneJobSeconds(int workers, int fan_out, bool optimum = false) {
   Setup setup;
   ServerProcess& api = setup.Start("api");
   for (int w = 0; w < workers; ++w) setup.Start("worker", fan_out);
-  auto jobs = v1::Jobs::NewStub(api.channel());
   auto operations = google::longrunning::Operations::NewStub(api.channel());
-  v1::SubmitTraceRequest submit;
-  v1::TraceRequest& r = *submit.mutable_request();
+  v1::OptimumRequest request;
+  v1::TraceRequest& r = *request.mutable_trace();
   r.add_trace_params(std::string("omega"));
   r.add_trace_params(std::string("a"));
   r.add_min(0.05);
@@ -123,8 +140,10 @@ double OneTraceSeconds(int workers, int fan_out) {
   r.set_threads(1);
   const Clock::time_point t0 = Clock::now();
   google::longrunning::Operation op;
-  auto context = testing::ContextWithDeadline();
-  if (!jobs->SubmitTrace(context.get(), submit, &op).ok()) std::exit(1);
+  const jobs::JobKindSpec* kind = jobs::FindKind(optimum ? v1::OPTIMUM : v1::TRACE);
+  const google::protobuf::Message& submitted =
+      optimum ? static_cast<const google::protobuf::Message&>(request) : r;
+  if (!testing::Submit(api, *kind, submitted, &op).ok()) std::exit(1);
   const google::longrunning::Operation done = testing::WaitDone(*operations, op.name(), 600);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   // Where a fanned-out trace's time went, as its worker logs it.
@@ -136,20 +155,13 @@ double OneTraceSeconds(int workers, int fan_out) {
       }
     }
   }
-  const v1::JobMetadata m = testing::MetadataOf(done);
-  if (m.state() != v1::SUCCEEDED) {
-    std::fprintf(stderr, "the reference box's trace ended %s: %s\n",
-                 v1::JobState_Name(m.state()).c_str(), done.error().message().c_str());
-    std::exit(1);
-  }
-  v1::TraceResult result;
-  if (!done.response().UnpackTo(&result)) std::exit(1);
-  result.clear_wall_seconds();
-  const std::string bytes = result.SerializeAsString();
-  if (first_result.empty()) first_result = bytes;
-  if (bytes != first_result) {
-    std::fprintf(stderr, "the reference box's trace differs from the first run's (%d curves)\n",
-                 result.curves_size());
+  const std::string bytes =
+      optimum ? ResultBytes<v1::OptimumResult>(done) : ResultBytes<v1::TraceResult>(done);
+  std::string& first = first_result[optimum ? 1 : 0];
+  if (first.empty()) first = bytes;
+  if (bytes != first) {
+    std::fprintf(stderr, "the reference box's %s differs from the first run's\n",
+                 kind->name.c_str());
     std::exit(1);
   }
   return seconds;
@@ -196,11 +208,30 @@ int main(int argc, char** argv) {
   const bool fan_out_only = argc > 2 && std::string(argv[2]) == "fan-out";
   // "fan-out-period2": the period-2 box instead, on 1 worker without fan-out and on 2 with it.
   drillbif::period_two = argc > 2 && std::string(argv[2]) == "fan-out-period2";
+  // "fan-out-optimum": the reference box's optimum from scratch, on 1 worker without fan-out and
+  // on 2 with it.
+  if (argc > 2 && std::string(argv[2]) == "fan-out-optimum") {
+    std::vector<double> local, two;
+    for (int run = 0; run < runs; ++run) {
+      local.push_back(drillbif::OneJobSeconds(1, 0, /*optimum=*/true));
+      two.push_back(drillbif::OneJobSeconds(2, 32, /*optimum=*/true));
+      std::printf(
+          "run %d: the reference box's optimum %.2f s on 1 worker, fanned out %.2f s on 2\n", run,
+          local.back(), two.back());
+      std::fflush(stdout);
+    }
+    const double l = drillbif::Median(local), t = drillbif::Median(two);
+    std::printf(
+        "the reference box's optimum: 1 worker unfanned %.2f s, fanned out on 2 workers %.2f s: "
+        "%.2fx\n",
+        l, t, l / t);
+    return 0;
+  }
   if (drillbif::period_two) {
     std::vector<double> local, two;
     for (int run = 0; run < runs; ++run) {
-      local.push_back(drillbif::OneTraceSeconds(1, 0));
-      two.push_back(drillbif::OneTraceSeconds(2, 32));
+      local.push_back(drillbif::OneJobSeconds(1, 0));
+      two.push_back(drillbif::OneJobSeconds(2, 32));
       std::printf("run %d: period-2 box %.2f s on 1 worker, fanned out %.2f s on 2\n", run,
                   local.back(), two.back());
       std::fflush(stdout);
@@ -221,9 +252,9 @@ int main(int argc, char** argv) {
       std::printf("run %d: traces %.2f s / %.2f s, submits %.0f/s / %.0f/s\n", run, trace1.back(),
                   trace2.back(), submit1.back(), submit2.back());
     }
-    box_local.push_back(drillbif::OneTraceSeconds(1, 0));
-    box1.push_back(drillbif::OneTraceSeconds(1, 32));
-    box2.push_back(drillbif::OneTraceSeconds(2, 32));
+    box_local.push_back(drillbif::OneJobSeconds(1, 0));
+    box1.push_back(drillbif::OneJobSeconds(1, 32));
+    box2.push_back(drillbif::OneJobSeconds(2, 32));
     std::printf("run %d: reference box %.2f s on 1 worker, fanned out %.2f s on 1, %.2f s on 2\n",
                 run, box_local.back(), box1.back(), box2.back());
     std::fflush(stdout);
