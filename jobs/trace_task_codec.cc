@@ -539,18 +539,50 @@ Status DecodeResult(const v1::TraceTaskResponse& in, TraceTaskResult* out) {
 
 }  // namespace
 
+void EncodeTask(const TraceTask& task, v1::TraceTaskRequest* request) {
+  std::visit(
+      [request](const auto& t) {
+        using T = std::decay_t<decltype(t)>;
+        if constexpr (std::is_same_v<T, CurveTask>) Encode(t, request->mutable_curve());
+        if constexpr (std::is_same_v<T, CandidatesTask>) Encode(t, request->mutable_candidates());
+        if constexpr (std::is_same_v<T, CandidateTask>) {
+          Encode(t, request->mutable_candidate_run());
+        }
+      },
+      task);
+}
+
 std::string EncodeTraceTaskRequest(std::string_view parent_trace_request, const TraceTask& task) {
   v1::TraceTaskRequest request;
   request.set_trace_request(std::string(parent_trace_request));
-  std::visit(
-      [&request](const auto& t) {
-        using T = std::decay_t<decltype(t)>;
-        if constexpr (std::is_same_v<T, CurveTask>) Encode(t, request.mutable_curve());
-        if constexpr (std::is_same_v<T, CandidatesTask>) Encode(t, request.mutable_candidates());
-        if constexpr (std::is_same_v<T, CandidateTask>) Encode(t, request.mutable_candidate_run());
-      },
-      task);
+  EncodeTask(task, &request);
   return DeterministicBytes(request);
+}
+
+std::string EncodeTraceTaskBatch(std::string_view parent_trace_request,
+                                 const std::vector<const TraceTask*>& tasks) {
+  v1::TraceTaskBatch batch;
+  batch.set_trace_request(std::string(parent_trace_request));
+  for (const TraceTask* task : tasks) EncodeTask(*task, batch.add_tasks());
+  return DeterministicBytes(batch);
+}
+
+StatusOr<DecodedTraceTaskBatch> DecodeTraceTaskBatch(const v1::TraceTaskBatch& batch) {
+  v1::TraceRequest parent;
+  DRILLBIF_RETURN_IF_ERROR(
+      Within("TraceTaskBatch", Parse(batch.trace_request(), "trace_request", &parent)));
+  if (batch.tasks().empty() || batch.tasks_size() > kMaxTraceTaskBatch) {
+    return Bad("TraceTaskBatch.tasks", std::to_string(batch.tasks_size()) + " tasks, not 1 .. " +
+                                           std::to_string(kMaxTraceTaskBatch));
+  }
+  DecodedTraceTaskBatch decoded;
+  decoded.trace_request = batch.trace_request();
+  decoded.tasks.resize(batch.tasks_size());
+  for (int i = 0; i < batch.tasks_size(); ++i) {
+    DRILLBIF_RETURN_IF_ERROR(Within("TraceTaskBatch.tasks[" + std::to_string(i) + "]",
+                                    DecodeTask(batch.tasks(i), &decoded.tasks[i])));
+  }
+  return decoded;
 }
 
 StatusOr<DecodedTraceTask> DecodeTraceTaskRequest(std::string_view bytes) {
@@ -595,6 +627,24 @@ StatusOr<TraceTaskResult> DecodeTraceTaskResult(std::string_view bytes) {
   TraceTaskResult result;
   DRILLBIF_RETURN_IF_ERROR(Within("TraceTaskResponse", DecodeResult(response, &result)));
   return result;
+}
+
+v1::TraceTaskBatchResponse TraceTaskBatchResponseOf(const std::vector<TraceTaskResult>& results) {
+  v1::TraceTaskBatchResponse response;
+  for (const TraceTaskResult& r : results) *response.add_results() = TraceTaskResponseOf(r);
+  response.set_status("COMPLETED");
+  return response;
+}
+
+StatusOr<std::vector<TraceTaskResult>> DecodeTraceTaskBatchResponse(std::string_view bytes) {
+  v1::TraceTaskBatchResponse response;
+  DRILLBIF_RETURN_IF_ERROR(Parse(bytes, "TraceTaskBatchResponse", &response));
+  std::vector<TraceTaskResult> results(response.results_size());
+  for (int i = 0; i < response.results_size(); ++i) {
+    DRILLBIF_RETURN_IF_ERROR(Within("TraceTaskBatchResponse.results[" + std::to_string(i) + "]",
+                                    DecodeResult(response.results(i), &results[i])));
+  }
+  return results;
 }
 
 void EncodeOrbit(const PeriodicOrbit& orbit, v1::TaskOrbit* out) { Encode(orbit, out); }

@@ -1,7 +1,8 @@
 // A trace's tasks and their results as bytes (proto/drillbif/v1/trace_task.proto), for the child
-// jobs a fanned-out trace stores: the parent encodes each task with its own request, a worker
-// decodes and runs it (RunTraceTask, continuation/trace_tasks.h) and encodes the result, and the
-// parent decodes the result and applies it.
+// jobs a fanned-out trace stores: the parent encodes a batch of consecutive tasks with its own
+// request, a worker decodes and runs them in order (RunTraceTask, continuation/trace_tasks.h) and
+// encodes their results, and the parent decodes the results and applies them. One task and one
+// result have codecs of their own (a batch's elements).
 //
 // Contract: the round trip is exact. Decoding an encoding gives values equal field for field to
 // the ones encoded, every double bit for bit (NaN payloads and -0.0 included), every string byte
@@ -21,6 +22,7 @@
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "drillbif/common/status.h"
 #include "drillbif/continuation/trace_tasks.h"
@@ -43,6 +45,30 @@ struct DecodedTraceTask {
 StatusOr<DecodedTraceTask> DecodeTraceTaskRequest(std::string_view bytes);
 // The same for a request already parsed (a child job's run gets it so from the registry).
 StatusOr<DecodedTraceTask> DecodeTraceTaskRequest(const v1::TraceTaskRequest& request);
+
+// The most tasks of one child job.
+inline constexpr int kMaxTraceTaskBatch = 64;
+
+// A child job's request: a drillbif.v1.TraceTaskBatch of `tasks` (1 .. kMaxTraceTaskBatch, run in
+// order) under `parent_trace_request`.
+std::string EncodeTraceTaskBatch(std::string_view parent_trace_request,
+                                 const std::vector<const TraceTask*>& tasks);
+
+// A decoded child job's request.
+struct DecodedTraceTaskBatch {
+  std::string trace_request;     // the parent's serialized drillbif.v1.TraceRequest
+  std::vector<TraceTask> tasks;  // to run in order under it
+};
+
+// Decodes a child job's request. INVALID_ARGUMENT naming the field ("TraceTaskBatch.tasks[2]
+// ...") for a malformed one, a trace_request that does not parse, or a count of tasks outside
+// 1 .. kMaxTraceTaskBatch.
+StatusOr<DecodedTraceTaskBatch> DecodeTraceTaskBatch(const v1::TraceTaskBatch& batch);
+
+// A child job's result: its tasks' results in order, status "COMPLETED".
+v1::TraceTaskBatchResponse TraceTaskBatchResponseOf(const std::vector<TraceTaskResult>& results);
+// Decodes a child job's result bytes. INVALID_ARGUMENT naming the field for malformed bytes.
+StatusOr<std::vector<TraceTaskResult>> DecodeTraceTaskBatchResponse(std::string_view bytes);
 
 // A task's result as a drillbif.v1.TraceTaskResponse (the alternative at the same index).
 std::string EncodeTraceTaskResult(const TraceTaskResult& result);

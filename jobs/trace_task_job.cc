@@ -3,6 +3,7 @@
 #include <optional>
 #include <string>
 #include <variant>
+#include <vector>
 
 #include "drillbif/continuation/trace_tasks.h"
 #include "drillbif/flow/exact_propagator.h"
@@ -68,27 +69,31 @@ Status CheckOrbits(const TraceTask& task) {
   return CheckSignature("candidate_run.candidate.orbit", *run.candidate.orbit);
 }
 
-// The decoded task and the parent's plan.
+// The decoded tasks and the parent's plan.
 struct Decoded {
   TracePlan plan;
-  TraceTask task;
+  std::vector<TraceTask> tasks;
 };
 
-StatusOr<Decoded> Decode(const v1::TraceTaskRequest& request) {
-  DRILLBIF_ASSIGN_OR_RETURN(DecodedTraceTask decoded, DecodeTraceTaskRequest(request));
+StatusOr<Decoded> Decode(const v1::TraceTaskBatch& request) {
+  DRILLBIF_ASSIGN_OR_RETURN(DecodedTraceTaskBatch decoded, DecodeTraceTaskBatch(request));
   v1::TraceRequest parent;
   if (!parent.ParseFromString(decoded.trace_request)) {
     return InvalidArgument("trace_request: not a drillbif.v1.TraceRequest");
   }
   StatusOr<TracePlan> plan = PlanTrace(parent);
   if (!plan.ok()) return InvalidArgument("trace_request: " + plan.status().message());
-  if (Status s = CheckOrbits(decoded.task); !s.ok()) return s;
-  return Decoded{*std::move(plan), std::move(decoded.task)};
+  for (size_t i = 0; i < decoded.tasks.size(); ++i) {
+    if (Status s = CheckOrbits(decoded.tasks[i]); !s.ok()) {
+      return InvalidArgument("tasks[" + std::to_string(i) + "]." + s.message());
+    }
+  }
+  return Decoded{*std::move(plan), std::move(decoded.tasks)};
 }
 
 }  // namespace
 
-StatusOr<TraceTaskPlan> PlanTraceTask(const v1::TraceTaskRequest& request) {
+StatusOr<TraceTaskPlan> PlanTraceTask(const v1::TraceTaskBatch& request) {
   DRILLBIF_ASSIGN_OR_RETURN(const Decoded decoded, Decode(request));
   return TraceTaskPlan{request};
 }
@@ -112,15 +117,25 @@ std::optional<TraceTaskResult> RunUnder(const TracePlan& plan, const TraceTask& 
 
 }  // namespace
 
-StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& request,
-                                                const RunContext& context) {
+StatusOr<v1::TraceTaskBatchResponse> RunTraceTaskJob(const v1::TraceTaskBatch& request,
+                                                     const RunContext& context) {
   DRILLBIF_ASSIGN_OR_RETURN(const Decoded decoded, Decode(request));
-  const std::optional<TraceTaskResult> result =
-      RunUnder(decoded.plan, decoded.task, context.progress);
-  if (result.has_value()) return TraceTaskResponseOf(*result);
-  v1::TraceTaskResponse cancelled;
-  cancelled.set_status("CANCELLED");
-  return cancelled;
+  std::vector<TraceTaskResult> results;
+  const double n = static_cast<double>(decoded.tasks.size());
+  for (const TraceTask& task : decoded.tasks) {
+    // Each task its share of the child's progress.
+    const double done = static_cast<double>(results.size());
+    ProgressCallback progress;
+    if (context.progress) progress = [&](double f) { return context.progress((done + f) / n); };
+    std::optional<TraceTaskResult> result = RunUnder(decoded.plan, task, progress);
+    if (!result.has_value()) {
+      v1::TraceTaskBatchResponse cancelled;
+      cancelled.set_status("CANCELLED");
+      return cancelled;
+    }
+    results.push_back(*std::move(result));
+  }
+  return TraceTaskBatchResponseOf(results);
 }
 
 StatusOr<LocalTraceTasks> LocalTraceTasks::ForRequest(std::string_view trace_request) {

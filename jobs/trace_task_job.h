@@ -1,7 +1,8 @@
-// The child jobs of a fanned-out trace: each one task of the parent's trace
-// (continuation/trace_tasks.h), its request the parent's TraceRequest and the task, its result
-// the task's result (jobs/trace_task_codec.h, proto/drillbif/v1/trace_task.proto). Workers run
-// them like any job (the registry's child kind, FindChildKind); clients never submit them.
+// The child jobs of a fanned-out trace: each a batch of consecutive tasks of the parent's trace
+// (continuation/trace_tasks.h), its request the parent's TraceRequest and the tasks, its result
+// the tasks' results in order (jobs/trace_task_codec.h, proto/drillbif/v1/trace_task.proto).
+// Workers run them like any job (the registry's child kind, FindChildKind); clients never submit
+// them.
 #ifndef DRILLBIF_JOBS_TRACE_TASK_JOB_H_
 #define DRILLBIF_JOBS_TRACE_TASK_JOB_H_
 
@@ -23,20 +24,22 @@ namespace drillbif::jobs {
 // The store's kind string of a trace's child jobs.
 inline constexpr char kTraceTaskKind[] = "trace_task";
 
-// A child job's request checked: the parent's trace request plans (PlanTrace) and the task's
-// orbits name the model's modes and guards. INVALID_ARGUMENT naming the field otherwise.
+// A child job's request checked: the parent's trace request plans (PlanTrace), the batch holds
+// 1 .. kMaxTraceTaskBatch tasks and their orbits name the model's modes and guards.
+// INVALID_ARGUMENT naming the field otherwise ("tasks[2].curve.start.point.orbit...").
 struct TraceTaskPlan {
-  v1::TraceTaskRequest request;
+  v1::TraceTaskBatch request;
 };
-StatusOr<TraceTaskPlan> PlanTraceTask(const v1::TraceTaskRequest& request);
+StatusOr<TraceTaskPlan> PlanTraceTask(const v1::TraceTaskBatch& request);
 // Nothing is admitted on it: the parent was admitted with the whole trace's cost.
 JobCost TraceTaskCost(const TraceTaskPlan& plan);
 
-// Runs the task under the parent's options as the parent's trace would (RunTraceTask), on a
-// propagator of its own that polls `context.progress`: a stop gives status "CANCELLED" and no
-// result; else "COMPLETED" with the result. Errors: INVALID_ARGUMENT for a malformed request.
-StatusOr<v1::TraceTaskResponse> RunTraceTaskJob(const v1::TraceTaskRequest& request,
-                                                const RunContext& context);
+// Runs the batch's tasks in order under the parent's options, as the parent's trace would
+// (RunTraceTask), each on a propagator of its own that polls `context.progress` (each task its
+// share of the progress): a stop gives status "CANCELLED" and no results; else "COMPLETED" with
+// one result per task. Errors: INVALID_ARGUMENT for a malformed request.
+StatusOr<v1::TraceTaskBatchResponse> RunTraceTaskJob(const v1::TraceTaskBatch& request,
+                                                     const RunContext& context);
 
 // A fanned-out trace's tasks run in the parent's own process, as their child jobs would run them
 // (the same results): for the tasks the parent keeps rather than store.

@@ -4,6 +4,7 @@
 // and malformed bytes are INVALID_ARGUMENT naming the field, never a crash.
 #include "jobs/trace_task_codec.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -24,6 +25,7 @@
 #include "drillbif/flow/exact_propagator.h"
 #include "drillbif/v1/trace.pb.h"
 #include "drillbif/v1/trace_task.pb.h"
+#include "jobs/request_bytes.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
 #include "support/same_bits.h"
@@ -36,6 +38,7 @@ namespace {
 // bits are, -0.0 different from 0.0), matrices by dimensions and bits, strings byte for byte,
 // statuses by code and message. Differences are the paths of the fields that differ.
 
+using ::testing::HasSubstr;
 using Differences = std::vector<std::string>;
 
 void Compare(const std::string& path, double a, double b, Differences* d) {
@@ -450,6 +453,61 @@ TEST(TraceTaskCodecTest, FilledResultsRoundTripExactly) {
     ExpectResultRoundTrip(std::vector<SwitchCandidate>{});
     ExpectResultRoundTrip(fill.Run());
   }
+}
+
+// A batch of every kind of task, and of every kind of result, comes back task for task and
+// result for result, in order; encoding the decoded batch gives the same bytes.
+TEST(TraceTaskCodecTest, BatchesRoundTripExactlyInOrder) {
+  Filler fill(true);
+  const std::vector<TraceTask> tasks = {fill.Curve(), fill.Candidates(), fill.CandidateRunTask()};
+  const std::string parent = ParentRequest();
+  const std::string bytes = EncodeTraceTaskBatch(parent, {&tasks[0], &tasks[1], &tasks[2]});
+  v1::TraceTaskBatch batch;
+  ASSERT_TRUE(batch.ParseFromString(bytes));
+  const StatusOr<DecodedTraceTaskBatch> decoded = DecodeTraceTaskBatch(batch);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_EQ(decoded->trace_request, parent);
+  ASSERT_EQ(decoded->tasks.size(), tasks.size());
+  for (size_t i = 0; i < tasks.size(); ++i) {
+    const Differences d = DifferencesOf(tasks[i], decoded->tasks[i]);
+    EXPECT_TRUE(d.empty()) << "task " << i << ", fields that differ:\n" << Joined(d);
+  }
+  EXPECT_EQ(
+      EncodeTraceTaskBatch(parent, {&decoded->tasks[0], &decoded->tasks[1], &decoded->tasks[2]}),
+      bytes);
+  const std::vector<TraceTaskResult> results = {
+      fill.MakeCurveResult(), std::vector<SwitchCandidate>{fill.Candidate()}, fill.Run()};
+  const std::string result_bytes = DeterministicBytes(TraceTaskBatchResponseOf(results));
+  const StatusOr<std::vector<TraceTaskResult>> back = DecodeTraceTaskBatchResponse(result_bytes);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->size(), results.size());
+  for (size_t i = 0; i < results.size(); ++i) {
+    const Differences d = DifferencesOf(results[i], (*back)[i]);
+    EXPECT_TRUE(d.empty()) << "result " << i << ", fields that differ:\n" << Joined(d);
+  }
+  EXPECT_EQ(DeterministicBytes(TraceTaskBatchResponseOf(*back)), result_bytes);
+}
+
+TEST(TraceTaskCodecTest, MalformedBatchesNameTheTaskOrResult) {
+  Filler fill(false);
+  const TraceTask task = fill.Curve();
+  v1::TraceTaskBatch batch;
+  ASSERT_TRUE(batch.ParseFromString(EncodeTraceTaskBatch(ParentRequest(), {&task, &task})));
+  batch.mutable_tasks(1)->clear_curve();
+  const StatusOr<DecodedTraceTaskBatch> unset = DecodeTraceTaskBatch(batch);
+  EXPECT_EQ(unset.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(unset.status().message(), HasSubstr("TraceTaskBatch.tasks[1].task: not set"));
+  batch.set_trace_request("\xff\xff");
+  EXPECT_THAT(DecodeTraceTaskBatch(batch).status().message(),
+              HasSubstr("TraceTaskBatch.trace_request"));
+  v1::TraceTaskBatchResponse response =
+      TraceTaskBatchResponseOf({fill.MakeCurveResult(), fill.Run()});
+  response.mutable_results(1)->clear_candidate_run();
+  const StatusOr<std::vector<TraceTaskResult>> bad =
+      DecodeTraceTaskBatchResponse(DeterministicBytes(response));
+  EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad.status().message(), HasSubstr("TraceTaskBatchResponse.results[1].result"));
+  EXPECT_EQ(DecodeTraceTaskBatchResponse("\xff\xff").status().code(), StatusCode::kInvalidArgument);
 }
 
 // Singular double fields (proto3 leaves out a field at its default; -0.0 must not be taken for

@@ -1,7 +1,8 @@
 // The trace job with its tasks as child jobs, without a store: a runner that encodes every task as
 // a child job's request (jobs/trace_task_codec.h), runs it through the registry's child kind as a
-// worker does and decodes its result gives the result of the trace on its own threads; the child
-// kind's checks name the field; a stopped task is CANCELLED without a result.
+// worker does and decodes its result gives the result of the trace on its own threads; a batch's
+// results are its tasks' own, in order; the child kind's checks name the field; a stopped batch is
+// CANCELLED without results.
 #include "jobs/trace_task_job.h"
 
 #include <gmock/gmock.h>
@@ -9,6 +10,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 #include "drillbif/continuation/trace_tasks.h"
 #include "drillbif/orbit/signature.h"
@@ -31,7 +33,7 @@ class ChildJobRunner : public TraceTaskRunner {
   explicit ChildJobRunner(std::string parent_request) : parent_(std::move(parent_request)) {}
   size_t window() const override { return 3; }
   StatusOr<int64_t> Submit(const TraceTask& task) override {
-    requests_.emplace(next_, EncodeTraceTaskRequest(parent_, task));
+    requests_.emplace(next_, EncodeTraceTaskBatch(parent_, {&task}));
     return next_++;
   }
   bool Ready(int64_t) override { return false; }
@@ -43,7 +45,11 @@ class ChildJobRunner : public TraceTaskRunner {
     if (!out.ok()) return out.status();
     EXPECT_EQ(out->status, "COMPLETED");
     ++ran_;
-    return DecodeTraceTaskResult(DeterministicBytes(*out->result));
+    StatusOr<std::vector<TraceTaskResult>> results =
+        DecodeTraceTaskBatchResponse(DeterministicBytes(*out->result));
+    if (!results.ok()) return results.status();
+    EXPECT_EQ(results->size(), 1u);
+    return std::move(results->front());
   }
   void Drop(int64_t ticket) override { requests_.erase(ticket); }
   int ran() const { return ran_; }
@@ -82,40 +88,81 @@ class TraceTaskChecks : public ::testing::Test {
     parent_ = DeterministicBytes(request);
     ChildCapture capture;
     StatusOr<v1::TraceResult> r = RunTrace(request, {.trace_tasks = &capture});
-    ASSERT_FALSE(capture.first.empty());
-    task_ = *DecodeTraceTaskRequest(capture.first);
+    ASSERT_EQ(capture.tasks.size(), 2u);
+    task_.task = capture.tasks[0];
+    second_ = capture.tasks[1];
+  }
+  StatusOr<JobOutput> Run(const std::string& parent, const std::vector<const TraceTask*>& tasks,
+                          const RunContext& context = {}) {
+    return RunJob(*FindChildKind(kTraceTaskKind), EncodeTraceTaskBatch(parent, tasks), context);
   }
   StatusOr<JobOutput> Run(const std::string& parent, const TraceTask& task,
                           const RunContext& context = {}) {
-    return RunJob(*FindChildKind(kTraceTaskKind), EncodeTraceTaskRequest(parent, task), context);
+    return Run(parent, std::vector<const TraceTask*>{&task}, context);
   }
-  // Keeps the first task's request and fails the trace there.
+  // Keeps the first two tasks the trace submits and fails the trace when it takes one.
   struct ChildCapture : TraceTaskRunner {
-    size_t window() const override { return 1; }
+    size_t window() const override { return 2; }
     StatusOr<int64_t> Submit(const TraceTask& task) override {
-      if (first.empty()) first = EncodeTraceTaskRequest(parent, task);
-      return Status(StatusCode::kUnavailable, "captured");
+      tasks.push_back(task);
+      return static_cast<int64_t>(tasks.size());
     }
     bool Ready(int64_t) override { return false; }
     StatusOr<TraceTaskResult> Take(int64_t, const std::function<bool()>&) override {
-      return Status(StatusCode::kInternal, "none");
+      return Status(StatusCode::kUnavailable, "captured");
     }
     void Drop(int64_t) override {}
-    std::string parent = DeterministicBytes(testing::SmallBoxTrace());
-    std::string first;
+    std::vector<TraceTask> tasks;
   };
+  // The results of a child job's run, decoded.
+  static std::vector<TraceTaskResult> Results(const StatusOr<JobOutput>& out) {
+    EXPECT_TRUE(out.ok()) << out.status().ToString();
+    if (!out.ok()) return {};
+    EXPECT_EQ(out->status, "COMPLETED");
+    StatusOr<std::vector<TraceTaskResult>> results =
+        DecodeTraceTaskBatchResponse(DeterministicBytes(*out->result));
+    EXPECT_TRUE(results.ok()) << results.status().ToString();
+    return results.ok() ? *results : std::vector<TraceTaskResult>{};
+  }
   std::string parent_;
   DecodedTraceTask task_;
+  TraceTask second_;
 };
 
 TEST_F(TraceTaskChecks, TheFirstTaskIsACurveThatRuns) {
   ASSERT_TRUE(std::holds_alternative<CurveTask>(task_.task));
-  StatusOr<JobOutput> out = Run(parent_, task_.task);
-  ASSERT_TRUE(out.ok()) << out.status().ToString();
-  EXPECT_EQ(out->status, "COMPLETED");
-  StatusOr<TraceTaskResult> result = DecodeTraceTaskResult(DeterministicBytes(*out->result));
-  ASSERT_TRUE(result.ok());
-  EXPECT_FALSE(std::get<CurveResult>(*result).points.empty());
+  const std::vector<TraceTaskResult> results = Results(Run(parent_, task_.task));
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_FALSE(std::get<CurveResult>(results[0]).points.empty());
+}
+
+// A batch runs its tasks in order: its results are, byte for byte, those of each task run alone.
+TEST_F(TraceTaskChecks, ABatchGivesEachTasksOwnResultInOrder) {
+  const std::vector<TraceTaskResult> batch = Results(Run(parent_, {&second_, &task_.task}));
+  const std::vector<TraceTaskResult> first = Results(Run(parent_, task_.task));
+  const std::vector<TraceTaskResult> second = Results(Run(parent_, second_));
+  ASSERT_EQ(batch.size(), 2u);
+  ASSERT_EQ(first.size(), 1u);
+  ASSERT_EQ(second.size(), 1u);
+  EXPECT_NE(EncodeTraceTaskResult(first[0]), EncodeTraceTaskResult(second[0]));
+  EXPECT_EQ(EncodeTraceTaskResult(batch[0]), EncodeTraceTaskResult(second[0]));
+  EXPECT_EQ(EncodeTraceTaskResult(batch[1]), EncodeTraceTaskResult(first[0]));
+}
+
+TEST_F(TraceTaskChecks, BatchesOfNoTaskOrTooManyOrABadOneAreRefusedNamingTheTask) {
+  StatusOr<JobOutput> none = Run(parent_, std::vector<const TraceTask*>{});
+  EXPECT_EQ(none.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(none.status().message(), HasSubstr("TraceTaskBatch.tasks: 0 tasks"));
+  const std::vector<const TraceTask*> many(kMaxTraceTaskBatch + 1, &task_.task);
+  StatusOr<JobOutput> too_many = Run(parent_, many);
+  EXPECT_EQ(too_many.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(too_many.status().message(), HasSubstr("65 tasks, not 1 .. 64"));
+  CurveTask mode = std::get<CurveTask>(task_.task);
+  mode.start.point.orbit.signature.segments[0].mode = 99;
+  const TraceTask bad = mode;
+  StatusOr<JobOutput> second_bad = Run(parent_, {&task_.task, &bad});
+  EXPECT_EQ(second_bad.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(second_bad.status().message(), HasSubstr("tasks[1].curve.start.point.orbit"));
 }
 
 TEST_F(TraceTaskChecks, BadChildRequestsNameTheField) {
@@ -157,22 +204,31 @@ TEST_F(TraceTaskChecks, ACandidatesTangentEndBeforeAnotherModeIsAccepted) {
   CandidateTask run;
   run.point.point.orbit = curve.start.point.orbit;
   run.candidate.orbit = orbit;
-  v1::TraceTaskRequest request;
-  ASSERT_TRUE(request.ParseFromString(EncodeTraceTaskRequest(parent_, run)));
+  const TraceTask task = run;
+  v1::TraceTaskBatch request;
+  ASSERT_TRUE(request.ParseFromString(EncodeTraceTaskBatch(parent_, {&task})));
   EXPECT_TRUE(PlanTraceTask(request).ok()) << PlanTraceTask(request).status().ToString();
   run.candidate.orbit->signature.segments[0].guard = 99;
-  ASSERT_TRUE(request.ParseFromString(EncodeTraceTaskRequest(parent_, run)));
+  const TraceTask bad_guard = run;
+  ASSERT_TRUE(request.ParseFromString(EncodeTraceTaskBatch(parent_, {&bad_guard})));
   const StatusOr<TraceTaskPlan> bad = PlanTraceTask(request);
   EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
   EXPECT_THAT(bad.status().message(), HasSubstr("candidate_run.candidate.orbit.signature"));
 }
 
-TEST_F(TraceTaskChecks, AStoppedTaskIsCancelledWithoutAResult) {
-  StatusOr<JobOutput> out = Run(parent_, task_.task, {.progress = [](double) { return false; }});
+TEST_F(TraceTaskChecks, AStoppedBatchIsCancelledWithoutResults) {
+  // Stopped at the second task's first look: the first task's result is not handed out either.
+  int looks = 0;
+  bool second_started = false;
+  StatusOr<JobOutput> out = Run(parent_, {&task_.task, &second_}, {.progress = [&](double f) {
+                                  if (f >= 0.5) second_started = true;
+                                  return ++looks < 2 || !second_started;
+                                }});
   ASSERT_TRUE(out.ok()) << out.status().ToString();
+  EXPECT_TRUE(second_started);
   EXPECT_EQ(out->status, "CANCELLED");
-  const auto& response = static_cast<const v1::TraceTaskResponse&>(*out->result);
-  EXPECT_EQ(response.result_case(), v1::TraceTaskResponse::RESULT_NOT_SET);
+  const auto& response = static_cast<const v1::TraceTaskBatchResponse&>(*out->result);
+  EXPECT_EQ(response.results_size(), 0);
 }
 
 }  // namespace

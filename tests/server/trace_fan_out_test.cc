@@ -16,6 +16,7 @@
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 #include "jobs/trace_job.h"
+#include "jobs/trace_task_codec.h"
 #include "jobs/trace_task_job.h"
 #include "server/store/sqlite_job_store.h"
 #include "support/same_result.h"
@@ -24,6 +25,9 @@
 
 namespace drillbif::server {
 namespace {
+
+// The tasks of one child (FanOutOptions::batch).
+constexpr size_t kBatch = FanOutOptions{}.batch;
 
 class TraceFanOut : public ::testing::Test {
  protected:
@@ -59,7 +63,7 @@ class TraceFanOut : public ::testing::Test {
   }
 
   // Runs `body` while another worker claims any child as soon as one is queued, runs it and
-  // stores its result; *ran: the children it ran.
+  // stores its result; *ran: the tasks it ran (each child a batch of them).
   template <typename Body>
   auto WithAnotherWorker(const Body& body, int* ran) {
     std::atomic<bool> done{false};
@@ -67,8 +71,10 @@ class TraceFanOut : public ::testing::Test {
     std::thread other([&] {
       while (!done.load()) {
         StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("other");
-        if (claimed.ok() && claimed->has_value() && RunChild(**claimed, /*keep=*/false)) {
-          ++count;
+        std::optional<std::string> bytes;
+        if (claimed.ok() && claimed->has_value()) bytes = RunChild(**claimed, /*keep=*/false);
+        if (bytes.has_value()) {
+          count += static_cast<int>(jobs::DecodeTraceTaskBatchResponse(*bytes).value().size());
         } else {
           std::this_thread::sleep_for(std::chrono::milliseconds(1));
         }
@@ -114,6 +120,8 @@ TEST_F(TraceFanOut, AloneTheTraceStoresFewTasksAndRunsTheRestItself) {
   EXPECT_GT(runner.tasks(), 10);
   EXPECT_GE(runner.stored(), 2);
   EXPECT_LT(runner.stored(), runner.tasks() / 2);
+  // Only full batches are stored.
+  EXPECT_EQ(runner.stored(), runner.batches_stored() * static_cast<int64_t>(kBatch));
   EXPECT_EQ(runner.run_elsewhere(), 0);
   EXPECT_GT(runner.claimed_here(), 0);
   EXPECT_LE(runner.claimed_here(), runner.stored());  // the others were dropped
@@ -139,8 +147,9 @@ TEST_F(TraceFanOut, AnotherWorkerTakesStoredTasksAndTheBudgetGrows) {
   EXPECT_GT(ran, 0);
   EXPECT_GT(runner.run_elsewhere(), 0);
   EXPECT_LE(runner.run_elsewhere(), ran);
-  // The budget grew past its start of 2 open tasks.
-  EXPECT_GT(runner.stored(), 2 + runner.claimed_here());
+  EXPECT_EQ(runner.stored(), runner.batches_stored() * static_cast<int64_t>(kBatch));
+  // The budget grew past its start of 2 open batches.
+  EXPECT_GT(runner.batches_stored(), 2 + runner.claimed_here() / static_cast<int64_t>(kBatch));
   std::printf("with another worker: %lld tasks, %lld stored, %lld run by it, %lld claimed back\n",
               static_cast<long long>(runner.tasks()), static_cast<long long>(runner.stored()),
               static_cast<long long>(runner.run_elsewhere()),
