@@ -13,6 +13,7 @@
 #include "jobs/request_bytes.h"
 #include "jobs/trace_task_job.h"
 #include "server/map_fan_out.h"
+#include "server/sweep_fan_out.h"
 #include "server/stored_results.h"
 #include "server/trace_fan_out.h"
 
@@ -247,6 +248,14 @@ class WorkerPool::Run {
           [this](const JobRecord& child) { return pool_->RunOne(child, worker_id_); },
           [this] { pool_->Wake(); });
     }
+    // A sweep's independent pieces as child jobs, likewise (a sweep of one piece runs here).
+    std::optional<StoreSweepParts> sweep_parts;
+    if (kind_.kind == v1::SWEEP) {
+      sweep_parts.emplace(
+          *pool_->store_, job_, worker_id_, pool_->options_.lease_ms,
+          [this](const JobRecord& child) { return pool_->RunOne(child, worker_id_); },
+          [this] { pool_->Wake(); });
+    }
     if (local) {
       FanOutOptions o;
       o.window = static_cast<size_t>(pool_->options_.trace_fan_out);
@@ -267,7 +276,8 @@ class WorkerPool::Run {
                       .optimum_cache = &pool_->optimum_cache_,
                       .sink = &writer_,
                       .trace_tasks = fan_out ? &*fan_out : nullptr,
-                      .map_cells = map_cells ? &*map_cells : nullptr});
+                      .map_cells = map_cells ? &*map_cells : nullptr,
+                      .sweep_parts = sweep_parts ? &*sweep_parts : nullptr});
     if (fan_out) {
       spdlog::info(
           "job {}: {} trace tasks, {} of them stored ({} run by other workers, {} claimed back "
@@ -280,6 +290,11 @@ class WorkerPool::Run {
     if (map_cells) {
       spdlog::info("job {}: {} map cells from earlier runs, {} stored, {} of them run here",
                    job_.id, map_cells->resumed(), map_cells->stored(), map_cells->run_here());
+    }
+    if (sweep_parts && sweep_parts->resumed() + sweep_parts->stored() > 0) {
+      spdlog::info("job {}: {} sweep parts from earlier runs, {} stored, {} of them run here",
+                   job_.id, sweep_parts->resumed(), sweep_parts->stored(),
+                   sweep_parts->run_here());
     }
     return Finish(output);
   }
