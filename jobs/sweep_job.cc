@@ -236,6 +236,9 @@ StatusOr<v1::SweepResult> RunParts(const v1::SweepRequest& request, const SweepP
   // Hands on one part's values in order; false when the sink refused them.
   auto hand = [&](int d, v1::SweepResult& part) {
     auto* points = d == 0 ? part.mutable_up() : part.mutable_down();
+    // Read before the values move on.
+    const std::optional<double> last =
+        points->empty() ? std::nullopt : std::optional<double>(points->rbegin()->value());
     for (v1::SweepPoint& point : *points) {
       ++sum.values;
       if (!batchers[d]) {
@@ -249,7 +252,7 @@ StatusOr<v1::SweepResult> RunParts(const v1::SweepRequest& request, const SweepP
     }
     sum.periods += part.periods_total();
     sum.events += part.events_total();
-    if (context.on_value && !points->empty()) context.on_value(points->rbegin()->value());
+    if (context.on_value && last) context.on_value(*last);
     return true;
   };
   auto done = [&](int k, v1::SweepResult part) -> Status {
