@@ -245,9 +245,8 @@ StatusOr<v1::SweepResult> RunParts(const v1::SweepRequest& request, const SweepP
         (d == 0 ? out.add_up() : out.add_down())->Swap(&point);
         continue;
       }
-      const bool taken = batchers[d]->Add([&](v1::SweepResult* r) {
-        (d == 0 ? r->add_up() : r->add_down())->Swap(&point);
-      });
+      const bool taken = batchers[d]->Add(
+          [&](v1::SweepResult* r) { (d == 0 ? r->add_up() : r->add_down())->Swap(&point); });
       if (!taken) return false;
     }
     sum.periods += part.periods_total();

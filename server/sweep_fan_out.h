@@ -26,8 +26,8 @@ class StoreSweepParts final : public jobs::SweepPartRunner {
   using RunChild = StoreChildren::RunChild;
 
   // As StoreChildren's (the parent: the sweep's job, RUNNING, claimed by `worker_id`).
-  StoreSweepParts(JobStore& store, const JobRecord& parent, std::string worker_id,
-                  int64_t lease_ms, RunChild run_child, std::function<void()> submitted,
+  StoreSweepParts(JobStore& store, const JobRecord& parent, std::string worker_id, int64_t lease_ms,
+                  RunChild run_child, std::function<void()> submitted,
                   std::chrono::milliseconds poll = std::chrono::milliseconds(20));
 
   Status Run(const std::vector<v1::SweepPartRequest>& parts, const PartDone& done,

@@ -13,8 +13,8 @@
 #include "jobs/request_bytes.h"
 #include "jobs/trace_task_job.h"
 #include "server/map_fan_out.h"
-#include "server/sweep_fan_out.h"
 #include "server/stored_results.h"
+#include "server/sweep_fan_out.h"
 #include "server/trace_fan_out.h"
 
 namespace drillbif::server {
@@ -248,9 +248,11 @@ class WorkerPool::Run {
           [this](const JobRecord& child) { return pool_->RunOne(child, worker_id_); },
           [this] { pool_->Wake(); });
     }
-    // A sweep's independent pieces as child jobs, likewise (a sweep of one piece runs here).
+    // A sweep's independent pieces as child jobs, likewise (a sweep of one piece runs here),
+    // when another worker may take them: one worker over a store of its own would run them one
+    // after the other, where the job's own threads run them at once.
     std::optional<StoreSweepParts> sweep_parts;
-    if (kind_.kind == v1::SWEEP) {
+    if (kind_.kind == v1::SWEEP && (pool_->options_.workers > 1 || pool_->options_.lease_ms > 0)) {
       sweep_parts.emplace(
           *pool_->store_, job_, worker_id_, pool_->options_.lease_ms,
           [this](const JobRecord& child) { return pool_->RunOne(child, worker_id_); },
@@ -293,8 +295,7 @@ class WorkerPool::Run {
     }
     if (sweep_parts && sweep_parts->resumed() + sweep_parts->stored() > 0) {
       spdlog::info("job {}: {} sweep parts from earlier runs, {} stored, {} of them run here",
-                   job_.id, sweep_parts->resumed(), sweep_parts->stored(),
-                   sweep_parts->run_here());
+                   job_.id, sweep_parts->resumed(), sweep_parts->stored(), sweep_parts->run_here());
     }
     return Finish(output);
   }

@@ -132,6 +132,19 @@ TEST(SweepFanOut, ASweepOfOnePieceRunsWithoutChildren) {
   EXPECT_TRUE(PartsOf(s, IdOf(name)).empty());
 }
 
+// One worker over a store no other process shares (no leases) has no one to hand a piece to:
+// the sweep runs on its own threads, both directions at once, without children.
+TEST(SweepFanOut, OneWorkerOfAPrivateStoreSweepsOnItsOwnThreads) {
+  ServerOptions options;
+  options.workers = 1;
+  TestServer s(options, "drillbif_sweep_one_worker");
+  ASSERT_TRUE(s.ok());
+  const std::string name = Submit(s, BothSweep(1));
+  const Operation op = s.WaitDone(name);
+  ASSERT_EQ(MetadataOf(op).state(), v1::SUCCEEDED) << op.error().message();
+  EXPECT_TRUE(PartsOf(s, IdOf(name)).empty());
+}
+
 // Cancelling a fanned-out sweep while its parts run ends it CANCELLED, and no part is left
 // running or queued: the parts running on the other worker stop (the store cancels a parent's
 // unfinished children when it leaves RUNNING), the queued ones never start.

@@ -255,13 +255,13 @@ TEST(Sweep, AStreamedPieceKeepsItsPositions) {
   o.piece = 3;  // the down direction's second chunk: positions 3 .. 6
   std::vector<int> positions;
   std::vector<SweepDirection> directions;
-  const SweepResult r = Sweep(model, Exact(model), testing::ReferenceParams(),
-                              DefaultInitialState(model), o, {}, {},
-                              [&](SweepDirection d, int index, SweepPoint&&) {
-                                directions.push_back(d);
-                                positions.push_back(index);
-                                return true;
-                              });
+  const SweepResult r =
+      Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o, {}, {},
+            [&](SweepDirection d, int index, SweepPoint&&) {
+              directions.push_back(d);
+              positions.push_back(index);
+              return true;
+            });
   ASSERT_EQ(r.summary.termination, Termination::kCompleted);
   EXPECT_EQ(positions, (std::vector<int>{3, 4, 5, 6}));
   EXPECT_EQ(directions, std::vector<SweepDirection>(4, SweepDirection::kDown));

@@ -59,8 +59,8 @@ Status SweepOptions::Validate() const {
   const int pieces = static_cast<int>(SweepPieces(*this).size());
   if (piece < -1 || piece >= pieces) {
     return InvalidArgument("piece must be -1 (the whole sweep) or in 0 .. " +
-                           std::to_string(pieces - 1) +
-                           " (directions x chunks pieces), got " + std::to_string(piece));
+                           std::to_string(pieces - 1) + " (directions x chunks pieces), got " +
+                           std::to_string(piece));
   }
   return Status::Ok();
 }

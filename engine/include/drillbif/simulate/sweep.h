@@ -118,8 +118,9 @@ using PropagatorFactory = std::function<std::unique_ptr<Propagator>()>;
 
 // Receives one grid value's result (streaming, see above): its direction (kUp or kDown), its
 // position in that direction's list of the whole sweep (0-based; ascending values up, descending
-// down, as SweepResult::up / down; a piece's values keep their positions), and the point (value, how it ended, its Poincare samples), to keep.
-// Returns false to stop the sweep, which then ends CANCELLED.
+// down, as SweepResult::up / down; a piece's values keep their positions), and the point (value,
+// how it ended, its Poincare samples), to keep. Returns false to stop the sweep, which then ends
+// CANCELLED.
 using SweepPointCallback =
     std::function<bool(SweepDirection direction, int index, SweepPoint&& point)>;
 
