@@ -120,6 +120,9 @@ std::vector<JobKindSpec> BuildChildKinds() {
   kinds.push_back(Entry(v1::JOB_KIND_UNSPECIFIED, kMapCellKind, "", {}, PlanOptimum, OptimumCost,
                         RunMapCellJob));
   kinds.back().default_limits = Limits(1800);  // an optimum's
+  kinds.push_back(Entry(v1::JOB_KIND_UNSPECIFIED, kSweepPartKind, "", {}, PlanSweepPart,
+                        SweepPartCost, RunSweepPart));
+  kinds.back().default_limits = Limits(1800);  // a sweep's
   return kinds;
 }
 

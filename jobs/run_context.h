@@ -18,7 +18,8 @@ class TraceTaskRunner;  // continuation/trace_tasks.h
 namespace drillbif::jobs {
 
 class OptimumCache;
-class MapCellRunner;  // optimum_map_job.h
+class MapCellRunner;    // optimum_map_job.h
+class SweepPartRunner;  // sweep_job.h
 
 // Receives the current value of the swept or continued parameter (a sweep: the grid point
 // finished last; a continuation: each accepted point), for progress displays: the service
@@ -57,6 +58,9 @@ struct RunContext {
   // Where an optimum map's cells run (e.g. the store's child jobs); null: the job's own threads.
   // Not owned.
   MapCellRunner* map_cells = nullptr;
+  // Where a sweep's independent pieces run (e.g. the store's child jobs); null: the job's own
+  // threads. Not owned.
+  SweepPartRunner* sweep_parts = nullptr;
 };
 
 }  // namespace drillbif::jobs

@@ -141,9 +141,37 @@ JobCost SweepCost(const SweepPlan& plan) {
   return cost;
 }
 
-StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request, const RunContext& context) {
-  const auto start = std::chrono::steady_clock::now();
-  DRILLBIF_ASSIGN_OR_RETURN(const SweepPlan plan, PlanSweep(request));
+StatusOr<SweepPlan> PlanSweepPart(const v1::SweepPartRequest& request) {
+  DRILLBIF_ASSIGN_OR_RETURN(SweepPlan plan, PlanSweep(request.sweep()));
+  plan.options.piece = request.piece();
+  DRILLBIF_RETURN_IF_ERROR(plan.options.Validate());
+  return plan;
+}
+
+JobCost SweepPartCost(const SweepPlan& plan) {
+  SweepPlan whole = plan;
+  whole.options.piece = -1;
+  JobCost cost = SweepCost(whole);
+  const std::vector<SweepPiece> pieces = SweepPieces(whole.options);
+  if (plan.options.piece < 0 || plan.options.piece >= static_cast<int>(pieces.size())) return cost;
+  const SweepPiece& piece = pieces[static_cast<size_t>(plan.options.piece)];
+  const double directions = whole.options.direction == SweepDirection::kBoth ? 2 : 1;
+  const double share = (piece.last - piece.first + 1) / (directions * whole.options.steps);
+  for (CostTerm* item : {&cost.seconds, &cost.result_bytes, &cost.memory_bytes}) {
+    item->amount *= share;
+    item->driver = "the piece's share of the sweep's values, of " + item->driver;
+  }
+  return cost;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The sweep (or the piece) of `plan` on this process's threads; values stream to context.sink
+// when there is one.
+StatusOr<v1::SweepResult> RunHere(const SweepPlan& plan, const RunContext& context,
+                                  Clock::time_point start) {
   const auto& model = Model();
   const PropagatorFactory make_propagator = [&model] {
     return std::unique_ptr<Propagator>(std::make_unique<ExactPropagator>(model));
@@ -161,31 +189,136 @@ StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request, const RunCon
       return up->Add([&](v1::SweepResult* r) { ToProto(point, false, r->add_up()); });
     };
   }
+  const SweepResult r = Sweep(model, make_propagator, plan.params, plan.x0, plan.options,
+                              context.progress, context.on_value, on_point);
+  for (auto* batcher : {&up, &down}) {
+    if (*batcher && !(*batcher)->Flush()) return (*batcher)->status();
+  }
+  // Sweep validates everything (parameter name, range ends, initial state) before it starts;
+  // once started it always completes or is cancelled, single values failing on their own.
+  if (r.summary.failed()) {
+    return r.summary.status.ok() ? Internal("sweep failed without a reason") : r.summary.status;
+  }
+  const bool cancelled = r.summary.cancelled();
+  v1::SweepResult out;
+  internal::SetRunEnd(r.summary, &out);
+  for (const SweepPoint& pt : r.up) ToProto(pt, cancelled, out.add_up());
+  for (const SweepPoint& pt : r.down) ToProto(pt, cancelled, out.add_down());
+  out.set_periods_total(r.summary.periods);
+  out.set_events_total(r.summary.events);
+  out.set_engine_version(EngineVersion());
+  out.set_wall_seconds(Seconds(start));
+  return out;
+}
+
+// The pieces of `plan`'s sweep on `context.sweep_parts`. The parts finish in any order; each
+// direction's values are handed on in grid order (a part waits for the parts before it in its
+// direction), to the sink in the batches of a local run, so that the result (concatenated
+// with what was streamed) is the local run's.
+StatusOr<v1::SweepResult> RunParts(const v1::SweepRequest& request, const SweepPlan& plan,
+                                   const RunContext& context, Clock::time_point start) {
+  const std::vector<SweepPiece> pieces = SweepPieces(plan.options);
+  std::vector<v1::SweepPartRequest> parts(pieces.size());
+  std::vector<int> order[2];  // per direction (0: up), its pieces in grid order
+  for (size_t k = 0; k < pieces.size(); ++k) {
+    *parts[k].mutable_sweep() = request;
+    parts[k].set_piece(static_cast<int>(k));
+    order[pieces[k].direction == SweepDirection::kUp ? 0 : 1].push_back(static_cast<int>(k));
+  }
+  std::optional<ItemBatcher<v1::SweepResult>> batchers[2];
+  if (context.sink != nullptr) {
+    for (auto& b : batchers) b.emplace(context.sink);
+  }
+  v1::SweepResult out;
+  SweepSummary sum;
+  std::vector<std::optional<v1::SweepResult>> held(pieces.size());
+  size_t next[2] = {0, 0};  // per direction: the position in order[] of the next part to hand on
+  // Hands on one part's values in order; false when the sink refused them.
+  auto hand = [&](int d, v1::SweepResult& part) {
+    auto* points = d == 0 ? part.mutable_up() : part.mutable_down();
+    // Read before the values move on.
+    const std::optional<double> last =
+        points->empty() ? std::nullopt : std::optional<double>(points->rbegin()->value());
+    for (v1::SweepPoint& point : *points) {
+      ++sum.values;
+      if (!batchers[d]) {
+        (d == 0 ? out.add_up() : out.add_down())->Swap(&point);
+        continue;
+      }
+      const bool taken = batchers[d]->Add(
+          [&](v1::SweepResult* r) { (d == 0 ? r->add_up() : r->add_down())->Swap(&point); });
+      if (!taken) return false;
+    }
+    sum.periods += part.periods_total();
+    sum.events += part.events_total();
+    if (context.on_value && last) context.on_value(*last);
+    return true;
+  };
+  auto done = [&](int k, v1::SweepResult part) -> Status {
+    if (part.status() != "COMPLETED") {
+      // A part stops only when asked to (a part's values fail on their own).
+      return Status(StatusCode::kCancelled, "sweep part " + std::to_string(k) + " ended " +
+                                                part.status() + ": " + part.message());
+    }
+    held[static_cast<size_t>(k)] = std::move(part);
+    for (int d = 0; d < 2; ++d) {
+      while (next[d] < order[d].size() && held[static_cast<size_t>(order[d][next[d]])]) {
+        std::optional<v1::SweepResult>& ready = held[static_cast<size_t>(order[d][next[d]])];
+        if (!hand(d, *ready)) return batchers[d]->status();
+        ready.reset();
+        ++next[d];
+      }
+    }
+    return Status::Ok();
+  };
+  const Status s = context.sweep_parts->Run(parts, done, context.progress);
+  for (auto& b : batchers) {
+    if (b && !b->Flush()) return b->status();
+  }
+  if (s.code() == StatusCode::kCancelled) {
+    sum.Cancel("sweep cancelled");
+  } else if (!s.ok()) {
+    return s;
+  } else {
+    sum.Complete();
+  }
+  internal::SetRunEnd(sum, &out);
+  out.set_periods_total(sum.periods);
+  out.set_events_total(sum.events);
+  out.set_engine_version(EngineVersion());
+  out.set_wall_seconds(Seconds(start));
+  return out;
+}
+
+}  // namespace
+
+StatusOr<v1::SweepResult> RunSweep(const v1::SweepRequest& request, const RunContext& context) {
+  const auto start = Clock::now();
+  DRILLBIF_ASSIGN_OR_RETURN(const SweepPlan plan, PlanSweep(request));
   try {
-    const SweepResult r = Sweep(model, make_propagator, plan.params, plan.x0, plan.options,
-                                context.progress, context.on_value, on_point);
-    for (auto* batcher : {&up, &down}) {
-      if (*batcher && !(*batcher)->Flush()) return (*batcher)->status();
+    if (context.sweep_parts != nullptr && SweepPieces(plan.options).size() > 1) {
+      return RunParts(request, plan, context, start);
     }
-    // Sweep validates everything (parameter name, range ends, initial state) before it starts;
-    // once started it always completes or is cancelled, single values failing on their own.
-    if (r.summary.failed()) {
-      return r.summary.status.ok() ? Internal("sweep failed without a reason") : r.summary.status;
-    }
-    const bool cancelled = r.summary.cancelled();
-    v1::SweepResult out;
-    internal::SetRunEnd(r.summary, &out);
-    for (const SweepPoint& pt : r.up) ToProto(pt, cancelled, out.add_up());
-    for (const SweepPoint& pt : r.down) ToProto(pt, cancelled, out.add_down());
-    out.set_periods_total(r.summary.periods);
-    out.set_events_total(r.summary.events);
-    out.set_engine_version(EngineVersion());
-    out.set_wall_seconds(Seconds(start));
-    return out;
+    return RunHere(plan, context, start);
   } catch (const std::bad_alloc&) {
     return Internal("out of memory while sweeping");
   } catch (const std::exception& e) {
     return Internal(std::string("sweep failed: ") + e.what());
+  }
+}
+
+StatusOr<v1::SweepResult> RunSweepPart(const v1::SweepPartRequest& request,
+                                       const RunContext& context) {
+  const auto start = Clock::now();
+  DRILLBIF_ASSIGN_OR_RETURN(const SweepPlan plan, PlanSweepPart(request));
+  RunContext here = context;
+  here.sink = nullptr;  // the parent reads the part's values from its result
+  try {
+    return RunHere(plan, here, start);
+  } catch (const std::bad_alloc&) {
+    return Internal("out of memory while sweeping");
+  } catch (const std::exception& e) {
+    return Internal(std::string("sweep part failed: ") + e.what());
   }
 }
 

@@ -14,6 +14,7 @@
 #include "jobs/trace_task_job.h"
 #include "server/map_fan_out.h"
 #include "server/stored_results.h"
+#include "server/sweep_fan_out.h"
 #include "server/trace_fan_out.h"
 
 namespace drillbif::server {
@@ -250,6 +251,16 @@ class WorkerPool::Run {
           [this](const JobRecord& child) { return pool_->RunOne(child, worker_id_); },
           [this] { pool_->Wake(); });
     }
+    // A sweep's independent pieces as child jobs, likewise (a sweep of one piece runs here),
+    // when another worker may take them: one worker over a store of its own would run them one
+    // after the other, where the job's own threads run them at once.
+    std::optional<StoreSweepParts> sweep_parts;
+    if (kind_.kind == v1::SWEEP && (pool_->options_.workers > 1 || pool_->options_.lease_ms > 0)) {
+      sweep_parts.emplace(
+          *pool_->store_, job_, worker_id_, pool_->options_.lease_ms,
+          [this](const JobRecord& child) { return pool_->RunOne(child, worker_id_); },
+          [this] { pool_->Wake(); });
+    }
     if (local) {
       FanOutOptions o;
       o.window = static_cast<size_t>(pool_->options_.trace_fan_out);
@@ -270,7 +281,8 @@ class WorkerPool::Run {
                       .optimum_cache = &pool_->optimum_cache_,
                       .sink = &writer_,
                       .trace_tasks = fan_out ? &*fan_out : nullptr,
-                      .map_cells = map_cells ? &*map_cells : nullptr});
+                      .map_cells = map_cells ? &*map_cells : nullptr,
+                      .sweep_parts = sweep_parts ? &*sweep_parts : nullptr});
     if (fan_out) {
       spdlog::info(
           "job {}: {} trace tasks, {} of them stored ({} run by other workers, {} claimed back "
@@ -283,6 +295,10 @@ class WorkerPool::Run {
     if (map_cells) {
       spdlog::info("job {}: {} map cells from earlier runs, {} stored, {} of them run here",
                    job_.id, map_cells->resumed(), map_cells->stored(), map_cells->run_here());
+    }
+    if (sweep_parts && sweep_parts->resumed() + sweep_parts->stored() > 0) {
+      spdlog::info("job {}: {} sweep parts from earlier runs, {} stored, {} of them run here",
+                   job_.id, sweep_parts->resumed(), sweep_parts->stored(), sweep_parts->run_here());
     }
     return Finish(output);
   }

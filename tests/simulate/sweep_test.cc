@@ -175,6 +175,99 @@ TEST(Sweep, ExplicitChunksStartEachChunkFromTheInitialState) {
   EXPECT_EQ(r.summary.periods, 2 * (11 * 22 + 2 * 3 * 20));
 }
 
+TEST(Sweep, PiecesAreDirectionMajorChunksInGridOrder) {
+  SweepOptions o = Small(0.0, 0.2, 11, SweepDirection::kBoth);
+  o.chunks = 3;
+  const std::vector<SweepPiece> pieces = SweepPieces(o);
+  ASSERT_EQ(pieces.size(), 6u);
+  const int first[] = {0, 3, 7};  // floor(c x 11 / 3)
+  for (size_t k = 0; k < 6; ++k) {
+    EXPECT_EQ(pieces[k].direction, k < 3 ? SweepDirection::kUp : SweepDirection::kDown) << k;
+    EXPECT_EQ(pieces[k].first, first[k % 3]) << k;
+    EXPECT_EQ(pieces[k].last, k % 3 == 2 ? 10 : first[k % 3 + 1] - 1) << k;
+  }
+  o.direction = SweepDirection::kDown;
+  o.chunks = 1;
+  ASSERT_EQ(SweepPieces(o).size(), 1u);
+  EXPECT_EQ(SweepPieces(o)[0].direction, SweepDirection::kDown);
+  EXPECT_EQ(SweepPieces(o)[0].last, 10);
+}
+
+// Each piece run alone gives, bit for bit, the values the whole sweep gives at the same grid
+// positions (samples, how each ended, how each started), and its summary counts only them: a
+// piece starts from x0 and needs nothing from the others. Over [0.08, 0.2] the grid crosses the
+// period-doubling at b = 0.110, so the values differ from each other in more than roundoff.
+void ExpectPiecesEqualTheWholeSweep(int chunks) {
+  DO model;
+  SweepOptions o = Small(0.08, 0.2, 7, SweepDirection::kBoth);
+  o.transient_periods = 30;
+  o.sample_periods = 3;
+  o.chunks = chunks;
+  o.threads = 2;
+  const Params prm = testing::ReferenceParams();
+  const StateVector x0 = DefaultInitialState(model);
+  const SweepResult whole = Sweep(model, Exact(model), prm, x0, o);
+  ASSERT_EQ(whole.summary.termination, Termination::kCompleted);
+  const std::vector<SweepPiece> pieces = SweepPieces(o);
+  ASSERT_EQ(pieces.size(), static_cast<size_t>(2 * chunks));
+  int64_t values = 0, periods = 0, events = 0;
+  for (size_t k = 0; k < pieces.size(); ++k) {
+    const SweepPiece& piece = pieces[k];
+    SweepOptions one = o;
+    one.piece = static_cast<int>(k);
+    const SweepResult part = Sweep(model, Exact(model), prm, x0, one);
+    ASSERT_EQ(part.summary.termination, Termination::kCompleted) << k;
+    const bool up = piece.direction == SweepDirection::kUp;
+    const std::vector<SweepPoint>& got = up ? part.up : part.down;
+    const std::vector<SweepPoint>& want = up ? whole.up : whole.down;
+    EXPECT_TRUE((up ? part.down : part.up).empty()) << k;
+    ASSERT_EQ(got.size(), static_cast<size_t>(piece.last - piece.first + 1)) << k;
+    for (int i = piece.first; i <= piece.last; ++i) {
+      EXPECT_TRUE(testing::SameBits(got[static_cast<size_t>(i - piece.first)],
+                                    want[static_cast<size_t>(i)]))
+          << "piece " << k << ", position " << i;
+    }
+    EXPECT_EQ(part.summary.values, piece.last - piece.first + 1) << k;
+    values += part.summary.values;
+    periods += part.summary.periods;
+    events += part.summary.events;
+  }
+  EXPECT_EQ(values, whole.summary.values);
+  EXPECT_EQ(periods, whole.summary.periods);
+  EXPECT_EQ(events, whole.summary.events);
+}
+
+TEST(Sweep, EachPieceAloneEqualsTheWholeSweepBitwiseWithOneChunk) {
+  ExpectPiecesEqualTheWholeSweep(1);
+}
+
+TEST(Sweep, EachPieceAloneEqualsTheWholeSweepBitwiseWithTwoChunks) {
+  ExpectPiecesEqualTheWholeSweep(2);
+}
+
+// Streamed, a piece's values keep their positions in the whole sweep's lists.
+TEST(Sweep, AStreamedPieceKeepsItsPositions) {
+  DO model;
+  SweepOptions o = Small(0.08, 0.2, 7, SweepDirection::kBoth);
+  o.transient_periods = 30;
+  o.sample_periods = 3;
+  o.chunks = 2;
+  o.piece = 3;  // the down direction's second chunk: positions 3 .. 6
+  std::vector<int> positions;
+  std::vector<SweepDirection> directions;
+  const SweepResult r =
+      Sweep(model, Exact(model), testing::ReferenceParams(), DefaultInitialState(model), o, {}, {},
+            [&](SweepDirection d, int index, SweepPoint&&) {
+              directions.push_back(d);
+              positions.push_back(index);
+              return true;
+            });
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted);
+  EXPECT_EQ(positions, (std::vector<int>{3, 4, 5, 6}));
+  EXPECT_EQ(directions, std::vector<SweepDirection>(4, SweepDirection::kDown));
+  EXPECT_TRUE(r.up.empty() && r.down.empty());
+}
+
 TEST(Sweep, ChunksCoverTheGridInOrder) {
   DO model;
   const SweepResult r = ThreeChunksOfEleven(model, SweepDirection::kUp);
@@ -272,9 +365,14 @@ TEST(Sweep, InvalidRequestsNameTheProblem) {
   no_chunk.chunks = 0;
   SweepOptions too_many_chunks = Small(0.1, 0.2, 3, SweepDirection::kUp);
   too_many_chunks.chunks = 4;
+  SweepOptions no_such_piece = Small(0.1, 0.2, 3, SweepDirection::kBoth);
+  no_such_piece.piece = 2;  // two directions of one chunk: pieces 0 and 1
+  SweepOptions negative_piece = Small(0.1, 0.2, 3, SweepDirection::kUp);
+  negative_piece.piece = -2;
   for (const Case& c :
        {Case{unknown, "zeta"}, Case{reversed, "max must be > min"}, Case{one_step, "steps"},
-        Case{bad_xi, "xi"}, Case{no_chunk, "chunks"}, Case{too_many_chunks, "chunks"}}) {
+        Case{bad_xi, "xi"}, Case{no_chunk, "chunks"}, Case{too_many_chunks, "chunks"},
+        Case{no_such_piece, "piece"}, Case{negative_piece, "piece"}}) {
     const SweepResult r = Sweep(model, Exact(model), prm, x0, c.options);
     EXPECT_FALSE(r.summary.status.ok());
     EXPECT_EQ(r.summary.termination, Termination::kFailed);

@@ -56,7 +56,40 @@ Status SweepOptions::Validate() const {
         "forcing periods in all (steps x directions x (transient x factor + samples)) exceed "
         "2^63 - 1");
   }
+  const int pieces = static_cast<int>(SweepPieces(*this).size());
+  if (piece < -1 || piece >= pieces) {
+    return InvalidArgument("piece must be -1 (the whole sweep) or in 0 .. " +
+                           std::to_string(pieces - 1) + " (directions x chunks pieces), got " +
+                           std::to_string(piece));
+  }
   return Status::Ok();
+}
+
+std::vector<SweepPiece> SweepPieces(const SweepOptions& options) {
+  std::vector<SweepPiece> pieces;
+  const int n = options.steps;
+  const int chunks = options.chunks;
+  if (n < 2 || chunks < 1 || chunks > n) return pieces;
+  auto add_direction = [&](SweepDirection direction) {
+    for (int c = 0; c < chunks; ++c) {
+      // 64-bit: c * n overflows int for grids of more than ~46000 values split finely.
+      pieces.push_back({direction, static_cast<int>(int64_t{c} * n / chunks),
+                        static_cast<int>(int64_t{c + 1} * n / chunks - 1)});
+    }
+  };
+  switch (options.direction) {
+    case SweepDirection::kUp:
+      add_direction(SweepDirection::kUp);
+      break;
+    case SweepDirection::kDown:
+      add_direction(SweepDirection::kDown);
+      break;
+    case SweepDirection::kBoth:
+      add_direction(SweepDirection::kUp);
+      add_direction(SweepDirection::kDown);
+      break;
+  }
+  return pieces;
 }
 
 namespace {
@@ -130,6 +163,12 @@ class InOrderBuffer {
     if (!out->empty()) room_.notify_all();
   }
 
+  // Before any Add(): the values of `direction` before `index` are not part of this run.
+  void StartAt(int direction, int index) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    added_[direction] = taken_[direction] = index;
+  }
+
   // Wakes and refuses every waiting and later Add().
   void Stop() {
     {
@@ -186,30 +225,37 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
 
   const int n = options.steps;
   auto value_at = [&](int i) { return options.min + (options.max - options.min) * i / (n - 1); };
-  const bool up = options.direction != SweepDirection::kDown;
-  const bool down = options.direction != SweepDirection::kUp;
-  const int directions = (up ? 1 : 0) + (down ? 1 : 0);
   const int threads = ThreadsOrCores(options.threads);
-  const int chunks = options.chunks;  // validated: 1..n
   const bool streaming = static_cast<bool>(on_point);
 
   std::vector<SweepPoint>* lists[2] = {&result.up, &result.down};
   std::vector<Piece> pieces;
-  auto add_direction = [&](int direction) {
-    if (!streaming) {
-      std::vector<SweepPoint>& points = *lists[direction];
-      points.resize(n);
-      for (int i = 0; i < n; ++i) points[i].value = value_at(direction == 0 ? i : n - 1 - i);
+  for (const SweepPiece& p : SweepPieces(options)) {
+    pieces.push_back({p.direction == SweepDirection::kUp ? 0 : 1, p.first, p.last});
+  }
+  if (options.piece >= 0) pieces = {pieces[static_cast<size_t>(options.piece)]};
+  // Non-streaming results are stored at (position - offset) of the direction's list.
+  int offset[2] = {0, 0};
+  if (!streaming) {
+    int count[2] = {0, 0};
+    for (const Piece& p : pieces) count[p.direction] += p.last - p.first + 1;
+    if (options.piece >= 0) offset[pieces[0].direction] = pieces[0].first;
+    for (int d = 0; d < 2; ++d) {
+      std::vector<SweepPoint>& points = *lists[d];
+      points.resize(static_cast<size_t>(count[d]));
+      for (int i = 0; i < count[d]; ++i) {
+        const int at = i + offset[d];
+        points[static_cast<size_t>(i)].value = value_at(d == 0 ? at : n - 1 - at);
+      }
     }
-    for (int c = 0; c < chunks; ++c) {
-      pieces.push_back({direction, c * n / chunks, (c + 1) * n / chunks - 1});
-    }
-  };
-  if (up) add_direction(0);
-  if (down) add_direction(1);
+  }
+  long long total = 0;  // the values to simulate
+  for (const Piece& p : pieces) total += p.last - p.first + 1;
 
   const int n_threads = std::min<int>(threads, static_cast<int>(pieces.size()));
   InOrderBuffer buffer(static_cast<size_t>(n_threads));
+  // A piece alone: its direction's values are handed over from its first one.
+  if (options.piece >= 0) buffer.StartAt(pieces[0].direction, pieces[0].first);
   std::atomic<bool> cancel{false};
   std::atomic<long long> done{0}, events{0}, periods{0};
   std::atomic<double> last_value{0.0};  // the value of the grid point finished last
@@ -254,7 +300,8 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
         last_value = pt.value;
         ++done;
         if (!streaming) {
-          (*lists[piece.direction])[i] = std::move(pt);
+          (*lists[piece.direction])[static_cast<size_t>(i - offset[piece.direction])] =
+              std::move(pt);
         } else if (!buffer.Add(piece.direction, i, std::move(pt))) {
           break;
         }
@@ -263,7 +310,6 @@ SweepResult Sweep(const HybridModel& model, const PropagatorFactory& make_propag
   };
 
   std::vector<std::thread> pool;
-  const long long total = static_cast<long long>(n) * directions;
   if (progress || streaming) {
     // The calling thread reports progress and hands over the streamed values; the work runs on
     // the pool.

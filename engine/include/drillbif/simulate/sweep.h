@@ -10,6 +10,12 @@
 // continuity is then broken at the piece boundaries, and a branch that the continued sweep would
 // have followed there may be lost. SweepPoint::start says how each value was started.
 //
+// Pieces: a sweep is a list of independent pieces, direction-major (the up direction's chunks in
+// grid order, then the down direction's), each a contiguous run of one direction's grid values
+// that starts from x0 (SweepPieces). `piece` >= 0 runs only that piece, with results bit for bit
+// those of the same values in the whole sweep: a piece needs nothing from the others, so that
+// another process can run it.
+//
 // Cancellation: the progress callback is called on the calling thread only (about every 5 ms,
 // and at every percent of the grid values); when it returns false a shared stop flag ends every
 // worker's simulation within its own poll (~5 ms) and the sweep returns CANCELLED with the values
@@ -50,11 +56,25 @@ struct SweepOptions {
   // Pieces each direction is split into, run in parallel, each from x0 (1..steps); 1: continuity.
   int chunks = 1;
   int chunk_start_transient_factor = 4;  // transient multiplier at each later chunk's first value
+  int piece = -1;  // -1: the whole sweep; else only SweepPieces(*this)[piece] (0 .. pieces - 1)
 
   // INVALID_ARGUMENT naming the field; also when the sweep's forcing periods in all (steps x
   // directions x (transient x factor + samples)) do not fit 64 bits.
   Status Validate() const;
 };
+
+// One independent piece of a sweep: a contiguous run of one direction's grid values, the first of
+// them started from x0.
+struct SweepPiece {
+  SweepDirection direction = SweepDirection::kUp;  // kUp or kDown
+  int first = 0;  // the first value's position in the direction's list (as SweepResult::up/down)
+  int last = 0;   // the last value's position, inclusive
+};
+
+// The pieces of the whole sweep `options` describes (its `piece` ignored), direction-major: for
+// each direction swept (up first), its `chunks` pieces in grid order. Empty when the options'
+// steps, chunks or direction are invalid.
+std::vector<SweepPiece> SweepPieces(const SweepOptions& options);
 
 // The state a grid value's simulation started from.
 enum class SweepStart {
@@ -86,6 +106,8 @@ struct SweepSummary : RunSummary {
   std::string BriefReport() const;
 };
 
+// With SweepOptions::piece set, `up` or `down` holds only the piece's values (first .. last of
+// its direction's list) and the summary counts only them.
 struct SweepResult {
   SweepSummary summary;
   std::vector<SweepPoint> up;    // ascending values, when swept up
@@ -95,9 +117,10 @@ struct SweepResult {
 using PropagatorFactory = std::function<std::unique_ptr<Propagator>()>;
 
 // Receives one grid value's result (streaming, see above): its direction (kUp or kDown), its
-// position in that direction's list (0-based; ascending values up, descending down, as
-// SweepResult::up / down), and the point (value, how it ended, its Poincare samples), to keep.
-// Returns false to stop the sweep, which then ends CANCELLED.
+// position in that direction's list of the whole sweep (0-based; ascending values up, descending
+// down, as SweepResult::up / down; a piece's values keep their positions), and the point (value,
+// how it ended, its Poincare samples), to keep. Returns false to stop the sweep, which then ends
+// CANCELLED.
 using SweepPointCallback =
     std::function<bool(SweepDirection direction, int index, SweepPoint&& point)>;
 
