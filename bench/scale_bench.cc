@@ -9,8 +9,9 @@
 //   child jobs over 1 and 2 worker processes (each run's result must equal the first's).
 // Medians of `runs` (default 3) and their ratio. Not a Google Benchmark: each measurement starts
 // processes and a database.
-//   build/bench/scale_bench [runs] [fan-out | fan-out-period2 | fan-out-optimum]
-//   (fan-out: the reference box only; fan-out-period2: a period-2 box, unfanned on 1 worker
+//   build/bench/scale_bench [runs] [fan-out | fan-out-batch | fan-out-period2 | fan-out-optimum]
+//   (fan-out: the reference box only; fan-out-batch: the same on 2 workers by tasks per child;
+//   fan-out-period2: a period-2 box, unfanned on 1 worker
 //   against fanned out on 2; fan-out-optimum: the reference box's optimum from scratch, the same)
 #include <gtest/gtest.h>
 
@@ -61,15 +62,15 @@ struct Setup {
     std::filesystem::remove_all(dir, ignored);
   }
 
-  ServerProcess& Start(const std::string& role, int fan_out = 32) {
+  ServerProcess& Start(const std::string& role, int fan_out = 32, int batch = 4) {
     const std::string sub = dir + "/p" + std::to_string(processes.size());
     std::filesystem::create_directories(sub);
     processes.push_back(std::make_unique<ServerProcess>(
         sub, sub + "/unused.db",
-        std::vector<std::string>{"--store", cluster.Uri("jobs"), "--role", role, "--workers", "1",
-                                 "--short-workers", "0", "--log-level",
-                                 role == "worker" ? "info" : "warn", "--trace-fan-out",
-                                 std::to_string(fan_out)}));
+        std::vector<std::string>{
+            "--store", cluster.Uri("jobs"), "--role", role, "--workers", "1", "--short-workers",
+            "0", "--log-level", role == "worker" ? "info" : "warn", "--trace-fan-out",
+            std::to_string(fan_out), "--trace-fan-out-batch", std::to_string(batch)}));
     return *processes.back();
   }
 };
@@ -123,10 +124,10 @@ std::string ResultBytes(const google::longrunning::Operation& done) {
   return result.SerializeAsString();
 }
 
-double OneJobSeconds(int workers, int fan_out, bool optimum = false) {
+double OneJobSeconds(int workers, int fan_out, bool optimum = false, int batch = 4) {
   Setup setup;
   ServerProcess& api = setup.Start("api");
-  for (int w = 0; w < workers; ++w) setup.Start("worker", fan_out);
+  for (int w = 0; w < workers; ++w) setup.Start("worker", fan_out, batch);
   auto operations = google::longrunning::Operations::NewStub(api.channel());
   v1::OptimumRequest request;
   v1::TraceRequest& r = *request.mutable_trace();
@@ -208,6 +209,31 @@ int main(int argc, char** argv) {
   const bool fan_out_only = argc > 2 && std::string(argv[2]) == "fan-out";
   // "fan-out-period2": the period-2 box instead, on 1 worker without fan-out and on 2 with it.
   drillbif::period_two = argc > 2 && std::string(argv[2]) == "fan-out-period2";
+  // "fan-out-batch": the reference box's trace on 1 worker without fan-out, and on 2 with
+  // batches of 1, 4 and 8 tasks.
+  if (argc > 2 && std::string(argv[2]) == "fan-out-batch") {
+    const std::vector<int> sizes = {1, 4, 8};
+    std::vector<double> local;
+    std::vector<std::vector<double>> fanned(sizes.size());
+    for (int run = 0; run < runs; ++run) {
+      local.push_back(drillbif::OneJobSeconds(1, 0));
+      std::printf("run %d: the reference box %.2f s on 1 worker unfanned", run, local.back());
+      for (size_t b = 0; b < sizes.size(); ++b) {
+        fanned[b].push_back(drillbif::OneJobSeconds(2, 32, /*optimum=*/false, sizes[b]));
+        std::printf(", %.2f s on 2 in batches of %d", fanned[b].back(), sizes[b]);
+      }
+      std::printf("\n");
+      std::fflush(stdout);
+    }
+    const double l = drillbif::Median(local);
+    std::printf("the reference box: 1 worker unfanned %.2f s", l);
+    for (size_t b = 0; b < sizes.size(); ++b) {
+      const double f = drillbif::Median(fanned[b]);
+      std::printf("; 2 workers, batches of %d: %.2f s (%.2fx)", sizes[b], f, l / f);
+    }
+    std::printf("\n");
+    return 0;
+  }
   // "fan-out-optimum": the reference box's optimum from scratch, on 1 worker without fan-out and
   // on 2 with it.
   if (argc > 2 && std::string(argv[2]) == "fan-out-optimum") {

@@ -96,6 +96,10 @@ int main(int argc, char** argv) {
                  "child jobs for every worker process to run, e.g. 32 (pays for period-2 traces "
                  "on several workers); 0: a trace runs on the threads of its worker")
       ->capture_default_str();
+  app.add_option("--trace-fan-out-batch", options.trace_fan_out_batch,
+                 "With --trace-fan-out: the trace's tasks in one child job (1 .. 64); a child "
+                 "costs a few ms of store calls, paid once for its batch")
+      ->capture_default_str();
   app.add_option("--workers", options.workers, "Worker threads; 0: one per core")
       ->capture_default_str();
   app.add_option("--token", options.token,

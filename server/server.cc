@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "drillbif/common/threads.h"
+#include "jobs/trace_task_codec.h"
 #include "server/rest_gateway.h"
 #include "server/services.h"
 #include "server/store/postgres_job_store.h"
@@ -130,6 +131,11 @@ Status ServerOptions::Validate() const {
   if (trace_fan_out < 0 || trace_fan_out > kMaxTraceFanOut) {
     return InvalidArgument("trace_fan_out: must be 0 (off) .. " + std::to_string(kMaxTraceFanOut) +
                            ", got " + std::to_string(trace_fan_out));
+  }
+  if (trace_fan_out_batch < 1 || trace_fan_out_batch > jobs::kMaxTraceTaskBatch) {
+    return InvalidArgument("trace_fan_out_batch: must be 1 .. " +
+                           std::to_string(jobs::kMaxTraceTaskBatch) + ", got " +
+                           std::to_string(trace_fan_out_batch));
   }
   if (!store_uri.empty() && lease_ms < 300) {
     return InvalidArgument("lease_ms: must be >= 300 with a shared store, got " +
@@ -369,6 +375,7 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   pool_options.progress_interval_ms = o.progress_interval_ms;
   pool_options.lease_ms = o.store_uri.empty() ? 0 : o.lease_ms;
   pool_options.trace_fan_out = o.store_uri.empty() ? 0 : o.trace_fan_out;
+  pool_options.trace_fan_out_batch = o.trace_fan_out_batch;
   // With a shared store, submits by other processes (a trace's tasks among them) wake no worker
   // here: an idle worker looks every 50 ms instead of 500, so that a fanned-out trace's tasks
   // wait ~25 ms for it rather than ~250; each look is one claim query (~0.5 ms on PostgreSQL).

@@ -79,6 +79,9 @@ struct ServerOptions {
   // traces of long tasks (period 2) on workers of their own machines. 32 where it is used.
   // Unused with the SQLite file (one process: its threads do the same work without the store).
   int trace_fan_out = 0;
+  // The trace's tasks in one child job (WorkerPoolOptions::trace_fan_out_batch): each child costs
+  // ~3 ms of store calls, paid once for its batch (docs/scale.md).
+  int trace_fan_out_batch = 4;
   // Worker threads running jobs of any cost lane; 0: one per core
   // (std::thread::hardware_concurrency).
   int workers = 0;

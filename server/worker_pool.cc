@@ -11,6 +11,7 @@
 
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
+#include "jobs/trace_task_codec.h"
 #include "jobs/trace_task_job.h"
 #include "server/map_fan_out.h"
 #include "server/stored_results.h"
@@ -59,6 +60,11 @@ Status WorkerPoolOptions::Validate() const {
   if (trace_fan_out < 0 || trace_fan_out > kMaxTraceFanOut) {
     return InvalidArgument("trace_fan_out: must be 0 (off) .. " + std::to_string(kMaxTraceFanOut) +
                            ", got " + std::to_string(trace_fan_out));
+  }
+  if (trace_fan_out_batch < 1 || trace_fan_out_batch > jobs::kMaxTraceTaskBatch) {
+    return InvalidArgument("trace_fan_out_batch: must be 1 .. " +
+                           std::to_string(jobs::kMaxTraceTaskBatch) + ", got " +
+                           std::to_string(trace_fan_out_batch));
   }
   for (const auto& [name, limits] : limits) {
     if (Status s = limits.Validate(); !s.ok()) return InvalidArgument(name + "." + s.message());
@@ -264,6 +270,7 @@ class WorkerPool::Run {
     if (local) {
       FanOutOptions o;
       o.window = static_cast<size_t>(pool_->options_.trace_fan_out);
+      o.batch = static_cast<size_t>(pool_->options_.trace_fan_out_batch);
       o.lease_ms = pool_->options_.lease_ms;
       fan_out.emplace(
           *pool_->store_, job_, worker_id_, *local, o,

@@ -83,6 +83,8 @@ struct WorkerPoolOptions {
   // tasks on its own threads. For a store several processes share: in one process the threads
   // do the same work without the store's round trips.
   int trace_fan_out = 0;
+  // The tasks of one such child job (FanOutOptions::batch), 1 .. jobs::kMaxTraceTaskBatch.
+  int trace_fan_out_batch = 4;
 
   // INVALID_ARGUMENT naming the field when a value is out of range.
   Status Validate() const;

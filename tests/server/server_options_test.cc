@@ -2,6 +2,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "jobs/trace_task_codec.h"
 #include "server/server.h"
 #include "server/worker_pool.h"
 
@@ -74,6 +75,24 @@ TEST(ServerOptions, TraceFanOutOutOfRangeIsRefusedNamingIt) {
   WorkerPoolOptions pool;
   pool.trace_fan_out = -1;
   EXPECT_THAT(pool.Validate().message(), HasSubstr("trace_fan_out"));
+}
+
+TEST(ServerOptions, TraceFanOutBatchOutOfRangeIsRefusedNamingIt) {
+  ServerOptions options;
+  options.store_uri = "postgresql://u@db/d";
+  options.trace_fan_out = 32;
+  for (const int batch : {1, 4, jobs::kMaxTraceTaskBatch}) {
+    options.trace_fan_out_batch = batch;
+    EXPECT_TRUE(options.Validate().ok()) << batch;
+  }
+  for (const int batch : {0, -3, jobs::kMaxTraceTaskBatch + 1}) {
+    options.trace_fan_out_batch = batch;
+    EXPECT_THAT(options.Validate().message(), HasSubstr("trace_fan_out_batch: must be 1 .. 64"))
+        << batch;
+    WorkerPoolOptions pool;
+    pool.trace_fan_out_batch = batch;
+    EXPECT_THAT(pool.Validate().message(), HasSubstr("trace_fan_out_batch"));
+  }
 }
 
 }  // namespace
