@@ -14,6 +14,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -51,10 +52,13 @@ void BM_MapOnThreads(benchmark::State& state) {
 }
 BENCHMARK(BM_MapOnThreads)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
-// On a server with range(0) workers over a SQLite store (in this process), submitted and waited
-// for through gRPC.
-void BM_MapOnWorkers(benchmark::State& state) {
-  std::string dir = (std::filesystem::temp_directory_path() / "drillbif_map_XXXXXX").string();
+// Each iteration: a job submitted by `submit` (through the stub, its operation out) to a server
+// with range(0) workers over a SQLite store (in this process), and waited for through gRPC.
+// `what` names the job in errors.
+void OnWorkers(benchmark::State& state, const char* what,
+               const std::function<grpc::Status(v1::Jobs::Stub&, grpc::ClientContext*,
+                                                google::longrunning::Operation*)>& submit) {
+  std::string dir = (std::filesystem::temp_directory_path() / "drillbif_bench_XXXXXX").string();
   if (mkdtemp(dir.data()) == nullptr) {
     state.SkipWithError("no temp dir");
     return;
@@ -74,11 +78,9 @@ void BM_MapOnWorkers(benchmark::State& state) {
   auto jobs = v1::Jobs::NewStub(channel);
   auto operations = google::longrunning::Operations::NewStub(channel);
   for (auto _ : state) {
-    v1::SubmitOptimumMapRequest submit;
-    *submit.mutable_request() = Map(NextRound());
     google::longrunning::Operation op;
     grpc::ClientContext submit_context;
-    if (!jobs->SubmitOptimumMap(&submit_context, submit, &op).ok()) {
+    if (!submit(*jobs, &submit_context, &op).ok()) {
       state.SkipWithError("submit failed");
       break;
     }
@@ -89,12 +91,23 @@ void BM_MapOnWorkers(benchmark::State& state) {
       grpc::ClientContext context;
       if (!operations->WaitOperation(&context, wait, &op).ok()) break;
     }
-    if (!op.has_response()) state.SkipWithError("the map failed");
+    if (!op.has_response()) state.SkipWithError((std::string("the ") + what + " failed").c_str());
   }
-  state.counters["cells_per_s"] =
-      benchmark::Counter(kCells * state.iterations(), benchmark::Counter::kIsRate);
   server->reset();
   std::filesystem::remove_all(dir);
+}
+
+// On a server with range(0) workers (OnWorkers).
+void BM_MapOnWorkers(benchmark::State& state) {
+  OnWorkers(
+      state, "map",
+      [](v1::Jobs::Stub& jobs, grpc::ClientContext* context, google::longrunning::Operation* op) {
+        v1::SubmitOptimumMapRequest submit;
+        *submit.mutable_request() = Map(NextRound());
+        return jobs.SubmitOptimumMap(context, submit, op);
+      });
+  state.counters["cells_per_s"] =
+      benchmark::Counter(kCells * state.iterations(), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_MapOnWorkers)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
@@ -127,50 +140,18 @@ BENCHMARK(BM_SweepOnThreads)
     ->UseRealTime()
     ->Iterations(1);
 
-// On a server with range(0) workers, as BM_MapOnWorkers; the request asks threads = 1, so that on
-// its own the job would sweep one direction after the other.
+// On a server with range(0) workers (OnWorkers); the request asks threads = 1, so that on its
+// own the job would sweep one direction after the other.
 void BM_SweepOnWorkers(benchmark::State& state) {
-  std::string dir = (std::filesystem::temp_directory_path() / "drillbif_sweep_XXXXXX").string();
-  if (mkdtemp(dir.data()) == nullptr) {
-    state.SkipWithError("no temp dir");
-    return;
-  }
-  server::ServerOptions options;
-  options.grpc_port = 0;
-  options.http_port = 0;
-  options.db_path = dir + "/jobs.db";
-  options.workers = static_cast<int>(state.range(0));
-  options.short_workers = 0;
-  StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
-  if (!server.ok()) {
-    state.SkipWithError("the server did not start");
-    return;
-  }
-  auto channel = grpc::CreateChannel((*server)->grpc_address(), grpc::InsecureChannelCredentials());
-  auto jobs = v1::Jobs::NewStub(channel);
-  auto operations = google::longrunning::Operations::NewStub(channel);
-  for (auto _ : state) {
-    v1::SubmitSweepRequest submit;
-    *submit.mutable_request() = BothSweep(NextRound());
-    google::longrunning::Operation op;
-    grpc::ClientContext submit_context;
-    if (!jobs->SubmitSweep(&submit_context, submit, &op).ok()) {
-      state.SkipWithError("submit failed");
-      break;
-    }
-    while (!op.done()) {
-      google::longrunning::WaitOperationRequest wait;
-      wait.set_name(op.name());
-      wait.mutable_timeout()->set_seconds(60);
-      grpc::ClientContext context;
-      if (!operations->WaitOperation(&context, wait, &op).ok()) break;
-    }
-    if (!op.has_response()) state.SkipWithError("the sweep failed");
-  }
+  OnWorkers(
+      state, "sweep",
+      [](v1::Jobs::Stub& jobs, grpc::ClientContext* context, google::longrunning::Operation* op) {
+        v1::SubmitSweepRequest submit;
+        *submit.mutable_request() = BothSweep(NextRound());
+        return jobs.SubmitSweep(context, submit, op);
+      });
   state.counters["values_per_s"] =
       benchmark::Counter(2 * kSweepSteps * state.iterations(), benchmark::Counter::kIsRate);
-  server->reset();
-  std::filesystem::remove_all(dir);
 }
 BENCHMARK(BM_SweepOnWorkers)
     ->Arg(1)
