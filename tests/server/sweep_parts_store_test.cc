@@ -12,6 +12,7 @@
 #include "jobs/sweep_job.h"
 #include "server/store/sqlite_job_store.h"
 #include "server/sweep_fan_out.h"
+#include "support/claimed_parent.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
 
@@ -31,12 +32,10 @@ class SweepPartsStore : public ::testing::Test {
     request_.set_transient_periods(30);
     request_.set_sample_periods(3);
     request_.set_chunks(2);
-    SubmitRequest submit;
-    submit.kind = "sweep";
-    submit.request = jobs::DeterministicBytes(request_);
-    submit.lane = kLaneLong;
-    ASSERT_TRUE(store_->Submit(submit).ok());
-    Claim();
+    std::optional<JobRecord> parent =
+        drillbif::testing::SubmitAndClaim(*store_, "sweep", request_, "parent");
+    ASSERT_TRUE(parent.has_value());
+    parent_ = *parent;
   }
 
   void Claim() {

@@ -19,6 +19,7 @@
 #include "jobs/trace_task_codec.h"
 #include "jobs/trace_task_job.h"
 #include "server/store/sqlite_job_store.h"
+#include "support/claimed_parent.h"
 #include "support/same_result.h"
 #include "support/small_requests.h"
 #include "support/temp_dir.h"
@@ -37,14 +38,10 @@ class TraceFanOut : public ::testing::Test {
     ASSERT_TRUE(opened.ok()) << opened.status().ToString();
     store_ = *std::move(opened);
     request_ = drillbif::testing::SmallBoxTrace();
-    SubmitRequest submit;
-    submit.kind = "trace";
-    submit.request = jobs::DeterministicBytes(request_);
-    submit.lane = kLaneLong;
-    ASSERT_TRUE(store_->Submit(submit).ok());
-    StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("parent");
-    ASSERT_TRUE(claimed.ok() && claimed->has_value());
-    parent_ = **claimed;
+    std::optional<JobRecord> parent =
+        drillbif::testing::SubmitAndClaim(*store_, "trace", request_, "parent");
+    ASSERT_TRUE(parent.has_value());
+    parent_ = *parent;
   }
 
   // Runs a claimed child as a worker does and completes it: with `keep`, with an empty result,
@@ -166,15 +163,10 @@ TEST_F(TraceFanOut, AnOptimumsTraceFansOutWithTheSameOptimum) {
   request.add_margin(0.02);
   request.add_grid(41);
   request.add_grid(41);
-  SubmitRequest submit;
-  submit.kind = "optimum";
-  submit.request = jobs::DeterministicBytes(request);
-  submit.lane = kLaneLong;
-  ASSERT_TRUE(store_->Submit(submit).ok());
-  StatusOr<std::optional<JobRecord>> claimed = store_->ClaimNext("optimum parent");
-  ASSERT_TRUE(claimed.ok() && claimed->has_value());
-  const JobRecord optimum = **claimed;
-  ASSERT_EQ(optimum.kind, "optimum");
+  const std::optional<JobRecord> claimed =
+      drillbif::testing::SubmitAndClaim(*store_, "optimum", request, "optimum parent");
+  ASSERT_TRUE(claimed.has_value());
+  const JobRecord optimum = *claimed;
   StatusOr<jobs::LocalTraceTasks> local =
       jobs::LocalTraceTasks::ForJob(v1::OPTIMUM, optimum.request);
   ASSERT_TRUE(local.ok()) << local.status().ToString();
