@@ -293,11 +293,11 @@ class WorkerPool::Run {
     if (fan_out) {
       spdlog::info(
           "job {}: {} trace tasks, {} of them stored ({} run by other workers, {} claimed back "
-          "by the trace); {:.2f} s running tasks, {:.2f} s in the store's calls, {:.2f} s "
-          "waiting for other workers",
+          "by the trace) in {} child jobs; {:.2f} s running tasks, {:.2f} s in the store's "
+          "calls, {:.2f} s waiting for other workers",
           job_.id, fan_out->tasks(), fan_out->stored(), fan_out->run_elsewhere(),
-          fan_out->claimed_here(), fan_out->run_seconds(), fan_out->store_seconds(),
-          fan_out->sleep_seconds());
+          fan_out->claimed_here(), fan_out->batches_stored(), fan_out->run_seconds(),
+          fan_out->store_seconds(), fan_out->sleep_seconds());
     }
     if (map_cells) {
       spdlog::info("job {}: {} map cells from earlier runs, {} stored, {} of them run here",

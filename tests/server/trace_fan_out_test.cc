@@ -112,8 +112,8 @@ TEST_F(TraceFanOut, AloneTheTraceStoresFewTasksAndRunsTheRestItself) {
   StatusOr<v1::TraceResult> direct = jobs::RunTrace(request_);
   ASSERT_TRUE(direct.ok());
   drillbif::testing::ExpectSameResult(*fanned, *direct);
-  // Nobody else takes a stored task: each one the trace claims back lowers the budget to one
-  // open task, so a small share of the tasks is stored, all claimed back by the trace.
+  // Nobody else takes a stored batch: each one the trace claims back lowers the budget to one
+  // open batch, so a small share of the tasks is stored, all claimed back by the trace.
   EXPECT_GT(runner.tasks(), 10);
   EXPECT_GE(runner.stored(), 2);
   EXPECT_LT(runner.stored(), runner.tasks() / 2);
