@@ -16,7 +16,7 @@ void WatchHub::Add(const std::string& id, std::shared_ptr<JobWatcher> watcher) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!stopping_) {
       watchers_.emplace(id, std::move(watcher));
-      notified_ = true;
+      dirty_.insert(id);
       cv_.notify_one();
       return;
     }
@@ -27,7 +27,16 @@ void WatchHub::Add(const std::string& id, std::shared_ptr<JobWatcher> watcher) {
 void WatchHub::Notify() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    notified_ = true;
+    notify_all_ = true;
+  }
+  cv_.notify_one();
+}
+
+void WatchHub::NotifyJob(const std::string& id) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_ || watchers_.find(id) == watchers_.end()) return;
+    dirty_.insert(id);
   }
   cv_.notify_one();
 }
@@ -54,14 +63,28 @@ void WatchHub::Stop() {
 }
 
 void WatchHub::Loop() {
+  // The next time every watched job is read, whatever was notified meanwhile: a steady stream of
+  // NotifyJob (progress of other jobs) must not keep the poll from ever coming.
+  auto next_poll = std::chrono::steady_clock::now() + poll_interval_;
   for (;;) {
     std::multimap<std::string, std::shared_ptr<JobWatcher>> round;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait_for(lock, poll_interval_, [this] { return notified_ || stopping_; });
+      cv_.wait_until(lock, next_poll,
+                     [this] { return notify_all_ || !dirty_.empty() || stopping_; });
       if (stopping_) return;
-      notified_ = false;
-      round = watchers_;
+      const auto woke = std::chrono::steady_clock::now();
+      if (notify_all_ || woke >= next_poll) {
+        round = watchers_;
+        next_poll = woke + poll_interval_;
+      } else {
+        for (const std::string& id : dirty_) {
+          const auto [first, last] = watchers_.equal_range(id);
+          round.insert(first, last);
+        }
+      }
+      notify_all_ = false;
+      dirty_.clear();
     }
     if (round.empty()) continue;
     const auto now = std::chrono::steady_clock::now();
@@ -71,6 +94,7 @@ void WatchHub::Loop() {
       const std::string& id = it->first;
       // Watchers read state and progress, not the request (up to max_request_bytes).
       const StatusOr<JobRecord> record = store_->Get(id, /*include_request=*/false);
+      reads_.fetch_add(1);
       auto end = round.upper_bound(id);
       for (; it != end; ++it) {
         if (it->second->OnRecord(record, now)) done.push_back(it->second);
