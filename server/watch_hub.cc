@@ -1,5 +1,6 @@
 #include "server/watch_hub.h"
 
+#include <algorithm>
 #include <utility>
 
 namespace drillbif::server {
@@ -15,6 +16,9 @@ void WatchHub::Add(const std::string& id, std::shared_ptr<JobWatcher> watcher) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!stopping_) {
+      const auto deadline = watcher->deadline();
+      if (deadline != std::chrono::steady_clock::time_point::max())
+        deadlines_.emplace(deadline, id);
       watchers_.emplace(id, std::move(watcher));
       dirty_.insert(id);
       cv_.notify_one();
@@ -70,10 +74,18 @@ void WatchHub::Loop() {
     std::multimap<std::string, std::shared_ptr<JobWatcher>> round;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait_until(lock, next_poll,
-                     [this] { return notify_all_ || !dirty_.empty() || stopping_; });
+      const auto wake_at =
+          deadlines_.empty() ? next_poll : std::min(next_poll, deadlines_.begin()->first);
+      cv_.wait_until(lock, wake_at, [this] { return notify_all_ || !dirty_.empty() || stopping_; });
       if (stopping_) return;
       const auto woke = std::chrono::steady_clock::now();
+      // Jobs whose watcher's deadline came (that watcher may be gone already: a harmless read).
+      while (!deadlines_.empty() && deadlines_.begin()->first <= woke) {
+        if (watchers_.find(deadlines_.begin()->second) != watchers_.end()) {
+          dirty_.insert(deadlines_.begin()->second);
+        }
+        deadlines_.erase(deadlines_.begin());
+      }
       if (notify_all_ || woke >= next_poll) {
         round = watchers_;
         next_poll = woke + poll_interval_;

@@ -7,8 +7,9 @@
 // - every watched job when told that something may have changed (Notify: workers call it after
 //   each progress update and state change, the services after submit and cancel; the feed
 //   after it reconnected), and at least every `poll_interval_ms`.
-// The poll keeps it right for changes no event names (a timeout needs a clock anyway; without a
-// change feed, another process's changes are seen only by it). A read is a small indexed
+// - a job whose watcher's deadline (a wait's timeout) has come.
+// The poll keeps it right for changes no event names (without a change feed, another process's
+// changes are seen only by it). A read is a small indexed
 // SELECT and progress is written at most a few times per second per job, so the cost is a few
 // reads per watched job per change, plus one per watched job per poll interval.
 #ifndef DRILLBIF_SERVER_WATCH_HUB_H_
@@ -41,6 +42,11 @@ class JobWatcher {
                         std::chrono::steady_clock::time_point now) = 0;
   // The hub stops (server shutdown): finish now. Not called for a watcher that returned true.
   virtual void OnShutdown() = 0;
+  // When the watcher wants a record whether or not the job changed (a wait's timeout): the hub
+  // reads its job then, not at the next poll, which may be seconds later. Read once when added.
+  virtual std::chrono::steady_clock::time_point deadline() const {
+    return std::chrono::steady_clock::time_point::max();
+  }
 };
 
 // The hub. Thread-safe.
@@ -87,6 +93,8 @@ class WatchHub {
   std::atomic<int64_t> reads_{0};
   bool stopping_ = false;
   std::multimap<std::string, std::shared_ptr<JobWatcher>> watchers_;
+  // The deadlines of the watchers that have one (JobWatcher::deadline), with their job.
+  std::multimap<std::chrono::steady_clock::time_point, std::string> deadlines_;
   std::thread thread_;
 };
 

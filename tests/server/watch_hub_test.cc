@@ -63,7 +63,7 @@ class WatchHubTest : public ::testing::Test {
                                                       std::vector<std::string>* ids) {
     std::vector<std::shared_ptr<CountingWatcher>> watchers;
     for (int i = 0; i < n; ++i) {
-      StatusOr<SubmitResult> job = store_->Submit({"sweep", "r" + std::to_string(i), "", ""});
+      StatusOr<SubmitResult> job = store_->Submit({"sweep", std::to_string(i) + "r", "", ""});
       EXPECT_TRUE(job.ok());
       ids->push_back(job->id);
       watchers.push_back(std::make_shared<CountingWatcher>());
@@ -127,6 +127,45 @@ TEST_F(WatchHubTest, AStreamOfNotifyJobDoesNotHoldOffThePollOfTheOtherJobs) {
   EXPECT_GE(watchers[1]->records() - 1, 3);
 }
 
+// A watcher with a deadline: the time of the first record at or after it.
+class DeadlineWatcher : public JobWatcher {
+ public:
+  explicit DeadlineWatcher(Clock::time_point deadline) : deadline_(deadline) {}
+  bool OnRecord(const StatusOr<JobRecord>&, Clock::time_point now) override {
+    if (now < deadline_) return false;
+    met_ = Clock::now();
+    done_ = true;
+    return true;
+  }
+  void OnShutdown() override {}
+  Clock::time_point deadline() const override { return deadline_; }
+  bool done() const { return done_.load(); }
+  Clock::time_point met() const { return met_; }
+
+ private:
+  const Clock::time_point deadline_;
+  Clock::time_point met_;
+  std::atomic<bool> done_{false};
+};
+
+TEST_F(WatchHubTest, AWatchersDeadlineIsMetWithoutWaitingForThePoll) {
+  WatchHub hub(store_.get(), /*poll_interval_ms=*/60000);
+  StatusOr<SubmitResult> job = store_->Submit({"sweep", "r", "", ""});
+  ASSERT_TRUE(job.ok());
+  const auto deadline = Clock::now() + std::chrono::milliseconds(200);
+  auto watcher = std::make_shared<DeadlineWatcher>(deadline);
+  hub.Add(job->id, watcher);
+  const auto give_up = Clock::now() + std::chrono::seconds(5);
+  while (!watcher->done() && Clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_TRUE(watcher->done()) << "the deadline waited for the poll";
+  const double late = std::chrono::duration<double, std::milli>(watcher->met() - deadline).count();
+  std::printf("deadline met %.2f ms late\n", late);
+  // A timed wake-up and one read; 1 s for a loaded machine (the poll is a minute away).
+  EXPECT_LT(late, 1000.0);
+}
+
 // Reads per second the poll alone makes for `n` idle watched jobs at `poll_ms`, over `seconds`.
 double IdleReadsPerSecond(JobStore* store, const std::vector<std::string>& ids, int poll_ms,
                           double seconds) {
@@ -146,7 +185,7 @@ TEST_F(WatchHubTest, IdleWatchedJobsCostOneReadEachPerPollInterval) {
   constexpr int kJobs = 50;
   std::vector<std::string> ids;
   for (int i = 0; i < kJobs; ++i) {
-    StatusOr<SubmitResult> job = store_->Submit({"sweep", "r" + std::to_string(i), "", ""});
+    StatusOr<SubmitResult> job = store_->Submit({"sweep", std::to_string(i) + "r", "", ""});
     ASSERT_TRUE(job.ok());
     ids.push_back(job->id);
   }
