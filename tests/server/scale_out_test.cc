@@ -106,8 +106,11 @@ TEST_F(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinish
   ASSERT_TRUE(api->serving() && workers[0]->serving() && workers[1]->serving());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
 
-  // Two long sweeps (about a second of engine time each) first, then 40 short ones.
-  std::vector<v1::SweepRequest> requests = {SmallSweep(0.0, 300), SmallSweep(0.001, 300)};
+  // Two long sweeps (about a second of engine time each) first, then 40 short ones. Workers
+  // woken by the change feed claim the long ones at their submit, and the test looks for a
+  // victim only after the 43 submits: a long sweep must outlast them (300 values, ~0.5 s, was
+  // seen to finish before its worker was killed).
+  std::vector<v1::SweepRequest> requests = {SmallSweep(0.0, 600), SmallSweep(0.001, 600)};
   for (int i = 0; i < 40; ++i) requests.push_back(SmallSweep(0.1 + 0.001 * i, 5));
   std::vector<std::string> names;
   for (const v1::SweepRequest& sweep : requests) names.push_back(Submit(*api, sweep));
@@ -705,6 +708,12 @@ TEST_F(ScaleOut, AJobSubmittedThroughTheApiIsClaimedByTheIdleWorkerAtOnce) {
     ASSERT_GT(job.started_ms, 0) << "job " << i << " was never claimed";
     waits.push_back(job.started_ms - job.created_ms);
   }
+  // The worker heard of them through the feed, not a fallback to the 50 ms poll, which
+  // would meet the bounds below too.
+  std::ifstream log(worker->log_path());
+  const std::string worker_log((std::istreambuf_iterator<char>(log)),
+                               std::istreambuf_iterator<char>());
+  EXPECT_EQ(worker_log.find("no change feed"), std::string::npos) << worker_log;
   std::vector<int64_t> sorted = waits;
   std::sort(sorted.begin(), sorted.end());
   std::printf("submit through the API -> claim by the idle worker: median %lld ms, max %lld ms\n",
