@@ -18,7 +18,7 @@ void WatchHub::Add(const std::string& id, std::shared_ptr<JobWatcher> watcher) {
     if (!stopping_) {
       const auto deadline = watcher->deadline();
       if (deadline != std::chrono::steady_clock::time_point::max())
-        deadlines_.emplace(deadline, id);
+        deadlines_.emplace(deadline, std::make_pair(id, watcher.get()));
       watchers_.emplace(id, std::move(watcher));
       dirty_.insert(id);
       cv_.notify_one();
@@ -66,6 +66,18 @@ void WatchHub::Stop() {
   for (auto& [id, watcher] : left) watcher->OnShutdown();
 }
 
+void WatchHub::EraseDeadline(const JobWatcher& watcher) {
+  const auto deadline = watcher.deadline();
+  if (deadline == std::chrono::steady_clock::time_point::max()) return;
+  const auto [first, last] = deadlines_.equal_range(deadline);
+  for (auto it = first; it != last; ++it) {
+    if (it->second.second == &watcher) {
+      deadlines_.erase(it);
+      return;
+    }
+  }
+}
+
 void WatchHub::Loop() {
   // The next time every watched job is read, whatever was notified meanwhile: a steady stream of
   // NotifyJob (progress of other jobs) must not keep the poll from ever coming.
@@ -79,11 +91,9 @@ void WatchHub::Loop() {
       cv_.wait_until(lock, wake_at, [this] { return notify_all_ || !dirty_.empty() || stopping_; });
       if (stopping_) return;
       const auto woke = std::chrono::steady_clock::now();
-      // Jobs whose watcher's deadline came (that watcher may be gone already: a harmless read).
+      // Jobs whose watcher's deadline came.
       while (!deadlines_.empty() && deadlines_.begin()->first <= woke) {
-        if (watchers_.find(deadlines_.begin()->second) != watchers_.end()) {
-          dirty_.insert(deadlines_.begin()->second);
-        }
+        dirty_.insert(deadlines_.begin()->second.first);
         deadlines_.erase(deadlines_.begin());
       }
       if (notify_all_ || woke >= next_poll) {
@@ -117,6 +127,7 @@ void WatchHub::Loop() {
     for (auto it = watchers_.begin(); it != watchers_.end();) {
       bool remove = false;
       for (const auto& d : done) remove = remove || d == it->second;
+      if (remove) EraseDeadline(*it->second);
       it = remove ? watchers_.erase(it) : std::next(it);
     }
   }

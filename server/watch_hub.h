@@ -25,6 +25,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "drillbif/common/status.h"
@@ -43,7 +44,7 @@ class JobWatcher {
   // The hub stops (server shutdown): finish now. Not called for a watcher that returned true.
   virtual void OnShutdown() = 0;
   // When the watcher wants a record whether or not the job changed (a wait's timeout): the hub
-  // reads its job then, not at the next poll, which may be seconds later. Read once when added.
+  // reads its job then, not at the next poll, which may be seconds later. Must not change.
   virtual std::chrono::steady_clock::time_point deadline() const {
     return std::chrono::steady_clock::time_point::max();
   }
@@ -83,6 +84,8 @@ class WatchHub {
 
  private:
   void Loop();
+  // Drops `watcher`'s entry of deadlines_ (mutex_ held).
+  void EraseDeadline(const JobWatcher& watcher);
 
   JobStore* const store_;
   const std::chrono::milliseconds poll_interval_;
@@ -93,8 +96,11 @@ class WatchHub {
   std::atomic<int64_t> reads_{0};
   bool stopping_ = false;
   std::multimap<std::string, std::shared_ptr<JobWatcher>> watchers_;
-  // The deadlines of the watchers that have one (JobWatcher::deadline), with their job.
-  std::multimap<std::chrono::steady_clock::time_point, std::string> deadlines_;
+  // The deadlines of the watchers that have one (JobWatcher::deadline), with their job and the
+  // watcher (to drop the entry with it: a wait that ends early must not leave its entry for up
+  // to its timeout).
+  std::multimap<std::chrono::steady_clock::time_point, std::pair<std::string, const JobWatcher*>>
+      deadlines_;
   std::thread thread_;
 };
 
