@@ -91,6 +91,13 @@ int main(int argc, char** argv) {
                  "With --store: a worker that has not renewed a job's lease for this long "
                  "loses it to the others")
       ->capture_default_str();
+  app.add_option("--watch-poll-ms", options.watch_poll_ms,
+                 "Longest time between two reads of the jobs that Watch and WaitOperation calls "
+                 "wait on (this process's own changes are delivered at once). With --store, "
+                 "while the store's change feed (PostgreSQL LISTEN/NOTIFY) is up, other "
+                 "processes' changes are too, and the hub polls every max(this, 1000) ms and "
+                 "idle workers every 500 ms; without it, both every this/50 ms")
+      ->capture_default_str();
   app.add_option("--trace-fan-out", options.trace_fan_out,
                  "With --store: the tasks of a trace (and of an optimum's trace) stored ahead as "
                  "child jobs for every worker process to run, e.g. 32 (pays for period-2 traces "

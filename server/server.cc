@@ -6,6 +6,8 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdlib>
@@ -253,6 +255,11 @@ struct Server::Impl {
   std::unique_ptr<JobStore> store;
   std::unique_ptr<WatchHub> hub;
   std::unique_ptr<WorkerPool> pool;
+  // A shared store's change feed: other processes' changes wake the hub and the workers. After
+  // hub and pool, so that it stops before they go.
+  std::unique_ptr<JobChangeFeed> feed;
+  // Set once hub and pool exist: the feed's thread may call OnChange before.
+  std::atomic<bool> feed_targets_ready{false};
   std::unique_ptr<BoundedExecutor> executor;
   std::unique_ptr<JobsService> jobs;
   std::unique_ptr<OperationsService> operations;
@@ -322,6 +329,25 @@ struct Server::Impl {
     }
   }
 
+  // A change another process (or this one) made, from the store's change feed.
+  void OnChange(const JobChange& change) {
+    if (!feed_targets_ready.load(std::memory_order_acquire)) return;
+    switch (change.kind) {
+      case JobChange::Kind::kQueued:
+        pool->Wake();
+        hub->NotifyJob(change.id);
+        break;
+      case JobChange::Kind::kChanged:
+        hub->NotifyJob(change.id);
+        break;
+      case JobChange::Kind::kResync:
+        // Notices were lost: a job may be waiting, a watched job may have moved.
+        pool->Wake();
+        hub->Notify();
+        break;
+    }
+  }
+
   StatusOr<std::string> RenderMetrics() {
     MetricsSnapshot snapshot;
     StatusOr<StoreStats> stats = store->Stats();
@@ -368,7 +394,23 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   }
   if (Status s = impl->state.optimum_index.Load(*impl->store); !s.ok()) return s;
 
-  impl->hub = std::make_unique<WatchHub>(impl->store.get(), o.watch_poll_ms);
+  Impl* raw = impl.get();
+  if (!o.store_uri.empty()) {
+    StatusOr<std::unique_ptr<JobChangeFeed>> feed =
+        impl->store->OpenChangeFeed([raw](const JobChange& change) { raw->OnChange(change); });
+    if (feed.ok()) {
+      impl->feed = std::move(feed).value();
+    } else {
+      spdlog::warn(
+          "job store: no change feed ({}): other processes' changes are seen by polling, the "
+          "watch hub every {} ms and idle workers every 50 ms",
+          feed.status().ToString(), o.watch_poll_ms);
+    }
+  }
+  // With the feed, the polls are a safety net (for what a notice cannot say, and a feed that
+  // is reconnecting); 1 s bounds a WaitOperation timeout's delay.
+  const int watch_poll_ms = impl->feed ? std::max(o.watch_poll_ms, 1000) : o.watch_poll_ms;
+  impl->hub = std::make_unique<WatchHub>(impl->store.get(), watch_poll_ms);
   WorkerPoolOptions pool_options;
   pool_options.workers = o.workers;
   pool_options.short_workers = o.short_workers;
@@ -376,10 +418,11 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   pool_options.lease_ms = o.store_uri.empty() ? 0 : o.lease_ms;
   pool_options.trace_fan_out = o.store_uri.empty() ? 0 : o.trace_fan_out;
   pool_options.trace_fan_out_batch = o.trace_fan_out_batch;
-  // With a shared store, submits by other processes (a trace's tasks among them) wake no worker
-  // here: an idle worker looks every 50 ms instead of 500, so that a fanned-out trace's tasks
-  // wait ~25 ms for it rather than ~250; each look is one claim query (~0.5 ms on PostgreSQL).
-  if (!o.store_uri.empty()) pool_options.idle_poll_ms = 50;
+  // With a shared store, submits by other processes (a trace's tasks among them) wake the
+  // workers here through the change feed; without the feed nothing does, and an idle worker
+  // looks every 50 ms instead of 500, so that a fanned-out trace's tasks wait ~25 ms for it
+  // rather than ~250; each look is one claim query (~0.5 ms on PostgreSQL).
+  if (!o.store_uri.empty() && !impl->feed) pool_options.idle_poll_ms = 50;
   if (!o.store_uri.empty()) {
     // Worker ids in a shared store name the machine and the process that claimed.
     char host[256] = {};
@@ -389,7 +432,6 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
   for (const jobs::JobKindSpec* kind : jobs::AllKinds()) {
     pool_options.limits[kind->name] = o.LimitsOf(*kind);
   }
-  Impl* raw = impl.get();
   impl->pool = std::make_unique<WorkerPool>(
       impl->store.get(), impl->hub.get(), pool_options,
       [raw](const std::string& id, const std::string& key) {
@@ -401,6 +443,7 @@ StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
           raw->state.map_index.MarkStale();
         }
       });
+  impl->feed_targets_ready.store(true, std::memory_order_release);
   impl->executor = std::make_unique<BoundedExecutor>(o.executor);
   impl->state.store = impl->store.get();
   impl->state.hub = impl->hub.get();
@@ -484,6 +527,7 @@ void Server::Shutdown() {
   impl_->cv.notify_all();  // The maintenance thread ends.
   if (impl_->maintenance.joinable()) impl_->maintenance.join();
   spdlog::info("drillbif-server: shutting down");
+  impl_->feed.reset();  // Within ~50 ms (postgres_change_feed.h).
   const auto started = std::chrono::steady_clock::now();
   const auto elapsed_ms = [&started] {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started)

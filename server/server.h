@@ -138,7 +138,8 @@ struct ServerOptions {
   int progress_interval_ms = 250;
   // Longest time between two looks of the watch hub at the jobs being watched or waited on.
   // Milliseconds. Changes made by this process are delivered at once anyway; this bounds the
-  // delay of timeouts.
+  // delay of timeouts. With a shared store whose change feed is up (other processes' changes
+  // are delivered at once too), the hub looks every max(watch_poll_ms, 1000) ms.
   int watch_poll_ms = 50;
   // The store's PRAGMA synchronous = FULL (see SqliteJobStoreOptions::full_sync).
   bool full_sync = true;

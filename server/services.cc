@@ -202,6 +202,7 @@ class WaitWatcher : public JobWatcher {
   void OnShutdown() override {
     done_(Status(StatusCode::kUnavailable, "the server is shutting down"), false);
   }
+  Clock::time_point deadline() const override { return deadline_; }
 
  private:
   const Clock::time_point deadline_;

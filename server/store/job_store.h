@@ -44,6 +44,8 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -321,6 +323,29 @@ struct RecoveryReport {
   int failed = 0;     // RUNNING after max_attempts claims -> FAILED (INTERNAL).
 };
 
+// One change to the jobs of a store, as a change feed (JobStore::OpenChangeFeed) reports it.
+struct JobChange {
+  enum class Kind {
+    kQueued,   // Job `id` became claimable (a submit or a requeue): idle workers may take it.
+    kChanged,  // Job `id` changed what a watcher reads (state, progress, ...).
+    kResync,   // Changes may have been missed (the feed reconnected): re-read every job of
+               // interest; `id` is empty.
+  };
+  Kind kind = Kind::kChanged;
+  std::string id;
+};
+
+// A running change feed. Destroying it stops it: no call of its callback is running or starts
+// after the destructor returns.
+class JobChangeFeed {
+ public:
+  virtual ~JobChangeFeed() = default;
+};
+
+// Called on the feed's own thread, one change at a time. Must not throw and should return
+// quickly (it delays the changes after it).
+using JobChangeCallback = std::function<void(const JobChange& change)>;
+
 // The job store. Implementations are thread-safe: every method may be called from any thread.
 // All methods return an error Status instead of throwing.
 class JobStore {
@@ -519,6 +544,16 @@ class JobStore {
   // that holds it; request_ids of deleted jobs are forgotten. Then frees the space on disk where
   // the implementation can. INVALID_ARGUMENT for bad options.
   virtual StatusOr<EvictionReport> Evict(const RetentionOptions& options, int64_t now_ms) = 0;
+
+  // Reports the changes that any process sharing the store makes to its jobs, as they commit,
+  // to `on_change` (on a thread of the feed's), until the feed is destroyed: for a process that
+  // would otherwise poll the store to learn of other processes' work. Delivery is at most
+  // once per change and may merge changes; after a break it reports kResync. UNIMPLEMENTED by
+  // default: a store that one process owns (SQLite) has no one else's changes to report.
+  virtual StatusOr<std::unique_ptr<JobChangeFeed>> OpenChangeFeed(JobChangeCallback on_change) {
+    (void)on_change;
+    return Status(StatusCode::kUnimplemented, "this job store has no change feed");
+  }
 };
 
 }  // namespace drillbif::server

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "drillbif/common/checked.h"
+#include "server/store/postgres_change_feed.h"
 #include "server/store/postgres_store_impl.h"
 #include "server/store/store_checks.h"
 
@@ -100,6 +101,39 @@ CREATE INDEX jobs_claimable ON jobs(client, lane, seq)
   WHERE state = 0 AND shares IS NULL AND parent_id = '';
 CREATE INDEX jobs_by_parent ON jobs(parent_id, state, seq) WHERE parent_id <> '';
 CREATE INDEX jobs_queued_children ON jobs(seq) WHERE state = 0 AND parent_id <> '';
+)sql",
+    // 2 -> 3: change notices (postgres_change_feed.h). Every inserted job, and every job whose
+    // update changes what a watcher reads (the columns of the WHEN clause: not the lease's
+    // heartbeat or the streamed counts, which change often and show nowhere), notifies
+    // 'drillbif_jobs' with its id: "q:<id>" when it became claimable (QUEUED and running
+    // itself, after a submit or a requeue: idle workers look), "c:<id>" otherwise. Deletions
+    // notify nothing. The notice leaves with the transaction's commit, so a listener reads the
+    // change it announces. Written to be run again (OR REPLACE, IF EXISTS), so that a database
+    // taken back to an older version by hand migrates again.
+    R"sql(
+CREATE OR REPLACE FUNCTION drillbif_notify_job() RETURNS trigger LANGUAGE plpgsql AS $$
+BEGIN
+  IF NEW.state = 0 AND NEW.shares IS NULL
+      AND (TG_OP = 'INSERT' OR OLD.state <> 0 OR OLD.shares IS NOT NULL) THEN
+    PERFORM pg_notify('drillbif_jobs', 'q:' || NEW.id);
+  ELSE
+    PERFORM pg_notify('drillbif_jobs', 'c:' || NEW.id);
+  END IF;
+  RETURN NULL;
+END
+$$;
+DROP TRIGGER IF EXISTS jobs_notify_insert ON jobs;
+CREATE TRIGGER jobs_notify_insert AFTER INSERT ON jobs
+  FOR EACH ROW EXECUTE FUNCTION drillbif_notify_job();
+DROP TRIGGER IF EXISTS jobs_notify_update ON jobs;
+CREATE TRIGGER jobs_notify_update AFTER UPDATE ON jobs FOR EACH ROW
+  WHEN (OLD.state IS DISTINCT FROM NEW.state OR OLD.progress IS DISTINCT FROM NEW.progress
+        OR OLD.current_value IS DISTINCT FROM NEW.current_value
+        OR OLD.points IS DISTINCT FROM NEW.points OR OLD.started_ms IS DISTINCT FROM NEW.started_ms
+        OR OLD.finished_ms IS DISTINCT FROM NEW.finished_ms
+        OR OLD.attempts IS DISTINCT FROM NEW.attempts OR OLD.shares IS DISTINCT FROM NEW.shares
+        OR OLD.cache_hit IS DISTINCT FROM NEW.cache_hit)
+  EXECUTE FUNCTION drillbif_notify_job();
 )sql",
 };
 static_assert(std::size(kMigrations) == PostgresJobStore::kSchemaVersion - 1,
@@ -752,6 +786,13 @@ StatusOr<StoreStats> PostgresStoreImpl::Stats() {
     DRILLBIF_ASSIGN_OR_RETURN(stats.used_bytes, UsedBytes(tx));
     return stats;
   });
+}
+
+StatusOr<std::unique_ptr<JobChangeFeed>> PostgresStoreImpl::OpenChangeFeed(
+    JobChangeCallback on_change) {
+  // The feed's log lines go where the store's go; they run on the feed's thread, without mu_.
+  return OpenPostgresChangeFeed(WithPassword(uri_, options_.password), options_.log,
+                                std::move(on_change));
 }
 
 Status PostgresJobStoreOptions::Validate() const {

@@ -16,6 +16,9 @@
 // - The schema is versioned by a row of drillbif_schema and created on Open; a database written
 //   by a newer build is refused.
 // - Errors carry client-readable messages without SQL; the details go to options.log.
+// - Change feed (OpenChangeFeed): triggers on the jobs table notify every process that listens
+//   of each submit, requeue and watched change as it commits (postgres_change_feed.h), so that
+//   processes sharing the store need not poll it to hear of each other's work.
 #ifndef DRILLBIF_SERVER_STORE_POSTGRES_JOB_STORE_H_
 #define DRILLBIF_SERVER_STORE_POSTGRES_JOB_STORE_H_
 
@@ -61,7 +64,7 @@ struct PostgresJobStoreOptions {
 class PostgresJobStore {
  public:
   // Highest schema version this build knows.
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
   // Bytes of the largest value (request, chunk, summary) the store accepts: PostgreSQL's limit
   // on one bytea field is 1 GiB; a little less leaves room for the protocol's framing.
   static constexpr int64_t kMaxValueBytes = 1'000'000'000;

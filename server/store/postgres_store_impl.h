@@ -68,6 +68,8 @@ class PostgresStoreImpl final : public JobStore {
   Status Health() override;
   Status Probe() override;
   StatusOr<EvictionReport> Evict(const RetentionOptions& options, int64_t now_ms) override;
+  // A feed on a connection of its own (postgres_change_feed.h).
+  StatusOr<std::unique_ptr<JobChangeFeed>> OpenChangeFeed(JobChangeCallback on_change) override;
 
   // Open's step after construction: connects and creates or checks the schema.
   Status Configure();

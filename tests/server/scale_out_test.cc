@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -65,16 +66,17 @@ class ScaleOut : public ::testing::Test {
   std::string uri() const { return cluster_.Uri("jobs"); }
 
   // A process of `role` on the database, its files in dir/name.
-  // `fan_out`: --trace-fan-out (0: off, the default).
+  // `fan_out`: --trace-fan-out (0: off, the default); `more`: further flags.
   std::unique_ptr<ServerProcess> Start(const std::string& name, const std::string& role,
-                                       int fan_out = 0) {
+                                       int fan_out = 0, const std::vector<std::string>& more = {}) {
     const std::string sub = dir_.path() + "/" + name;
     std::filesystem::create_directories(sub);
-    return std::make_unique<ServerProcess>(
-        sub, sub + "/unused.db",
-        std::vector<std::string>{"--store", uri(), "--role", role, "--workers", "1",
-                                 "--short-workers", "0", "--lease-ms", kLeaseMs, "--trace-fan-out",
-                                 std::to_string(fan_out)});
+    std::vector<std::string> flags = {
+        "--store",    uri(),    "--role",          role,
+        "--workers",  "1",      "--short-workers", "0",
+        "--lease-ms", kLeaseMs, "--trace-fan-out", std::to_string(fan_out)};
+    flags.insert(flags.end(), more.begin(), more.end());
+    return std::make_unique<ServerProcess>(sub, sub + "/unused.db", flags);
   }
 
   // A connection of the test's own to the store, behind the processes' backs.
@@ -104,8 +106,11 @@ TEST_F(ScaleOut, AWorkerKilledWhileRunningLosesItsJobToTheOtherAndEveryJobFinish
   ASSERT_TRUE(api->serving() && workers[0]->serving() && workers[1]->serving());
   auto operations = google::longrunning::Operations::NewStub(api->channel());
 
-  // Two long sweeps (about a second of engine time each) first, then 40 short ones.
-  std::vector<v1::SweepRequest> requests = {SmallSweep(0.0, 300), SmallSweep(0.001, 300)};
+  // Two long sweeps (about a second of engine time each) first, then 40 short ones. Workers
+  // woken by the change feed claim the long ones at their submit, and the test looks for a
+  // victim only after the 43 submits: a long sweep must outlast them (300 values, ~0.5 s, was
+  // seen to finish before its worker was killed).
+  std::vector<v1::SweepRequest> requests = {SmallSweep(0.0, 600), SmallSweep(0.001, 600)};
   for (int i = 0; i < 40; ++i) requests.push_back(SmallSweep(0.1 + 0.001 * i, 5));
   std::vector<std::string> names;
   for (const v1::SweepRequest& sweep : requests) names.push_back(Submit(*api, sweep));
@@ -638,6 +643,86 @@ TEST_F(ScaleOut, AnOptimumMapsCellsRunOnBothWorkersAndAnotherApiProcessAnswersFr
   ASSERT_TRUE(s.ok()) << s.error_message();
   EXPECT_EQ(answer.operation(), name);
   EXPECT_TRUE(answer.from_map().verified()) << answer.from_map().verification();
+}
+
+// Unix time in milliseconds, the clock of the store's timestamps (created_ms, finished_ms).
+int64_t NowUnixMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+TEST_F(ScaleOut, AWatchThroughTheApiSeesTheWorkersJobFinishAtOnceDespiteATenSecondPoll) {
+  // The API process reads watched jobs every 10 s only: the worker's progress and completion
+  // reach it through the store's change feed.
+  std::unique_ptr<ServerProcess> api = Start("api", "api", 0, {"--watch-poll-ms", "10000"});
+  std::unique_ptr<ServerProcess> worker = Start("worker", "worker");
+  ASSERT_TRUE(api->serving() && worker->serving());
+  auto jobs = v1::Jobs::NewStub(api->channel());
+  const std::string name = Submit(*api, SmallSweep(0.0, 300));  // about a second of engine time
+  v1::WatchRequest watch;
+  watch.set_name(name);
+  auto context = ContextWithDeadline();
+  auto reader = jobs->Watch(context.get(), watch);
+  v1::JobMetadata metadata;
+  int running_updates = 0;
+  v1::JobState last = v1::JOB_STATE_UNSPECIFIED;
+  int64_t final_ms = 0;
+  while (reader->Read(&metadata)) {
+    last = metadata.state();
+    if (last == v1::RUNNING) ++running_updates;
+    final_ms = NowUnixMs();
+  }
+  ASSERT_TRUE(reader->Finish().ok());
+  ASSERT_EQ(last, v1::SUCCEEDED);
+  const JobRecord job = OpenStore()->Get(JobId(name)).value();
+  const int64_t delay_ms = final_ms - job.finished_ms;
+  std::printf(
+      "watch through the API (10 s poll): the end after %lld ms, %d RUNNING updates in "
+      "a run of %lld ms\n",
+      static_cast<long long>(delay_ms), running_updates,
+      static_cast<long long>(job.finished_ms - job.started_ms));
+  // A notice and one read: milliseconds. 2 s leaves room for a loaded machine, and is a fifth
+  // of the poll interval (the poll alone would take up to 10 s).
+  EXPECT_LT(delay_ms, 2000);
+  EXPECT_GE(delay_ms, -50) << "clock of the processes and the test disagree";
+}
+
+TEST_F(ScaleOut, AJobSubmittedThroughTheApiIsClaimedByTheIdleWorkerAtOnce) {
+  std::unique_ptr<ServerProcess> api = Start("api", "api");
+  std::unique_ptr<ServerProcess> worker = Start("worker", "worker");
+  ASSERT_TRUE(api->serving() && worker->serving());
+  std::unique_ptr<JobStore> store = OpenStore();
+  std::vector<int64_t> waits;
+  for (int i = 0; i < 7; ++i) {
+    // Let the worker go idle (the previous job, 5 sweep values, takes milliseconds), at a
+    // different phase of its 500 ms idle poll each time.
+    std::this_thread::sleep_for(std::chrono::milliseconds(300 + 37 * i));
+    const std::string id = JobId(Submit(*api, SmallSweep(0.1 + 0.001 * i, 5)));
+    JobRecord job = store->Get(id).value();
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    while (job.started_ms == 0 && std::chrono::steady_clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      job = store->Get(id).value();
+    }
+    ASSERT_GT(job.started_ms, 0) << "job " << i << " was never claimed";
+    waits.push_back(job.started_ms - job.created_ms);
+  }
+  // The worker heard of them through the feed, not a fallback to the 50 ms poll, which
+  // would meet the bounds below too.
+  std::ifstream log(worker->log_path());
+  const std::string worker_log((std::istreambuf_iterator<char>(log)),
+                               std::istreambuf_iterator<char>());
+  EXPECT_EQ(worker_log.find("no change feed"), std::string::npos) << worker_log;
+  std::vector<int64_t> sorted = waits;
+  std::sort(sorted.begin(), sorted.end());
+  std::printf("submit through the API -> claim by the idle worker: median %lld ms, max %lld ms\n",
+              static_cast<long long>(sorted[3]), static_cast<long long>(sorted.back()));
+  // The notice wakes the worker: a few ms. Its idle poll (500 ms with the feed) alone would
+  // claim a job 0 to 500 ms after its submit, 250 ms in the median: the median must stay
+  // under 100 ms and each claim under 300 ms, room for a loaded machine included.
+  EXPECT_LT(sorted[3], 100);
+  EXPECT_LT(sorted.back(), 300);
 }
 
 }  // namespace
