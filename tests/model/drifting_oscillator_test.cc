@@ -186,6 +186,43 @@ TEST_P(ParameterSetTest, JumpJacobianMatchesFiniteDifferences) {
   }
 }
 
+// The shooting system takes a segment's flow and its parameter columns from one call that shares
+// the segment's preparation; the continuation's results must not depend on that, so the values
+// are compared bit for bit (no tolerance) with the separate calls, in every mode, for every
+// parameter (also the one left to the matrix exponential, where both answer false), with and
+// without the state Jacobian.
+TEST_P(ParameterSetTest, FlowAndParamDerivativesEqualTheSeparateCallsBitForBit) {
+  DO model;
+  const Params& prm = GetParam().params;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const int ks[] = {DO::kA, DO::kB, DO::kOmega, DO::kXi, DO::kG, DO::kPhi0};
+  constexpr int kCount = 6;
+  for (int mode = 0; mode < 3; ++mode) {
+    for (int trial = 0; trial < 4; ++trial) {
+      const StateVector x0 = RandomState(mode, prm, rng);
+      const double t = 3.0 * u(rng);
+      StateVector x_ref;
+      StateMatrix jac_ref;
+      model.Flow(mode, x0, t, prm, &x_ref, &jac_ref);
+      for (const bool with_jac : {true, false}) {
+        StateVector x, dx[kCount];
+        StateMatrix jac;
+        bool ok[kCount];
+        model.FlowAndParamDerivatives(mode, x0, t, prm, &x, with_jac ? &jac : nullptr, ks, dx, ok);
+        EXPECT_EQ(x, x_ref) << "mode " << mode;
+        if (with_jac) EXPECT_EQ(jac, jac_ref) << "mode " << mode;
+        for (int i = 0; i < kCount; ++i) {
+          StateVector dx_ref;
+          const bool ok_ref = model.FlowParamDerivative(mode, x0, t, prm, ks[i], &dx_ref);
+          EXPECT_EQ(ok[i], ok_ref) << "mode " << mode << " param " << ks[i];
+          EXPECT_EQ(dx[i], dx_ref) << "mode " << mode << " param " << ks[i];
+        }
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(DriftingOscillator, ParameterSetTest,
                          ::testing::ValuesIn(testing::HardParameterSets()),
                          [](const auto& test_info) { return test_info.param.name; });
