@@ -82,9 +82,14 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   if (!model_.ValidateParams(prm).ok()) return false;
   Vec g, gp1, gp2;
   Mat gx;
+  // The condition's monodromy factors are made from the same segments' flows as G (same starts,
+  // durations and parameters): taken from G's evaluation where the propagator gives them the
+  // same bits whatever else it computed.
+  const bool shared_flows = kind_ != CurveKind::kGrazing && propagator_.FlowIndependentOfRequest();
+  std::vector<FlowResult> flows;
   if (!bvp1_
            .Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr,
-                     jac ? &gp2 : nullptr)
+                     jac ? &gp2 : nullptr, shared_flows ? &flows : nullptr)
            .ok()) {
     return false;
   }
@@ -92,8 +97,12 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   f->head(m()) = g;
   const PeriodicOrbit o = Unpack(y);
   std::vector<StateMatrix> factors;
-  std::vector<FlowResult> flows;
-  (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
+  if (shared_flows) {
+    factors = FactorsFromFlows(model_, o, flows);
+    (*f)[m()] = Sigma(ReducedMonodromy(model_, factors));
+  } else {
+    (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
+  }
   if (!jac) return f->allFinite();
   jac->setZero(m() + 1, n());
   jac->topLeftCorner(m(), m()) = gx;

@@ -53,6 +53,16 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
   return factors;
 }
 
+std::vector<StateMatrix> FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
+                                          const std::vector<FlowResult>& flows) {
+  std::vector<StateMatrix> factors(flows.size());
+  for (size_t i = 0; i < factors.size(); ++i) {
+    factors[i] =
+        FactorFromFlow(model, orbit, static_cast<int>(i), flows[i].x, flows[i].state_jacobian);
+  }
+  return factors;
+}
+
 StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full) {
   const int n = model.state_dim(), ps = model.phase_index();
   StateMatrix reduced(n - 1, n - 1);

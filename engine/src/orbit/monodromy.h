@@ -29,6 +29,12 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
                                           const PeriodicOrbit& orbit,
                                           std::vector<FlowResult>* flows = nullptr);
 
+// Every factor of the orbit from its segments' flows (end state and flow Jacobian, as
+// MonodromyFactors' `flows`, or OrbitBvp::Evaluate's): the factors MonodromyFactors gives from
+// flows equal to these.
+std::vector<StateMatrix> FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
+                                          const std::vector<FlowResult>& flows);
+
 // A full-state monodromy without its phase row and column (Stability::monodromy).
 StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full);
 

@@ -44,7 +44,8 @@ void OrbitBvp::Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOr
 }
 
 Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
-                          Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2) const {
+                          Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2,
+                          std::vector<FlowResult>* flows) const {
   const int k = segments(), n = d_ + 1, m = size();
   const double omega = model_.ForcingFrequency(params);
   // The parameter derivatives asked for: (index, output), at most two.
@@ -68,6 +69,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
   if (gx) gx->setZero(m, m);
   if (gp) gp->setZero(m);
   if (gp2) gp2->setZero(m);
+  if (flows) flows->resize(k);
 
   // Derivatives of a segment's end state with respect to X (n x m) and the parameters (n each).
   Eigen::MatrixXd dend(n, m);
@@ -78,7 +80,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
     const int col = i * (d_ + 1);
     FlowRequest req;
     // The parameter derivative needs the phase column too (s_i moves with omega).
-    req.state_jacobian = gx != nullptr || want_p;
+    req.state_jacobian = gx != nullptr || want_p || flows != nullptr;
     req.param_jacobian = want_p;
     if (want_p) {
       req.param = wanted[0].index;
@@ -87,6 +89,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
     const FlowResult fr =
         propagator_.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], params, req);
     if (!fr.status.ok()) return fr.status;
+    if (flows) (*flows)[i] = fr;
     const StateVector& xe = fr.x;
     if (gx) {
       StateVector f;

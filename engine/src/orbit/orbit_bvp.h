@@ -5,6 +5,7 @@
 #define DRILLBIF_ORBIT_ORBIT_BVP_H_
 
 #include <Eigen/Dense>
+#include <vector>
 
 #include "drillbif/flow/propagator.h"
 #include "drillbif/orbit/periodic_orbit.h"
@@ -30,9 +31,11 @@ class OrbitBvp {
   void Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOrbit* orbit) const;
 
   // G(X; params), and when non-null dG/dX, dG/dparams[param] and dG/dparams[param2]. INTERNAL
-  // if a flow fails.
+  // if a flow fails. `flows`, when non-null, receives each segment's flow with its state
+  // Jacobian (for the monodromy's factors: orbit/monodromy.h, FactorsFromFlows).
   Status Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
-                  Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2 = nullptr) const;
+                  Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2 = nullptr,
+                  std::vector<FlowResult>* flows = nullptr) const;
 
  private:
   const HybridModel& model_;
