@@ -80,13 +80,17 @@ double CurveSystem::Sigma(const Eigen::Ref<const Mat>& monodromy) const {
 bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   const Params prm = ParamsAt(y);
   if (!model_.ValidateParams(prm).ok()) return false;
-  Vec g, gp1, gp2;
-  Mat gx;
+  // Members, kept between calls so that Newton's iterations do not allocate them anew.
+  Vec& g = g_;
+  Vec& gp1 = gp1_;
+  Vec& gp2 = gp2_;
+  Mat& gx = gx_;
+  std::vector<FlowResult>& flows = flows_;
+  std::vector<StateMatrix>& factors = factors_;
   // The condition's monodromy factors are made from the same segments' flows as G (same starts,
   // durations and parameters): taken from G's evaluation where the propagator gives them the
   // same bits whatever else it computed.
   const bool shared_flows = kind_ != CurveKind::kGrazing && propagator_.FlowIndependentOfRequest();
-  std::vector<FlowResult> flows;
   if (!bvp1_
            .Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr,
                      jac ? &gp2 : nullptr, shared_flows ? &flows : nullptr)
@@ -95,10 +99,10 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   }
   f->resize(m() + 1);
   f->head(m()) = g;
-  const PeriodicOrbit o = Unpack(y);
-  std::vector<StateMatrix> factors;
+  bvp1_.Unpack(y.head(m()), prm, &orbit_);
+  const PeriodicOrbit& o = orbit_;
   if (shared_flows) {
-    factors = FactorsFromFlows(model_, o, flows);
+    FactorsFromFlows(model_, o, flows, &factors);
     (*f)[m()] = Sigma(ReducedMonodromy(model_, factors));
   } else {
     (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
@@ -137,8 +141,9 @@ void CurveSystem::SigmaRow(const Vec& y, const PeriodicOrbit& o,
                            const std::vector<StateMatrix>& base,
                            const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
   MonodromyRow(
-      model_, propagator_, o, base, flows, [this](const Eigen::MatrixXd& m) { return Sigma(m); },
-      RowDifferences::kForward, sigma0, jac->row(m()).head(m()));
+      model_, propagator_, o, base, flows,
+      [this](const Eigen::Ref<const Mat>& m) { return Sigma(m); }, RowDifferences::kForward, sigma0,
+      jac->row(m()).head(m()));
   for (int j = m(); j < n(); ++j) {
     const double h = ForwardStep(y[j]);
     Vec yp = y;

@@ -53,14 +53,13 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
   return factors;
 }
 
-std::vector<StateMatrix> FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
-                                          const std::vector<FlowResult>& flows) {
-  std::vector<StateMatrix> factors(flows.size());
-  for (size_t i = 0; i < factors.size(); ++i) {
-    factors[i] =
+void FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
+                      const std::vector<FlowResult>& flows, std::vector<StateMatrix>* factors) {
+  factors->resize(flows.size());
+  for (size_t i = 0; i < flows.size(); ++i) {
+    (*factors)[i] =
         FactorFromFlow(model, orbit, static_cast<int>(i), flows[i].x, flows[i].state_jacobian);
   }
-  return factors;
 }
 
 StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full) {
@@ -76,8 +75,7 @@ StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full) {
   return reduced;
 }
 
-Eigen::MatrixXd ReducedMonodromy(const HybridModel& model,
-                                 const std::vector<StateMatrix>& factors) {
+StateMatrix ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors) {
   const int n = model.state_dim();
   StateMatrix m = StateMatrix::Identity(n, n);
   for (const StateMatrix& f : factors) m = f * m;

@@ -32,14 +32,15 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
 // Every factor of the orbit from its segments' flows (end state and flow Jacobian, as
 // MonodromyFactors' `flows`, or OrbitBvp::Evaluate's): the factors MonodromyFactors gives from
 // flows equal to these.
-std::vector<StateMatrix> FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
-                                          const std::vector<FlowResult>& flows);
+// Into *factors (its storage reused).
+void FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
+                      const std::vector<FlowResult>& flows, std::vector<StateMatrix>* factors);
 
 // A full-state monodromy without its phase row and column (Stability::monodromy).
 StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full);
 
 // The product of the factors, without the phase row and column.
-Eigen::MatrixXd ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
+StateMatrix ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
 
 }  // namespace drillbif::internal
 

@@ -28,14 +28,15 @@ class OrbitBvp {
 
   // X from an orbit of this signature, and back (the phases s_i follow from the durations).
   Eigen::VectorXd Pack(const PeriodicOrbit& orbit) const;
-  void Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOrbit* orbit) const;
+  void Unpack(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+              PeriodicOrbit* orbit) const;
 
   // G(X; params), and when non-null dG/dX, dG/dparams[param] and dG/dparams[param2]. INTERNAL
   // if a flow fails. `flows`, when non-null, receives each segment's flow with its state
   // Jacobian (for the monodromy's factors: orbit/monodromy.h, FactorsFromFlows).
-  Status Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
-                  Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2 = nullptr,
-                  std::vector<FlowResult>* flows = nullptr) const;
+  Status Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                  Eigen::VectorXd* g, Eigen::MatrixXd* gx, Eigen::VectorXd* gp,
+                  Eigen::VectorXd* gp2 = nullptr, std::vector<FlowResult>* flows = nullptr) const;
 
  private:
   const HybridModel& model_;
@@ -44,6 +45,9 @@ class OrbitBvp {
   int param_, param2_;
   int d_;   // reduced state dimension
   int ps_;  // phase index
+  // Evaluate's workspace (d end / dX, and the jump's Jacobian times it), kept so that Newton's
+  // iterations do not allocate it anew: an OrbitBvp is used by one thread (its propagator's).
+  mutable Eigen::MatrixXd dend_, jdend_;
 };
 
 }  // namespace drillbif::internal
