@@ -2,6 +2,25 @@
 
 namespace drillbif::internal {
 
+void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<const int> columns,
+                      Eigen::MatrixXd* out) {
+  const int n = static_cast<int>(a.rows()), m = static_cast<int>(b.cols());
+  if (2 * n + m < EIGEN_GEMM_TO_COEFFBASED_THRESHOLD || !a.allFinite()) {
+    out->noalias() = a * b;
+    return;
+  }
+  out->setZero(n, m);
+  for (const int c : columns) {
+    for (int i = 0; i < n; ++i) {
+      // From +0, in the depth's order, as the kernel; its final `destination + 1 * sum` with
+      // the zeroed destination changes no bit (a sum started from +0 is never -0).
+      double sum = 0.0;
+      for (int p = 0; p < n; ++p) sum = a(i, p) * b(p, c) + sum;
+      (*out)(i, c) = sum;
+    }
+  }
+}
+
 OrbitBvp::OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param,
                    int param2)
     : model_(model),
@@ -136,7 +155,14 @@ Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Para
       } else {
         tr = model_.Jump(seg.mode, seg.guard, xe, params);
       }
-      if (gx) jdend.noalias() = tr.jacobian * dend;
+      if (gx) {
+        // dend is zero outside this segment's columns and the earlier durations' (one product
+        // per segment over all m columns dominated the evaluation's cost).
+        dend_columns_.clear();
+        for (int jseg = 0; jseg < i; ++jseg) dend_columns_.push_back(jseg * (d_ + 1) + d_);
+        for (int j = 0; j <= d_; ++j) dend_columns_.push_back(col + j);
+        ProductOnColumns(tr.jacobian, dend, dend_columns_, &jdend);
+      }
       StateVector jdend_p[2];
       for (int w = 0; w < num_wanted; ++w) {
         jdend_p[w] = tr.jacobian * dend_p[w] + tr.param_jacobian.col(wanted[w].index);
