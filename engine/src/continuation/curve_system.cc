@@ -121,8 +121,25 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
     // The corner's duration is one of the unknowns: its row is a unit vector.
     (*jac)(m(), bvp1_.DurationIndex(corner_)) = 1.0;
   } else if (kind_ == CurveKind::kGrazing) {
+    // The condition, h' at the end of the first tangent segment, is a function of that segment's
+    // flow alone: of its start (its components in X, its phase through the earlier durations),
+    // its duration and the parameters. Any other unknown moved gives the flow the same inputs and
+    // so the condition the same bits, sigma0: its entry is (sigma0 - sigma0) / h without the
+    // evaluation.
+    const auto& segments = bvp1_.signature().segments;
+    int tangent = -1;
+    for (int i = 0; i < static_cast<int>(segments.size()) && tangent < 0; ++i) {
+      if (segments[i].tangent) tangent = i;
+    }
+    const int block = Block();
     for (int j = 0; j < n(); ++j) {
       const double h = ForwardStep(y[j]);
+      const bool moves_end = tangent < 0 || j >= m() || j / block == tangent ||
+                             (j / block < tangent && j % block == block - 1);
+      if (!moves_end) {
+        (*jac)(m(), j) = (sigma0 - sigma0) / h;
+        continue;
+      }
       Vec yp = y;
       yp[j] += h;
       (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
