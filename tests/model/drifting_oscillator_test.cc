@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 
 #include "problems/parameter_sets.h"
+#include "support/same_bits.h"
 
 namespace drillbif {
 namespace {
@@ -210,13 +212,17 @@ TEST_P(ParameterSetTest, FlowAndParamDerivativesEqualTheSeparateCallsBitForBit) 
         StateMatrix jac;
         bool ok[kCount];
         model.FlowAndParamDerivatives(mode, x0, t, prm, &x, with_jac ? &jac : nullptr, ks, dx, ok);
-        EXPECT_EQ(x, x_ref) << "mode " << mode;
-        if (with_jac) EXPECT_EQ(jac, jac_ref) << "mode " << mode;
+        EXPECT_TRUE(testing::SameBits(x, x_ref)) << "mode " << mode;
+        if (with_jac) {
+          EXPECT_TRUE(jac.rows() == jac_ref.rows() && jac.cols() == jac_ref.cols() &&
+                      std::memcmp(jac.data(), jac_ref.data(), sizeof(double) * jac.size()) == 0)
+              << "mode " << mode;
+        }
         for (int i = 0; i < kCount; ++i) {
           StateVector dx_ref;
           const bool ok_ref = model.FlowParamDerivative(mode, x0, t, prm, ks[i], &dx_ref);
           EXPECT_EQ(ok[i], ok_ref) << "mode " << mode << " param " << ks[i];
-          EXPECT_EQ(dx[i], dx_ref) << "mode " << mode << " param " << ks[i];
+          EXPECT_TRUE(testing::SameBits(dx[i], dx_ref)) << "mode " << mode << " param " << ks[i];
         }
       }
     }
