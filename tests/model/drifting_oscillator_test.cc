@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 
 #include "problems/parameter_sets.h"
+#include "support/same_bits.h"
 
 namespace drillbif {
 namespace {
@@ -180,6 +182,47 @@ TEST_P(ParameterSetTest, JumpJacobianMatchesFiniteDifferences) {
         for (int i = 0; i < 4; ++i) {
           EXPECT_NEAR(t.jacobian(i, j), (fp[i] - fm[i]) / (2 * kFdStep), 1e-9)
               << "mode " << mode << " guard " << guard << " d x" << i << "/d x" << j;
+        }
+      }
+    }
+  }
+}
+
+// The shooting system takes a segment's flow and its parameter columns from one call that shares
+// the segment's preparation; the continuation's results must not depend on that, so the values
+// are compared bit for bit (no tolerance) with the separate calls, in every mode, for every
+// parameter (also the one left to the matrix exponential, where both answer false), with and
+// without the state Jacobian.
+TEST_P(ParameterSetTest, FlowAndParamDerivativesEqualTheSeparateCallsBitForBit) {
+  DO model;
+  const Params& prm = GetParam().params;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const int ks[] = {DO::kA, DO::kB, DO::kOmega, DO::kXi, DO::kG, DO::kPhi0};
+  constexpr int kCount = 6;
+  for (int mode = 0; mode < 3; ++mode) {
+    for (int trial = 0; trial < 4; ++trial) {
+      const StateVector x0 = RandomState(mode, prm, rng);
+      const double t = 3.0 * u(rng);
+      StateVector x_ref;
+      StateMatrix jac_ref;
+      model.Flow(mode, x0, t, prm, &x_ref, &jac_ref);
+      for (const bool with_jac : {true, false}) {
+        StateVector x, dx[kCount];
+        StateMatrix jac;
+        bool ok[kCount];
+        model.FlowAndParamDerivatives(mode, x0, t, prm, &x, with_jac ? &jac : nullptr, ks, dx, ok);
+        EXPECT_TRUE(testing::SameBits(x, x_ref)) << "mode " << mode;
+        if (with_jac) {
+          EXPECT_TRUE(jac.rows() == jac_ref.rows() && jac.cols() == jac_ref.cols() &&
+                      std::memcmp(jac.data(), jac_ref.data(), sizeof(double) * jac.size()) == 0)
+              << "mode " << mode;
+        }
+        for (int i = 0; i < kCount; ++i) {
+          StateVector dx_ref;
+          const bool ok_ref = model.FlowParamDerivative(mode, x0, t, prm, ks[i], &dx_ref);
+          EXPECT_EQ(ok[i], ok_ref) << "mode " << mode << " param " << ks[i];
+          EXPECT_TRUE(testing::SameBits(dx[i], dx_ref)) << "mode " << mode << " param " << ks[i];
         }
       }
     }

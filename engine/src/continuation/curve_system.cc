@@ -80,20 +80,33 @@ double CurveSystem::Sigma(const Eigen::Ref<const Mat>& monodromy) const {
 bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   const Params prm = ParamsAt(y);
   if (!model_.ValidateParams(prm).ok()) return false;
-  Vec g, gp1, gp2;
-  Mat gx;
+  // Members, kept between calls so that Newton's iterations do not allocate them anew.
+  Vec& g = g_;
+  Vec& gp1 = gp1_;
+  Vec& gp2 = gp2_;
+  Mat& gx = gx_;
+  std::vector<FlowResult>& flows = flows_;
+  std::vector<StateMatrix>& factors = factors_;
+  // The condition's monodromy factors are made from the same segments' flows as G (same starts,
+  // durations and parameters): taken from G's evaluation where the propagator gives them the
+  // same bits whatever else it computed.
+  const bool shared_flows = kind_ != CurveKind::kGrazing && propagator_.FlowIndependentOfRequest();
   if (!bvp1_
            .Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr,
-                     jac ? &gp2 : nullptr)
+                     jac ? &gp2 : nullptr, shared_flows ? &flows : nullptr)
            .ok()) {
     return false;
   }
   f->resize(m() + 1);
   f->head(m()) = g;
-  const PeriodicOrbit o = Unpack(y);
-  std::vector<StateMatrix> factors;
-  std::vector<FlowResult> flows;
-  (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
+  bvp1_.Unpack(y.head(m()), prm, &orbit_);
+  const PeriodicOrbit& o = orbit_;
+  if (shared_flows) {
+    FactorsFromFlows(model_, o, flows, &factors);
+    (*f)[m()] = Sigma(ReducedMonodromy(model_, factors));
+  } else {
+    (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
+  }
   if (!jac) return f->allFinite();
   jac->setZero(m() + 1, n());
   jac->topLeftCorner(m(), m()) = gx;
@@ -108,8 +121,25 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
     // The corner's duration is one of the unknowns: its row is a unit vector.
     (*jac)(m(), bvp1_.DurationIndex(corner_)) = 1.0;
   } else if (kind_ == CurveKind::kGrazing) {
+    // The condition, h' at the end of the first tangent segment, is a function of that segment's
+    // flow alone: of its start (its components in X, its phase through the earlier durations),
+    // its duration and the parameters. Any other unknown moved gives the flow the same inputs and
+    // so the condition the same bits, sigma0: its entry is (sigma0 - sigma0) / h without the
+    // evaluation.
+    const auto& segments = bvp1_.signature().segments;
+    int tangent = -1;
+    for (int i = 0; i < static_cast<int>(segments.size()) && tangent < 0; ++i) {
+      if (segments[i].tangent) tangent = i;
+    }
+    const int block = Block();
     for (int j = 0; j < n(); ++j) {
       const double h = ForwardStep(y[j]);
+      const bool moves_end = tangent < 0 || j >= m() || j / block == tangent ||
+                             (j / block < tangent && j % block == block - 1);
+      if (!moves_end) {
+        (*jac)(m(), j) = (sigma0 - sigma0) / h;
+        continue;
+      }
       Vec yp = y;
       yp[j] += h;
       (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
@@ -128,8 +158,9 @@ void CurveSystem::SigmaRow(const Vec& y, const PeriodicOrbit& o,
                            const std::vector<StateMatrix>& base,
                            const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
   MonodromyRow(
-      model_, propagator_, o, base, flows, [this](const Eigen::MatrixXd& m) { return Sigma(m); },
-      RowDifferences::kForward, sigma0, jac->row(m()).head(m()));
+      model_, propagator_, o, base, flows,
+      [this](const Eigen::Ref<const Mat>& m) { return Sigma(m); }, RowDifferences::kForward, sigma0,
+      jac->row(m()).head(m()));
   for (int j = m(); j < n(); ++j) {
     const double h = ForwardStep(y[j]);
     Vec yp = y;

@@ -122,6 +122,13 @@ class CurveSystem : public CorrectorSystem {
   // A grazing curve of a corner (internal::CornerSegment): the segment held at zero length, its
   // duration the curve's condition; -1 for a grazing curve of a touch (a tangent end).
   int corner_ = -1;
+  // Evaluate's workspace (G and its derivatives, the unpacked orbit, the segments' flows and
+  // monodromy factors), kept between calls: a system is used by one thread (its propagator's).
+  mutable Vec g_, gp1_, gp2_;
+  mutable Mat gx_;
+  mutable PeriodicOrbit orbit_;
+  mutable std::vector<FlowResult> flows_;
+  mutable std::vector<StateMatrix> factors_;
 };
 
 }  // namespace drillbif::internal

@@ -266,7 +266,7 @@ PeriodicOrbit UnpackWithParams(const OrbitBvp& bvp, const std::vector<int>& free
 
 void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
                   const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
-                  const std::function<double(const Eigen::MatrixXd&)>& f,
+                  const std::function<double(const Eigen::Ref<const Eigen::MatrixXd>&)>& f,
                   RowDifferences differences, double f0,
                   Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row) {
   const int k = static_cast<int>(base.size()), d = model.state_dim() - 1;
@@ -345,8 +345,12 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
     std::vector<FlowResult> flows;
     const std::vector<StateMatrix> factors = MonodromyFactors(model, propagator, o, &flows);
     c0 = condition.of_monodromy(ReducedMonodromy(model, factors));
-    MonodromyRow(model, propagator, o, factors, flows, condition.of_monodromy,
-                 RowDifferences::kCentral, c0, row->head(m));
+    MonodromyRow(
+        model, propagator, o, factors, flows,
+        [&condition](const Eigen::Ref<const Eigen::MatrixXd>& mono) {
+          return condition.of_monodromy(mono);
+        },
+        RowDifferences::kCentral, c0, row->head(m));
     first = m;
   } else {
     c0 = condition.of_orbit(o);

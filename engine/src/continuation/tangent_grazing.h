@@ -141,7 +141,7 @@ inline double ForwardStep(double v) { return 1.5e-8 * (1.0 + std::abs(v)); }
 // made from; `f0` is f(M) (used by kForward only).
 void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
                   const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
-                  const std::function<double(const Eigen::MatrixXd&)>& f,
+                  const std::function<double(const Eigen::Ref<const Eigen::MatrixXd>&)>& f,
                   RowDifferences differences, double f0,
                   Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row);
 

@@ -76,21 +76,40 @@ FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, c
                                     const FlowRequest& request) {
   if (!KeepGoing()) return CancelledFlow(model_, x0, request);
   FlowResult out;
-  StateAt(mode, x0, t, params, &out.x, request.state_jacobian ? &out.state_jacobian : nullptr);
-  if (request.param_jacobian) {
+  StateMatrix* jac = request.state_jacobian ? &out.state_jacobian : nullptr;
+  if (!request.param_jacobian) {
+    StateAt(mode, x0, t, params, &out.x, jac);
+  } else {
     // Van Loan: expm([[A, dA], [0, A]] t) has d expm(A t) / dk in its upper right block.
     const int n = model_.state_dim(), ps = model_.phase_index(), np = model_.num_params();
     const int m = linear_->augmented_dim();
+    // The columns asked for, in order, and those the closed form gives (with the flow, from one
+    // preparation of the segment).
+    int ks[kMaxParams];
+    StateVector closed_dx[kMaxParams];
+    bool closed_ok[kMaxParams];
+    int count = 0;
+    for (int k = 0; k < np; ++k) {
+      if (request.param >= 0 && k != request.param && k != request.also_param) continue;
+      closed_ok[count] = false;
+      ks[count++] = k;
+    }
+    if (closed_) {
+      closed_->FlowAndParamDerivatives(mode, x0, t, params, &out.x, jac, {ks, ks + count},
+                                       {closed_dx, closed_dx + count},
+                                       {closed_ok, closed_ok + count});
+    } else {
+      StateAt(mode, x0, t, params, &out.x, jac);
+    }
     out.param_jacobian.setZero(n, np);
     // The exponentials are computed only for columns the closed form does not give.
     Eigen::VectorXd z0, dz0;
-    Eigen::MatrixXd a, da, e, block(2 * m, 2 * m);
+    Eigen::MatrixXd a, da, e, block;
     ParamMatrix fp;
-    for (int k = 0; k < np; ++k) {
-      if (request.param >= 0 && k != request.param && k != request.also_param) continue;
-      StateVector dx;
-      if (closed_ && closed_->FlowParamDerivative(mode, x0, t, params, k, &dx)) {
-        out.param_jacobian.col(k) = dx;
+    for (int i = 0; i < count; ++i) {
+      const int k = ks[i];
+      if (closed_ok[i]) {
+        out.param_jacobian.col(k) = closed_dx[i];
         continue;
       }
       if (e.size() == 0) {
@@ -103,15 +122,15 @@ FlowResult ExactPropagator::FlowMap(int mode, const StateVector& x0, double t, c
       linear_->AugmentedInitialDerivative(x0, params, k, &dz0);
       Eigen::VectorXd dz = e * dz0;
       if (!da.isZero(0.0)) {
-        block.setZero();
+        block.setZero(2 * m, 2 * m);
         block.topLeftCorner(m, m) = a;
         block.topRightCorner(m, m) = da;
         block.bottomRightCorner(m, m) = a;
         const Eigen::MatrixXd big = (block * t).exp();
         dz += big.topRightCorner(m, m) * z0;
       }
-      for (int i = 0, r = 0; i < n; ++i) {
-        out.param_jacobian(i, k) = (i == ps) ? fp(ps, k) * t : dz[r++];
+      for (int j = 0, r = 0; j < n; ++j) {
+        out.param_jacobian(j, k) = (j == ps) ? fp(ps, k) * t : dz[r++];
       }
     }
   }

@@ -178,6 +178,126 @@ void OmegaDerivative(const PreparedSegment& seg, const Core& core, double t, con
   }
 }
 
+// d x(t) / d x0 of a prepared segment from its core at t (Flow's Jacobian).
+void FlowJacobian(const PreparedSegment& seg, const Core& k, double t, const Params& params,
+                  StateMatrix* jac) {
+  using DO = DriftingOscillator;
+  jac->setIdentity(4, 4);
+  const double a = params[DO::kA];
+  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
+  // J1 = -dI1/dtheta0 and J2 = -dI2/dtheta0 (see the header comment).
+  const double j1 = t * (s0 * k.sinc + c0 * k.xw * k.c2);
+  const double j2 = t * t * (s0 * k.c2 + c0 * k.xw * k.s3);
+  switch (seg.mode) {
+    case DO::kNoContact:
+      (*jac)(DO::kP, DO::kY) = t;
+      (*jac)(DO::kP, DO::kS) = -a * j2;
+      (*jac)(DO::kY, DO::kS) = -a * j1;
+      (*jac)(DO::kQ, DO::kQ) = k.decay;
+      return;
+    case DO::kContact: {
+      // d u / d s0 = d u_p(theta)/d theta - expm(A t) d u_p(theta0)/d theta, where
+      // d q_p / d theta = y_p / w and d y_p / d theta = -w (q_p - b).
+      const internal::ContactGain g = GainOf(seg);
+      const double w = params[DO::kOmega];
+      double qp0, yp0, qp1, yp1;
+      internal::ContactSteadyState(g, c0, s0, params, &qp0, &yp0);
+      internal::ContactSteadyState(g, k.ct, k.st, params, &qp1, &yp1);
+      const double dq0 = yp0 / w, dy0 = -w * (qp0 - params[DO::kB]);
+      const double dq1 = yp1 / w, dy1 = -w * (qp1 - params[DO::kB]);
+      const double dq_ds = dq1 - (k.e00 * dq0 + k.e01 * dy0);
+      const double dy_ds = dy1 - (k.e10 * dq0 + k.e11 * dy0);
+      (*jac)(DO::kQ, DO::kQ) = k.e00, (*jac)(DO::kQ, DO::kY) = k.e01,
+                     (*jac)(DO::kQ, DO::kS) = dq_ds;
+      (*jac)(DO::kY, DO::kQ) = k.e10, (*jac)(DO::kY, DO::kY) = k.e11,
+                     (*jac)(DO::kY, DO::kS) = dy_ds;
+      (*jac)(DO::kP, DO::kQ) = k.e00 - 1.0, (*jac)(DO::kP, DO::kY) = k.e01;
+      (*jac)(DO::kP, DO::kS) = dq_ds;
+      return;
+    }
+    default:
+      (*jac)(DO::kQ, DO::kQ) = 1.0 + k.decay;
+      (*jac)(DO::kP, DO::kQ) = k.decay;
+      (*jac)(DO::kY, DO::kS) = -a * j1;
+      return;
+  }
+}
+
+// FlowParamDerivative's answer where it needs no flow: g never enters one (zero), xi in CwoP is
+// left to the matrix exponential (false).
+bool ParamDerivative(int k, int mode, StateVector* dx) {
+  dx->setZero(4);
+  return !(k == DriftingOscillator::kXi && mode == DriftingOscillator::kContact);
+}
+
+// Closed-form d x(t) / d params[k] of a prepared segment from its core at t (false: not in closed
+// form). `jac`: the segment's flow Jacobian when already computed (phi0's column is its s
+// column), else null. g never enters a flow; a and b enter linearly (NC, CwP: through the forcing
+// integrals; CwoP: through the steady state, u_p = (b, 0) + a w(theta), so
+// d u / d a = w(theta) - E w(theta0) and d u / d b = (1, 0) - E (1, 0)); phi0 shifts theta0 like
+// s0 does, without moving s; xi in the decaying q of NC and CwP; omega by OmegaDerivative above.
+// xi in CwoP is left to the matrix exponential.
+bool ParamDerivative(const PreparedSegment& seg, const Core& core, double t, const Params& params,
+                     int k, const StateMatrix* jac, StateVector* dx) {
+  using DO = DriftingOscillator;
+  const int mode = seg.mode;
+  if (k == DO::kG || (k == DO::kXi && mode == DO::kContact)) return ParamDerivative(k, mode, dx);
+  dx->setZero(4);
+  if (k == DO::kPhi0) {
+    StateMatrix own;
+    if (jac == nullptr) {
+      FlowJacobian(seg, core, t, params, &own);
+      jac = &own;
+    }
+    *dx = jac->col(DO::kS);
+    (*dx)[DO::kS] = 0.0;
+    return true;
+  }
+  const StateVector& x0 = seg.x0;
+  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
+  const double i1 = t * (c0 * core.sinc - s0 * core.xw * core.c2);
+  const double i2 = t * t * (c0 * core.c2 - s0 * core.xw * core.s3);
+  const double xi = params[DO::kXi];
+  if (k == DO::kOmega) {
+    OmegaDerivative(seg, core, t, params, dx);
+    return true;
+  }
+  switch (mode) {
+    case DO::kNoContact:
+      if (k == DO::kA) (*dx)[DO::kP] = i2, (*dx)[DO::kY] = i1;
+      if (k == DO::kB) (*dx)[DO::kP] = 0.5 * t * t, (*dx)[DO::kY] = t;
+      // q = q0 e^{-t/(2 xi)}: d/dxi = q t / (2 xi^2).
+      if (k == DO::kXi) (*dx)[DO::kQ] = core.x[DO::kQ] * t / (2.0 * xi * xi);
+      return true;
+    case DO::kProgression:
+      if (k == DO::kA) (*dx)[DO::kY] = i1;
+      if (k == DO::kB) (*dx)[DO::kY] = t;
+      if (k == DO::kXi) {
+        // q = 1 + (q0 - 1) e^{-t/(2 xi)}, p - q constant.
+        const double dq = (x0[DO::kQ] - 1.0) * (1.0 + core.decay) * t / (2.0 * xi * xi);
+        (*dx)[DO::kQ] = dq, (*dx)[DO::kP] = dq;
+      }
+      return true;
+    default: {
+      double wq0, wy0, wq1, wy1;
+      if (k == DO::kA) {
+        // w(theta) = d u_p / d a: the steady state of unit amplitude without the static force.
+        Params unit = params;
+        unit[DO::kA] = 1.0, unit[DO::kB] = 0.0;
+        const internal::ContactGain g = GainOf(seg);
+        internal::ContactSteadyState(g, c0, s0, unit, &wq0, &wy0);
+        internal::ContactSteadyState(g, core.ct, core.st, unit, &wq1, &wy1);
+      } else {
+        wq0 = wq1 = 1.0, wy0 = wy1 = 0.0;
+      }
+      (*dx)[DO::kQ] = wq1 - (core.e00 * wq0 + core.e01 * wy0);
+      (*dx)[DO::kY] = wy1 - (core.e10 * wq0 + core.e11 * wy0);
+      (*dx)[DO::kP] = (*dx)[DO::kQ];
+      return true;
+    }
+  }
+}
+
 }  // namespace
 
 void DriftingOscillator::PrepareSegment(int mode, const StateVector& x0, const Params& params,
@@ -225,108 +345,32 @@ void DriftingOscillator::Flow(int mode, const StateVector& x0, double t, const P
   Core k;
   EvaluateCore(seg, t, params, &k);
   *x = k.x;
-  if (!jac) return;
-  jac->setIdentity(4, 4);
-  const double a = params[kA];
-  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
-  // J1 = -dI1/dtheta0 and J2 = -dI2/dtheta0 (see the header comment).
-  const double j1 = t * (s0 * k.sinc + c0 * k.xw * k.c2);
-  const double j2 = t * t * (s0 * k.c2 + c0 * k.xw * k.s3);
-  switch (mode) {
-    case kNoContact:
-      (*jac)(kP, kY) = t;
-      (*jac)(kP, kS) = -a * j2;
-      (*jac)(kY, kS) = -a * j1;
-      (*jac)(kQ, kQ) = k.decay;
-      return;
-    case kContact: {
-      // d u / d s0 = d u_p(theta)/d theta - expm(A t) d u_p(theta0)/d theta, where
-      // d q_p / d theta = y_p / w and d y_p / d theta = -w (q_p - b).
-      const internal::ContactGain g = GainOf(seg);
-      const double w = params[kOmega];
-      double qp0, yp0, qp1, yp1;
-      internal::ContactSteadyState(g, c0, s0, params, &qp0, &yp0);
-      internal::ContactSteadyState(g, k.ct, k.st, params, &qp1, &yp1);
-      const double dq0 = yp0 / w, dy0 = -w * (qp0 - params[kB]);
-      const double dq1 = yp1 / w, dy1 = -w * (qp1 - params[kB]);
-      const double dq_ds = dq1 - (k.e00 * dq0 + k.e01 * dy0);
-      const double dy_ds = dy1 - (k.e10 * dq0 + k.e11 * dy0);
-      (*jac)(kQ, kQ) = k.e00, (*jac)(kQ, kY) = k.e01, (*jac)(kQ, kS) = dq_ds;
-      (*jac)(kY, kQ) = k.e10, (*jac)(kY, kY) = k.e11, (*jac)(kY, kS) = dy_ds;
-      (*jac)(kP, kQ) = k.e00 - 1.0, (*jac)(kP, kY) = k.e01, (*jac)(kP, kS) = dq_ds;
-      return;
-    }
-    default:
-      (*jac)(kQ, kQ) = 1.0 + k.decay;
-      (*jac)(kP, kQ) = k.decay;
-      (*jac)(kY, kS) = -a * j1;
-      return;
-  }
+  if (jac) FlowJacobian(seg, k, t, params, jac);
 }
 
-// Closed-form d x(t) / d k: g never enters a flow; a and b enter linearly (NC, CwP: through the
-// forcing integrals; CwoP: through the steady state, u_p = (b, 0) + a w(theta), so
-// d u / d a = w(theta) - E w(theta0) and d u / d b = (1, 0) - E (1, 0)); phi0 shifts theta0 like
-// s0 does, without moving s; xi in the decaying q of NC and CwP; omega by OmegaDerivative above.
-// xi in CwoP is left to the matrix exponential.
 bool DriftingOscillator::FlowParamDerivative(int mode, const StateVector& x0, double t,
                                              const Params& params, int k, StateVector* dx) const {
-  dx->setZero(4);
-  if (k == kG) return true;
-  if (k == kXi && mode == kContact) return false;
-  if (k == kPhi0) {
-    StateVector x;
-    StateMatrix jac;
-    Flow(mode, x0, t, params, &x, &jac);
-    *dx = jac.col(kS);
-    (*dx)[kS] = 0.0;
-    return true;
-  }
+  if (k == kG || (k == kXi && mode == kContact)) return ParamDerivative(k, mode, dx);
   PreparedSegment seg;
   PrepareSegment(mode, x0, params, &seg);
   Core core;
   EvaluateCore(seg, t, params, &core);
-  const double c0 = seg.c[kCos0], s0 = seg.c[kSin0];
-  const double i1 = t * (c0 * core.sinc - s0 * core.xw * core.c2);
-  const double i2 = t * t * (c0 * core.c2 - s0 * core.xw * core.s3);
-  const double xi = params[kXi];
-  if (k == kOmega) {
-    OmegaDerivative(seg, core, t, params, dx);
-    return true;
-  }
-  switch (mode) {
-    case kNoContact:
-      if (k == kA) (*dx)[kP] = i2, (*dx)[kY] = i1;
-      if (k == kB) (*dx)[kP] = 0.5 * t * t, (*dx)[kY] = t;
-      // q = q0 e^{-t/(2 xi)}: d/dxi = q t / (2 xi^2).
-      if (k == kXi) (*dx)[kQ] = core.x[kQ] * t / (2.0 * xi * xi);
-      return true;
-    case kProgression:
-      if (k == kA) (*dx)[kY] = i1;
-      if (k == kB) (*dx)[kY] = t;
-      if (k == kXi) {
-        // q = 1 + (q0 - 1) e^{-t/(2 xi)}, p - q constant.
-        const double dq = (x0[kQ] - 1.0) * (1.0 + core.decay) * t / (2.0 * xi * xi);
-        (*dx)[kQ] = dq, (*dx)[kP] = dq;
-      }
-      return true;
-    default: {
-      double wq0, wy0, wq1, wy1;
-      if (k == kA) {
-        // w(theta) = d u_p / d a: the steady state of unit amplitude without the static force.
-        Params unit = params;
-        unit[kA] = 1.0, unit[kB] = 0.0;
-        const internal::ContactGain g = GainOf(seg);
-        internal::ContactSteadyState(g, c0, s0, unit, &wq0, &wy0);
-        internal::ContactSteadyState(g, core.ct, core.st, unit, &wq1, &wy1);
-      } else {
-        wq0 = wq1 = 1.0, wy0 = wy1 = 0.0;
-      }
-      (*dx)[kQ] = wq1 - (core.e00 * wq0 + core.e01 * wy0);
-      (*dx)[kY] = wy1 - (core.e10 * wq0 + core.e11 * wy0);
-      (*dx)[kP] = (*dx)[kQ];
-      return true;
-    }
+  return ParamDerivative(seg, core, t, params, k, nullptr, dx);
+}
+
+void DriftingOscillator::FlowAndParamDerivatives(int mode, const StateVector& x0, double t,
+                                                 const Params& params, StateVector* x,
+                                                 StateMatrix* jac, std::span<const int> ks,
+                                                 std::span<StateVector> dx,
+                                                 std::span<bool> ok) const {
+  PreparedSegment seg;
+  PrepareSegment(mode, x0, params, &seg);
+  Core core;
+  EvaluateCore(seg, t, params, &core);
+  *x = core.x;
+  if (jac) FlowJacobian(seg, core, t, params, jac);
+  for (size_t i = 0; i < ks.size(); ++i) {
+    ok[i] = ParamDerivative(seg, core, t, params, ks[i], jac, &dx[i]);
   }
 }
 

@@ -13,4 +13,14 @@ StatusOr<int> HybridModel::ParamIndex(std::string_view name) const {
                                            std::string(this->name()) + " (valid: " + valid + ")");
 }
 
+void ClosedFormFlow::FlowAndParamDerivatives(int mode, const StateVector& x0, double t,
+                                             const Params& params, StateVector* x, StateMatrix* jac,
+                                             std::span<const int> ks, std::span<StateVector> dx,
+                                             std::span<bool> ok) const {
+  Flow(mode, x0, t, params, x, jac);
+  for (size_t i = 0; i < ks.size(); ++i) {
+    ok[i] = FlowParamDerivative(mode, x0, t, params, ks[i], &dx[i]);
+  }
+}
+
 }  // namespace drillbif

@@ -53,6 +53,15 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
   return factors;
 }
 
+void FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
+                      const std::vector<FlowResult>& flows, std::vector<StateMatrix>* factors) {
+  factors->resize(flows.size());
+  for (size_t i = 0; i < flows.size(); ++i) {
+    (*factors)[i] =
+        FactorFromFlow(model, orbit, static_cast<int>(i), flows[i].x, flows[i].state_jacobian);
+  }
+}
+
 StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full) {
   const int n = model.state_dim(), ps = model.phase_index();
   StateMatrix reduced(n - 1, n - 1);
@@ -66,8 +75,7 @@ StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full) {
   return reduced;
 }
 
-Eigen::MatrixXd ReducedMonodromy(const HybridModel& model,
-                                 const std::vector<StateMatrix>& factors) {
+StateMatrix ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors) {
   const int n = model.state_dim();
   StateMatrix m = StateMatrix::Identity(n, n);
   for (const StateMatrix& f : factors) m = f * m;

@@ -29,11 +29,18 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
                                           const PeriodicOrbit& orbit,
                                           std::vector<FlowResult>* flows = nullptr);
 
+// Every factor of the orbit from its segments' flows (end state and flow Jacobian, as
+// MonodromyFactors' `flows`, or OrbitBvp::Evaluate's): the factors MonodromyFactors gives from
+// flows equal to these.
+// Into *factors (its storage reused).
+void FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
+                      const std::vector<FlowResult>& flows, std::vector<StateMatrix>* factors);
+
 // A full-state monodromy without its phase row and column (Stability::monodromy).
 StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full);
 
 // The product of the factors, without the phase row and column.
-Eigen::MatrixXd ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
+StateMatrix ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors);
 
 }  // namespace drillbif::internal
 

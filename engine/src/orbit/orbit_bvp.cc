@@ -1,8 +1,25 @@
 #include "orbit/orbit_bvp.h"
 
-#include <vector>
-
 namespace drillbif::internal {
+
+void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<const int> columns,
+                      Eigen::MatrixXd* out) {
+  const int n = static_cast<int>(a.rows()), m = static_cast<int>(b.cols());
+  if (2 * n + m < EIGEN_GEMM_TO_COEFFBASED_THRESHOLD || !a.allFinite()) {
+    out->noalias() = a * b;
+    return;
+  }
+  out->setZero(n, m);
+  for (const int c : columns) {
+    for (int i = 0; i < n; ++i) {
+      // From +0, in the depth's order, as the kernel; its final `destination + 1 * sum` with
+      // the zeroed destination changes no bit (a sum started from +0 is never -0).
+      double sum = 0.0;
+      for (int p = 0; p < n; ++p) sum = a(i, p) * b(p, c) + sum;
+      (*out)(i, c) = sum;
+    }
+  }
+}
 
 OrbitBvp::OrbitBvp(const HybridModel& model, Propagator& propagator, Signature signature, int param,
                    int param2)
@@ -25,7 +42,8 @@ Eigen::VectorXd OrbitBvp::Pack(const PeriodicOrbit& orbit) const {
   return x;
 }
 
-void OrbitBvp::Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOrbit* orbit) const {
+void OrbitBvp::Unpack(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                      PeriodicOrbit* orbit) const {
   const double omega = model_.ForcingFrequency(params);
   orbit->signature = signature_;
   orbit->params = params;
@@ -43,8 +61,9 @@ void OrbitBvp::Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOr
   }
 }
 
-Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
-                          Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2) const {
+Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                          Eigen::VectorXd* g, Eigen::MatrixXd* gx, Eigen::VectorXd* gp,
+                          Eigen::VectorXd* gp2, std::vector<FlowResult>* flows) const {
   const int k = segments(), n = d_ + 1, m = size();
   const double omega = model_.ForcingFrequency(params);
   // The parameter derivatives asked for: (index, output), at most two.
@@ -53,40 +72,48 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
     Eigen::VectorXd* out;
     double domega;  // d omega / d param: the phase row of the vector field's parameter Jacobian
   };
-  std::vector<Wanted> wanted;
-  if (gp != nullptr && param_ >= 0) wanted.push_back({param_, gp, 0.0});
-  if (gp2 != nullptr && param2_ >= 0) wanted.push_back({param2_, gp2, 0.0});
-  const bool want_p = !wanted.empty();
+  Wanted wanted[2];
+  int num_wanted = 0;
+  if (gp != nullptr && param_ >= 0) wanted[num_wanted++] = {param_, gp, 0.0};
+  if (gp2 != nullptr && param2_ >= 0) wanted[num_wanted++] = {param2_, gp2, 0.0};
+  const bool want_p = num_wanted > 0;
   if (want_p) {
     ParamMatrix fp;
     model_.ParamJacobian(signature_.segments[0].mode, StateVector::Zero(n), params, &fp);
-    for (Wanted& w : wanted) w.domega = fp(ps_, w.index);
+    for (int w = 0; w < num_wanted; ++w) wanted[w].domega = fp(ps_, wanted[w].index);
   }
-  PeriodicOrbit orbit;
-  Unpack(x, params, &orbit);
   g->setZero(m);
   if (gx) gx->setZero(m, m);
   if (gp) gp->setZero(m);
   if (gp2) gp2->setZero(m);
+  if (flows) flows->resize(k);
 
   // Derivatives of a segment's end state with respect to X (n x m) and the parameters (n each).
-  Eigen::MatrixXd dend(n, m);
+  // Kept between calls (members): sized once per signature, not at every Newton iteration.
+  Eigen::MatrixXd& dend = dend_;
+  Eigen::MatrixXd& jdend = jdend_;
+  dend.resize(n, m);
   StateVector dend_p[2];
+  // Segment i's start (Unpack's: the phase s_i = omega * elapsed), and the first one's.
+  StateVector start(n), start0;
   double elapsed = 0.0;
   for (int i = 0; i < k; ++i) {
     const SegmentSpec& seg = signature_.segments[i];
     const int col = i * (d_ + 1);
+    for (int j = 0, r = 0; j < n; ++j) start[j] = (j == ps_) ? omega * elapsed : x[col + r++];
+    const double duration = x[col + d_];
+    if (i == 0) start0 = start;
     FlowRequest req;
     // The parameter derivative needs the phase column too (s_i moves with omega).
-    req.state_jacobian = gx != nullptr || want_p;
+    req.state_jacobian = gx != nullptr || want_p || flows != nullptr;
     req.param_jacobian = want_p;
     if (want_p) {
       req.param = wanted[0].index;
-      if (wanted.size() > 1) req.also_param = wanted[1].index;
+      if (num_wanted > 1) req.also_param = wanted[1].index;
     }
-    const FlowResult fr =
-        propagator_.FlowMap(seg.mode, orbit.starts[i], orbit.durations[i], params, req);
+    const FlowResult fr = propagator_.FlowMap(seg.mode, start, duration, params, req);
     if (!fr.status.ok()) return fr.status;
+    if (flows) (*flows)[i] = fr;
     const StateVector& xe = fr.x;
     if (gx) {
       StateVector f;
@@ -102,7 +129,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
         dend.col(jseg * (d_ + 1) + d_) += omega * fr.state_jacobian.col(ps_);
       }
     }
-    for (size_t w = 0; w < wanted.size(); ++w) {
+    for (int w = 0; w < num_wanted; ++w) {
       dend_p[w] = fr.param_jacobian.col(wanted[w].index) +
                   fr.state_jacobian.col(ps_) * (wanted[w].domega * elapsed);
     }
@@ -114,7 +141,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
       if (gx) gx->row(row) = grad * dend;
       if (want_p) {
         const ParamVector pgrad = model_.GuardParamGradient(seg.mode, seg.guard, xe, params);
-        for (size_t w = 0; w < wanted.size(); ++w) {
+        for (int w = 0; w < num_wanted; ++w) {
           (*wanted[w].out)[row] = grad.dot(dend_p[w].transpose()) + pgrad[wanted[w].index];
         }
       }
@@ -128,9 +155,16 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
       } else {
         tr = model_.Jump(seg.mode, seg.guard, xe, params);
       }
-      const Eigen::MatrixXd jdend = gx ? Eigen::MatrixXd(tr.jacobian * dend) : Eigen::MatrixXd();
+      if (gx) {
+        // dend is zero outside this segment's columns and the earlier durations' (one product
+        // per segment over all m columns dominated the evaluation's cost).
+        dend_columns_.clear();
+        for (int jseg = 0; jseg < i; ++jseg) dend_columns_.push_back(jseg * (d_ + 1) + d_);
+        for (int j = 0; j <= d_; ++j) dend_columns_.push_back(col + j);
+        ProductOnColumns(tr.jacobian, dend, dend_columns_, &jdend);
+      }
       StateVector jdend_p[2];
-      for (size_t w = 0; w < wanted.size(); ++w) {
+      for (int w = 0; w < num_wanted; ++w) {
         jdend_p[w] = tr.jacobian * dend_p[w] + tr.param_jacobian.col(wanted[w].index);
       }
       const int next = (i + 1) * (d_ + 1);
@@ -141,7 +175,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
           gx->row(row + 1 + r) = -jdend.row(j);
           (*gx)(row + 1 + r, next + r) += 1.0;
         }
-        for (size_t w = 0; w < wanted.size(); ++w) (*wanted[w].out)[row + 1 + r] = -jdend_p[w][j];
+        for (int w = 0; w < num_wanted; ++w) (*wanted[w].out)[row + 1 + r] = -jdend_p[w][j];
         ++r;
       }
     } else {
@@ -153,7 +187,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
           gx->row(row + r) = -dend.row(j);
           (*gx)(row + r, r) += 1.0;
         }
-        for (size_t w = 0; w < wanted.size(); ++w) (*wanted[w].out)[row + r] = -dend_p[w][j];
+        for (int w = 0; w < num_wanted; ++w) (*wanted[w].out)[row + r] = -dend_p[w][j];
         ++r;
       }
       // A first segment in a mode confined to a surface: the periodicity of the component along
@@ -163,8 +197,7 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
       double c = 0.0;
       StateRow cgrad;
       ParamVector cpgrad;
-      if (model_.ModeConstraint(signature_.segments[0].mode, orbit.starts[0], params, &c, &cgrad,
-                                &cpgrad)) {
+      if (model_.ModeConstraint(signature_.segments[0].mode, start0, params, &c, &cgrad, &cpgrad)) {
         int j_row = -1;
         for (int j = 0, r = 0; j < n && j_row < 0; ++j) {
           if (j == ps_) continue;
@@ -179,20 +212,23 @@ Status OrbitBvp::Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen:
               if (j != ps_) (*gx)(row + j_row, r++) = cgrad[j];
             }
           }
-          for (const Wanted& w : wanted) (*w.out)[row + j_row] = cpgrad[w.index];
+          for (int w = 0; w < num_wanted; ++w) {
+            (*wanted[w].out)[row + j_row] = cpgrad[wanted[w].index];
+          }
         }
       }
       double total = 0.0;
-      for (int jseg = 0; jseg < k; ++jseg) total += orbit.durations[jseg];
+      for (int jseg = 0; jseg < k; ++jseg) total += x[jseg * (d_ + 1) + d_];
       (*g)[row + d_] = total - kTwoPi * signature_.periods / omega;
       if (gx) {
         for (int jseg = 0; jseg < k; ++jseg) (*gx)(row + d_, jseg * (d_ + 1) + d_) = 1.0;
       }
-      for (const Wanted& w : wanted) {
-        (*w.out)[row + d_] = kTwoPi * signature_.periods / (omega * omega) * w.domega;
+      for (int w = 0; w < num_wanted; ++w) {
+        (*wanted[w].out)[row + d_] =
+            kTwoPi * signature_.periods / (omega * omega) * wanted[w].domega;
       }
     }
-    elapsed += orbit.durations[i];
+    elapsed += duration;
   }
   return Status::Ok();
 }

@@ -5,11 +5,22 @@
 #define DRILLBIF_ORBIT_ORBIT_BVP_H_
 
 #include <Eigen/Dense>
+#include <span>
+#include <vector>
 
 #include "drillbif/flow/propagator.h"
 #include "drillbif/orbit/periodic_orbit.h"
 
 namespace drillbif::internal {
+
+// *out = a * b for an n x n `a` and an n x m `b` whose columns other than `columns` are zero,
+// computing only those: the same bits as Eigen's `out->noalias() = a * b` (its general product
+// kernel for these shapes starts every entry from +0, adds the depth's products in order, and adds
+// the sum, times alpha = 1, to the zeroed destination, so a zero column gives +0 for a finite
+// `a`). Where Eigen would take its coefficient-based product instead (2 n + m below
+// EIGEN_GEMM_TO_COEFFBASED_THRESHOLD), or `a` is not finite, it is Eigen's product itself.
+void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<const int> columns,
+                      Eigen::MatrixXd* out);
 
 class OrbitBvp {
  public:
@@ -27,12 +38,15 @@ class OrbitBvp {
 
   // X from an orbit of this signature, and back (the phases s_i follow from the durations).
   Eigen::VectorXd Pack(const PeriodicOrbit& orbit) const;
-  void Unpack(const Eigen::VectorXd& x, const Params& params, PeriodicOrbit* orbit) const;
+  void Unpack(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+              PeriodicOrbit* orbit) const;
 
   // G(X; params), and when non-null dG/dX, dG/dparams[param] and dG/dparams[param2]. INTERNAL
-  // if a flow fails.
-  Status Evaluate(const Eigen::VectorXd& x, const Params& params, Eigen::VectorXd* g,
-                  Eigen::MatrixXd* gx, Eigen::VectorXd* gp, Eigen::VectorXd* gp2 = nullptr) const;
+  // if a flow fails. `flows`, when non-null, receives each segment's flow with its state
+  // Jacobian (for the monodromy's factors: orbit/monodromy.h, FactorsFromFlows).
+  Status Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                  Eigen::VectorXd* g, Eigen::MatrixXd* gx, Eigen::VectorXd* gp,
+                  Eigen::VectorXd* gp2 = nullptr, std::vector<FlowResult>* flows = nullptr) const;
 
  private:
   const HybridModel& model_;
@@ -41,6 +55,10 @@ class OrbitBvp {
   int param_, param2_;
   int d_;   // reduced state dimension
   int ps_;  // phase index
+  // Evaluate's workspace (d end / dX, and the jump's Jacobian times it), kept so that Newton's
+  // iterations do not allocate it anew: an OrbitBvp is used by one thread (its propagator's).
+  mutable Eigen::MatrixXd dend_, jdend_;
+  mutable std::vector<int> dend_columns_;  // dend_'s columns that are not zero
 };
 
 }  // namespace drillbif::internal

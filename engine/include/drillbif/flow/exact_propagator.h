@@ -41,6 +41,8 @@ class ExactPropagator final : public Propagator {
                      const FlowRequest& request) override;
   AdvanceResult Advance(const AdvanceRequest& request, const Params& params) override;
   std::unique_ptr<Propagator> Clone() const override;
+  // The state and its Jacobian are computed the same way whatever else is asked.
+  bool FlowIndependentOfRequest() const override { return true; }
 
   const ExactOptions& options() const { return options_; }
 

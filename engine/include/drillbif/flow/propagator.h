@@ -100,6 +100,11 @@ class Propagator {
   // Its results are those of this one, bit for bit, for the same calls. Null (the default) for a
   // propagator that cannot be copied so: such a computation then runs on the calling thread.
   virtual std::unique_ptr<Propagator> Clone() const { return nullptr; }
+  // Whether FlowMap's x and state_jacobian are the same bits whatever else the request asks
+  // (parameter columns, or the state Jacobian besides x): a caller may then take them from a call
+  // that asked for more instead of flowing again. False by default, and for CVODES, whose error
+  // control includes the sensitivities asked for.
+  virtual bool FlowIndependentOfRequest() const { return false; }
 
   // The throttle polled by this propagator's calls, or null (never cancelled).
   ProgressThrottle* progress() const { return progress_; }

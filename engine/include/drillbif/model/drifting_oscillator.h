@@ -103,6 +103,9 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
             StateMatrix* jac) const override;
   bool FlowParamDerivative(int mode, const StateVector& x0, double t, const Params& params, int k,
                            StateVector* dx) const override;
+  void FlowAndParamDerivatives(int mode, const StateVector& x0, double t, const Params& params,
+                               StateVector* x, StateMatrix* jac, std::span<const int> ks,
+                               std::span<StateVector> dx, std::span<bool> ok) const override;
   void PrepareSegment(int mode, const StateVector& x0, const Params& params,
                       PreparedSegment* segment) const override;
   void EvaluateSegment(const PreparedSegment& segment, double t, const Params& params,

@@ -22,6 +22,7 @@
 #ifndef DRILLBIF_MODEL_HYBRID_MODEL_H_
 #define DRILLBIF_MODEL_HYBRID_MODEL_H_
 
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -194,6 +195,15 @@ class ClosedFormFlow {
   // parameter and mode (false: the caller falls back to the matrix exponential).
   virtual bool FlowParamDerivative(int mode, const StateVector& x0, double t, const Params& params,
                                    int k, StateVector* dx) const = 0;
+  // Flow (x, and jac when non-null) and FlowParamDerivative for each parameter ks[i] (its result
+  // in ok[i], its value in dx[i]) in one call: the same values, bit for bit, as those calls give.
+  // A model overrides it to share the segment's common work (the shooting system asks for the
+  // flow and two parameter columns of every segment at every Newton iteration); the default makes
+  // the separate calls.
+  virtual void FlowAndParamDerivatives(int mode, const StateVector& x0, double t,
+                                       const Params& params, StateVector* x, StateMatrix* jac,
+                                       std::span<const int> ks, std::span<StateVector> dx,
+                                       std::span<bool> ok) const;
   // Precomputes the constants of the segment from x0 in `mode`.
   virtual void PrepareSegment(int mode, const StateVector& x0, const Params& params,
                               PreparedSegment* segment) const = 0;
