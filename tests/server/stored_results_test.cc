@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "jobs/registry.h"
-#include "server/store/sqlite_job_store.h"
+#include "support/sqlite_store.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
@@ -25,10 +25,8 @@ using ::testing::HasSubstr;
 class StoredResultsTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_FALSE(dir_.path().empty());
-    StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(dir_.path() + "/jobs.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(store).value();
+    store_ = drillbif::testing::OpenSqliteStore(dir_);
+    ASSERT_NE(store_, nullptr);
   }
 
   // A RUNNING job of `kind` (claimed), whose record carries its run.

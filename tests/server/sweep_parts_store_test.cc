@@ -10,10 +10,10 @@
 #include "jobs/registry.h"
 #include "jobs/request_bytes.h"
 #include "jobs/sweep_job.h"
-#include "server/store/sqlite_job_store.h"
 #include "server/sweep_fan_out.h"
 #include "support/claimed_parent.h"
 #include "support/small_requests.h"
+#include "support/sqlite_store.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
@@ -22,10 +22,8 @@ namespace {
 class SweepPartsStore : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_FALSE(dir_.path().empty());
-    StatusOr<std::unique_ptr<JobStore>> opened = SqliteJobStore::Open(dir_.path() + "/jobs.db");
-    ASSERT_TRUE(opened.ok()) << opened.status().ToString();
-    store_ = *std::move(opened);
+    store_ = drillbif::testing::OpenSqliteStore(dir_);
+    ASSERT_NE(store_, nullptr);
     // Two chunks a direction: four pieces.
     request_ = drillbif::testing::SmallSweep(0.08, 6);
     request_.set_direction(v1::SweepRequest::BOTH);

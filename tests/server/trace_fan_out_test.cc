@@ -18,10 +18,10 @@
 #include "jobs/trace_job.h"
 #include "jobs/trace_task_codec.h"
 #include "jobs/trace_task_job.h"
-#include "server/store/sqlite_job_store.h"
 #include "support/claimed_parent.h"
 #include "support/same_result.h"
 #include "support/small_requests.h"
+#include "support/sqlite_store.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
@@ -33,10 +33,8 @@ constexpr size_t kBatch = FanOutOptions{}.batch;
 class TraceFanOut : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_FALSE(dir_.path().empty());
-    StatusOr<std::unique_ptr<JobStore>> opened = SqliteJobStore::Open(dir_.path() + "/jobs.db");
-    ASSERT_TRUE(opened.ok()) << opened.status().ToString();
-    store_ = *std::move(opened);
+    store_ = drillbif::testing::OpenSqliteStore(dir_);
+    ASSERT_NE(store_, nullptr);
     request_ = drillbif::testing::SmallBoxTrace();
     std::optional<JobRecord> parent =
         drillbif::testing::SubmitAndClaim(*store_, "trace", request_, "parent");

@@ -15,7 +15,7 @@
 #include <thread>
 #include <vector>
 
-#include "server/store/sqlite_job_store.h"
+#include "support/sqlite_store.h"
 #include "support/temp_dir.h"
 
 namespace drillbif::server {
@@ -52,10 +52,8 @@ double MsUntilRecords(const CountingWatcher& watcher, int n,
 class WatchHubTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_FALSE(dir_.path().empty());
-    StatusOr<std::unique_ptr<JobStore>> store = SqliteJobStore::Open(dir_.path() + "/jobs.db");
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    store_ = std::move(store).value();
+    store_ = drillbif::testing::OpenSqliteStore(dir_);
+    ASSERT_NE(store_, nullptr);
   }
 
   // `n` queued jobs, each watched by a new watcher of `hub`, after their first delivery.
