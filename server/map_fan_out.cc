@@ -1,10 +1,6 @@
 #include "server/map_fan_out.h"
 
-#include <spdlog/spdlog.h>
-
 #include <utility>
-
-#include "jobs/request_bytes.h"
 
 namespace drillbif::server {
 
@@ -12,8 +8,7 @@ StoreMapCells::StoreMapCells(JobStore& store, const JobRecord& parent, std::stri
                              int64_t lease_ms, RunChild run_child, std::function<void()> submitted,
                              std::chrono::milliseconds poll)
     : children_(store, parent, jobs::kMapCellKind, "map", std::move(worker_id), lease_ms,
-                std::move(run_child), std::move(submitted), poll),
-      parent_id_(parent.id) {}
+                std::move(run_child), std::move(submitted), poll) {}
 
 StatusOr<v1::OptimumMapCell> StoreMapCells::CellOf(const JobRecord& child) {
   if (child.state == JobState::kFailed) {
@@ -33,20 +28,10 @@ StatusOr<v1::OptimumMapCell> StoreMapCells::CellOf(const JobRecord& child) {
 
 Status StoreMapCells::Run(const std::vector<v1::OptimumRequest>& requests, const CellDone& done,
                           const ProgressCallback& progress) {
-  std::vector<std::string> keys;
-  for (const v1::OptimumRequest& r : requests) keys.push_back(jobs::DeterministicBytes(r));
-  return children_.Run(
-      keys,
-      [&](size_t k, const JobRecord& child, bool resumed) -> StatusOr<bool> {
-        StatusOr<v1::OptimumMapCell> cell = CellOf(child);
-        if (!cell.ok() && resumed) {
-          spdlog::warn("job {}: map cell {} not resumed: {}", parent_id_, child.id,
-                       cell.status().ToString());
-          return false;
-        }
-        if (!cell.ok()) return cell.status();
-        DRILLBIF_RETURN_IF_ERROR(done(static_cast<int64_t>(k), *std::move(cell), resumed));
-        return true;
+  return children_.Run<v1::OptimumRequest, v1::OptimumMapCell>(
+      requests, [this](const JobRecord& child) { return CellOf(child); },
+      [&](size_t k, v1::OptimumMapCell cell, bool resumed) {
+        return done(static_cast<int64_t>(k), std::move(cell), resumed);
       },
       progress);
 }

@@ -42,7 +42,6 @@ class StoreMapCells final : public jobs::MapCellRunner {
   StatusOr<v1::OptimumMapCell> CellOf(const JobRecord& child);
 
   StoreChildren children_;
-  const std::string parent_id_;
 };
 
 }  // namespace drillbif::server

@@ -1,5 +1,7 @@
 #include "server/store_children.h"
 
+#include <spdlog/spdlog.h>
+
 #include <map>
 #include <thread>
 #include <utility>
@@ -72,8 +74,12 @@ StatusOr<bool> StoreChildren::RunOneHere() {
   return true;
 }
 
-Status StoreChildren::Run(const std::vector<std::string>& requests, const Take& take,
-                          const ProgressCallback& progress) {
+void StoreChildren::NotResumed(const JobRecord& child, const Status& why) const {
+  spdlog::warn("job {}: {} {} not resumed: {}", parent_.id, kind_, child.id, why.ToString());
+}
+
+Status StoreChildren::RunKeys(const std::vector<std::string>& requests, const Take& take,
+                              const ProgressCallback& progress) {
   std::vector<bool> in(requests.size(), false);
   DRILLBIF_RETURN_IF_ERROR(Resume(requests, take, &in));
   struct Pending {

@@ -22,6 +22,7 @@
 
 #include "drillbif/common/status.h"
 #include "drillbif/simulate/simulator.h"
+#include "jobs/request_bytes.h"
 #include "server/store/job_store.h"
 
 namespace drillbif::server {
@@ -31,11 +32,6 @@ class StoreChildren {
   // Runs a child the parent claimed on the parent's thread (WorkerPool::RunOne); true when it
   // succeeded.
   using RunChild = std::function<bool(const JobRecord& child)>;
-  // Called on Run's thread for each finished child: the index of its request, its record (a
-  // resumed one SUCCEEDED) and whether an earlier run of the parent finished it. Returns whether
-  // the part is taken: false only for a resumed child whose result is not usable (the part then
-  // runs again); an error stops the run.
-  using Take = std::function<StatusOr<bool>(size_t part, const JobRecord& child, bool resumed)>;
 
   // `parent` (RUNNING, claimed by `worker_id`) and `store` outlive the runner. `kind`: the
   // children's kind. `what` names the parent in messages ("map", "sweep"). `submitted` is called
@@ -46,12 +42,34 @@ class StoreChildren {
                 std::function<void()> submitted, std::chrono::milliseconds poll);
 
   // Runs a child for each of `requests` (serialized deterministically, so that an earlier run's
-  // child of the same part has the same bytes), calling `take` for each as it finishes. `progress`
-  // receives the fraction of parts in and stops the run (CANCELLED) when it returns false. A
-  // child that cannot be stored because the parent left RUNNING: CANCELLED too. Other errors:
-  // the store's and `take`'s.
-  Status Run(const std::vector<std::string>& requests, const Take& take,
-             const ProgressCallback& progress);
+  // child of the same part has the same bytes). Each finished child's result is read by `read`
+  // and handed to `done` (the part's index, the result, whether an earlier run of the parent
+  // finished it). A resumed child whose result `read` refuses runs again (logged); `read`'s error
+  // for a child of this run, and `done`'s, stop the run. `progress` receives the fraction of
+  // parts in and stops the run (CANCELLED) when it returns false. A child that cannot be stored
+  // because the parent left RUNNING: CANCELLED too. Other errors: the store's.
+  template <typename Request, typename Result>
+  Status Run(const std::vector<Request>& requests,
+             const std::function<StatusOr<Result>(const JobRecord& child)>& read,
+             const std::function<Status(size_t part, Result result, bool resumed)>& done,
+             const ProgressCallback& progress) {
+    std::vector<std::string> keys;
+    keys.reserve(requests.size());
+    for (const Request& r : requests) keys.push_back(jobs::DeterministicBytes(r));
+    return RunKeys(
+        keys,
+        [&](size_t part, const JobRecord& child, bool resumed) -> StatusOr<bool> {
+          StatusOr<Result> result = read(child);
+          if (!result.ok() && resumed) {
+            NotResumed(child, result.status());
+            return false;
+          }
+          if (!result.ok()) return result.status();
+          DRILLBIF_RETURN_IF_ERROR(done(part, *std::move(result), resumed));
+          return true;
+        },
+        progress);
+  }
 
   // The stored result of a SUCCEEDED child; CANCELLED for a cancelled one, the child's error for
   // a failed one (callers that treat a failure as a result look at the record first).
@@ -63,6 +81,17 @@ class StoreChildren {
   int64_t run_here() const { return run_here_; }
 
  private:
+  // Called for each finished child: the index of its request, its record (a resumed one
+  // SUCCEEDED) and whether an earlier run of the parent finished it. Returns whether the part is
+  // taken: false only for a resumed child whose result is not usable (the part then runs
+  // again); an error stops the run.
+  using Take = std::function<StatusOr<bool>(size_t part, const JobRecord& child, bool resumed)>;
+
+  // Run on the serialized requests.
+  Status RunKeys(const std::vector<std::string>& requests, const Take& take,
+                 const ProgressCallback& progress);
+  // Logs a resumed child that runs again because its result is not usable.
+  void NotResumed(const JobRecord& child, const Status& why) const;
   // Hands on the parts earlier runs finished; marks them in `in`.
   Status Resume(const std::vector<std::string>& requests, const Take& take, std::vector<bool>* in);
   // Claims one of the parent's queued children and runs it here; false when none is queued.

@@ -43,7 +43,6 @@ class StoreSweepParts final : public jobs::SweepPartRunner {
   StatusOr<v1::SweepResult> PartOf(const JobRecord& child);
 
   StoreChildren children_;
-  const std::string parent_id_;
 };
 
 }  // namespace drillbif::server
