@@ -3,7 +3,8 @@
 // kind, period, start kind, its crossings of omega = 0.1 and a = 0.3 (located by the curve tracer,
 // CurveOptions::crossings1 / crossings2) and its codimension-2 entries. Not a benchmark: the
 // acceptance of a faster trace is that it finds the same network.
-//   build/bench/trace_network [threads] [max_period] > network.json
+//   build/bench/trace_network [threads] [max_period] [target_iterations] [condensed 0|1] > out.json
+// (the curves' step settings, when not given, are CurveOptions' defaults)
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -47,6 +48,9 @@ int Main(int argc, char** argv) {
   TraceOptions options = testing::ReferenceBox();
   options.threads = argc > 1 ? std::atoi(argv[1]) : 1;
   options.max_period = argc > 2 ? std::atoi(argv[2]) : 1;
+  // The curves' step settings, to compare a faster setting's network with the default's.
+  if (argc > 3) options.curve.steps.target_iterations = std::atoi(argv[3]);
+  if (argc > 4) options.curve.steps.condensed_solve = std::atoi(argv[4]) != 0;
   options.curve.crossings1 = {0.1};  // omega
   options.curve.crossings2 = {0.3};  // a
   const TraceResult r = TraceCurves(model, prop, start, options);
