@@ -292,32 +292,37 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       const auto same = std::find(line.signatures.begin(), line.signatures.end(), curve_signature);
       if (same == line.signatures.end()) return false;
       const int signature = static_cast<int>(same - line.signatures.begin());
-      size_t nearest = 0;  // the nearest vertex's durations, from line.durations[nearest]
-      double nearest_distance = std::numeric_limits<double>::infinity();
-      for (size_t k = 0, from = 0; k < line.size(); ++k) {
-        const size_t count = line.SignatureAt(k).segments.size();
-        if (line.signature[k] == signature) {
-          const double d = std::hypot((line.values1[k] - u) / w1, (line.values2[k] - v) / w2);
-          if (d < nearest_distance) nearest_distance = d, nearest = from;
-        }
-        from += count;
-      }
       // Nor does it always tell which touch: where one contact phase touches its guard twice
       // (two tangent ends in a row at a double grazing), the curves of either touch alone have
       // the same signature and differ in how long the tangent segment is (5.5 and 24.5 at
       // (0.0628, 0.1813) in the reference box, where the one was taken for the other and the
       // second touch's curve, crossed by the omega-branch at a = 0.18, was not traced). So a
-      // curve whose point of that signature next to this one (within 1e-2 of the box) has other
-      // durations, beyond a longest step and 10%, is another curve.
-      if (nearest_distance <= 1e-2) {
-        const float* d0 = line.durations.data() + nearest;
-        const size_t n0 = curve_signature.segments.size();
-        const std::vector<double>& d1 = orbit.durations;
-        for (size_t i = 0; i < n0 && i < d1.size(); ++i) {
-          if (std::abs(d0[i] - d1[i]) > co.steps.max_step + 0.1 * std::abs(d1[i])) return false;
+      // curve with points of that signature next to this one (within 1e-2 of the box) is another
+      // curve when none of them has its durations, to within a longest step and 10% (a step
+      // changes a duration by at most its arclength). Any of them, not the nearest in the
+      // parameters: that one may lie on another stretch of the same curve (a hairpin, or the
+      // two ends of a short curve, close in the box's scaling), farther from this point along the
+      // curve than its neighbour there; with longer steps the neighbour's vertex lies farther
+      // off (a PD curve between two flip-grazings 9.3e-5 apart in the box, whose vertex next to
+      // one end lies 2.2e-4 from it: the nearest vertex, at the other end, has another segment
+      // 2.6 long instead of 0.97, and the curve was traced again from that end).
+      bool near = false, agrees = false;
+      for (size_t k = 0, from = 0; k < line.size() && !agrees; ++k) {
+        const size_t count = line.SignatureAt(k).segments.size();
+        if (line.signature[k] == signature &&
+            std::hypot((line.values1[k] - u) / w1, (line.values2[k] - v) / w2) <= 1e-2) {
+          near = true;
+          const float* d0 = line.durations.data() + from;
+          const std::vector<double>& d1 = orbit.durations;
+          agrees = true;
+          for (size_t i = 0; i < count && i < d1.size() && agrees; ++i) {
+            agrees = std::abs(d0[i] - d1[i]) <= co.steps.max_step + 0.1 * std::abs(d1[i]);
+          }
         }
+        from += count;
       }
-      if (OnCurve(line, u, v, w1, w2, options.duplicate_distance)) return true;
+      if (near && !agrees) return false;
+      if (OnTracedCurve(t, u, v, w1, w2, options.duplicate_distance)) return true;
       return std::any_of(t.curve.codim2.begin(), t.curve.codim2.end(), [&](const Codim2Point& z) {
         return std::hypot((z.point.value1 - u) / w1, (z.point.value2 - v) / w2) <=
                options.duplicate_distance;

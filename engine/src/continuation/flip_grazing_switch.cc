@@ -161,7 +161,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
               std::any_of(result->curves.begin(), result->curves.end(), [&](const TracedCurve& t) {
                 return t.curve.kind == CurveKind::kGrazing && !t.curve.points.empty() &&
                        t.curve.points.front().orbit.signature.periods == 2 * n &&
-                       DistanceToCurve(t.outline, gu, gv, w1, w2) <= options.duplicate_distance;
+                       OnTracedCurve(t, gu, gv, w1, w2, options.duplicate_distance);
               });
           if (known) {
             done = true;

@@ -120,6 +120,40 @@ bool OnCurve(const CurveOutline& c, double u, double v, double w1, double w2, do
   return false;
 }
 
+bool OnTracedCurve(const TracedCurve& t, double u, double v, double w1, double w2, double tol) {
+  const CurveOutline& line = t.outline;
+  if (OnCurve(line, u, v, w1, w2, tol)) return true;
+  const std::vector<CurvePoint>& points = t.curve.points;
+  const size_t n = line.size();
+  if (points.empty() || n == 0) return false;
+  const Eigen::Vector2d x(u / w1, v / w2);
+  auto at = [&](size_t k) { return Eigen::Vector2d(line.values1[k] / w1, line.values2[k] / w2); };
+  // Distance of two orbits' first section states (every vertex keeps them at the curve's ends).
+  auto state_distance = [](const PeriodicOrbit& a, const PeriodicOrbit& b) {
+    if (a.starts.empty() || b.starts.empty() || a.starts[0].size() != b.starts[0].size()) {
+      return std::numeric_limits<double>::infinity();
+    }
+    return (a.starts[0] - b.starts[0]).norm();
+  };
+  for (const Codim2Point& end : t.curve.codim2) {
+    if (end.violation.admissible) continue;  // a root between two vertices, not an end
+    const Eigen::Vector2d e(end.point.value1 / w1, end.point.value2 / w2);
+    const bool last = state_distance(end.point.orbit, points.back().orbit) <
+                      state_distance(end.point.orbit, points.front().orbit);
+    const size_t k = last ? n - 1 : 0;
+    // The chord allowance with the turn from the polyline's end chord onto the stretch.
+    double turn = 0.0;
+    if (n >= 2) {
+      const Eigen::Vector2d d0 = last ? at(k) - at(k - 1) : at(k) - at(k + 1), d1 = e - at(k);
+      const double nn = d0.norm() * d1.norm();
+      turn = nn > 0.0 ? std::acos(std::clamp(d0.dot(d1) / nn, -1.0, 1.0)) : 0.0;
+    }
+    const double bow = (e - at(k)).norm() * std::min(turn, 0.5) / 4.0;
+    if (DistanceL2(x, at(k), e) <= tol + bow) return true;
+  }
+  return false;
+}
+
 void SwapValues(CurveResult* c) {
   for (CurvePoint& p : c->points) std::swap(p.value1, p.value2);
   for (CurvePoint& p : c->crossings) std::swap(p.value1, p.value2);
@@ -554,14 +588,16 @@ std::string TraceDriver::WhereOf(const SpecialPoint& s) const {
          options_.param2 + " = " + std::to_string(s.point.orbit.params[i2_]);
 }
 
-// The curve traced already that the start lies on, or null.
+// The curve traced already that the start lies on, or null: within duplicate_distance of it,
+// with the allowance for the chords' error (which grows as the square of the step) and its end
+// stretches (OnTracedCurve).
 const TracedCurve* TraceDriver::KnownCurve(const SpecialPoint& s) const {
   const double u = s.point.orbit.params[i1_], v = s.point.orbit.params[i2_];
   const auto it =
       std::find_if(result_.curves.begin(), result_.curves.end(), [&](const TracedCurve& c) {
         return c.start.kind == s.kind &&
                c.start.point.orbit.signature.periods == s.point.orbit.signature.periods &&
-               DistanceToCurve(c.outline, u, v, w1_, w2_) <= options_.duplicate_distance;
+               internal::OnTracedCurve(c, u, v, w1_, w2_, options_.duplicate_distance);
       });
   return it == result_.curves.end() ? nullptr : &*it;
 }
