@@ -79,6 +79,29 @@ using Mat = Eigen::MatrixXd;
 using internal::CurveOutputs;
 using internal::SectionCrossing;
 
+// Whether the step from y (unit tangent t) of arclength h to y1 (unit tangent t1) continues the
+// curve through y. Along a smooth curve y(s) = y + s t + s^2 / 2 kappa n + O(s^3) and
+// t(s) = t + s kappa n + O(s^2), so the corrected point's offset from the prediction,
+// y1 - (y + h t), equals h / 2 (t1 - t) up to O(h^3) terms: the tangents at both ends account for
+// it. A point on another branch of solutions nearby (a curve of the same condition and signature
+// next to this one) has a tangent that does not: in the reference (omega, a) box, with
+// target_iterations 4, two steps of 0.5 from a PD curve's hairpin (at omega = 0.1922) landed on
+// another PD curve 1.7e-4 away in omega (their orbits' segments 0.1 .. 0.4 apart), each within
+// kMaxDrift, residuals 0.13 h and 0.21 h, and the two curves were traced as two others, each
+// joining an end of one to an end of the other. The step is refused above 0.1 h (0.4% of the
+// steps of that box with target_iterations 4, 456 of 20262 above 0.05 h; a refused step is
+// retried at half the length, where a smooth curve's residual is an eighth). Steps no longer
+// than the first are not checked: a jump needs a step that reaches the other curve, and a curve
+// stepped off a codimension-2 root starts where its orbit changes like the square root of the
+// arclength (the O(h^3) terms are not small there): refused and halved, the first steps of the
+// fold curve stepped off (0.050365, 0.16908) stayed where its 1e-6 long progression phase ends
+// at once by rounding, and that curve was lost.
+constexpr double kMaxTangentMismatch = 0.1;
+
+bool StepConsistent(const Vec& y, const Vec& t, double h, const Vec& y1, const Vec& t1) {
+  return (y1 - (y + h * t) - 0.5 * h * (t1 - t)).norm() <= kMaxTangentMismatch * h;
+}
+
 // Traces a curve from its start: the stepping loop over the curve's system (curve_system.h),
 // its codimension-2 points (curve_codim2.h) and its ends (curve_ends.h), in one signature.
 class CurveTracer {
@@ -200,9 +223,11 @@ std::string CurveTracer::Trace(const Eigen::Vector2d& dir, const CurveOutputs& o
     int iterations = 0;
     Vec t1;
     // A step is refused (and retried shorter, as when Newton fails) when the corrected point
-    // drifted (CurveEnds::kMaxDrift).
+    // drifted (CurveEnds::kMaxDrift) or, for a step longer than the first, does not continue
+    // the curve it came from (StepConsistent).
     if (!system_.Correct(y + h * t, t, &y1, &iterations, &t1) ||
-        (y1 - (y + h * t)).norm() > internal::CurveEnds::kMaxDrift * h) {
+        (y1 - (y + h * t)).norm() > internal::CurveEnds::kMaxDrift * h ||
+        (h > options.steps.initial_step && !StepConsistent(y, t, h, y1, t1))) {
       ++sum->rejected_steps;
       h *= 0.5;
       if (system_.Stopped()) return internal::CurveEnds::kCancelledEnd;
@@ -220,14 +245,29 @@ std::string CurveTracer::Trace(const Eigen::Vector2d& dir, const CurveOutputs& o
       continue;
     }
     sum->newton_iterations += iterations;
+    const double v1 = y1[m], v2 = y1[m + 1];
+    if (v1 < options.min1 || v1 > options.max1 || v2 < options.min2 || v2 > options.max2) {
+      // A curve that leaves the box ends on it exactly (the trace's edge rounds start from such
+      // ends, and a start located on the edge is known by them): the point where the step
+      // crosses the edge, solved with that parameter fixed from the chord's interpolation. A
+      // long step's chord can put that guess too far off the curve for the corrector (with
+      // target_iterations 4 a PD curve ended 5.9e-5 of the box short of the edge, and the
+      // edge's branch traced it again from its point there): the step is retried shorter.
+      const size_t before = out.points->size();
+      ends_.EndOnBox(y, y1, out.points);
+      if (system_.Stopped()) return internal::CurveEnds::kCancelledEnd;
+      if (out.points->size() == before && 0.5 * h >= options.steps.min_step) {
+        ++sum->rejected_steps;
+        h *= 0.5;
+        --step;
+        continue;
+      }
+      ++sum->steps;
+      return "left the box";
+    }
     ++sum->steps;
     h = std::clamp(h * internal::StepFactor(iterations, options.steps.target_iterations),
                    options.steps.min_step, options.steps.max_step);
-    const double v1 = y1[m], v2 = y1[m + 1];
-    if (v1 < options.min1 || v1 > options.max1 || v2 < options.min2 || v2 > options.max2) {
-      ends_.EndOnBox(y, y1, out.points);
-      return system_.Stopped() ? internal::CurveEnds::kCancelledEnd : "left the box";
-    }
     // A curve that creeps (the step collapsed while Newton still converges, as next to a
     // fold-grazing where a segment's duration goes to zero like a square root) is ended rather
     // than left to spend max_steps: at the boundary ahead where there is one (three PD curves
