@@ -100,6 +100,9 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
   switch (request.curve_steps()) {
     case v1::CURVE_STEPS_UNSPECIFIED:
     case v1::CURVE_STEPS_FINE:
+      // The engine's curves step longer by default (target_iterations 4, COARSE): FINE keeps
+      // the shorter steps it names.
+      opt.curve.steps.target_iterations = 3;
       break;
     case v1::CURVE_STEPS_COARSE:
       opt.curve.steps.target_iterations = 4;

@@ -124,7 +124,7 @@ class Trace : public testing::ReferenceOrbitTest {
   }
 };
 
-// The same checks with the default steps and with longer ones (target_iterations 4: 4.6x fewer
+// The same checks with the default steps (target_iterations 4) and with shorter ones (3: ~5x the
 // points): the defining conditions, the ends and the cusps must not depend on the steps taken.
 // With the longer steps, before the checks below held for them, six grazing curves ended at
 // spurious double grazings (a tangent end's residual seen as a crossing), a turn was taken for a
@@ -200,7 +200,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(flip_grazings, 4);
   // Above: the fold / PD vertices' critical multiplier at +-1 to the required 1e-8. Next to a
   // segment shorter than ~1e-3 (saltations growing like 1 / tau at its events) the condition's
-  // residual can stop at rounding's floor before that: 32 of 58921 vertices with the default
+  // residual can stop at rounding's floor before that: 32 of 58921 vertices with the shorter
   // steps, 25 of 11688 with the longer, next to segments 5.2e-4 .. 3e-7 long, up to 4.7e-5 off;
   // every vertex whose segments are all 1e-3 or longer must be at +-1 to 1e-8. (Before the
   // corrector iterated on the condition's residual, 327 of 58902 were not, one next to a
@@ -611,32 +611,32 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   EXPECT_GE(cusps, 1);
 }
 
-INSTANTIATE_TEST_SUITE_P(DefaultAndLongerSteps, TraceSteps, ::testing::Values(3, 4),
+INSTANTIATE_TEST_SUITE_P(ShorterAndDefaultSteps, TraceSteps, ::testing::Values(3, 4),
                          [](const ::testing::TestParamInfo<int>& param) {
                            return "TargetIterations" + std::to_string(param.param);
                          });
 
 // Every codimension-2 point located exactly (bracket 0: roots, ends solved in tangent or
-// zero-length form, cusps) with the default steps is found with longer steps (target_iterations 4,
-// 4.6x fewer points), and the reverse, within 1e-7 (box-scaled: the located points agree to 1e-9
-// between curves; two points of one kind are at least 8e-6 apart in this box). Bisected ends are
-// not compared: their brackets (<= 1e-8 in arclength, more where Newton fails next to the end)
-// depend on the steps. The network of curves below omega = 0.08 is reached through chains of
-// switches at codimension-2 points, so a switch that fails with one step size and not the other
-// cuts a whole chain: before the curves' starts were corrected across a tangent without parameter
-// part and the step-off from a zero-length segment was solved from a consistent orbit, longer
-// steps missed 94 of the default steps' 963 points (and a first step of 0.01 missed 5). Cusps
-// included: those in a fold curve's hook right before its fold-grazing end (4e-9 .. 5e-9 from it,
-// box-scaled) are found by the end step's probes, which close in on the end (three were missed
+// zero-length form, cusps) with the shorter steps (target_iterations 3) is found with the default
+// longer steps (4, ~5x fewer points), and the reverse, within 1e-7 (box-scaled: the located points
+// agree to 1e-9 between curves; two points of one kind are at least 8e-6 apart in this box).
+// Bisected ends are not compared: their brackets (<= 1e-8 in arclength, more where Newton fails
+// next to the end) depend on the steps. The network of curves below omega = 0.08 is reached through
+// chains of switches at codimension-2 points, so a switch that fails with one step size and not the
+// other cuts a whole chain: before the curves' starts were corrected across a tangent without
+// parameter part and the step-off from a zero-length segment was solved from a consistent orbit,
+// longer steps missed 94 of the default steps' 963 points (and a first step of 0.01 missed 5).
+// Cusps included: those in a fold curve's hook right before its fold-grazing end (4e-9 .. 5e-9 from
+// it, box-scaled) are found by the end step's probes, which close in on the end (three were missed
 // with evenly spaced probes). Longer steps had jumped past a CwoP phase vanishing on a PD curve
 // and missed its flip-grazing.
-TEST_F(Trace, DefaultAndLongerStepsFindTheSamePoints) {
+TEST_F(Trace, ShorterAndDefaultStepsFindTheSamePoints) {
   auto trace = [&](int target_iterations) {
     TraceOptions opt = testing::ReferenceBox();
     opt.curve.steps.target_iterations = target_iterations;
     return TraceCurves(model_, prop_, start_, opt);
   };
-  const TraceResult dflt = trace(3), longer = trace(4);
+  const TraceResult shorter = trace(3), longer = trace(4);
   const TraceOptions box = testing::ReferenceBox();
   auto found_in = [&](const TraceResult& r, const Codim2Point& q) {
     for (const TracedCurve& l : r.curves) {
@@ -648,7 +648,7 @@ TEST_F(Trace, DefaultAndLongerStepsFindTheSamePoints) {
   };
   int compared = 0;
   for (const auto& [from, in, name] :
-       {std::tuple(&longer, &dflt, "default"), std::tuple(&dflt, &longer, "longer")}) {
+       {std::tuple(&longer, &shorter, "shorter"), std::tuple(&shorter, &longer, "longer")}) {
     for (const TracedCurve& c : from->curves) {
       for (const Codim2Point& q : c.curve.codim2) {
         if (q.bracket != 0.0) continue;
@@ -921,6 +921,10 @@ TEST_F(Trace, SeedsAndEdgeBranchesFindCurvesTheStartDoesNotReach) {
 // correct with brackets of ~100; of the box's 64 entries bracketed above 1e-8, 4 are left).
 TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEndsAndClaimOnlyTheEndsReached) {
   TraceOptions opt = testing::ReferenceBox();
+  // The shorter steps (target_iterations 3), with which the longest curve here takes more than
+  // two directions of 2000 steps (below): the step limit is exercised. The default longer steps
+  // trace the same curves in fewer (1585 vertices for the longest).
+  opt.curve.steps.target_iterations = 3;
   opt.min1 = 0.09, opt.max1 = 0.11;
   opt.min2 = 0.25, opt.max2 = 0.75;
   opt.max_period = 2;

@@ -26,6 +26,11 @@ class FlipGrazingEntries : public ::testing::Test {
   void SetUp() override {
     opt_ = testing::ReferenceBox();
     opt_.max_period = 2;
+    // The shorter steps (target_iterations 3): with them a step of the period-2 grazing curve
+    // next to its end at (0.4734, 0.1616) straddles the det(M - I) root that the last pass must
+    // report as the flip-grazing (RootOfDetNextToTheEndIsTheFlipGrazing); the default longer
+    // steps end the curve with no step across it, and nothing of that pass would be tested.
+    opt_.curve.steps.target_iterations = 3;
     TracedCurve pd_curve;
     ASSERT_TRUE(testing::PdCurveToFlipGrazings(model_, prop_, opt_, &pd_curve));
     pd_curve.outline = OutlineOf(pd_curve.curve);

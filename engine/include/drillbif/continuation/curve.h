@@ -45,17 +45,23 @@ const char* CurveKindName(CurveKind kind);
 // The box (ParameterBox): param1 is the parameter of the one-parameter continuation that found
 // the point, param2 the second; the curve stops at the box's edges (none unless set).
 struct CurveOptions : ParameterBox {
-  // Shorter steps than a branch's: a first step of 0.02, 1e-8 to 1.0, a tolerance of 1e-10.
-  // max_steps: curves of long orbits are long in the unknowns (at omega ~ 0.1 a period-2 orbit's
-  // drift coordinate moves ~6000 times as far as omega along its PD curve): in the reference
-  // (omega, a) box (omega in [0.05, 2], a in [0.01, 8] at b = 0.15) with period 2, 12 of the
-  // period-2 curves of omega in [0.09, 0.11] stopped at 2000.
   // Values of lambda2 where the curve's crossing points are solved exactly (Newton with lambda2
   // fixed, from the interpolation between the two points around it), e.g. to compare with a
   // one-parameter continuation at that value.
   std::vector<double> crossings2;
   std::vector<double> crossings1;  // likewise for lambda1
-  StepControl steps{0.02, 1e-8, 1.0, 3, 8, 10000, 1e-10, false};
+  // Shorter steps than a branch's: a first step of 0.02, 1e-8 to 1.0, a tolerance of 1e-10.
+  // max_steps: curves of long orbits are long in the unknowns (at omega ~ 0.1 a period-2 orbit's
+  // drift coordinate moves ~6000 times as far as omega along its PD curve): in the reference
+  // (omega, a) box (omega in [0.05, 2], a in [0.01, 8] at b = 0.15) with period 2, 12 of the
+  // period-2 curves of omega in [0.09, 0.11] stopped at 2000.
+  // target_iterations 4: the corrector's contraction test stops almost every step at 3
+  // iterations, and the step grows only below the target, so with 3 it almost never grew; with
+  // 4 the reference box's trace has a fifth of the vertices and finds the same codimension-2
+  // points and crossings. Dense solves (condensed_solve false): with condensed ones the trace
+  // of that box with target_iterations 3 left a double grazing at (0.1360, 0.1546) bracketed
+  // only to 8.3e-3, which the dense solves locate (rounding decides there, docs/engine.md).
+  StepControl steps{0.02, 1e-8, 1.0, 4, 8, 10000, 1e-10, false};
 
   Status Validate() const;
 };
