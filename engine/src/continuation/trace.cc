@@ -123,23 +123,39 @@ bool OnCurve(const CurveOutline& c, double u, double v, double w1, double w2, do
 bool OnTracedCurve(const TracedCurve& t, double u, double v, double w1, double w2, double tol) {
   const CurveOutline& line = t.outline;
   if (OnCurve(line, u, v, w1, w2, tol)) return true;
-  const std::vector<CurvePoint>& points = t.curve.points;
   const size_t n = line.size();
-  if (points.empty() || n == 0) return false;
+  if (n == 0) return false;
   const Eigen::Vector2d x(u / w1, v / w2);
   auto at = [&](size_t k) { return Eigen::Vector2d(line.values1[k] / w1, line.values2[k] / w2); };
-  // Distance of two orbits' first section states (every vertex keeps them at the curve's ends).
-  auto state_distance = [](const PeriodicOrbit& a, const PeriodicOrbit& b) {
-    if (a.starts.empty() || b.starts.empty() || a.starts[0].size() != b.starts[0].size()) {
-      return std::numeric_limits<double>::infinity();
+  // How far an end's durations lie from the first (k = 0) or last vertex's, the end's tangent
+  // segments merged with the segment of the same mode after them (the vertices' form); infinite
+  // where they do not pair. From the outline, not the curve's points: switching's workers call
+  // this while the trace releases the vertices of curves handed over (CurveStream).
+  auto durations_off = [&](const PeriodicOrbit& end, size_t k) {
+    const size_t count = line.SignatureAt(k).segments.size();
+    const float* d = line.durations.data() + (k == 0 ? 0 : line.durations.size() - count);
+    std::vector<double> merged;
+    const std::vector<SegmentSpec>& segs = end.signature.segments;
+    for (size_t j = 0; j < end.durations.size(); ++j) {
+      merged.push_back(end.durations[j]);
+      if (j < segs.size() && segs[j].tangent && j + 1 < end.durations.size()) {
+        merged.back() += end.durations[++j];
+      }
     }
-    return (a.starts[0] - b.starts[0]).norm();
+    if (merged.size() != count) return std::numeric_limits<double>::infinity();
+    double off = 0.0;
+    for (size_t j = 0; j < count; ++j) off = std::max(off, std::abs(merged[j] - d[j]));
+    return off;
   };
   for (const Codim2Point& end : t.curve.codim2) {
     if (end.violation.admissible) continue;  // a root between two vertices, not an end
     const Eigen::Vector2d e(end.point.value1 / w1, end.point.value2 / w2);
-    const bool last = state_distance(end.point.orbit, points.back().orbit) <
-                      state_distance(end.point.orbit, points.front().orbit);
+    const double off_first = durations_off(end.point.orbit, 0);
+    const double off_last = durations_off(end.point.orbit, n - 1);
+    // Where neither pairs (a section crossing between), the end vertex nearer in the box.
+    const bool last = std::isfinite(off_first) || std::isfinite(off_last)
+                          ? off_last < off_first
+                          : (e - at(n - 1)).norm() < (e - at(0)).norm();
     const size_t k = last ? n - 1 : 0;
     // The chord allowance with the turn from the polyline's end chord onto the stretch.
     double turn = 0.0;
