@@ -398,6 +398,18 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       // would also hide the real curve of its signature through the point from a later start
       // (it hid two, of 11 and 80 points). The next length is tried.
       if (last_resort && StaysAt(curve, u, v, w1, w2, options.duplicate_distance)) continue;
+      // Stepped off its root, the start may have landed on a traced curve of the candidate's kind
+      // and signature elsewhere nearby (a fold curve's end stretch, 1e-3 of the box from the
+      // root it left): its curve is that one again (seven fold curves of the reference box were
+      // traced twice so, with either step setting).
+      if (candidate.step_off >= 0) {
+        SwitchCandidate landed = candidate;
+        landed.orbit = seed.point.orbit;
+        if (known(landed)) {
+          started = true;
+          break;
+        }
+      }
       AppendCurve(seed, "", std::move(curve), result, static_cast<int>(c), q);
       published.store(result->curves.size(), std::memory_order_release);
       ++added;
