@@ -74,6 +74,11 @@ Status CurveOptions::Validate() const {
 
 namespace {
 
+// How far a curve's polyline may stray from the curve in the parameter plane (box-scaled): the
+// distance within which a start or a switch is taken to lie on a traced curve
+// (TraceOptions::duplicate_distance's default).
+constexpr double kMaxSagitta = 1e-5;
+
 using Vec = Eigen::VectorXd;
 using Mat = Eigen::MatrixXd;
 using internal::CurveOutputs;
@@ -163,6 +168,10 @@ class CurveTracer {
   // first shrinking segment vanishes), when not admissible, brackets that boundary with y: the
   // end there (CurveEnds::EndAtBoundary). `failed`: what happened, e.g. "the corrector failed";
   // the returned reason begins with it. None where both predictions are admissible.
+  // Vertices within the step from y (tangent t) to y1 (t1) of arclength h, appended to *points,
+  // where the step's chord strays from the curve (kMaxSagitta).
+  void InsertVertices(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1, double h,
+                      std::vector<CurvePoint>* points) const;
   std::optional<std::string> EndAhead(const std::string& failed, const Vec& y, const Vec& t,
                                       double h_first,
                                       const std::vector<internal::Codim2TestFunction>& tests,
@@ -173,6 +182,39 @@ class CurveTracer {
   internal::CurveEnds ends_;
   Vec start_;
 };
+
+// The curve is drawn by its vertices' polyline (a region's polygons, the duplicate checks). Where
+// a step's chord strays from the curve by more than kMaxSagitta in the parameter plane, vertices
+// are inserted within the step, evenly in arclength (the sagitta goes as the square of the
+// chord), each corrected from the cubic through the step's ends and tangents. The step sequence
+// is left as it is, so that what the trace finds does not depend on it; an inserted vertex whose
+// correction fails, lands off its prediction or is not admissible is left out.
+void CurveTracer::InsertVertices(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1, double h,
+                                 std::vector<CurvePoint>* points) const {
+  const double sagitta = system_.ChordSagitta(y, t, y1, t1, h);
+  if (!(sagitta > kMaxSagitta)) return;
+  const int pieces = static_cast<int>(std::min(16.0, std::ceil(std::sqrt(sagitta / kMaxSagitta))));
+  for (int k = 1; k < pieces && !system_.Stopped(); ++k) {
+    const double s = static_cast<double>(k) / pieces;
+    // The cubic Hermite basis at s and its derivatives.
+    const double h00 = (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s), h10 = s * (1.0 - s) * (1.0 - s);
+    const double h01 = s * s * (3.0 - 2.0 * s), h11 = s * s * (s - 1.0);
+    const double d00 = 6.0 * s * s - 6.0 * s, d10 = 3.0 * s * s - 4.0 * s + 1.0;
+    const double d11 = 3.0 * s * s - 2.0 * s;
+    const Vec guess = h00 * y + h10 * h * t + h01 * y1 + h11 * h * t1;
+    const Vec dir = (d00 * (y - y1) + d10 * h * t + d11 * h * t1).normalized();
+    Vec yk;
+    int iterations = 0;
+    if (!system_.Correct(guess, dir, &yk, &iterations) ||
+        (yk - guess).norm() > internal::CurveEnds::kMaxDrift * h / pieces) {
+      continue;
+    }
+    CurvePoint q = system_.MakePoint(yk);
+    std::string why;
+    if (!system_.Admissible(q.orbit, &why)) continue;
+    points->push_back(std::move(q));
+  }
+}
 
 std::optional<std::string> CurveTracer::EndAhead(
     const std::string& failed, const Vec& y, const Vec& t, double h_first,
@@ -304,6 +346,7 @@ std::string CurveTracer::Trace(const Eigen::Vector2d& dir, const CurveOutputs& o
     }
     ends_.CrossingsOnStep(y, y1, out.crossings);
     codim2_.RootsOnStep(y, t, y1, p.stability.monodromy, tests, &dets, out.codim2);
+    InsertVertices(y, t, y1, t1, h, out.points);
     system_.SetBorders(p.stability.monodromy);
     out.points->push_back(std::move(p));
     codim2_.CuspOnStep(y, t, y1, t1, out.codim2);

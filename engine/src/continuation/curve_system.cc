@@ -196,6 +196,23 @@ bool CurveSystem::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterat
   return corrector.Correct(correct, y_pred, dir, y, iterations, tangent);
 }
 
+double CurveSystem::ChordSagitta(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1,
+                                 double h) const {
+  const Eigen::Vector2d chord((y1[m()] - y[m()]) / w1_, (y1[m() + 1] - y[m() + 1]) / w2_);
+  const double length = chord.norm();
+  if (length == 0.0) return 0.0;
+  // The cubic's offset across the chord: h (a0 h10(s) + a1 h11(s)), with the Hermite basis
+  // h10 = s^3 - 2 s^2 + s, h11 = s^3 - s^2 and a0, a1 the derivatives' components across it.
+  const Eigen::Vector2d across(-chord[1] / length, chord[0] / length);
+  const double a0 = across.dot(ParamDirection(t)), a1 = across.dot(ParamDirection(t1));
+  double sagitta = 0.0;
+  for (const double s : {0.25, 0.5, 0.75}) {
+    const double h10 = s * s * s - 2.0 * s * s + s, h11 = s * s * s - s * s;
+    sagitta = std::max(sagitta, std::abs(h * (a0 * h10 + a1 * h11)));
+  }
+  return sagitta;
+}
+
 bool CurveSystem::Tangent(const Vec& y, const Vec& prev, Vec* t) const {
   Vec f;
   Mat jac;

@@ -95,6 +95,11 @@ class CurveSystem : public CorrectorSystem {
 
   // The parameter part of the unit tangent, in the box's scaled coordinates.
   Eigen::Vector2d ParamDirection(const Vec& t) const { return {t[m()] / w1_, t[m() + 1] / w2_}; }
+  // How far the chord from y to y1 (a step of arclength h, unit tangents t and t1) strays from
+  // the curve in the parameter plane, box-scaled: the largest distance from the chord of the
+  // cubic that has the parameters and their derivatives h ParamDirection(t), h ParamDirection(t1)
+  // at the ends (the curve itself to O(h^4)), sampled at a quarter, half and three quarters.
+  double ChordSagitta(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1, double h) const;
   // Distance of two curve points' parameters, scaled by the box's widths.
   double BoxDistance(const CurvePoint& a, const CurvePoint& b) const {
     return std::hypot((a.value1 - b.value1) / w1_, (a.value2 - b.value2) / w2_);
