@@ -138,20 +138,25 @@ int VanishingSegment(const Admissibility& v, const PeriodicOrbit& o) {
 
 }  // namespace
 
-// A solved end is kept when within the bracket of the end, admissible (for a zero-length
-// segment: but for that segment's own duration, zero to rounding; a touch at the start of
-// segment `touch_start` where TouchesAtStart) and, on a fold / PD curve, with the multiplier
-// +1 / -1 among the eigenvalues to 1e-8 (independent of sigma and its borders: where a
+// A solved end is kept when within the bracket of the end (beyond it, within what the curve
+// moves until the vanishing segment `vanishing`, if any, is gone: ReachToVanishing), admissible
+// (for a zero-length segment: but for that segment's own duration, zero to rounding; a touch at the
+// start of segment `touch_start` where TouchesAtStart) and, on a fold / PD curve, with the
+// multiplier +1 / -1 among the eigenvalues to 1e-8 (independent of sigma and its borders: where a
 // zero-length segment's saltation degenerates, sigma = 0 was met without it).
 // *point receives the accepted end (its stability is the one checked; `stability` given: that
 // one).
 bool CurveEnds::AcceptEnd(const Codim2Point& end, const StatusOr<PeriodicOrbit>& solved,
-                          int zero_length, int touch_start, const Stability* stability,
-                          CurvePoint* point) const {
+                          int vanishing, int zero_length, int touch_start,
+                          const Stability* stability, CurvePoint* point) const {
   if (!solved.ok()) return false;
   const double moved = std::hypot(solved->params[system_.index1()] - end.point.value1,
                                   solved->params[system_.index2()] - end.point.value2);
-  if (moved > 2.0 * end.bracket + 1e-9) return false;
+  double window = 2.0 * end.bracket + 1e-9;
+  if (moved > window && vanishing >= 0) {
+    window += 2.0 * ReachToVanishing(end.point.orbit, vanishing);
+  }
+  if (moved > window) return false;
   for (const Admissibility& w :
        AdmissibilityViolations(system_.model(), system_.propagator(), *solved)) {
     if (w.segment == touch_start && w.at_start &&
@@ -169,6 +174,24 @@ bool CurveEnds::AcceptEnd(const Codim2Point& end, const StatusOr<PeriodicOrbit>&
                        [&](const std::complex<double>& z) { return std::abs(z - target) <= 1e-8; });
   }
   return true;
+}
+
+// How far the curve's parameters move from orbit o (a curve point) while segment j's duration d
+// goes to zero, to first order: d |dlambda / ds| / |dtau_j / ds| from the curve's tangent at o. The
+// bisection brackets where the orbit stops being admissible, and where the vanishing segment's
+// own guard fires at its start by rounding while it is still d long, that is not yet where it
+// vanishes (in the reference box with longer steps a fold curve's end bracketed to 1.2e-11 with
+// its contact phase 3.2e-6 long, the tangent-form end 2.05e-7 further in omega): the solved end
+// may lie that much beyond the bracket. 0 where d <= 0 or the tangent is not found.
+double CurveEnds::ReachToVanishing(const PeriodicOrbit& o, int j) const {
+  const double d = o.durations[j];
+  if (!(d > 0.0)) return 0.0;
+  const Vec y = system_.Pack(o);
+  Vec t;
+  const int m = system_.m();
+  if (!system_.Tangent(y, Vec::Unit(y.size(), m), &t)) return 0.0;
+  const double rate = std::abs(t[system_.bvp().DurationIndex(j)]);
+  return rate > 0.0 ? d * std::hypot(t[m], t[m + 1]) / rate : 0.0;
 }
 
 // The end solved in tangent form (grazing_end.h): where the violation beyond it is a segment
@@ -203,7 +226,7 @@ bool CurveEnds::SolveEnd(Codim2Point* end) const {
   CurvePoint point;
   auto accept = [&](const StatusOr<PeriodicOrbit>& solved, int zero_length, int touch_start = -1,
                     const Stability* stability = nullptr) {
-    return AcceptEnd(*end, solved, zero_length, touch_start, stability, &point);
+    return AcceptEnd(*end, solved, j, zero_length, touch_start, stability, &point);
   };
   const bool same_mode = j > 0 && j + 1 < k && segs[j - 1].mode == segs[j + 1].mode;
   StatusOr<PeriodicOrbit> solved = Status(StatusCode::kUnimplemented, "");

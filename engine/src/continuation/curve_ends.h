@@ -93,8 +93,10 @@ class CurveEnds {
   bool MayBeSectionCrossing(const Admissibility& v) const;
   void Bisect(const Vec& t, double tol, Boundary* b) const;
   bool SolveEnd(Codim2Point* end) const;
-  bool AcceptEnd(const Codim2Point& end, const StatusOr<PeriodicOrbit>& solved, int zero_length,
-                 int touch_start, const Stability* stability, CurvePoint* point) const;
+  bool AcceptEnd(const Codim2Point& end, const StatusOr<PeriodicOrbit>& solved, int vanishing,
+                 int zero_length, int touch_start, const Stability* stability,
+                 CurvePoint* point) const;
+  double ReachToVanishing(const PeriodicOrbit& o, int j) const;
   void CuspBeforeEnd(const Vec& y, const Vec& t, const Vec& ya,
                      std::vector<Codim2Point>* codim2) const;
 

@@ -184,6 +184,40 @@ TEST_F(GrazingEnd, CurveEndDoesNotDependOnTheSteps) {
   }
 }
 
+// The fold curve of the a-branch's fold at a = 0.23824 (omega = 0.1) ends at the fold-grazing
+// near (omega, a) = (0.25055, 0.09317), where a CwP phase between two contact phases vanishes.
+// With target_iterations 4 the bisection's last admissible point has that phase still 3.2e-6
+// long, the phase's own l1 guard firing at its start by rounding (bracket 1.2e-11), and the
+// tangent-form end lies 2.05e-7 beyond in omega: it was refused as outside the bracket, and the
+// bisected point reported with a bracket it does not have. Both step settings must report the
+// solved end, with its conditions, at the same point (measured: 7.9e-17 apart; asserted 1e-9).
+TEST_F(GrazingEnd, AVanishingPhaseStillLongAtTheBracketIsSolvedBeyondIt) {
+  const SpecialPoint* fold = Find(SpecialPointKind::kFold, 0.23824, 1e-4);
+  ASSERT_NE(fold, nullptr);
+  std::vector<Codim2Point> ends;
+  for (const int target_iterations : {3, 4}) {
+    CurveOptions opt = Box();
+    opt.steps.target_iterations = target_iterations;
+    const CurveResult curve = ContinueCurve(model_, prop_, *fold, opt);
+    ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+    const Codim2Point* end = FindCodim2(curve, Codim2Kind::kFoldGrazing, [](const Codim2Point& q) {
+      return std::abs(q.point.value2 - 0.25055) < 1e-3;
+    });
+    ASSERT_NE(end, nullptr) << target_iterations << ": " << curve.summary.message;
+    EXPECT_EQ(end->bracket, 0.0) << target_iterations << ": " << end->detail;
+    const std::vector<GuardValue> touch =
+        testing::TangentEndGuards(model_, prop_, end->point.orbit);
+    ASSERT_EQ(touch.size(), 1u) << target_iterations;
+    EXPECT_LE(std::abs(touch[0].h), 1e-9);
+    EXPECT_LE(std::abs(touch[0].dh), 1e-9);
+    EXPECT_LE(testing::DistanceToMultiplier(end->point.stability, 1.0), 1e-8);
+    ends.push_back(*end);
+  }
+  EXPECT_LE(std::hypot(ends[0].point.value1 - ends[1].point.value1,
+                       ends[0].point.value2 - ends[1].point.value2),
+            1e-9);
+}
+
 // Where the vanishing segment lies between segments of different modes (a contact phase between
 // an impact and progression: the impact goes straight into progression), there is no tangent
 // form; the end is solved with that segment held at zero length. The a-branch fold curve from
