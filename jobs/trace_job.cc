@@ -99,13 +99,10 @@ StatusOr<TraceOptions> ToTraceOptions(const v1::TraceRequest& request, const Par
   opt.threads = std::min(ThreadsOrCores(request.threads()), Cores());
   switch (request.curve_steps()) {
     case v1::CURVE_STEPS_UNSPECIFIED:
-    case v1::CURVE_STEPS_FINE:
-      // The engine's curves step longer by default (target_iterations 4, COARSE): FINE keeps
-      // the shorter steps it names.
-      opt.curve.steps.target_iterations = 3;
-      break;
     case v1::CURVE_STEPS_COARSE:
-      opt.curve.steps.target_iterations = 4;
+      break;  // the engine's default (target_iterations 4)
+    case v1::CURVE_STEPS_FINE:
+      opt.curve.steps.target_iterations = 3;
       break;
     default:
       return InvalidArgument("curve_steps: unknown value " +

@@ -101,13 +101,14 @@ TEST(RunTrace, TheResultIsTheSameWhateverTheThreads) {
   }
 }
 
-// COARSE curve steps: fewer vertices, the same codimension-2 points (kind and position, to
-// 1e-7 of the box: each is solved to the same tolerance whatever the steps).
-TEST(RunTrace, CoarseCurveStepsGiveFewerVerticesAndTheSameCodim2Points) {
-  const StatusOr<v1::TraceResult> fine = RunTrace(SmallBox());
-  v1::TraceRequest request = SmallBox();
-  request.set_curve_steps(v1::CURVE_STEPS_COARSE);
-  const StatusOr<v1::TraceResult> coarse = RunTrace(request);
+// The default curve steps (COARSE, unset) against FINE: fewer vertices, the same
+// codimension-2 points (kind and position, to 1e-7 of the box: each is solved to the same
+// tolerance whatever the steps).
+TEST(RunTrace, DefaultCoarseCurveStepsGiveFewerVerticesThanFineAndTheSameCodim2Points) {
+  v1::TraceRequest fine_request = SmallBox();
+  fine_request.set_curve_steps(v1::CURVE_STEPS_FINE);
+  const StatusOr<v1::TraceResult> fine = RunTrace(fine_request);
+  const StatusOr<v1::TraceResult> coarse = RunTrace(SmallBox());
   ASSERT_TRUE(fine.ok() && coarse.ok());
   EXPECT_EQ(coarse->status(), "COMPLETED") << coarse->message();
   int fine_vertices = 0, coarse_vertices = 0;

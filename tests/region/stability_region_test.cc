@@ -344,12 +344,6 @@ StabilityRegion TracedRegion(const DriftingOscillator& model, Propagator& prop,
   TraceOptions box;
   box.param1 = std::string("omega"), box.param2 = std::string("a");
   box.min1 = w0, box.max1 = w1, box.min2 = a0, box.max2 = a1;
-  // The curves' shorter steps (target_iterations 3), as the service's trace and optimum jobs
-  // trace by default (FINE): the region follows the curves' polylines, whose chord error grows
-  // as the square of the step. With the engine's default longer steps the l2 grazing curve's
-  // chord at omega = 1.34 lies 5.6e-5 above the curve (a = 0.11995), beyond the grid node
-  // (1.34, 0.12) 5e-5 above it, and two edges there were crossed by no traced curve.
-  box.curve.steps.target_iterations = 3;
   const TraceResult trace = TraceCurves(model, prop, start, box);
   EXPECT_TRUE(trace.summary.status.ok()) << trace.summary.status.ToString();
   RegionOptions ro;
