@@ -419,6 +419,11 @@ std::string CurveEnds::EndAtBoundary(const Vec& y, const Vec& t, const Vec& yb,
     out.unverified->push_back(point);
     return UnverifiedEndText(system_.options(), point, b.why);
   }
+  // The last admissible point is the curve's last vertex, so that its polyline reaches the end
+  // (to the bisection's bracket) rather than stopping a step short of it: a region's polygons
+  // follow the polylines (with the default longer steps the reference box's region had 11 more
+  // boundary edges that no traced curve crossed, next to curve ends).
+  out.points->push_back(std::move(end));
   out.codim2->push_back(point);
   return std::string("ended at a ") + Codim2KindName(k) + " point: " + point.detail;
 }
