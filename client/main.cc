@@ -995,7 +995,7 @@ int Main(int argc, char** argv) {
       ->group("Trace");
   trace
       ->add_option("--curve-steps", tr.curve_steps,
-                   "coarse (default) or fine: ~4.8x more vertices per curve, ~1.6x the time, the "
+                   "coarse (default) or fine: ~4.5x more vertices per curve, ~1.6x the time, the "
                    "same codimension-2 points to the same tolerance")
       ->check(CLI::IsMember({"fine", "coarse"}))
       ->group("Trace");

@@ -29,7 +29,7 @@ function traceFields(prefix, {min = '0.05, 0.27', max = '0.2, 0.32'} = {}) {
     {path: `${prefix}min`, label: 'min', type: 'numbers', value: min},
     {path: `${prefix}max`, label: 'max', type: 'numbers', value: max},
     {path: `${prefix}curveSteps`, label: 'curve steps', type: 'select', options: ENUM,
-      value: 'CURVE_STEPS_FINE'},
+      value: 'CURVE_STEPS_COARSE'},
   ];
 }
 
