@@ -287,6 +287,7 @@ std::string CurveTracer::Trace(const Eigen::Vector2d& dir, const CurveOutputs& o
       continue;
     }
     sum->newton_iterations += iterations;
+    const double taken = h;  // this step's arclength (h becomes the next one's below)
     const double v1 = y1[m], v2 = y1[m + 1];
     if (v1 < options.min1 || v1 > options.max1 || v2 < options.min2 || v2 > options.max2) {
       // A curve that leaves the box ends on it exactly (the trace's edge rounds start from such
@@ -346,7 +347,7 @@ std::string CurveTracer::Trace(const Eigen::Vector2d& dir, const CurveOutputs& o
     }
     ends_.CrossingsOnStep(y, y1, out.crossings);
     codim2_.RootsOnStep(y, t, y1, p.stability.monodromy, tests, &dets, out.codim2);
-    InsertVertices(y, t, y1, t1, h, out.points);
+    InsertVertices(y, t, y1, t1, taken, out.points);
     system_.SetBorders(p.stability.monodromy);
     out.points->push_back(std::move(p));
     codim2_.CuspOnStep(y, t, y1, t1, out.codim2);
