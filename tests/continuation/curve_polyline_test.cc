@@ -37,7 +37,7 @@ double DistanceToPolyline(const std::vector<CurvePoint>& line, const Eigen::Vect
 // polyline (box-scaled). The inserted vertices bound the chord's sagitta estimated from the
 // cubic through the step's ends and tangents by 1e-5; the cubic is the curve to O(h^4), and the
 // dense polyline's own chords stray by ~1e-8, so 2e-5 leaves the estimate a factor of 2. Without
-// the inserted vertices (68 instead of 139) the long steps' chords stray up to 1.1e-4 here.
+// the inserted vertices (68 instead of 138) the long steps' chords stray up to 1.1e-4 here.
 TEST(CurvePolyline, LongStepsKeepTheirPolylineOnTheCurve) {
   DriftingOscillator model;
   ExactPropagator prop(model);
