@@ -36,11 +36,12 @@ double DistanceToCurve(const CurveOutline& c, double u, double v, double w1, dou
 bool OnCurve(const CurveOutline& c, double u, double v, double w1, double w2, double tol);
 
 // Whether (u, v) lies on the traced curve: on its polyline (OnCurve), or on one of its end
-// stretches, from its first or last vertex to a codimension-2 end located beyond it. Such an end
-// is solved past the last admissible vertex, up to a step away (1e-3 of the box with
-// target_iterations 4), and the polyline stops short of it: a start located on that stretch
-// (the a-branch's fold at omega = 0.1, a = 0.15688, 3.3e-5 off the polyline of the fold curve
-// through it) was taken for another curve. Each end is joined to the end vertex whose durations
+// stretches, from its first or last vertex to a codimension-2 end located beyond it. A curve's last
+// vertex is its last admissible point, within the end's bracket of it: ~1e-8 where the
+// bisection converged, but up to ~6e-3 where Newton failed next to the end (and, before that
+// vertex was kept, up to a step, 1e-3 of the box with target_iterations 4: a start located on
+// that stretch, the a-branch's fold at omega = 0.1, a = 0.15688, 3.3e-5 off the polyline of the
+// fold curve through it, was taken for another curve). Each end is joined to the end vertex whose durations
 // are nearer its own (the curve's two ends can be nearer each other in the box than either is to
 // its own last vertex). Same tolerance and chord allowance as OnCurve. Reads the outline and the
 // codimension-2 points only: switching's workers call it while the trace releases the vertices
