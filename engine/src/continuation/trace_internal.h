@@ -41,11 +41,11 @@ bool OnCurve(const CurveOutline& c, double u, double v, double w1, double w2, do
 // bisection converged, but up to ~6e-3 where Newton failed next to the end (and, before that
 // vertex was kept, up to a step, 1e-3 of the box with target_iterations 4: a start located on
 // that stretch, the a-branch's fold at omega = 0.1, a = 0.15688, 3.3e-5 off the polyline of the
-// fold curve through it, was taken for another curve). Each end is joined to the end vertex whose durations
-// are nearer its own (the curve's two ends can be nearer each other in the box than either is to
-// its own last vertex). Same tolerance and chord allowance as OnCurve. Reads the outline and the
-// codimension-2 points only: switching's workers call it while the trace releases the vertices
-// of curves handed over.
+// fold curve through it, was taken for another curve). Each end is joined to the end vertex whose
+// durations are nearer its own (the curve's two ends can be nearer each other in the box than
+// either is to its own last vertex). Same tolerance and chord allowance as OnCurve. Reads the
+// outline and the codimension-2 points only: switching's workers call it while the trace releases
+// the vertices of curves handed over.
 bool OnTracedCurve(const TracedCurve& t, double u, double v, double w1, double w2, double tol);
 
 // The curve with (value1, value2) swapped, for a curve traced with the parameters in the other
