@@ -5,11 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "drillbif/continuation/curve.h"
-#include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
-#include "problems/reference_orbit.h"
+#include "support/reference_orbit_test.h"
+#include "support/special_point_near.h"
 
 namespace drillbif {
 namespace {
@@ -38,32 +38,25 @@ double DistanceToPolyline(const std::vector<CurvePoint>& line, const Eigen::Vect
 // cubic through the step's ends and tangents by 1e-5; the cubic is the curve to O(h^4), and the
 // dense polyline's own chords stray by ~1e-8, so 2e-5 leaves the estimate a factor of 2. Without
 // the inserted vertices (68 instead of 138) the long steps' chords stray up to 1.1e-4 here.
-TEST(CurvePolyline, LongStepsKeepTheirPolylineOnTheCurve) {
-  DriftingOscillator model;
-  ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok()) << start.status().ToString();
+using CurvePolyline = testing::ReferenceOrbitTest;
+
+TEST_F(CurvePolyline, LongStepsKeepTheirPolylineOnTheCurve) {
   ContinuationOptions branch;
-  branch.param = "omega";
+  branch.param = std::string("omega");  // not ("omega"): GCC 12 -Wrestrict false positive
   branch.min = 0.05, branch.max = 2.0;
-  const ContinuationResult omega = Continue(model, prop, *start, branch);
-  const SpecialPoint* graze = nullptr;
-  for (const SpecialPoint& s : omega.special_points) {
-    if (s.kind == SpecialPointKind::kGrazingL1 && std::abs(s.point.value - 0.5088) < 1e-3) {
-      graze = &s;
-    }
-  }
+  const ContinuationResult omega = Continue(model_, prop_, start_, branch);
+  const SpecialPoint* graze =
+      testing::SpecialPointNear(omega, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
   ASSERT_NE(graze, nullptr);
   CurveOptions opt;
-  opt.param1 = "omega";
-  opt.param2 = "a";
+  opt.param1 = std::string("omega");
+  opt.param2 = std::string("a");
   opt.min1 = 0.05, opt.max1 = 2.0, opt.min2 = 0.01, opt.max2 = 8.0;
   CurveOptions dense = opt;
   opt.steps.target_iterations = 4;
   dense.steps.max_step = 0.01;
-  const CurveResult coarse = ContinueCurve(model, prop, *graze, opt);
-  const CurveResult fine = ContinueCurve(model, prop, *graze, dense);
+  const CurveResult coarse = ContinueCurve(model_, prop_, *graze, opt);
+  const CurveResult fine = ContinueCurve(model_, prop_, *graze, dense);
   ASSERT_EQ(coarse.summary.termination, Termination::kCompleted) << coarse.summary.message;
   ASSERT_EQ(fine.summary.termination, Termination::kCompleted) << fine.summary.message;
   ASSERT_GE(coarse.points.size(), 2u);
