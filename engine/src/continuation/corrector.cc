@@ -98,6 +98,35 @@ bool PseudoArclengthCorrector::Correct(const CorrectorOptions& options, const Ve
   return converged_at > 0 && settle(true);
 }
 
+bool PseudoArclengthCorrector::CorrectChord(const CorrectorOptions& options, const Vec& y_pred,
+                                            const Vec& dir, Vec* y, int* iterations) {
+  const Eigen::Index n = y_pred.size();
+  if (lu_rows_ != n) return false;
+  *y = y_pred;
+  steps_ = 0;
+  Vec f, r(n);
+  double last_norm = std::numeric_limits<double>::infinity();
+  for (int it = 1; it <= options.max_iterations; ++it) {
+    if (system_.Stopped() || !system_.Evaluate(*y, &f, nullptr)) return false;
+    r.head(n - 1) = f;
+    r[n - 1] = dir.dot(*y - y_pred);
+    const Vec step = lu_.Solve(-r);
+    if (!step.allFinite()) return false;
+    *y += step;
+    ++steps_;
+    const double norm = step.lpNorm<Eigen::Infinity>();
+    const double theta = norm / last_norm;
+    if (it >= 2 && !(theta < 0.5)) return false;
+    const double tol = options.tolerance * (1.0 + y->lpNorm<Eigen::Infinity>());
+    if (norm <= tol || (it >= 2 && theta / (1.0 - theta) * norm <= tol)) {
+      *iterations = norm <= tol ? it : it + 1;
+      return !options.validate_result || system_.Valid(*y);
+    }
+    last_norm = norm;
+  }
+  return false;
+}
+
 bool PseudoArclengthCorrector::Tangent(Vec* t) const {
   *t = lu_.Solve(Vec::Unit(lu_rows_, lu_rows_ - 1));
   if (!t->allFinite() || t->norm() == 0.0) return false;

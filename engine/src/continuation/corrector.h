@@ -72,6 +72,16 @@ class PseudoArclengthCorrector {
                const Eigen::VectorXd& dir, Eigen::VectorXd* y, int* iterations,
                Eigen::VectorXd* tangent = nullptr);
 
+  // Chord Newton on (F = 0, dir . (y - y_pred) = 0) from y_pred into *y: the residual alone at
+  // each iterate, solved with the last factorization, whose border row must be `dir` (an earlier
+  // Correct's with that dir, at a point near y_pred). Its contraction is linear, at a rate of
+  // about |y - y0| |F''| / |F'| from the factorization's point y0; converged by Correct's
+  // contraction test. False (*y then unspecified) where there is no factorization of y_pred's
+  // size, an evaluation or a step fails, a step does not contract at least twofold, the steps do
+  // not converge within options.max_iterations, or a stop is seen. *iterations: as Correct's.
+  bool CorrectChord(const CorrectorOptions& options, const Eigen::VectorXd& y_pred,
+                    const Eigen::VectorXd& dir, Eigen::VectorXd* y, int* iterations);
+
   // The unit vector along the solution of the last factorization's system for e_n: [F'; dir^T]
   // at the iterate before the converged step, within the tolerance of the result, so the tangent
   // of internal::UnitTangent's system at no further evaluation, on dir's side. False where that

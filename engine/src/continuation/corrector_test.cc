@@ -165,6 +165,37 @@ TEST(PseudoArclengthCorrector, SettlingTheConditionLowersItsResidualAtTheSameIte
   EXPECT_GT(settled_system.evaluations, step_system.evaluations);
 }
 
+TEST(PseudoArclengthCorrector, ChordIterationsReuseTheLastFactorizationNearItsPoint) {
+  FunctionSystem system(Circle);
+  PseudoArclengthCorrector corrector(system, CondensedMode::kDense);
+  const Vec dir = Vec::Map(std::array<double, 2>{0.0, 1.0}.data(), 2);
+  auto at = [](double x, double y) {
+    Vec v(2);
+    v << x, y;
+    return v;
+  };
+  Vec y;
+  int iterations = 0;
+  // No factorization yet: nothing to iterate with.
+  EXPECT_FALSE(corrector.CorrectChord(Defaults(), at(1.0, 0.2), dir, &y, &iterations));
+  EXPECT_EQ(system.evaluations, 0);
+  ASSERT_TRUE(corrector.Correct(Defaults(), at(1.1, 0.1), dir, &y, &iterations));
+  const int jacobians = system.jacobians;
+  // In the hyperplane y_2 = 0.2 the point is (sqrt(0.96), 0.2). With the factorization's row
+  // (2 x_f, 2 y_f), x_f ~ sqrt(0.99), the error contracts by 1 - (x + x*) / (2 x_f) per step,
+  // ~0.015 near the solution: converged to the step tolerance, 1e-11 (1 + |y|_inf) < 2e-11 (the
+  // contraction bounds the steps still to come by that), without a Jacobian.
+  ASSERT_TRUE(corrector.CorrectChord(Defaults(), at(1.0, 0.2), dir, &y, &iterations));
+  EXPECT_NEAR(y[0], std::sqrt(0.96), 2e-11);
+  EXPECT_NEAR(y[1], 0.2, 1e-15);
+  EXPECT_EQ(system.jacobians, jacobians);
+  EXPECT_GE(iterations, 2);
+  // At y_2 = 0.99 (x* = sqrt(0.0199) ~ 0.14) the contraction tends to 1 - x* / x_f ~ 0.86: the
+  // chord iterations give up rather than crawl.
+  EXPECT_FALSE(corrector.CorrectChord(Defaults(), at(1.0, 0.99), dir, &y, &iterations));
+  EXPECT_EQ(system.jacobians, jacobians);
+}
+
 TEST(PseudoArclengthCorrector, FailsWhereTheResultIsNotValidOrAStopIsSeen) {
   FunctionSystem system(Circle);
   PseudoArclengthCorrector corrector(system, CondensedMode::kDense);
