@@ -83,15 +83,16 @@ bool CurveEnds::MayBeSectionCrossing(const Admissibility& v) const {
 
 void CurveEnds::Bisect(const Vec& t, double tol, Boundary* b) const {
   tol *= 1.0 + b->ya.lpNorm<Eigen::Infinity>();
+  PseudoArclengthCorrector corrector = system_.NewCorrector();
   for (int it = 0; it < 80 && t.dot(b->yb - b->ya) > tol && !system_.Stopped(); ++it) {
     const Vec mid = 0.5 * (b->ya + b->yb);
     Vec yc;
-    int iterations = 0;
     std::string reason;
     Admissibility violation;
-    if (!system_.Correct(mid, t, &yc, &iterations, nullptr, false)) {
+    const Side side = CorrectMidpoint(&corrector, t, mid, b->violation, &yc, &reason, &violation);
+    if (side == Side::kUncorrected) {
       b->yb = mid;
-    } else if (system_.Admissible(system_.Unpack(yc), &reason, &violation)) {
+    } else if (side == Side::kAdmissible) {
       b->ya = yc;
     } else {
       b->yb = b->beyond = yc, b->why = reason, b->violation = violation;
@@ -99,6 +100,35 @@ void CurveEnds::Bisect(const Vec& t, double tol, Boundary* b) const {
           !b->from_prediction || (yc - mid).norm() <= kMaxDrift * (mid - b->ya).norm();
     }
   }
+}
+
+// The midpoints of a bisection close in on one point, each corrected in the hyperplane normal to
+// the same t, so chord iterations on the factorization of an earlier midpoint's full correction
+// converge in a few residual evaluations, where a full correction evaluates and factorizes the
+// Jacobian (its condition row one monodromy factor per unknown) at every iteration. Their point
+// decides where it is admissible, or where it violates what was already seen beyond (`seen`); a
+// new kind of violation is left to a full correction, which also renews the factorization. Next
+// to a section crossing, where the first segment's length goes to zero, chord iterations
+// converged to neighbouring orbits whose first segment's guard fires at its start, ~3e-8 before
+// the crossing that full corrections bracket (in the reference box 15 section crossings were so
+// taken for grazings, and 7 curves were lost). Where a full correction would fail beyond the
+// boundary, a chord point beyond may still decide it: the boundary is then bracketed by a nearer
+// corrected point. In the reference box the network is the same, with 8.6k of the bisections'
+// 37.9k midpoints corrected in full, and the bisections' share of the trace's time down from 38%
+// to 22%.
+CurveEnds::Side CurveEnds::CorrectMidpoint(PseudoArclengthCorrector* corrector, const Vec& t,
+                                           const Vec& mid, const Admissibility& seen, Vec* yc,
+                                           std::string* why, Admissibility* violation) const {
+  if (system_.ChordCorrect(corrector, mid, t, yc)) {
+    if (system_.Admissible(system_.Unpack(*yc), why, violation)) return Side::kAdmissible;
+    if (violation->segment == seen.segment && violation->guard == seen.guard &&
+        violation->at_start == seen.at_start) {
+      return Side::kBeyond;
+    }
+  }
+  if (!system_.CorrectKeeping(corrector, mid, t, yc)) return Side::kUncorrected;
+  return system_.Admissible(system_.Unpack(*yc), why, violation) ? Side::kAdmissible
+                                                                 : Side::kBeyond;
 }
 
 namespace {

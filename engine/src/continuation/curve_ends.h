@@ -88,10 +88,15 @@ class CurveEnds {
 
  private:
   struct Boundary;
+  // Where a bisection's midpoint corrects to.
+  enum class Side { kUncorrected, kAdmissible, kBeyond };
 
   bool IsSectionCrossing(const Admissibility& v, const PeriodicOrbit& end) const;
   bool MayBeSectionCrossing(const Admissibility& v) const;
   void Bisect(const Vec& t, double tol, Boundary* b) const;
+  Side CorrectMidpoint(PseudoArclengthCorrector* corrector, const Vec& t, const Vec& mid,
+                       const Admissibility& seen, Vec* yc, std::string* why,
+                       Admissibility* violation) const;
   bool SolveEnd(Codim2Point* end) const;
   bool AcceptEnd(const Codim2Point& end, const StatusOr<PeriodicOrbit>& solved, int vanishing,
                  int zero_length, int touch_start, const Stability* stability,

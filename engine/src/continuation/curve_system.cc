@@ -186,14 +186,34 @@ void CurveSystem::SigmaRow(const Vec& y, const PeriodicOrbit& o,
 // led to its tangent-form solution (bracket 2.3e-6).
 bool CurveSystem::Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations, Vec* tangent,
                           bool settle_condition) const {
+  PseudoArclengthCorrector corrector = NewCorrector();
+  return corrector.Correct(CorrectSettings(settle_condition), y_pred, dir, y, iterations, tangent);
+}
+
+CorrectorOptions CurveSystem::CorrectSettings(bool settle_condition) const {
   CorrectorOptions correct;
   correct.max_iterations = options_.steps.max_iterations;
   correct.tolerance = options_.steps.tolerance;
   correct.contraction_test = true;
   if (settle_condition) correct.condition_tolerance = 1e-11;
-  PseudoArclengthCorrector corrector(
+  return correct;
+}
+
+PseudoArclengthCorrector CurveSystem::NewCorrector() const {
+  return PseudoArclengthCorrector(
       *this, options_.steps.condensed_solve ? CondensedMode::kAuto : CondensedMode::kDense);
-  return corrector.Correct(correct, y_pred, dir, y, iterations, tangent);
+}
+
+bool CurveSystem::CorrectKeeping(PseudoArclengthCorrector* corrector, const Vec& y_pred,
+                                 const Vec& dir, Vec* y) const {
+  int iterations = 0;
+  return corrector->Correct(CorrectSettings(false), y_pred, dir, y, &iterations);
+}
+
+bool CurveSystem::ChordCorrect(PseudoArclengthCorrector* corrector, const Vec& y_pred,
+                               const Vec& dir, Vec* y) const {
+  int iterations = 0;
+  return corrector->CorrectChord(CorrectSettings(false), y_pred, dir, y, &iterations);
 }
 
 double CurveSystem::ChordSagitta(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1,

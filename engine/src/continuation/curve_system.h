@@ -72,6 +72,16 @@ class CurveSystem : public CorrectorSystem {
   // when given, receives the unit tangent there oriented along dir, at no further evaluation.
   bool Correct(const Vec& y_pred, const Vec& dir, Vec* y, int* iterations, Vec* tangent = nullptr,
                bool settle_condition = true) const;
+  // A corrector with the curve's factorization mode, for the two below.
+  PseudoArclengthCorrector NewCorrector() const;
+  // Correct without settling the condition (settle_condition false), by *corrector, which keeps
+  // the last factorization for ChordCorrect.
+  bool CorrectKeeping(PseudoArclengthCorrector* corrector, const Vec& y_pred, const Vec& dir,
+                      Vec* y) const;
+  // Chord iterations on *corrector's last factorization, which must have been made with the same
+  // `dir` (PseudoArclengthCorrector::CorrectChord, with Correct's settings).
+  bool ChordCorrect(PseudoArclengthCorrector* corrector, const Vec& y_pred, const Vec& dir,
+                    Vec* y) const;
   // The unit tangent at y oriented along `prev` (internal::UnitTangent), from a new evaluation.
   bool Tangent(const Vec& y, const Vec& prev, Vec* t) const;
 
@@ -109,6 +119,9 @@ class CurveSystem : public CorrectorSystem {
   double w2() const { return w2_; }
 
  private:
+  // The corrector's settings for Correct.
+  CorrectorOptions CorrectSettings(bool settle_condition) const;
+
   // sigma of the shifted monodromy (without its phase).
   double Sigma(const Eigen::Ref<const Mat>& monodromy) const;
   // The condition's row of the Jacobian (forward differences).

@@ -388,9 +388,10 @@ int EndsAtFlipGrazings(const HybridModel& model, const TraceOptions& options, Tr
     // Then the roots of det(M - I): where the curve ends at the flip-grazing, its orbit is the
     // period-n orbit traversed twice, whose multiplier -1 squared is +1, so det(M - I) changes
     // sign at the end: a root within the end's bracket (arclength, parameters included) of its
-    // last admissible point is not told apart from the end (the flip-grazing at (0.4734, 0.1616)
-    // of the reference box: a root 6.5e-8 from the end, whose bracket is 3.9e-6). Else within
-    // kIndistinct of a flip-grazing.
+    // last admissible point is not told apart from the end (where Newton fails beyond the last
+    // admissible point: bisections that corrected every midpoint in full left the end at the
+    // flip-grazing (0.4734, 0.1616) of the reference box bracketed to 3.9e-6, with a root 6.5e-8
+    // from it). Else within kIndistinct of a flip-grazing.
     for (Codim2Point& z : t.curve.codim2) {
       if (!MergeCandidate(z) || !IsRoot(z)) continue;
       // FOLD_FLIP is det(M - I)'s root on a PD curve only (det(M + I)'s on a fold curve).
