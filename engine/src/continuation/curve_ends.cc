@@ -113,9 +113,9 @@ void CurveEnds::Bisect(const Vec& t, double tol, Boundary* b) const {
 // the crossing that full corrections bracket (in the reference box 15 section crossings were so
 // taken for grazings, and 7 curves were lost). Where a full correction would fail beyond the
 // boundary, a chord point beyond may still decide it: the boundary is then bracketed by a nearer
-// corrected point. In the reference box the network is the same, with 8.6k of the bisections'
-// 37.9k midpoints corrected in full, and the bisections' share of the trace's time down from 38%
-// to 22%.
+// corrected point. In the reference box 8.6k of the bisections' 37.9k midpoints are corrected in
+// full, and the period-1 network is that of full corrections throughout (the period-2 one moves
+// as under any rounding-level change: docs/performance.md).
 CurveEnds::Side CurveEnds::CorrectMidpoint(PseudoArclengthCorrector* corrector, const Vec& t,
                                            const Vec& mid, const Admissibility& seen, Vec* yc,
                                            std::string* why, Admissibility* violation) const {
