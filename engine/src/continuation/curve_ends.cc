@@ -196,14 +196,7 @@ bool CurveEnds::AcceptEnd(const Codim2Point& end, const StatusOr<PeriodicOrbit>&
     if (w.segment != zero_length || w.guard >= 0) return false;
   }
   *point = system_.PointFromOrbit(*solved, stability);
-  const CurveKind kind = system_.kind();
-  if (kind == CurveKind::kFold || kind == CurveKind::kPeriodDoubling) {
-    const double target = kind == CurveKind::kFold ? 1.0 : -1.0;
-    const std::vector<std::complex<double>>& mu = point->stability.multipliers;
-    return std::any_of(mu.begin(), mu.end(),
-                       [&](const std::complex<double>& z) { return std::abs(z - target) <= 1e-8; });
-  }
-  return true;
+  return OnCondition(*point);
 }
 
 // How far the curve's parameters move from orbit o (a curve point) while segment j's duration d
@@ -345,6 +338,36 @@ void CurveEnds::CrossingsOnStep(const Vec& y, const Vec& y1,
   }
 }
 
+// Whether a fold / PD curve's point has its multiplier +1 / -1 to 1e-8 (always true on other
+// curves).
+bool CurveEnds::OnCondition(const CurvePoint& point) const {
+  const CurveKind kind = system_.kind();
+  if (kind != CurveKind::kFold && kind != CurveKind::kPeriodDoubling) return true;
+  const double target = kind == CurveKind::kFold ? 1.0 : -1.0;
+  const std::vector<std::complex<double>>& mu = point.stability.multipliers;
+  return std::any_of(mu.begin(), mu.end(),
+                     [&](const std::complex<double>& z) { return std::abs(z - target) <= 1e-8; });
+}
+
+// The bisection corrects without settling the condition (CurveSystem::Correct: its points only
+// bracket the end), so the last admissible point, kept as the curve's last vertex, can have its
+// multiplier farther off +-1 than a step's vertex (2.2e-8 at a fold curve's end in the reference
+// box, next to a segment 1.0e-3 long). Where it is more than 1e-8 off, the vertex is that point
+// corrected again with the condition settled, if that is admissible; the end itself (its bracket
+// and solution) stays as bisected.
+CurvePoint CurveEnds::SettledVertex(const Vec& ya, const Vec& t, CurvePoint end) const {
+  if (OnCondition(end)) return end;
+  Vec settled;
+  int iterations = 0;
+  std::string why;
+  if (!system_.Correct(ya, t, &settled, &iterations) ||
+      !system_.Admissible(system_.Unpack(settled), &why)) {
+    return end;
+  }
+  CurvePoint point = system_.MakePoint(settled);
+  return system_.Stopped() ? end : point;
+}
+
 // A cusp on the step from y (tangent t) to the end ya: a fold curve approaching a fold-grazing
 // nearly at rest in the parameter plane (its orbit changing while the parameters barely move)
 // can turn just before its end. The direction at the end itself is not to be trusted (below),
@@ -429,7 +452,7 @@ std::string CurveEnds::EndAtBoundary(const Vec& y, const Vec& t, const Vec& yb,
     crossing->direction = system_.ParamDirection(t).normalized();
     crossing->end = point;
     crossing->unverified = !b.beyond_corrected;
-    out.points->push_back(end);
+    out.points->push_back(SettledVertex(b.ya, t, end));
     return "crossed the Poincare section";
   }
   // Bracketed only by a prediction and not solved: no orbit beyond the last point is known to
@@ -453,7 +476,7 @@ std::string CurveEnds::EndAtBoundary(const Vec& y, const Vec& t, const Vec& yb,
   // (to the bisection's bracket) rather than stopping a step short of it: a region's polygons
   // follow the polylines (with the default longer steps the reference box's region had 11 more
   // boundary edges that no traced curve crossed, next to curve ends).
-  out.points->push_back(std::move(end));
+  out.points->push_back(SettledVertex(b.ya, t, std::move(end)));
   out.codim2->push_back(point);
   return std::string("ended at a ") + Codim2KindName(k) + " point: " + point.detail;
 }

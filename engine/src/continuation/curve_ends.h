@@ -102,6 +102,8 @@ class CurveEnds {
                  int zero_length, int touch_start, const Stability* stability,
                  CurvePoint* point) const;
   double ReachToVanishing(const PeriodicOrbit& o, int j) const;
+  bool OnCondition(const CurvePoint& point) const;
+  CurvePoint SettledVertex(const Vec& ya, const Vec& t, CurvePoint end) const;
   void CuspBeforeEnd(const Vec& y, const Vec& t, const Vec& ya,
                      std::vector<Codim2Point>* codim2) const;
 
