@@ -116,7 +116,7 @@ void ExpectHeldBackLast(const std::vector<int>& order, const TraceResult& r) {
 TEST_F(TraceStream, PeriodTwoCurvesAreHandedOverFinal) {
   TraceOptions o = testing::ReferenceBox();
   o.max1 = 0.45;
-  o.min2 = 0.27, o.max2 = 0.32;
+  o.min2 = 0.25, o.max2 = 0.35;
   o.max_period = 2;
   std::vector<TracedCurve> seen;
   std::vector<int> order;
