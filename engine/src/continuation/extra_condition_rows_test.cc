@@ -153,6 +153,49 @@ TEST_F(ExtraConditionRows, MonodromyRowMatchesCentralDifferences) {
   }
 }
 
+// sigma's gradient in the monodromy (SigmaWithGradient: -w^T (dA) v, carried through the
+// bialternate square for Neimark-Sacker) against central differences of sigma in each entry of M,
+// step H = 1e-5: truncation H^2 |sigma'''| / 6 and rounding eps (1 + |sigma|) / H, both ~1e-11 for
+// these O(1) quantities (the borders are A's own singular vectors, so the bordered matrix is well
+// conditioned); bound 1e-8 (a thousandfold margin). Two monodromies: the reference orbit's, and a
+// generic one with no zero entry and a complex pair of multipliers (the reference's has rank one:
+// its bialternate square vanishes, and with it some of that gradient's terms, which a wrong term
+// would then pass unseen). A wrong sign or a missing term errs by the gradient's own entries.
+TEST_F(ExtraConditionRows, SigmaGradientMatchesCentralDifferencesInTheMonodromy) {
+  Eigen::MatrixXd generic(3, 3);
+  generic << 0.3, -0.8, 0.2, 0.7, 0.4, -0.1, 0.1, 0.25, 0.6;
+  const Eigen::MatrixXd reference =
+      internal::ReducedMonodromy(model_, internal::MonodromyFactors(model_, prop_, start_));
+  for (const Eigen::MatrixXd& m0 : {reference, generic}) {
+    for (const CurveKind kind :
+         {CurveKind::kFold, CurveKind::kPeriodDoubling, CurveKind::kNeimarkSacker}) {
+      SCOPED_TRACE(CurveKindName(kind));
+      const internal::BorderedSigma sigma(internal::ShiftedMonodromy(kind, m0));
+      Eigen::MatrixXd gradient;
+      const double value = internal::SigmaWithGradient(kind, sigma, m0, &gradient);
+      EXPECT_EQ(value, sigma(internal::ShiftedMonodromy(kind, m0)));
+      ASSERT_EQ(gradient.rows(), m0.rows());
+      ASSERT_EQ(gradient.cols(), m0.cols());
+      constexpr double kH = 1e-5;
+      double worst = 0.0;
+      for (int p = 0; p < m0.rows(); ++p) {
+        for (int q = 0; q < m0.cols(); ++q) {
+          Eigen::MatrixXd mp = m0, mm = m0;
+          mp(p, q) += kH;
+          mm(p, q) -= kH;
+          const double fd = (sigma(internal::ShiftedMonodromy(kind, mp)) -
+                             sigma(internal::ShiftedMonodromy(kind, mm))) /
+                            (2.0 * kH);
+          EXPECT_NEAR(gradient(p, q), fd, 1e-8) << "entry (" << p << ", " << q << ")";
+          worst = std::max(worst, std::abs(gradient(p, q) - fd));
+        }
+      }
+      std::printf("largest gradient error: %.2e (largest entry %.2e)\n", worst,
+                  gradient.cwiseAbs().maxCoeff());
+    }
+  }
+}
+
 // h' of the first segment's guard at its end, a function of the orbit alone: central differences
 // of whole evaluations.
 TEST_F(ExtraConditionRows, OrbitRowMatchesCentralDifferences) {
