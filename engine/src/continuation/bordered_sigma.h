@@ -35,12 +35,32 @@ class BorderedSigma {
   BorderedSigma() = default;
   // Borders from the shifted monodromy `a` at the reference point.
   explicit BorderedSigma(const ShiftedMatrix& a);
+  // sigma at `a`.
   double operator()(const ShiftedMatrix& a) const;
+  // sigma at `a` (the same bits as operator()) and its gradient in a's entries,
+  // *gradient(p, q) = d sigma / d a_pq = -w_p v_q: differentiating [[A, b], [c^T, 0]] (v, sigma) =
+  // (0, 1) gives d sigma = -w^T (dA) v, with w from the transposed system
+  // [[A^T, c], [b^T, 0]] (w, sigma) = (0, 1) (Govaerts 2000); one factorization serves
+  // both solves.
+  double WithGradient(const ShiftedMatrix& a, ShiftedMatrix* gradient) const;
 
  private:
   using Border = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxShifted, 1>;
+  using Bordered = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
+                                 kMaxShifted + 1, kMaxShifted + 1>;
+  // [[a, b], [c^T, 0]].
+  Bordered BorderedMatrix(const ShiftedMatrix& a) const;
+
   Border b_, c_;
 };
+
+// sigma of the shifted monodromy of `kind` (ShiftedMonodromy; not kGrazing) at `monodromy`, and
+// into *gradient its derivative in the monodromy's entries, d sigma / d m_pq: for fold and period
+// doubling BorderedSigma::WithGradient's (A = M -+ I), for Neimark-Sacker that one carried back
+// through the bialternate square's entries, each bilinear in M.
+double SigmaWithGradient(CurveKind kind, const BorderedSigma& sigma,
+                         const Eigen::Ref<const Eigen::MatrixXd>& monodromy,
+                         Eigen::MatrixXd* gradient);
 
 }  // namespace drillbif::internal
 

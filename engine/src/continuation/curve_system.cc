@@ -150,17 +150,17 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   return f->allFinite() && jac->allFinite();
 }
 
-// The same forward differences of sigma: over the orbit's unknowns by MonodromyRow (only the
-// monodromy factors an unknown moves are recomputed), over the parameters by whole evaluations
-// (every factor moves with them). `o` is Unpack(y), `base` its factors, `flows` the segments'
-// flows they were made from.
+// sigma's row: over the orbit's unknowns from sigma's gradient in the monodromy
+// (MonodromyGradientRow: only the monodromy factors an unknown moves are recomputed, by forward
+// differences, and contracted with the gradient, with no bordered solve per unknown), over the
+// parameters by forward differences of whole evaluations (every factor moves with them). `o` is
+// Unpack(y), `base` its factors, `flows` the segments' flows they were made from.
 void CurveSystem::SigmaRow(const Vec& y, const PeriodicOrbit& o,
                            const std::vector<StateMatrix>& base,
                            const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
-  MonodromyRow(
-      model_, propagator_, o, base, flows,
-      [this](const Eigen::Ref<const Mat>& m) { return Sigma(m); }, RowDifferences::kForward, sigma0,
-      jac->row(m()).head(m()));
+  Mat gradient;
+  SigmaWithGradient(kind_, sigma_, ReducedMonodromy(model_, base), &gradient);
+  MonodromyGradientRow(model_, propagator_, o, base, flows, gradient, jac->row(m()).head(m()));
   for (int j = m(); j < n(); ++j) {
     const double h = ForwardStep(y[j]);
     Vec yp = y;

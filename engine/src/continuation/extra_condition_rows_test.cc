@@ -153,6 +153,118 @@ TEST_F(ExtraConditionRows, MonodromyRowMatchesCentralDifferences) {
   }
 }
 
+// sigma's gradient in the monodromy (SigmaWithGradient: -w^T (dA) v, carried through the
+// bialternate square for Neimark-Sacker) against central differences of sigma in each entry of M,
+// step H = 1e-5: truncation H^2 |sigma'''| / 6 and rounding eps (1 + |sigma|) / H, both ~1e-11 for
+// these O(1) quantities (the borders are A's own singular vectors, so the bordered matrix is well
+// conditioned); bound 1e-8 (a thousandfold margin). Two monodromies: the reference orbit's, and a
+// generic one with no zero entry and a complex pair of multipliers (the reference's has rank one:
+// its bialternate square vanishes, and with it some of that gradient's terms, which a wrong term
+// would then pass unseen). A wrong sign or a missing term errs by the gradient's own entries.
+TEST_F(ExtraConditionRows, SigmaGradientMatchesCentralDifferencesInTheMonodromy) {
+  Eigen::MatrixXd generic(3, 3);
+  generic << 0.3, -0.8, 0.2, 0.7, 0.4, -0.1, 0.1, 0.25, 0.6;
+  const Eigen::MatrixXd reference =
+      internal::ReducedMonodromy(model_, internal::MonodromyFactors(model_, prop_, start_));
+  for (const Eigen::MatrixXd& m0 : {reference, generic}) {
+    for (const CurveKind kind :
+         {CurveKind::kFold, CurveKind::kPeriodDoubling, CurveKind::kNeimarkSacker}) {
+      SCOPED_TRACE(CurveKindName(kind));
+      const internal::BorderedSigma sigma(internal::ShiftedMonodromy(kind, m0));
+      Eigen::MatrixXd gradient;
+      const double value = internal::SigmaWithGradient(kind, sigma, m0, &gradient);
+      EXPECT_EQ(value, sigma(internal::ShiftedMonodromy(kind, m0)));
+      ASSERT_EQ(gradient.rows(), m0.rows());
+      ASSERT_EQ(gradient.cols(), m0.cols());
+      constexpr double kH = 1e-5;
+      double worst = 0.0;
+      for (int p = 0; p < m0.rows(); ++p) {
+        for (int q = 0; q < m0.cols(); ++q) {
+          Eigen::MatrixXd mp = m0, mm = m0;
+          mp(p, q) += kH;
+          mm(p, q) -= kH;
+          const double fd = (sigma(internal::ShiftedMonodromy(kind, mp)) -
+                             sigma(internal::ShiftedMonodromy(kind, mm))) /
+                            (2.0 * kH);
+          EXPECT_NEAR(gradient(p, q), fd, 1e-8) << "entry (" << p << ", " << q << ")";
+          worst = std::max(worst, std::abs(gradient(p, q) - fd));
+        }
+      }
+      std::printf("largest gradient error: %.2e (largest entry %.2e)\n", worst,
+                  gradient.cwiseAbs().maxCoeff());
+    }
+  }
+}
+
+// sigma's row over X from its gradient (MonodromyGradientRow, the fold / PD curves' row) against
+// the derivative, central differences of whole evaluations at H = 1e-5 (1 + |y_j|), for a fold
+// and a period doubling (not Neimark-Sacker: the reference monodromy has rank one, its bialternate
+// square and that square's derivatives along X vanish, and the row is zero either way; its
+// gradient is checked above on a generic monodromy). The row is, per column, forward differences
+// of step h = ForwardStep(y_j) of sigma's linearization along the factors the unknown moves: for a
+// start's component that is g(t) = <G, M(y + t e_j)> with G the gradient at y (one factor moves),
+// for a duration its own factor and the later phases, each differenced alone. Its truncation is
+// h |g''| / 2; g'' is estimated by second central differences of whole evaluations of g at step
+// 1e-4 (1 + |y_j|) (their rounding eps |g| / 1e-8, ~1e-8 |g|, below the curvature sought), and
+// sigma's own, c'', likewise: in a duration's column the cross terms between the moved factors
+// that g has and the row has not are second order in the same changes, of the size of g'' and
+// c''; the bound takes 4 max(|g''|, |c''|) h / 2. Rounding: each moved factor's difference
+// carries eps |F| / h, contracted over k factors: 2 k eps (1 + |c|) / h as in ExpectCentralRow.
+// The reference's error: its Richardson truncation 4 T and eps (1 + |c|) / H. A wrong sign, an
+// off-by-one partial product or a missing later phase errs by the row's own entries, the largest
+// of which is ~1e6 bounds.
+TEST_F(ExtraConditionRows, MonodromyGradientRowMatchesCentralDifferences) {
+  const internal::OrbitBvp bvp = Bvp();
+  const Eigen::VectorXd y = Unknowns(bvp);
+  const int m = bvp.size();
+  std::vector<FlowResult> flows;
+  const std::vector<StateMatrix> factors =
+      internal::MonodromyFactors(model_, prop_, start_, &flows);
+  const Eigen::MatrixXd m0 = internal::ReducedMonodromy(model_, factors);
+  const double k = static_cast<double>(start_.durations.size());
+  for (const CurveKind kind : {CurveKind::kFold, CurveKind::kPeriodDoubling}) {
+    SCOPED_TRACE(CurveKindName(kind));
+    const internal::BorderedSigma sigma(internal::ShiftedMonodromy(kind, m0));
+    Eigen::MatrixXd gradient;
+    const double c0 = internal::SigmaWithGradient(kind, sigma, m0, &gradient);
+    Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(m);
+    internal::MonodromyGradientRow(model_, prop_, start_, factors, flows, gradient, row);
+    const ExtraCondition condition =
+        ExtraCondition::OfMonodromy([kind, sigma](const Eigen::MatrixXd& mono) {
+          return sigma(internal::ShiftedMonodromy(kind, mono));
+        });
+    const ExtraCondition linear = ExtraCondition::OfMonodromy(
+        [gradient](const Eigen::MatrixXd& mono) { return gradient.cwiseProduct(mono).sum(); });
+    constexpr double kEps = 2.2e-16, kReference = 1e-5, kCurvature = 1e-4;
+    const Eigen::RowVectorXd d1 = CentralRow(bvp, y, condition, kReference);
+    const Eigen::RowVectorXd d2 = CentralRow(bvp, y, condition, 2.0 * kReference);
+    const double g0 = ValueAt(bvp, y, linear);
+    double worst = 0.0, largest = 0.0;
+    for (int j = 0; j < m; ++j) {
+      const double h = internal::ForwardStep(y[j]);
+      const double h_ref = kReference * (1.0 + std::abs(y[j]));
+      const double h2 = kCurvature * (1.0 + std::abs(y[j]));
+      Eigen::VectorXd yp = y, ym = y;
+      yp[j] += h2;
+      ym[j] -= h2;
+      const double c2 =
+          (ValueAt(bvp, yp, condition) - 2.0 * c0 + ValueAt(bvp, ym, condition)) / (h2 * h2);
+      const double g2 =
+          (ValueAt(bvp, yp, linear) - 2.0 * g0 + ValueAt(bvp, ym, linear)) / (h2 * h2);
+      const double truncation = 4.0 * std::max(std::abs(c2), std::abs(g2)) * h / 2.0;
+      const double rounding = 2.0 * k * kEps * (1.0 + std::abs(c0)) / h;
+      const double reference =
+          4.0 * std::abs(d2[j] - d1[j]) / 3.0 + kEps * (1.0 + std::abs(c0)) / h_ref;
+      const double bound = truncation + rounding + reference;
+      EXPECT_LE(std::abs(row[j] - d1[j]), bound)
+          << "column " << j << " of " << m << ": " << row[j] << " against " << d1[j];
+      worst = std::max(worst, std::abs(row[j] - d1[j]) / bound);
+      largest = std::max(largest, std::abs(d1[j]) / bound);
+    }
+    std::printf("largest error / bound: %.3f; largest entry / bound: %.3g\n", worst, largest);
+  }
+}
+
 // h' of the first segment's guard at its end, a function of the orbit alone: central differences
 // of whole evaluations.
 TEST_F(ExtraConditionRows, OrbitRowMatchesCentralDifferences) {

@@ -262,6 +262,71 @@ PeriodicOrbit UnpackWithParams(const OrbitBvp& bvp, const std::vector<int>& free
   return o;
 }
 
+// The monodromy factors of an orbit with one unknown moved (MonodromyRow, MonodromyGradientRow).
+class MovedFactors {
+ public:
+  // `flows` are the segments' flows the orbit's factors were made from.
+  MovedFactors(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
+               const std::vector<FlowResult>& flows)
+      : model_(model),
+        propagator_(propagator),
+        orbit_(orbit),
+        flows_(flows),
+        op_(orbit),
+        affine_(dynamic_cast<const LinearForm*>(&model) != nullptr) {}
+
+  // F_i with X's unknown r of segment i moved by `by`: its start's component at X's position r
+  // (r < d: X has no phase) or its duration (r = d). With a LinearForm the flow is affine in the
+  // start's non-phase part: moving it moves the end by Phi dx and leaves Phi, so only the
+  // saltation is recomputed, from the segment's flow.
+  StateMatrix Unknown(int i, int r, double by) {
+    const int d = model_.state_dim() - 1;
+    if (r == d) return Moved(i, op_.durations[i], by);
+    const int state = r < model_.phase_index() ? r : r + 1;
+    if (!affine_) return Moved(i, op_.starts[i][state], by);
+    const FlowResult& flow = flows_[i];
+    const StateVector x_end = flow.x + by * flow.state_jacobian.col(state);
+    return FactorFromFlow(model_, orbit_, i, x_end, flow.state_jacobian);
+  }
+
+  // F_l with its start's phase moved by `by`.
+  StateMatrix Phase(int l, double by) { return Moved(l, op_.starts[l][model_.phase_index()], by); }
+
+ private:
+  // F_l with `value` (an input of op_'s segment l) moved by `by`; op_ is restored after.
+  StateMatrix Moved(int l, double& value, double by) {
+    const double v0 = value;
+    value += by;
+    StateMatrix out = SegmentFactor(model_, propagator_, op_, l);
+    value = v0;
+    return out;
+  }
+
+  const HybridModel& model_;
+  Propagator& propagator_;
+  const PeriodicOrbit& orbit_;
+  const std::vector<FlowResult>& flows_;
+  PeriodicOrbit op_;  // the orbit, perturbed in place and restored after each use
+  bool affine_;       // the model has a LinearForm
+};
+
+// X's value of unknown r of segment i (a start's component without the phase, or the duration).
+double UnknownValue(const HybridModel& model, const PeriodicOrbit& orbit, int i, int r) {
+  const int d = model.state_dim() - 1, ps = model.phase_index();
+  return r < d ? orbit.starts[i][r < ps ? r : r + 1] : orbit.durations[i];
+}
+
+// prefix[i] = F_{i-1} ... F_0 and suffix[i] = F_{k-1} ... F_i of the factors `base`, i = 0..k.
+void PartialProducts(const std::vector<StateMatrix>& base, std::vector<StateMatrix>* prefix,
+                     std::vector<StateMatrix>* suffix) {
+  const int k = static_cast<int>(base.size()), n = static_cast<int>(base[0].rows());
+  prefix->resize(k + 1);
+  suffix->resize(k + 1);
+  (*prefix)[0] = (*suffix)[k] = StateMatrix::Identity(n, n);
+  for (int i = 0; i < k; ++i) (*prefix)[i + 1] = base[i] * (*prefix)[i];
+  for (int i = k - 1; i >= 0; --i) (*suffix)[i] = (*suffix)[i + 1] * base[i];
+}
+
 }  // namespace
 
 void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
@@ -274,57 +339,78 @@ void MonodromyRow(const HybridModel& model, Propagator& propagator, const Period
   const double omega = model.ForcingFrequency(orbit.params);
   const bool central = differences == RowDifferences::kCentral;
   auto step = [&](double v) { return central ? Step(v) : ForwardStep(v); };
-  // prefix[i] = F_{i-1} ... F_0, suffix[i] = F_{k-1} ... F_i.
-  std::vector<StateMatrix> prefix(k + 1), suffix(k + 1);
-  prefix[0] = suffix[k] = StateMatrix::Identity(d + 1, d + 1);
-  for (int i = 0; i < k; ++i) prefix[i + 1] = base[i] * prefix[i];
-  for (int i = k - 1; i >= 0; --i) suffix[i] = suffix[i + 1] * base[i];
-  PeriodicOrbit op = orbit;  // perturbed in place, restored after each use
-  // F_l with the input `value` (a start's component or a duration of op) moved by `by`.
-  auto moved = [&](int l, double& value, double by) {
-    const double v0 = value;
-    value += by;
-    StateMatrix out = SegmentFactor(model, propagator, op, l);
-    value = v0;
-    return out;
-  };
+  std::vector<StateMatrix> prefix, suffix;
+  PartialProducts(base, &prefix, &suffix);
+  MovedFactors moved(model, propagator, orbit, flows);
   // later[i] = sum over l > i of suffix[l + 1] (dF_l / ds_l) prefix[l]: d M per unit phase shift
   // of every segment after i (a duration moves the later phases by omega per unit).
   std::vector<StateMatrix> later(k);
   later[k - 1] = StateMatrix::Zero(d + 1, d + 1);
   for (int l = k - 1; l >= 1; --l) {
-    double& s = op.starts[l][ps];
-    const double h = step(s);
-    const StateMatrix dfl = central ? StateMatrix((moved(l, s, h) - moved(l, s, -h)) / (2.0 * h))
-                                    : StateMatrix((moved(l, s, h) - base[l]) / h);
+    const double h = step(orbit.starts[l][ps]);
+    const StateMatrix dfl = central
+                                ? StateMatrix((moved.Phase(l, h) - moved.Phase(l, -h)) / (2.0 * h))
+                                : StateMatrix((moved.Phase(l, h) - base[l]) / h);
     later[l - 1] = later[l] + suffix[l + 1] * dfl * prefix[l];
   }
-  // With a LinearForm the flow is affine in the start's non-phase part: moving it moves the end
-  // by Phi dx and leaves Phi, so only the saltation is recomputed, from the segment's flow.
-  const bool affine = dynamic_cast<const LinearForm*>(&model) != nullptr;
   for (int i = 0; i < k; ++i) {
-    const FlowResult& flow = flows[i];
     for (int r = 0; r <= d; ++r) {
-      const int state = r < ps ? r : r + 1;  // the start's component X holds at this position
-      const double h = step(r < d ? orbit.starts[i][state] : orbit.durations[i]);
+      const double h = step(UnknownValue(model, orbit, i, r));
       // f with this unknown moved by sign * h.
       auto moved_f = [&](double sign) {
         StateMatrix full;
-        if (r < d && affine) {
-          const StateVector x_end = flow.x + (sign * h) * flow.state_jacobian.col(state);
-          full = suffix[i + 1] * FactorFromFlow(model, orbit, i, x_end, flow.state_jacobian) *
-                 prefix[i];
-        } else if (r < d) {
-          full = suffix[i + 1] * moved(i, op.starts[i][state], sign * h) * prefix[i];
+        if (r < d) {
+          full = suffix[i + 1] * moved.Unknown(i, r, sign * h) * prefix[i];
         } else {
-          full = prefix[k] +
-                 suffix[i + 1] * (moved(i, op.durations[i], sign * h) - base[i]) * prefix[i] +
+          full = prefix[k] + suffix[i + 1] * (moved.Unknown(i, r, sign * h) - base[i]) * prefix[i] +
                  (sign * omega * h) * later[i];
         }
         return f(WithoutPhase(model, full));
       };
       row[i * (d + 1) + r] =
           central ? (moved_f(1.0) - moved_f(-1.0)) / (2.0 * h) : (moved_f(1.0) - f0) / h;
+    }
+  }
+}
+
+void MonodromyGradientRow(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, const std::vector<StateMatrix>& base,
+                          const std::vector<FlowResult>& flows,
+                          const Eigen::Ref<const Eigen::MatrixXd>& gradient,
+                          Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row) {
+  const int k = static_cast<int>(base.size()), d = model.state_dim() - 1;
+  const int ps = model.phase_index();
+  const double omega = model.ForcingFrequency(orbit.params);
+  std::vector<StateMatrix> prefix, suffix;
+  PartialProducts(base, &prefix, &suffix);
+  // The gradient in the full M: f does not see the phase row and column.
+  StateMatrix full = StateMatrix::Zero(d + 1, d + 1);
+  for (int a = 0; a <= d; ++a) {
+    for (int b = 0; b <= d; ++b) {
+      if (a != ps && b != ps) full(a, b) = gradient(a < ps ? a : a - 1, b < ps ? b : b - 1);
+    }
+  }
+  // A change dF_i of factor i alone changes M by suffix[i + 1] dF_i prefix[i], and f by
+  // <full, suffix[i + 1] dF_i prefix[i]> = <weight[i], dF_i> (Frobenius products) with
+  // weight[i] = suffix[i + 1]^T full prefix[i]^T.
+  std::vector<StateMatrix> weight(k);
+  for (int i = 0; i < k; ++i) {
+    weight[i] = suffix[i + 1].transpose() * full * prefix[i].transpose();
+  }
+  MovedFactors moved(model, propagator, orbit, flows);
+  // later[i] = sum over l > i of <weight[l], dF_l / ds_l>: d f per unit phase shift of every
+  // segment after i (MonodromyRow's later, contracted).
+  std::vector<double> later(k, 0.0);
+  for (int l = k - 1; l >= 1; --l) {
+    const double h = ForwardStep(orbit.starts[l][ps]);
+    const StateMatrix dfl = (moved.Phase(l, h) - base[l]) / h;
+    later[l - 1] = later[l] + weight[l].cwiseProduct(dfl).sum();
+  }
+  for (int i = 0; i < k; ++i) {
+    for (int r = 0; r <= d; ++r) {
+      const double h = ForwardStep(UnknownValue(model, orbit, i, r));
+      const StateMatrix dfi = (moved.Unknown(i, r, h) - base[i]) / h;
+      row[i * (d + 1) + r] = weight[i].cwiseProduct(dfi).sum() + (r == d ? omega * later[i] : 0.0);
     }
   }
 }

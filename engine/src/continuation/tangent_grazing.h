@@ -145,6 +145,25 @@ void MonodromyRow(const HybridModel& model, Propagator& propagator, const Period
                   RowDifferences differences, double f0,
                   Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row);
 
+// The row of a function f of the reduced monodromy M over X (MonodromyRow's unknowns and order)
+// from f's gradient in M (`gradient`, d f / d m_pq, M's size) instead of f evaluated once per
+// unknown: the factor F_i an unknown moves is differenced forward as in MonodromyRow (kForward,
+// ForwardStep; the durations' later phase shifts to first order likewise), and its change is
+// contracted with the gradient carried to that factor, <suffix^T G prefix^T, dF_i> (G with zero
+// phase row and column, one weight matrix per segment). It sits beside MonodromyRow for cost: for
+// sigma of a fold / PD / NS curve (SigmaWithGradient) each unknown then takes one state-sized
+// contraction where MonodromyRow forms the moved monodromy (two products), drops its phase and
+// solves a bordered system, which cost more than the moved factor itself (docs/performance.md).
+// The row differs from MonodromyRow's forward one by f's own curvature over the step, O(h), of the
+// order of the differences' truncation, and with less rounding (a factor's difference, not the
+// whole product's); it only steers Newton: the residual is exact. MonodromyRow stays for any f
+// without a gradient and for central differences (ConditionRow).
+void MonodromyGradientRow(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, const std::vector<StateMatrix>& base,
+                          const std::vector<FlowResult>& flows,
+                          const Eigen::Ref<const Eigen::MatrixXd>& gradient,
+                          Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row);
+
 // Newton on (G = 0, c = 0) from `guess` in its signature, with the unknowns X and the parameters
 // `free` (one or two), one condition per free parameter so that the system is square. G's
 // Jacobian is exact, the conditions' rows ConditionRow's (they only steer Newton, the residual is
