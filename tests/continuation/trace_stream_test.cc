@@ -1,8 +1,9 @@
 // TraceCurves: cancellation within the bound (support/cancel_probe.h) in its branches and curves
-// and while it switches at codimension-2 points, on one thread and on several; the curves handed
-// to on_curve (each once it is final, as the result holds them at the end; the result keeping
-// only the ends and outline of a handed-over curve's vertices without vertex_states); and the same
-// result whatever the number of threads the curve tasks run on.
+// and while it switches at codimension-2 points, on one thread and on several (the branches
+// running as tasks on the workers too); the curves handed to on_curve (each once it is final, as
+// the result holds them at the end; the result keeping only the ends and outline of a handed-over
+// curve's vertices without vertex_states); and the same result whatever the number of threads the
+// branch and curve tasks run on.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -233,6 +234,50 @@ TEST_F(TraceStream, StopsPromptlyOnTwoThreads) {
     for (const CurvePoint& p : c.curve.points) ASSERT_TRUE(p.stability.monodromy.allFinite());
   }
   probe.ExpectPrompt("trace on two threads: curves");
+}
+
+// On two threads, a stop at the trace's first report (its first 5 ms: ProgressThrottle's
+// interval), while the start's two branches run as tasks on the workers: the trace ends
+// cancelled, promptly, with no branch applied and no curve.
+TEST_F(TraceStream, StopsPromptlyWhileBranchingOnTwoThreads) {
+  TraceOptions o = testing::ReferenceBox();
+  o.threads = 2;
+  CancelProbe probe([](double) { return true; });
+  const TraceResult r = TraceCurves(model_, prop_, start_, o, probe.Callback());
+  probe.Returned();
+  EXPECT_TRUE(r.summary.cancelled());
+  EXPECT_EQ(r.summary.branch_points, 0);
+  EXPECT_TRUE(r.curves.empty());
+  probe.ExpectPrompt("trace on two threads: branches");
+}
+
+// Seeds on 2 and 3 threads: the seeds' attractors and their branches are tasks too; the same
+// notes (the seed without a periodic attractor's among them, in the same place), branch point
+// counts and curves as on one thread. The seeds add branches: more branch points than without.
+TEST_F(TraceStream, SeedsGiveTheSameResultWhateverTheThreads) {
+  TraceOptions o = SmallBox();
+  o.switch_at_codim2 = false;
+  const TraceResult unseeded = TraceCurves(model_, prop_, start_, o);
+  // 0.055: no periodic attractor (trace_test.cc's seeds); 0.07 and 0.15 inside the box.
+  o.seeds1 = {0.07, 0.055, 0.15};
+  const TraceResult one = TraceCurves(model_, prop_, start_, o);
+  ASSERT_TRUE(one.summary.status.ok()) << one.summary.status.ToString();
+  ASSERT_FALSE(one.summary.cancelled());
+  EXPECT_GT(one.summary.branch_points, unseeded.summary.branch_points);
+  EXPECT_TRUE(std::any_of(one.summary.notes.begin(), one.summary.notes.end(),
+                          [](const std::string& n) { return n.find("seed omega = 0.055") == 0; }));
+  for (const int threads : {2, 3}) {
+    o.threads = threads;
+    const TraceResult many = TraceCurves(model_, prop_, start_, o);
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    ASSERT_FALSE(many.summary.cancelled());
+    EXPECT_EQ(many.summary.notes, one.summary.notes);
+    EXPECT_EQ(many.summary.branch_points, one.summary.branch_points);
+    ASSERT_EQ(many.curves.size(), one.curves.size());
+    for (size_t k = 0; k < one.curves.size(); ++k) {
+      ExpectSameCurve(many.curves[k], one.curves[k], static_cast<int>(k));
+    }
+  }
 }
 
 // Stopped on two threads at the first report of the switching rounds.

@@ -233,7 +233,10 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   auto tests_at = [&](const Vec& yy) {
     Vec t;
     double det = 0.0;
-    Tangent(yy, t_, &t, &det);
+    // Where no tangent is evaluated (a flow stopped: Locate returns at its next poll; or failed),
+    // the step's first one stands in, so that no test reads a sign change from it (an empty t
+    // would be read out of bounds).
+    if (!Tangent(yy, t_, &t, &det)) t = t_, det = t0.branch_point;
     return Tests(yy, t, det, MakePoint(yy));
   };
   if (Sign(t0.fold) != Sign(t1.fold)) {

@@ -294,12 +294,13 @@ class CurveStream {
   bool stopped_ = false;
 };
 
-// One trace, in named stages: the branches through the start (StartBranches), the seeds'
-// (Seeds), the period-2n branches (DoubledBranches), the curves from their located points
-// (TraceStarts), switching at codimension-2 points (SwitchFrom), the edge rounds (EdgeRounds), the
-// last-resort step-offs (LastResortStepOffs) and the notes (Notes). Each stage returns false when
-// the trace was cancelled. The curves and switching run as tasks on the workers
-// (continuation/curve_tasks.h); the rest on the calling thread.
+// One trace, in named stages: the seeds' attractors (Seeds), the branches through the start and
+// through them (StartBranches), the period-2n branches (DoubledBranches), the curves from their
+// located points (TraceStarts), switching at codimension-2 points (SwitchFrom), the edge rounds
+// (EdgeRounds), the last-resort step-offs (LastResortStepOffs) and the notes (Notes). Each stage
+// returns false when the trace was cancelled. The branches, curves and switching run as tasks on
+// the workers (continuation/curve_tasks.h), each applied on the calling thread in the order of a
+// plain loop: the notes, branch point counts, starts and curves are the same whatever the threads.
 class TraceDriver {
  public:
   TraceDriver(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& start,
@@ -323,7 +324,7 @@ class TraceDriver {
     wait_ = [this] {
       if (!phase_.Continue()) workers_->Abandon();
     };
-    if (!StartBranches() || !Seeds() || !DoubledBranches()) return;
+    if (!Seeds() || !StartBranches() || !DoubledBranches()) return;
     if (!TraceStarts(0, options_.max_period > 1 ? 0.2 : 0.1, 1.0) || !SwitchFrom(0) || Stopped()) {
       return;
     }
@@ -343,6 +344,13 @@ class TraceDriver {
     SpecialPointKind kind;
     int periods;
     double value;  // of the parameter along the edge
+  };
+  // A curve's end on the box's edge, where an edge branch may start (EdgeRounds).
+  struct EdgeEnd {
+    EdgePoint at;
+    int along;             // the axis of the branch along the edge
+    PeriodicOrbit orbit;   // the curve's end vertex
+    std::string from_end;  // where it is, for the branch's note
   };
 
   bool Validate();
@@ -372,8 +380,44 @@ class TraceDriver {
     }
     return false;
   }
-  bool Branch(const PeriodicOrbit& orbit, int axis, double from, double to,
-              ContinuationDirection direction, const std::string& edge = "");
+  // A branch as a worker computes it (ComputeBranch), for ApplyBranch.
+  struct BranchRun {
+    std::string note;  // non-empty: no branch to run (a doubling without one), the note instead
+    int periods = 1;   // of the branch's orbits
+    ContinuationResult r;
+    // Per located point (r.special_points): a fold on the period-n orbit traversed twice
+    // (internal::TraversedTwice, which simulates: tested on the worker); false where not tested.
+    std::vector<bool> twice;
+  };
+  // A seed's attractor (SeedAttractor).
+  struct Attractor {
+    std::string note;  // non-empty: none (why), the note for it
+    PeriodicOrbit orbit;
+  };
+  // One step of a stage that InOrder runs: its computation, a task on the workers, and its
+  // application on the calling thread, in the stage's order.
+  template <class Result>
+  struct Job {
+    double from = 0.0, to = 0.0;  // progress while it runs on the calling thread
+    // The computation on a worker's propagator, reading no state the trace changes meanwhile;
+    // `report` the progress callback when it runs on the calling thread, else empty. Null:
+    // nothing to compute (apply gets null).
+    std::function<Result(Propagator&, const ContinuationCallback& report)> compute;
+    // Applies the result; false when the trace was stopped.
+    std::function<bool(Result*)> apply;
+  };
+  template <class Result>
+  bool InOrder(std::vector<Job<Result>>& jobs);
+  BranchRun ComputeBranch(const PeriodicOrbit& orbit, int axis, ContinuationDirection direction,
+                          Propagator& p, const ContinuationCallback& report) const;
+  static bool TurnOfDoubled(const ContinuationResult& r, const SpecialPoint& s);
+  std::vector<std::pair<int, SpecialPoint>> Located(const BranchRun& run, int axis) const;
+  bool ApplyBranch(const BranchRun& run, int axis, const std::string& edge);
+  ContinuationCallback ReportHere(double from, double to);
+  bool EdgeBranches(const std::vector<EdgeEnd>& ends, std::vector<EdgePoint>* on_edge_branches);
+  Job<BranchRun> BranchJob(PeriodicOrbit orbit, int axis, double from, double to,
+                           ContinuationDirection direction);
+  Attractor SeedAttractor(double seed, Propagator& p) const;
   bool StartBranches();
   bool Seeds();
   bool DoubledBranches();
@@ -401,6 +445,7 @@ class TraceDriver {
   std::optional<internal::WorkerPropagators> workers_;
   std::function<void()> wait_;
   std::vector<std::pair<int, SpecialPoint>> starts_;  // (axis, located point)
+  std::vector<Attractor> attractors_;                 // the seeds', from Seeds to StartBranches
   SwitchTally tally_;
   int edge_runs_ = 0;
 };
@@ -432,11 +477,12 @@ bool TraceDriver::Validate() {
   return true;
 }
 
-// The branch through `orbit` in the axis' parameter over the box; its traceable points are
-// appended to starts_. `edge`: where an edge branch starts ("" for the others), for its note if it
-// stops early.
-bool TraceDriver::Branch(const PeriodicOrbit& orbit, int axis, double from, double to,
-                         ContinuationDirection direction, const std::string& edge) {
+// The branch through `orbit` in the axis' parameter over the box, on propagator `p` (a worker's):
+// the continuation and the tests of its located points that need flows. Touches no state of the
+// trace. `report`: the continuation's callback (progress on the calling thread), or empty.
+TraceDriver::BranchRun TraceDriver::ComputeBranch(const PeriodicOrbit& orbit, int axis,
+                                                  ContinuationDirection direction, Propagator& p,
+                                                  const ContinuationCallback& report) const {
   const Axis& a = axes_[axis];
   ContinuationOptions branch = options_.branch;
   branch.direction = direction;
@@ -450,13 +496,44 @@ bool TraceDriver::Branch(const PeriodicOrbit& orbit, int axis, double from, doub
   // another doubling; beyond it run the same orbits shifted by one period: stop there.
   const bool doubled = orbit.signature.periods > 1;
   if (doubled) branch.stop_at.push_back(SpecialPointKind::kBranchPoint);
-  const ContinuationResult r =
-      Continue(model_, propagator_, orbit, branch,
-               [&](const ContinuationPoint&, double f) { return Report(from + (to - from) * f); });
-  if (Stopped()) return false;
+  BranchRun run;
+  run.periods = orbit.signature.periods;
+  run.r = Continue(model_, p, orbit, branch, report);
+  const std::vector<SpecialPoint>& specials = run.r.special_points;
+  run.twice.assign(specials.size(), false);
+  for (size_t k = 0; k < specials.size(); ++k) {
+    const SpecialPoint& s = specials[k];
+    if (doubled && s.kind == SpecialPointKind::kFold && !TurnOfDoubled(run.r, s)) {
+      run.twice[k] = internal::TraversedTwice(model_, p, s.point.orbit);
+    }
+  }
+  return run;
+}
+
+// At a branch point the period-2 branch's parameter turns (its two halves meet): a fold located
+// there is that turn, not a fold of the orbits.
+bool TraceDriver::TurnOfDoubled(const ContinuationResult& r, const SpecialPoint& s) {
+  return s.kind == SpecialPointKind::kFold &&
+         std::any_of(r.special_points.begin(), r.special_points.end(), [&](const SpecialPoint& b) {
+           return b.kind == SpecialPointKind::kBranchPoint &&
+                  std::abs(b.point.value - s.point.value) <= 1e-6 * (1.0 + std::abs(b.point.value));
+         });
+}
+
+// Applies a branch computed by ComputeBranch: its notes, its point count, its traceable points
+// appended to starts_. `edge`: where an edge branch starts ("" for the others), for its note if
+// it stops early. False when the trace was stopped.
+bool TraceDriver::ApplyBranch(const BranchRun& run, int axis, const std::string& edge) {
+  const Axis& a = axes_[axis];
+  const ContinuationResult& r = run.r;
+  // Cut short on a worker: only a stop of the trace abandons the workers' runs.
+  if (r.summary.termination == Termination::kCancelled) {
+    if (!sum_.cancelled()) sum_.Cancel(kCancelledMessage);
+    return false;
+  }
   sum_.branch_points += static_cast<int64_t>(r.points.size());
   if (r.summary.termination == Termination::kFailed && edge.empty()) {
-    sum_.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
+    sum_.notes.push_back("the " + PeriodPrefix(run.periods) + *a.name +
                          "-branch failed: " + r.summary.message);
   } else if (r.summary.termination == Termination::kFailed) {
     // An edge branch searches for more curves; where it stops, the curves crossing the edge
@@ -464,93 +541,178 @@ bool TraceDriver::Branch(const PeriodicOrbit& orbit, int axis, double from, doub
     // reference box one period-2 edge branch stops with max_period 2; two period-1 ones did at
     // omega = 0.05, a = 0.2153, before branch_tracer.cc's CrossGrazing saw a touch hidden
     // behind a vanishing segment). Not a failure of the curves asked for.
-    sum_.notes.push_back("the " + PeriodPrefix(orbit.signature.periods) + *a.name +
+    sum_.notes.push_back("the " + PeriodPrefix(run.periods) + *a.name +
                          "-branch along the box's edge from " + edge +
                          " stopped early: " + r.summary.message);
   }
-  for (const SpecialPoint& s : r.special_points) {
-    // At that branch point the period-2 branch's parameter turns (its two halves meet): the
-    // fold located there is that turn, not a fold of the orbits.
-    const bool turn =
-        doubled && s.kind == SpecialPointKind::kFold &&
-        std::any_of(r.special_points.begin(), r.special_points.end(), [&](const SpecialPoint& b) {
-          return b.kind == SpecialPointKind::kBranchPoint &&
-                 std::abs(b.point.value - s.point.value) <= 1e-6 * (1.0 + std::abs(b.point.value));
-        });
-    if (turn) continue;
+  for (size_t k = 0; k < r.special_points.size(); ++k) {
     // A fold of the period-2n system on the period-n orbit traversed twice is that orbit's
     // doubling (multiplier -1, squared): the period-2 omega-branch from the doubling at
     // omega = 0.2698 (a = 0.3) ran on through its other birth at 1.6258 onto the doubled
-    // branch and located a fold at 1.62585, 8e-5 from the branch point (so not the turn
-    // above); its "fold curve" was the period-1 PD curve, one point each way.
-    if (doubled && s.kind == SpecialPointKind::kFold &&
-        internal::TraversedTwice(model_, propagator_, s.point.orbit)) {
-      if (Stopped()) return false;
-      sum_.notes.push_back(PeriodPrefix(orbit.signature.periods) + "FOLD at " + *a.name + " = " +
-                           std::to_string(s.point.value) + " on the period-" +
-                           std::to_string(orbit.signature.periods / 2) +
+    // branch and located a fold at 1.62585, 8e-5 from the branch point (so not its turn,
+    // TurnOfDoubled); its "fold curve" was the period-1 PD curve, one point each way.
+    if (run.twice[k]) {
+      sum_.notes.push_back(PeriodPrefix(run.periods) + "FOLD at " + *a.name + " = " +
+                           std::to_string(r.special_points[k].point.value) + " on the period-" +
+                           std::to_string(run.periods / 2) +
                            " orbit traversed twice (its period doubling): not traced");
-      continue;
     }
+  }
+  for (std::pair<int, SpecialPoint>& start : Located(run, axis)) {
+    starts_.push_back(std::move(start));
+  }
+  return true;
+}
+
+// The starts of a branch's located points, (axis, point), in the order located: its traceable
+// points but the turns of a doubled branch and its folds on the orbit traversed twice.
+std::vector<std::pair<int, SpecialPoint>> TraceDriver::Located(const BranchRun& run,
+                                                               int axis) const {
+  std::vector<std::pair<int, SpecialPoint>> located;
+  const std::vector<SpecialPoint>& specials = run.r.special_points;
+  for (size_t k = 0; k < specials.size(); ++k) {
+    const SpecialPoint& s = specials[k];
+    if ((run.periods > 1 && TurnOfDoubled(run.r, s)) || run.twice[k]) continue;
     if (Traceable(s.kind)) {
-      starts_.emplace_back(axis, s);
+      located.emplace_back(axis, s);
     } else if (s.kind == SpecialPointKind::kSignatureChange &&
                internal::CornerSegment(model_, s.point.orbit) >= 0) {
       // A signature change at a corner (a segment vanishing between events of two surfaces,
       // e.g. an impact going straight into progression) is a grazing: its corner's curve.
       SpecialPoint corner = s;
       corner.kind = GrazingKind(model_, s.point.orbit);
-      starts_.emplace_back(axis, std::move(corner));
+      located.emplace_back(axis, std::move(corner));
     }
+  }
+  return located;
+}
+
+// The progress callback of a branch run on the calling thread (one thread), else empty: a
+// worker reports nothing, the calling thread reports while it waits.
+ContinuationCallback TraceDriver::ReportHere(double from, double to) {
+  if (workers_->threads() > 1) return {};
+  return [this, from, to](const ContinuationPoint&, double f) {
+    return Report(from + (to - from) * f);
+  };
+}
+
+// The job of the branch through `orbit` (ComputeBranch, then ApplyBranch), progress from `from`
+// to `to`.
+TraceDriver::Job<TraceDriver::BranchRun> TraceDriver::BranchJob(PeriodicOrbit orbit, int axis,
+                                                                double from, double to,
+                                                                ContinuationDirection direction) {
+  Job<BranchRun> job;
+  job.from = from, job.to = to;
+  job.compute = [this, orbit = std::move(orbit), axis, direction](
+                    Propagator& p, const ContinuationCallback& report) {
+    return ComputeBranch(orbit, axis, direction, p, report);
+  };
+  job.apply = [this, axis](BranchRun* run) { return ApplyBranch(*run, axis, ""); };
+  return job;
+}
+
+// Runs the jobs as tasks on the workers (with one thread, each on the calling thread when its
+// turn comes, as a plain loop would), applying each in order on the calling thread, which
+// reports progress and polls for a stop while it waits (wait_).
+template <class Result>
+bool TraceDriver::InOrder(std::vector<Job<Result>>& jobs) {
+  internal::TaskStage<Result> stage(*workers_);
+  internal::OrderedTasks<Result>& tasks = stage.tasks();
+  std::deque<bool> queued;  // per job queued and not applied: whether a task computes it
+  size_t next = 0;
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    for (; next < jobs.size() && queued.size() < stage.window(); ++next) {
+      Job<Result>* job = &jobs[next];
+      queued.push_back(static_cast<bool>(job->compute));
+      if (!job->compute) continue;
+      tasks.Push([this, job](int worker) {
+        return job->compute(workers_->at(worker), ReportHere(job->from, job->to));
+      });
+    }
+    Job<Result>& job = jobs[k];
+    if (!Report(job.from)) return false;
+    const bool computed = queued.front();
+    queued.pop_front();
+    std::optional<Result> result;
+    if (computed) {
+      result = tasks.TakeFront(wait_);
+      if (Stopped()) return false;
+    }
+    if (!job.apply(result ? &*result : nullptr)) return false;
   }
   return true;
 }
 
-bool TraceDriver::StartBranches() {
-  for (int axis = 0; axis < 2; ++axis) {
-    if (!Branch(start_, axis, 0.05 * axis, 0.05 * (axis + 1), options_.branch.direction)) {
-      return false;
-    }
+// The seeds' attractor (on propagator `p`), or the note why there is none.
+TraceDriver::Attractor TraceDriver::SeedAttractor(double seed, Propagator& p) const {
+  Params params = start_.params;
+  params[i1_] = seed;
+  const StateVector x0 =
+      options_.seed_state.size() > 0 ? options_.seed_state : DefaultInitialState(model_);
+  const std::string where = "seed " + options_.param1 + " = " + std::to_string(seed) + ": ";
+  StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, p, params, x0);
+  if (!found.ok()) return {where + found.status().message(), {}};
+  Attractor a{"", *std::move(found)};
+  const OrbitSolveSummary solved = SolveOrbit(model_, p, {}, &a.orbit);
+  if (!solved.completed()) {
+    return {where + "the attractor's orbit did not solve: " + solved.message, {}};
   }
-  return true;
+  if (a.orbit.signature.periods > options_.max_period) {
+    return {where + "the attractor has period " + std::to_string(a.orbit.signature.periods) +
+                " > max_period",
+            {}};
+  }
+  return a;
 }
 
 bool TraceDriver::Seeds() {
-  // The seeds' attractors and their branches (progress stays at the tenth meanwhile).
-  for (const double seed : options_.seeds1) {
-    Params params = start_.params;
-    params[i1_] = seed;
-    const StateVector x0 =
-        options_.seed_state.size() > 0 ? options_.seed_state : DefaultInitialState(model_);
-    StatusOr<PeriodicOrbit> found = OrbitFromSimulation(model_, propagator_, params, x0);
-    if (Stopped()) return false;
-    const std::string where = "seed " + options_.param1 + " = " + std::to_string(seed) + ": ";
-    if (!found.ok()) {
-      sum_.notes.push_back(where + found.status().message());
-      continue;
-    }
-    PeriodicOrbit attractor = *found;
-    const OrbitSolveSummary solved = SolveOrbit(model_, propagator_, {}, &attractor);
-    if (Stopped()) return false;
-    if (!solved.completed()) {
-      sum_.notes.push_back(where + "the attractor's orbit did not solve: " + solved.message);
-      continue;
-    }
-    if (attractor.signature.periods > options_.max_period) {
-      sum_.notes.push_back(where + "the attractor has period " +
-                           std::to_string(attractor.signature.periods) + " > max_period");
+  // The seeds' attractors (progress stays at the start meanwhile), their branches run with the
+  // start's (StartBranches).
+  std::vector<Job<Attractor>> jobs(options_.seeds1.size());
+  attractors_.resize(options_.seeds1.size());
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    jobs[k].compute = [this, seed = options_.seeds1[k]](Propagator& p,
+                                                        const ContinuationCallback&) {
+      return SeedAttractor(seed, p);
+    };
+    jobs[k].apply = [this, k](Attractor* a) {
+      attractors_[k] = std::move(*a);
+      return true;
+    };
+  }
+  return InOrder(jobs);
+}
+
+bool TraceDriver::StartBranches() {
+  // The start's two branches, then each seed's (or the note why it has none), independent of
+  // each other: tasks on the workers, applied in this order.
+  std::vector<Job<BranchRun>> jobs;
+  for (int axis = 0; axis < 2; ++axis) {
+    jobs.push_back(
+        BranchJob(start_, axis, 0.05 * axis, 0.05 * (axis + 1), options_.branch.direction));
+  }
+  for (Attractor& a : attractors_) {
+    if (!a.note.empty()) {
+      Job<BranchRun>& note = jobs.emplace_back();
+      note.from = note.to = 0.1;
+      note.apply = [this, text = a.note](BranchRun*) {
+        sum_.notes.push_back(text);
+        return true;
+      };
       continue;
     }
     for (int axis = 0; axis < 2; ++axis) {
-      if (!Branch(attractor, axis, 0.1, 0.1, options_.branch.direction)) return false;
+      jobs.push_back(BranchJob(a.orbit, axis, 0.1, 0.1, options_.branch.direction));
     }
   }
-  return true;
+  attractors_.clear();
+  return InOrder(jobs);
 }
 
 bool TraceDriver::DoubledBranches() {
   // The period-2p branches born at the period-p branches' doublings, p = 1, 2, ... while
   // 2p <= max_period; each level's doublings are those of the branches the level before added.
+  // A level's branches are independent of each other: tasks on the workers.
   size_t level_begin = 0;
   int levels = 0;
   for (int p = 1; 2 * p <= options_.max_period; p *= 2) ++levels;
@@ -559,41 +721,52 @@ bool TraceDriver::DoubledBranches() {
     const std::vector<std::pair<int, SpecialPoint>> parents(starts_.begin() + level_begin,
                                                             starts_.end());
     level_begin = starts_.size();
+    std::vector<Job<BranchRun>> jobs;
     for (size_t k = 0; k < parents.size(); ++k) {
-      const auto& [axis, s] = parents[k];
+      const int axis = parents[k].first;
+      const SpecialPoint& s = parents[k].second;
       if (s.kind != SpecialPointKind::kPeriodDoubling ||
           s.point.orbit.signature.periods != period) {
         continue;
       }
-      // Algebraic switching finds sub- and supercritical branches; simulation is the fallback.
-      // From the algebraic switch's orbit (next to the branch point) the branch is continued
-      // away from the doubling only: towards it, it runs through the branch point (where its
-      // parameter turns, a spurious fold) onto the same orbits shifted by one period.
-      const int p = axes_[axis].index;
-      ContinuationDirection direction = options_.branch.direction;
-      StatusOr<PeriodicOrbit> doubled =
-          SwitchAtPeriodDoublingAlgebraic(model_, propagator_, s.point.orbit, *axes_[axis].name);
-      if (doubled.ok()) {
-        direction = doubled->params[p] > s.point.orbit.params[p]
-                        ? ContinuationDirection::kIncreasing
-                        : ContinuationDirection::kDecreasing;
-      } else {
-        doubled = SwitchAtPeriodDoubling(model_, propagator_, s, *axes_[axis].name);
-      }
-      if (Stopped()) return false;
-      if (!doubled.ok()) {
-        sum_.notes.push_back(PeriodPrefix(period) + "PERIOD_DOUBLING at " + options_.param1 +
-                             " = " + std::to_string(s.point.orbit.params[i1_]) + ", " +
-                             options_.param2 + " = " + std::to_string(s.point.orbit.params[i2_]) +
-                             ": no period-" + std::to_string(2 * period) +
-                             " branch: " + doubled.status().message());
-        continue;
-      }
+      Job<BranchRun>& job = jobs.emplace_back();
       const double share = 0.1 / levels;
-      const double from = 0.1 + share * (level + static_cast<double>(k) / parents.size());
-      const double to = 0.1 + share * (level + static_cast<double>(k + 1) / parents.size());
-      if (!Branch(*doubled, axis, from, to, direction)) return false;
+      job.from = 0.1 + share * (level + static_cast<double>(k) / parents.size());
+      job.to = 0.1 + share * (level + static_cast<double>(k + 1) / parents.size());
+      job.compute = [this, &s, axis, period](Propagator& p, const ContinuationCallback& report) {
+        // Algebraic switching finds sub- and supercritical branches; simulation is the
+        // fallback. From the algebraic switch's orbit (next to the branch point) the branch is
+        // continued away from the doubling only: towards it, it runs through the branch point
+        // (where its parameter turns, a spurious fold) onto the same orbits shifted by one
+        // period.
+        const int index = axes_[axis].index;
+        ContinuationDirection direction = options_.branch.direction;
+        StatusOr<PeriodicOrbit> doubled =
+            SwitchAtPeriodDoublingAlgebraic(model_, p, s.point.orbit, *axes_[axis].name);
+        if (doubled.ok()) {
+          direction = doubled->params[index] > s.point.orbit.params[index]
+                          ? ContinuationDirection::kIncreasing
+                          : ContinuationDirection::kDecreasing;
+        } else {
+          doubled = SwitchAtPeriodDoubling(model_, p, s, *axes_[axis].name);
+        }
+        if (!doubled.ok()) {
+          BranchRun none;
+          none.note = PeriodPrefix(period) + "PERIOD_DOUBLING at " + options_.param1 + " = " +
+                      std::to_string(s.point.orbit.params[i1_]) + ", " + options_.param2 + " = " +
+                      std::to_string(s.point.orbit.params[i2_]) + ": no period-" +
+                      std::to_string(2 * period) + " branch: " + doubled.status().message();
+          return none;
+        }
+        return ComputeBranch(*doubled, axis, direction, p, report);
+      };
+      job.apply = [this, axis](BranchRun* run) {
+        if (run->note.empty()) return ApplyBranch(*run, axis, "");
+        sum_.notes.push_back(run->note);
+        return true;
+      };
     }
+    if (!InOrder(jobs)) return false;
   }
   return true;
 }
@@ -721,6 +894,9 @@ bool TraceDriver::EdgeRounds() {
   size_t ends_from = 0;
   while (options_.edge_branches) {
     const size_t starts_before = starts_.size(), curves_before = result_.curves.size();
+    // Copied: the reports while the branches run may release the vertices of curves handed over
+    // (CurveStream).
+    std::vector<EdgeEnd> ends;
     for (size_t c = ends_from; c < curves_before; ++c) {
       const CurveResult& curve = result_.curves[c].curve;
       if (curve.kind == CurveKind::kGrazing || curve.points.empty()) continue;
@@ -733,33 +909,17 @@ bool TraceDriver::EdgeRounds() {
           // A curve that leaves the box ends on it exactly: its last point is solved there.
           if ((edge < 2 ? end->value1 : end->value2) != bounds[edge]) continue;
           const int along = edge < 2 ? 1 : 0;
-          const double value = along == 0 ? end->value1 : end->value2;
-          const int periods = end->orbit.signature.periods;
-          const double tol = 1e-6 * (axes_[along].max - axes_[along].min);
-          if (std::any_of(on_edge_branches.begin(), on_edge_branches.end(),
-                          [&](const EdgePoint& e) {
-                            return e.edge == edge && e.kind == kind && e.periods == periods &&
-                                   std::abs(e.value - value) <= tol;
-                          })) {
-            continue;
-          }
-          const size_t located = starts_.size();
-          ++edge_runs_;
-          const std::string from_end = std::string(CurveKindName(curve.kind)) + " curve's end at " +
-                                       options_.param1 + " = " + std::to_string(end->value1) +
-                                       ", " + options_.param2 + " = " + std::to_string(end->value2);
-          if (!Branch(end->orbit, along, 0.99, 0.99, ContinuationDirection::kBoth, from_end)) {
-            return false;
-          }
-          on_edge_branches.push_back({edge, kind, periods, value});
-          for (size_t k = located; k < starts_.size(); ++k) {
-            const SpecialPoint& s = starts_[k].second;
-            on_edge_branches.push_back(
-                {edge, s.kind, s.point.orbit.signature.periods, s.point.value});
-          }
+          ends.push_back(
+              {{edge, kind, end->orbit.signature.periods, along == 0 ? end->value1 : end->value2},
+               along,
+               end->orbit,
+               std::string(CurveKindName(curve.kind)) + " curve's end at " + options_.param1 +
+                   " = " + std::to_string(end->value1) + ", " + options_.param2 + " = " +
+                   std::to_string(end->value2)});
         }
       }
     }
+    if (!EdgeBranches(ends, &on_edge_branches)) return false;
     ends_from = curves_before;
     if (starts_.size() == starts_before) break;
     if (!TraceStarts(starts_before, 0.99, 0.99) || !SwitchFrom(curves_before) || Stopped()) {
@@ -767,6 +927,77 @@ bool TraceDriver::EdgeRounds() {
     }
   }
   return true;
+}
+
+// One edge round's branches, through the ends in order, each unless a branch along the same edge
+// located its point already (on_edge_branches: the rounds' edge points, this one's added). Whether
+// an end needs its branch depends on the branches before it along the same edge only (each
+// branch adds points of its own edge): each edge's branches are a chain, one after the other, and
+// the chains of the four edges run as tasks side by side. The branches are applied in the order
+// of the ends, each as soon as those before it are: the same as one after the other, whatever
+// the threads and the schedule, and no branch computed in vain.
+bool TraceDriver::EdgeBranches(const std::vector<EdgeEnd>& ends,
+                               std::vector<EdgePoint>* on_edge_branches) {
+  auto covered = [&](const EdgePoint& at, int along) {
+    const double tol = 1e-6 * (axes_[along].max - axes_[along].min);
+    return std::any_of(on_edge_branches->begin(), on_edge_branches->end(), [&](const EdgePoint& e) {
+      return e.edge == at.edge && e.kind == at.kind && e.periods == at.periods &&
+             std::abs(e.value - at.value) <= tol;
+    });
+  };
+  internal::TaskStage<BranchRun> stage(*workers_);
+  internal::OrderedTasks<BranchRun>& tasks = stage.tasks();
+  std::vector<std::optional<BranchRun>> runs(ends.size());
+  std::vector<bool> skipped(ends.size(), false);
+  size_t next[4] = {0, 0, 0, 0};  // per edge: its first end not decided on
+  bool running[4] = {};           // per edge: its chain's branch is queued
+  std::deque<size_t> queued;      // the ends whose branches are queued, in queue order
+  size_t applied = 0;             // the ends before it are applied
+  for (;;) {
+    // Each edge without a branch queued: its next end that needs one, queued.
+    for (int edge = 0; edge < 4; ++edge) {
+      for (size_t& j = next[edge]; !running[edge] && j < ends.size(); ++j) {
+        const EdgeEnd& e = ends[j];
+        if (e.at.edge != edge) continue;
+        if (covered(e.at, e.along)) {
+          skipped[j] = true;
+          continue;
+        }
+        running[edge] = true;
+        queued.push_back(j);
+        tasks.Push([this, &e](int worker) {
+          return ComputeBranch(e.orbit, e.along, ContinuationDirection::kBoth, workers_->at(worker),
+                               ReportHere(0.99, 0.99));
+        });
+      }
+    }
+    // The ends decided on, in order: skipped, or their branch applied.
+    for (; applied < ends.size(); ++applied) {
+      const EdgeEnd& e = ends[applied];
+      if (skipped[applied]) continue;
+      if (!runs[applied]) break;
+      ++edge_runs_;
+      if (!ApplyBranch(*runs[applied], e.along, e.from_end)) return false;
+      runs[applied].reset();
+    }
+    if (queued.empty()) return true;
+    if (!Report(0.99)) return false;
+    const size_t j = queued.front();
+    queued.pop_front();
+    BranchRun run = *tasks.TakeFront(wait_);
+    if (Stopped()) return false;
+    // Its edge points now, for the decisions on the ends after it along the same edge.
+    const EdgeEnd& e = ends[j];
+    on_edge_branches->push_back(e.at);
+    if (run.r.summary.termination != Termination::kCancelled) {
+      for (const auto& [axis, s] : Located(run, e.along)) {
+        on_edge_branches->push_back(
+            {e.at.edge, s.kind, s.point.orbit.signature.periods, s.point.value});
+      }
+    }
+    running[e.at.edge] = false;
+    runs[j] = std::move(run);
+  }
 }
 
 bool TraceDriver::LastResortStepOffs() {
