@@ -311,6 +311,55 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
   EXPECT_EQ(roots, 2) << grazing.summary.message;
 }
 
+// Along the level set of orbits with the inserted phase `length` long, a secant on the PD
+// condition (SolveSegmentLengthAlongLevel, the last-resort step-off where the fixed-length
+// system fails) finds the fixed-length system's own point: at both flip-grazing roots of the l1
+// grazing curve from the omega-branch's grazing at omega = 0.5088, stepped off at 1e-3 (where
+// that system solves), the two agree to 1e-9 of the box (both solve G = 0, the held duration and
+// sigma = 0 to a 1e-12 step; the 1e-9 is the located points' agreement between curves). And at
+// 1e-5, where the fixed-length system stagnated at the first root (measured), the level set's
+// point holds the phase at 1e-5, is admissible and has the multiplier -1 to 1e-8, as every located
+// PD point (measured 3.3e-9 there). (Below ~1e-6 the level set's own one-parameter orbit
+// stagnates at these roots: its steps hover at rounding's floor.)
+TEST_F(GrazingEnd, AlongTheLevelSetAStepOffFindsTheFixedLengthSystemsPoint) {
+  const ContinuationResult ro = OmegaBranch();
+  const SpecialPoint* graze =
+      testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
+  ASSERT_NE(graze, nullptr);
+  const CurveResult grazing = ContinueCurve(model_, prop_, *graze, OmegaABox());
+  const TraceOptions box = testing::ReferenceBox();
+  const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
+  const int i1 = DO::kOmega, i2 = DO::kA;
+  int roots = 0;
+  for (const Codim2Point& root : grazing.codim2) {
+    if (root.kind != Codim2Kind::kFlipGrazing || !root.detail.empty()) continue;
+    ++roots;
+    int inserted = -1;
+    const StatusOr<PeriodicOrbit> crossing =
+        internal::CrossingForm(model_, prop_, root.point.orbit, &inserted);
+    ASSERT_TRUE(crossing.ok()) << crossing.status().ToString();
+    const StatusOr<PeriodicOrbit> fixed = internal::SolveSegmentLength(
+        model_, prop_, *crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
+    const StatusOr<PeriodicOrbit> level = internal::SolveSegmentLengthAlongLevel(
+        model_, prop_, *crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
+    ASSERT_TRUE(fixed.ok()) << fixed.status().ToString();
+    ASSERT_TRUE(level.ok()) << level.status().ToString();
+    const double apart = std::hypot((level->params[i1] - fixed->params[i1]) / w1,
+                                    (level->params[i2] - fixed->params[i2]) / w2);
+    EXPECT_LE(apart, 1e-9) << "at omega = " << root.point.value1;
+    RecordProperty("apart_at_1e-3_" + std::to_string(roots), Sci(apart));
+    const StatusOr<PeriodicOrbit> close = internal::SolveSegmentLengthAlongLevel(
+        model_, prop_, *crossing, inserted, 1e-5, CurveKind::kPeriodDoubling, i1, i2);
+    ASSERT_TRUE(close.ok()) << close.status().ToString();
+    EXPECT_NEAR(close->durations[inserted], 1e-5, 1e-12);
+    EXPECT_TRUE(CheckAdmissible(model_, prop_, *close).admissible);
+    const double off = testing::DistanceToMultiplier(OrbitStability(model_, prop_, *close), -1.0);
+    EXPECT_LE(off, 1e-8) << "at omega = " << root.point.value1;
+    RecordProperty("multiplier_off_at_1e-5_" + std::to_string(roots), Sci(off));
+  }
+  EXPECT_EQ(roots, 2) << grazing.summary.message;
+}
+
 // Where a contact phase's force touches zero just before lift-off, the touch merges with the
 // lift-off (F = F' = F'' = 0 there, a cubic tangency) and the flight after it starts with the
 // impact surface's h = h' = h'' = h''' = 0: two grazing curves end at that one point, the l2 touch
