@@ -60,7 +60,7 @@ struct CurveOptions : ParameterBox {
   // 4 the reference box's trace has a fifth of the vertices and finds the same codimension-2
   // points and crossings. Condensed solves (condensed_solve true, docs/engine.md): with these
   // steps that box's trace finds the same network as with dense ones (bench/compare_networks.py)
-  // in ~15% less CPU. (With target_iterations 3 it lacks one grazing curve of the dense trace's,
+  // in ~13% less CPU. (With target_iterations 3 it lacks one grazing curve of the dense trace's,
   // between two double grazings near (0.057, 0.168): its step-off from the zero-length root
   // meets an exactly singular Newton matrix there, and a nearly singular one in the dense trace.)
   StepControl steps{0.02, 1e-8, 1.0, 4, 8, 10000, 1e-10, true};
