@@ -211,7 +211,15 @@ bool StaysAt(const CurveResult& curve, double u, double v, double w1, double w2,
 // needed 1e-7). Last, because a curve started so close to its root is traced coarsely there (its
 // first steps long against the square-root scale of the orbit's change) and, traced first, it
 // hid the same curve traced from its other end, and that curve's crossing with the a-branch at
-// omega = 0.09.
+// omega = 0.09. A last-resort length is solved along its level set first
+// (SolveSegmentLengthAlongLevel), by the fixed-length system where that fails (a grazing curve's
+// step-off, a secant stalled on the condition's noise): that system's Newton borders the fold /
+// PD condition at the root, where the zero-length segment's saltation is singular, so its first
+// residual is whatever rounding makes of 0 / 0 (1e-6 or 1.1 at one fold-grazing of the
+// reference box, whose fold curve was started or not by a 1e-17 difference in the root), and
+// from a regular orbit of that length its condition row is noise; where it converges, its start
+// lies in the band where the condition sits at its rounding floor (there: the multiplier 6.6e-6
+// off 1, the level set's start 3e-9 off, 1.5e-8 away in omega).
 CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
                           const TraceOptions& options, const CurveOptions& co, int i1, int i2,
                           const Codim2Point& point, const SwitchCandidate& candidate,
@@ -225,8 +233,15 @@ CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
     starts.push_back(orbit);
   } else {
     auto step_off = [&](double length) {
-      StatusOr<PeriodicOrbit> off = SolveSegmentLength(model, propagator, orbit, candidate.step_off,
-                                                       length, candidate.kind, i1, i2);
+      StatusOr<PeriodicOrbit> off = InvalidArgument("");
+      if (last_resort) {
+        off = SolveSegmentLengthAlongLevel(model, propagator, orbit, candidate.step_off, length,
+                                           candidate.kind, i1, i2);
+      }
+      if (!off.ok()) {
+        off = SolveSegmentLength(model, propagator, orbit, candidate.step_off, length,
+                                 candidate.kind, i1, i2);
+      }
       if (!off.ok() || !CheckAdmissible(model, propagator, *off).admissible) return false;
       if (propagator.stopped()) return false;
       starts.push_back(*std::move(off));

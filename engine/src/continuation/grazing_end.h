@@ -47,6 +47,18 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
                                            CurveKind kind, int index1, int index2,
                                            double tolerance = 1e-12);
 
+// SolveSegmentLength's point found without the curve's condition in Newton's matrix: along the
+// level set of orbits with the zero-length `segment` of `guess` `length` long (one parameter
+// solved for, the other stepped), a secant on the curve's own condition (fold / PD / NS; not a
+// grazing curve). Next to a fold-grazing the condition varies along that level set on the
+// parameters' scale length^2, far below the differences' steps of ConditionRow (1e-6), and the
+// whole system's Newton stagnates on a row of noise.
+StatusOr<PeriodicOrbit> SolveSegmentLengthAlongLevel(const HybridModel& model,
+                                                     Propagator& propagator,
+                                                     const PeriodicOrbit& guess, int segment,
+                                                     double length, CurveKind kind, int index1,
+                                                     int index2, double tolerance = 1e-12);
+
 // The same point as the limit of the curve's own points: where the zero-length system is singular
 // (both events of the vanishing segment degenerate at once, as a contact phase vanishing between
 // two flights: impact at zero speed and lift-off at zero force rate; Newton stagnates) and the

@@ -311,6 +311,55 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
   EXPECT_EQ(roots, 2) << grazing.summary.message;
 }
 
+// Along the level set of orbits with the inserted phase `length` long, a secant on the PD
+// condition (SolveSegmentLengthAlongLevel, the last-resort step-off where the fixed-length
+// system fails) finds the fixed-length system's own point: at both flip-grazing roots of the l1
+// grazing curve from the omega-branch's grazing at omega = 0.5088, stepped off at 1e-3 (where
+// that system solves), the two agree to 1e-9 of the box (both solve G = 0, the held duration and
+// sigma = 0 to a 1e-12 step; the 1e-9 is the located points' agreement between curves). And at
+// 1e-5, where the fixed-length system stagnated at the first root (measured), the level set's
+// point holds the phase at 1e-5, is admissible and has the multiplier -1 to 1e-8, as every located
+// PD point (measured 3.3e-9 there). (Below ~1e-6 the level set's own one-parameter orbit
+// stagnates at these roots: its steps hover at rounding's floor.)
+TEST_F(GrazingEnd, AlongTheLevelSetAStepOffFindsTheFixedLengthSystemsPoint) {
+  const ContinuationResult ro = OmegaBranch();
+  const SpecialPoint* graze =
+      testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
+  ASSERT_NE(graze, nullptr);
+  const CurveResult grazing = ContinueCurve(model_, prop_, *graze, OmegaABox());
+  const TraceOptions box = testing::ReferenceBox();
+  const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
+  const int i1 = DO::kOmega, i2 = DO::kA;
+  int roots = 0;
+  for (const Codim2Point& root : grazing.codim2) {
+    if (root.kind != Codim2Kind::kFlipGrazing || !root.detail.empty()) continue;
+    ++roots;
+    int inserted = -1;
+    const StatusOr<PeriodicOrbit> crossing =
+        internal::CrossingForm(model_, prop_, root.point.orbit, &inserted);
+    ASSERT_TRUE(crossing.ok()) << crossing.status().ToString();
+    const StatusOr<PeriodicOrbit> fixed = internal::SolveSegmentLength(
+        model_, prop_, *crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
+    const StatusOr<PeriodicOrbit> level = internal::SolveSegmentLengthAlongLevel(
+        model_, prop_, *crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
+    ASSERT_TRUE(fixed.ok()) << fixed.status().ToString();
+    ASSERT_TRUE(level.ok()) << level.status().ToString();
+    const double apart = std::hypot((level->params[i1] - fixed->params[i1]) / w1,
+                                    (level->params[i2] - fixed->params[i2]) / w2);
+    EXPECT_LE(apart, 1e-9) << "at omega = " << root.point.value1;
+    RecordProperty("apart_at_1e-3_" + std::to_string(roots), Sci(apart));
+    const StatusOr<PeriodicOrbit> close = internal::SolveSegmentLengthAlongLevel(
+        model_, prop_, *crossing, inserted, 1e-5, CurveKind::kPeriodDoubling, i1, i2);
+    ASSERT_TRUE(close.ok()) << close.status().ToString();
+    EXPECT_NEAR(close->durations[inserted], 1e-5, 1e-12);
+    EXPECT_TRUE(CheckAdmissible(model_, prop_, *close).admissible);
+    const double off = testing::DistanceToMultiplier(OrbitStability(model_, prop_, *close), -1.0);
+    EXPECT_LE(off, 1e-8) << "at omega = " << root.point.value1;
+    RecordProperty("multiplier_off_at_1e-5_" + std::to_string(roots), Sci(off));
+  }
+  EXPECT_EQ(roots, 2) << grazing.summary.message;
+}
+
 // Where a contact phase's force touches zero just before lift-off, the touch merges with the
 // lift-off (F = F' = F'' = 0 there, a cubic tangency) and the flight after it starts with the
 // impact surface's h = h' = h'' = h''' = 0: two grazing curves end at that one point, the l2 touch
@@ -435,6 +484,81 @@ TEST_F(GrazingEnd, WrongNumberOfTangentEndsIsAClearError) {
       internal::SolveGrazingEnd(model_, prop_, start_, CurveKind::kGrazing, iw, ia);
   ASSERT_FALSE(grazing.ok());
   EXPECT_NE(grazing.status().message().find("needs 2"), std::string::npos);
+}
+
+// A fold curve started next to its fold-grazing root begins where the fold condition is at its
+// rounding floor (saltations ~ 1 / tau as the CwP phase vanishes): its points there have the
+// multiplier nearest 1 up to ~5e-5 off it and their direction in (omega, a) is noise, which the
+// cusp test must not read as a cusp. The fold curve of the a-branch's fold at omega = 0.05 (the
+// reference box's edge; the orbit from rest at a = 0.17) runs to the fold-grazing near (omega, a)
+// = (0.050365, 0.16908), where its CwP phase vanishes. Stepped off that end 1e-6 along the
+// level set (the trace's last-resort step-off where the fixed-length system fails, as it did
+// there with condensed solves; its start lies 1.5e-8 off the root in omega, the multiplier 1 to
+// 3e-9), the curve from there reported a "cusp" 8e-9 (box-scaled) from the root before the cusp
+// test asked for a fold point (measured). Every cusp it reports must be a fold point (multiplier
+// within 1e-8 of 1, as the cusp test requires; the box's real cusps measure at most 2.4e-10),
+// and none lies within 1e-6 of the box from the root (the stretch the start's noise spans: ~1e-8).
+TEST(GrazingEndStepOff, AFoldCurveSteppedOffItsFoldGrazingHasNoCuspFromItsNoise) {
+  DriftingOscillator model;
+  ExactPropagator prop(model);
+  const int iw = model.ParamIndex("omega").value(), ia = model.ParamIndex("a").value();
+  Params params = testing::ReferenceParams();
+  params[iw] = 0.05, params[ia] = 0.17;
+  const StatusOr<PeriodicOrbit> from_rest = testing::SolvedOrbitFromRest(model, prop, params);
+  ASSERT_TRUE(from_rest.ok()) << from_rest.status().ToString();
+  ContinuationOptions branch;
+  branch.param = "a";
+  branch.min = 0.165, branch.max = 0.175;
+  branch.steps.max_step = 1e-3;
+  const ContinuationResult a_branch = Continue(model, prop, *from_rest, branch);
+  const SpecialPoint* fold =
+      testing::SpecialPointNear(a_branch, SpecialPointKind::kFold, 0.1696805, 1e-6);
+  ASSERT_NE(fold, nullptr) << a_branch.summary.message;
+  const TraceOptions box = testing::ReferenceBox();
+  const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
+  CurveOptions co;
+  co.param1 = box.param2, co.min1 = box.min2, co.max1 = box.max2;
+  co.param2 = box.param1, co.min2 = box.min1, co.max2 = box.max1;
+  ASSERT_TRUE(co.steps.condensed_solve);  // the curves' default, where the noise showed
+  const CurveResult to_root = ContinueCurve(model, prop, *fold, co);
+  const Codim2Point* root = nullptr;
+  for (const Codim2Point& q : to_root.codim2) {
+    if (q.kind == Codim2Kind::kFoldGrazing && q.bracket == 0.0 &&
+        std::abs(q.point.value2 - 0.050365) < 1e-5) {
+      root = &q;
+    }
+  }
+  ASSERT_NE(root, nullptr) << to_root.summary.message;
+  int inserted = -1;
+  const StatusOr<PeriodicOrbit> crossing =
+      internal::CrossingForm(model, prop, root->point.orbit, &inserted);
+  ASSERT_TRUE(crossing.ok()) << crossing.status().ToString();
+  const StatusOr<PeriodicOrbit> off = internal::SolveSegmentLengthAlongLevel(
+      model, prop, *crossing, inserted, 1e-6, CurveKind::kFold, ia, iw);
+  ASSERT_TRUE(off.ok()) << off.status().ToString();
+  SpecialPoint seed;
+  seed.kind = SpecialPointKind::kFold;
+  seed.point.orbit = *off;
+  seed.point.value = off->params[ia];
+  seed.point.stability = OrbitStability(model, prop, *off);
+  const CurveResult curve = ContinueCurve(model, prop, seed, co);
+  ASSERT_EQ(curve.summary.termination, Termination::kCompleted) << curve.summary.message;
+  // It passes the stretch next to the root: one way it ends there (to the located points' 1e-9).
+  const bool back_at_root =
+      std::any_of(curve.codim2.begin(), curve.codim2.end(), [&](const Codim2Point& q) {
+        return q.kind == Codim2Kind::kFoldGrazing &&
+               std::hypot((q.point.value2 - root->point.value2) / w1,
+                          (q.point.value1 - root->point.value1) / w2) <= 1e-9;
+      });
+  EXPECT_TRUE(back_at_root) << curve.summary.message;
+  for (const Codim2Point& q : curve.codim2) {
+    if (q.kind != Codim2Kind::kCusp) continue;
+    const double apart = std::hypot((q.point.value2 - root->point.value2) / w1,
+                                    (q.point.value1 - root->point.value1) / w2);
+    EXPECT_LE(testing::DistanceToMultiplier(q.point.stability, 1.0), 1e-8)
+        << "cusp at (" << q.point.value2 << ", " << q.point.value1 << ")";
+    EXPECT_GT(apart, 1e-6) << "cusp at (" << q.point.value2 << ", " << q.point.value1 << ")";
+  }
 }
 
 }  // namespace
