@@ -30,6 +30,21 @@ ExtraCondition OwnCondition(const HybridModel& model, Propagator& propagator,
       [kind, sigma](const Eigen::MatrixXd& m) { return sigma(ShiftedMonodromy(kind, m)); });
 }
 
+// `guess` with its zero-length `segment` made `length` long, taken from the next segment: the
+// segment's flow for that long, the jump at its end the next start (the first guess of the
+// fixed-length step-offs).
+PeriodicOrbit WithSegmentLength(const HybridModel& model, Propagator& propagator,
+                                const PeriodicOrbit& guess, int segment, double length) {
+  PeriodicOrbit g = guess;
+  const int next = segment + 1;
+  const SegmentSpec& seg = g.signature.segments[segment];
+  const StateVector end = propagator.FlowMap(seg.mode, g.starts[segment], length, g.params, {}).x;
+  g.starts[next] = model.Jump(seg.mode, seg.guard, end, g.params).x;
+  g.durations[segment] = length;
+  g.durations[next] -= length;
+  return g;
+}
+
 }  // namespace
 
 StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& propagator,
@@ -94,12 +109,7 @@ StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator&
     // crossing speed ~ h'' length / 2), then the whole system from it. From the root itself
     // Newton lost its way (in the reference box: a step-off solved or not by rounding differences
     // in the root).
-    PeriodicOrbit g = guess;
-    const SegmentSpec& seg = g.signature.segments[segment];
-    const StateVector end = propagator.FlowMap(seg.mode, g.starts[segment], length, g.params, {}).x;
-    g.starts[next] = model.Jump(seg.mode, seg.guard, end, g.params).x;
-    g.durations[segment] = length;
-    g.durations[next] -= length;
+    const PeriodicOrbit g = WithSegmentLength(model, propagator, guess, segment, length);
     for (const int free : {index1, index2}) {
       const StatusOr<PeriodicOrbit> consistent = SolveWithConditions(
           model, propagator, g, {free}, {ExtraCondition::Duration(segment, length)}, tolerance,
@@ -123,13 +133,7 @@ StatusOr<PeriodicOrbit> SolveSegmentLengthAlongLevel(const HybridModel& model,
       guess.durations[next] <= length) {
     return InvalidArgument("no zero-length segment to step off along its level set");
   }
-  // The orbit with the segment `length` long, as SolveSegmentLength's first stage.
-  PeriodicOrbit g = guess;
-  const SegmentSpec& seg = g.signature.segments[segment];
-  const StateVector end = propagator.FlowMap(seg.mode, g.starts[segment], length, g.params, {}).x;
-  g.starts[next] = model.Jump(seg.mode, seg.guard, end, g.params).x;
-  g.durations[segment] = length;
-  g.durations[next] -= length;
+  const PeriodicOrbit g = WithSegmentLength(model, propagator, guess, segment, length);
   const ExtraCondition held = ExtraCondition::Duration(segment, length);
   Status last = Internal("the level-set secant found no fold / PD point");
   for (const auto& [free, moved] : {std::pair{index1, index2}, std::pair{index2, index1}}) {
