@@ -86,6 +86,40 @@ class GrazingEnd : public testing::ReferenceOrbitTest {
     return found;
   }
 
+  // A flip-grazing root of a grazing curve in crossing form: the orbit with the touch become a
+  // crossing into a zero-length segment `inserted` (internal::CrossingForm).
+  struct CrossingAtRoot {
+    Codim2Point root;
+    PeriodicOrbit crossing;
+    int inserted = -1;
+  };
+  // Those of the l1 grazing curve from the omega-branch's grazing at omega = 0.5088 (the located
+  // roots, no ends); *message: that curve's.
+  std::vector<CrossingAtRoot> CrossingsAtFlipGrazingRoots(std::string* message) {
+    std::vector<CrossingAtRoot> out;
+    const ContinuationResult ro = OmegaBranch();
+    const SpecialPoint* graze =
+        testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
+    if (graze == nullptr) {
+      ADD_FAILURE() << "no l1 grazing near omega = 0.5088";
+      return out;
+    }
+    const CurveResult grazing = ContinueCurve(model_, prop_, *graze, OmegaABox());
+    *message = grazing.summary.message;
+    for (const Codim2Point& root : grazing.codim2) {
+      if (root.kind != Codim2Kind::kFlipGrazing || !root.detail.empty()) continue;
+      int inserted = -1;
+      const StatusOr<PeriodicOrbit> crossing =
+          internal::CrossingForm(model_, prop_, root.point.orbit, &inserted);
+      if (!crossing.ok()) {
+        ADD_FAILURE() << crossing.status().ToString();
+        continue;
+      }
+      out.push_back({root, *crossing, inserted});
+    }
+    return out;
+  }
+
   ContinuationResult a_branch_;
 };
 
@@ -267,25 +301,17 @@ TEST_F(GrazingEnd, ZeroLengthEndIsWhereTheOtherSignaturesFoldCurveEnds) {
 // at the root, that end solved independently (in tangent form, from the bisected end):
 // measured agreement 1.4e-14 and 4e-17 (box-scaled), asserted the required 1e-8.
 TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
-  const ContinuationResult ro = OmegaBranch();
-  const SpecialPoint* graze =
-      testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
-  ASSERT_NE(graze, nullptr);
   const CurveOptions opt = OmegaABox();
   const TraceOptions box = testing::ReferenceBox();
-  const CurveResult grazing = ContinueCurve(model_, prop_, *graze, opt);
   const int i1 = DO::kOmega, i2 = DO::kA;
   const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
+  std::string message;
+  const std::vector<CrossingAtRoot> at = CrossingsAtFlipGrazingRoots(&message);
   int roots = 0;
-  for (const Codim2Point& root : grazing.codim2) {
-    if (root.kind != Codim2Kind::kFlipGrazing || !root.detail.empty()) continue;
+  for (const auto& [root, crossing, inserted] : at) {
     ++roots;
-    int inserted = -1;
-    const StatusOr<PeriodicOrbit> crossing =
-        internal::CrossingForm(model_, prop_, root.point.orbit, &inserted);
-    ASSERT_TRUE(crossing.ok()) << crossing.status().ToString();
     const StatusOr<PeriodicOrbit> off = internal::SolveSegmentLength(
-        model_, prop_, *crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
+        model_, prop_, crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
     ASSERT_TRUE(off.ok()) << "at omega = " << root.point.value1 << ": " << off.status().ToString();
     EXPECT_NEAR(off->durations[inserted], 1e-3, 1e-12);
     EXPECT_TRUE(CheckAdmissible(model_, prop_, *off).admissible);
@@ -308,7 +334,7 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
     std::snprintf(measured, sizeof measured, "%.1e", back);
     RecordProperty("back_at_root_" + std::to_string(roots), measured);
   }
-  EXPECT_EQ(roots, 2) << grazing.summary.message;
+  EXPECT_EQ(roots, 2) << message;
 }
 
 // Along the level set of orbits with the inserted phase `length` long, a secant on the PD
@@ -322,26 +348,18 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
 // PD point (measured 3.3e-9 there). (Below ~1e-6 the level set's own one-parameter orbit
 // stagnates at these roots: its steps hover at rounding's floor.)
 TEST_F(GrazingEnd, AlongTheLevelSetAStepOffFindsTheFixedLengthSystemsPoint) {
-  const ContinuationResult ro = OmegaBranch();
-  const SpecialPoint* graze =
-      testing::SpecialPointNear(ro, SpecialPointKind::kGrazingL1, 0.5088, 1e-3);
-  ASSERT_NE(graze, nullptr);
-  const CurveResult grazing = ContinueCurve(model_, prop_, *graze, OmegaABox());
   const TraceOptions box = testing::ReferenceBox();
   const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
   const int i1 = DO::kOmega, i2 = DO::kA;
+  std::string message;
+  const std::vector<CrossingAtRoot> at = CrossingsAtFlipGrazingRoots(&message);
   int roots = 0;
-  for (const Codim2Point& root : grazing.codim2) {
-    if (root.kind != Codim2Kind::kFlipGrazing || !root.detail.empty()) continue;
+  for (const auto& [root, crossing, inserted] : at) {
     ++roots;
-    int inserted = -1;
-    const StatusOr<PeriodicOrbit> crossing =
-        internal::CrossingForm(model_, prop_, root.point.orbit, &inserted);
-    ASSERT_TRUE(crossing.ok()) << crossing.status().ToString();
     const StatusOr<PeriodicOrbit> fixed = internal::SolveSegmentLength(
-        model_, prop_, *crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
+        model_, prop_, crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
     const StatusOr<PeriodicOrbit> level = internal::SolveSegmentLengthAlongLevel(
-        model_, prop_, *crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
+        model_, prop_, crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, i1, i2);
     ASSERT_TRUE(fixed.ok()) << fixed.status().ToString();
     ASSERT_TRUE(level.ok()) << level.status().ToString();
     const double apart = std::hypot((level->params[i1] - fixed->params[i1]) / w1,
@@ -349,7 +367,7 @@ TEST_F(GrazingEnd, AlongTheLevelSetAStepOffFindsTheFixedLengthSystemsPoint) {
     EXPECT_LE(apart, 1e-9) << "at omega = " << root.point.value1;
     RecordProperty("apart_at_1e-3_" + std::to_string(roots), Sci(apart));
     const StatusOr<PeriodicOrbit> close = internal::SolveSegmentLengthAlongLevel(
-        model_, prop_, *crossing, inserted, 1e-5, CurveKind::kPeriodDoubling, i1, i2);
+        model_, prop_, crossing, inserted, 1e-5, CurveKind::kPeriodDoubling, i1, i2);
     ASSERT_TRUE(close.ok()) << close.status().ToString();
     EXPECT_NEAR(close->durations[inserted], 1e-5, 1e-12);
     EXPECT_TRUE(CheckAdmissible(model_, prop_, *close).admissible);
@@ -357,7 +375,7 @@ TEST_F(GrazingEnd, AlongTheLevelSetAStepOffFindsTheFixedLengthSystemsPoint) {
     EXPECT_LE(off, 1e-8) << "at omega = " << root.point.value1;
     RecordProperty("multiplier_off_at_1e-5_" + std::to_string(roots), Sci(off));
   }
-  EXPECT_EQ(roots, 2) << grazing.summary.message;
+  EXPECT_EQ(roots, 2) << message;
 }
 
 // Where a contact phase's force touches zero just before lift-off, the touch merges with the
