@@ -22,11 +22,18 @@
 namespace drillbif {
 namespace {
 
+// How the correctors solve their Newton systems (ContinuationOptions / CurveOptions::steps'
+// condensed_solve).
+enum class Solves {
+  kDefaults,   // as TraceOptions has them: the curves condensed, the branches dense
+  kDense,      // every corrector dense
+  kCondensed,  // every corrector condensed
+};
+
 // The whole trace: both one-parameter branches and every curve (the start orbit excluded), with
-// the corrector aiming at state.range(0) Newton iterations per curve step (3: the default, the
-// FINE curve steps of a trace request; 4: COARSE); `condensed`: the correctors solve their Newton
-// systems by condensing (ContinuationOptions / CurveOptions::condensed_solve).
-void TraceReferenceBox(benchmark::State& state, bool condensed) {
+// the corrector aiming at state.range(0) Newton iterations per curve step (3: the FINE curve
+// steps of a trace request; 4: COARSE, the default) on state.range(1) threads.
+void TraceReferenceBox(benchmark::State& state, Solves solves) {
   DriftingOscillator model;
   ExactPropagator prop(model);
   const PeriodicOrbit start =
@@ -34,8 +41,10 @@ void TraceReferenceBox(benchmark::State& state, bool condensed) {
   TraceOptions options = testing::ReferenceBox();
   options.curve.steps.target_iterations = static_cast<int>(state.range(0));
   options.threads = static_cast<int>(state.range(1));
-  options.curve.steps.condensed_solve = condensed;
-  options.branch.steps.condensed_solve = condensed;
+  if (solves != Solves::kDefaults) {
+    options.curve.steps.condensed_solve = solves == Solves::kCondensed;
+    options.branch.steps.condensed_solve = solves == Solves::kCondensed;
+  }
   TraceResult r;
   for (auto _ : state) {
     r = TraceCurves(model, prop, start, options);
@@ -52,7 +61,7 @@ void TraceReferenceBox(benchmark::State& state, bool condensed) {
   if (!r.summary.completed()) state.SkipWithError(r.summary.BriefReport().c_str());
 }
 // Args: target iterations (3: FINE, 4: COARSE), threads.
-void BM_TraceReferenceBox(benchmark::State& state) { TraceReferenceBox(state, false); }
+void BM_TraceReferenceBox(benchmark::State& state) { TraceReferenceBox(state, Solves::kDefaults); }
 BENCHMARK(BM_TraceReferenceBox)
     ->Args({3, 1})
     ->Args({3, 2})
@@ -61,8 +70,20 @@ BENCHMARK(BM_TraceReferenceBox)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1)
     ->UseRealTime();
-// The same with condensed correctors (docs/performance.md compares the two).
-void BM_TraceReferenceBoxCondensed(benchmark::State& state) { TraceReferenceBox(state, true); }
+// The same with every corrector dense, and with every one condensed (docs/performance.md compares
+// them).
+void BM_TraceReferenceBoxDense(benchmark::State& state) {
+  TraceReferenceBox(state, Solves::kDense);
+}
+BENCHMARK(BM_TraceReferenceBoxDense)
+    ->Args({3, 1})
+    ->Args({4, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
+void BM_TraceReferenceBoxCondensed(benchmark::State& state) {
+  TraceReferenceBox(state, Solves::kCondensed);
+}
 BENCHMARK(BM_TraceReferenceBoxCondensed)
     ->Args({3, 1})
     ->Args({4, 1})
