@@ -136,7 +136,11 @@ StatusOr<PeriodicOrbit> SolveSegmentLengthAlongLevel(const HybridModel& model,
   const PeriodicOrbit g = WithSegmentLength(model, propagator, guess, segment, length);
   const ExtraCondition held = ExtraCondition::Duration(segment, length);
   Status last = Internal("the level-set secant found no fold / PD point");
-  for (const auto& [free, moved] : {std::pair{index1, index2}, std::pair{index2, index1}}) {
+  for (const std::pair<int, int>& free_moved :
+       {std::pair{index1, index2}, std::pair{index2, index1}}) {
+    // Plain names, not structured bindings: the lambda below captures them (clang before 16
+    // does not capture bindings).
+    const int free = free_moved.first, moved = free_moved.second;
     StatusOr<PeriodicOrbit> at = SolveWithConditions(model, propagator, g, {free}, {held},
                                                      tolerance, "fixed segment-length orbit");
     if (!at.ok()) {
