@@ -59,10 +59,8 @@ struct CurveOptions : ParameterBox {
   // iterations, and the step grows only below the target, so with 3 it almost never grew; with
   // 4 the reference box's trace has a fifth of the vertices and finds the same codimension-2
   // points and crossings. Condensed solves (condensed_solve true, docs/engine.md): with these
-  // steps that box's trace finds the same network as with dense ones (bench/compare_networks.py)
-  // in ~13% less CPU. (With target_iterations 3 it lacks one grazing curve of the dense trace's,
-  // between two double grazings near (0.057, 0.168): its step-off from the zero-length root
-  // meets an exactly singular Newton matrix there, and a nearly singular one in the dense trace.)
+  // steps, and with target_iterations 3, that box's trace finds the same network as with dense
+  // ones (bench/compare_networks.py) in ~13% less CPU.
   StepControl steps{0.02, 1e-8, 1.0, 4, 8, 10000, 1e-10, true};
 
   Status Validate() const;
