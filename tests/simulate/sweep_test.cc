@@ -193,6 +193,27 @@ TEST(Sweep, PiecesAreDirectionMajorChunksInGridOrder) {
   EXPECT_EQ(SweepPieces(o)[0].last, 10);
 }
 
+// `piece` is checked against SweepPieces' count, directions x chunks, and so is a sweep of
+// hundreds of millions of chunks (5e8 values in 1e8 chunks each way: the check names 2e8 pieces
+// without making them).
+TEST(Sweep, PieceIsCheckedAgainstDirectionsTimesChunks) {
+  SweepOptions o = Small(0.0, 0.2, 11, SweepDirection::kBoth);
+  o.chunks = 3;
+  o.piece = 5;
+  EXPECT_TRUE(o.Validate().ok());
+  o.piece = 6;
+  const Status six = o.Validate();
+  EXPECT_EQ(six.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(six.message().find("0 .. 5 (directions x chunks pieces)"), std::string::npos)
+      << six.message();
+  o.steps = 500000000;
+  o.chunks = 100000000;
+  o.piece = 200000000;
+  const Status many = o.Validate();
+  EXPECT_EQ(many.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(many.message().find("0 .. 199999999"), std::string::npos) << many.message();
+}
+
 // Each piece run alone gives, bit for bit, the values the whole sweep gives at the same grid
 // positions (samples, how each ended, how each started), and its summary counts only them: a
 // piece starts from x0 and needs nothing from the others. Over [0.08, 0.2] the grid crosses the

@@ -56,7 +56,10 @@ Status SweepOptions::Validate() const {
         "forcing periods in all (steps x directions x (transient x factor + samples)) exceed "
         "2^63 - 1");
   }
-  const int pieces = static_cast<int>(SweepPieces(*this).size());
+  // SweepPieces' count, directions x chunks, without making the pieces: a request's checks stay
+  // O(1) whatever its chunks (a fuzzed sweep with 9.7e7 chunks took 22 s and 1.7 GB to be
+  // checked).
+  const int64_t pieces = int64_t{directions} * chunks;
   if (piece < -1 || piece >= pieces) {
     return InvalidArgument("piece must be -1 (the whole sweep) or in 0 .. " +
                            std::to_string(pieces - 1) + " (directions x chunks pieces), got " +
