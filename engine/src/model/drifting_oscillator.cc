@@ -2,6 +2,7 @@
 // and the augmented linear form. The closed-form flows are in drifting_oscillator_flow.cc.
 #include "drillbif/model/drifting_oscillator.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/format.h"
@@ -11,6 +12,31 @@ namespace drillbif {
 namespace {
 
 std::string Num(double v) { return internal::FormatNumber(v); }
+
+// The vector field of `mode` at x into dx[0..3], with force = a cos(s + phi0) + b given (the
+// saltation evaluates two modes' fields at one phase).
+void Field(int mode, const StateVector& x, double force, const Params& params, double* dx) {
+  using DO = DriftingOscillator;
+  const double xi = params[DO::kXi];
+  switch (mode) {
+    case DO::kNoContact:
+      dx[DO::kP] = x[DO::kY];
+      dx[DO::kY] = force;
+      dx[DO::kQ] = -x[DO::kQ] / (2.0 * xi);
+      break;
+    case DO::kContact:
+      dx[DO::kP] = x[DO::kY];
+      dx[DO::kY] = force - (2.0 * xi * x[DO::kY] + x[DO::kQ]);
+      dx[DO::kQ] = x[DO::kY];
+      break;
+    default:  // kProgression
+      dx[DO::kP] = (1.0 - x[DO::kQ]) / (2.0 * xi);
+      dx[DO::kY] = force - 1.0;
+      dx[DO::kQ] = (1.0 - x[DO::kQ]) / (2.0 * xi);
+      break;
+  }
+  dx[DO::kS] = params[DO::kOmega];
+}
 
 }  // namespace
 
@@ -133,27 +159,8 @@ int DriftingOscillator::ModeAt(const StateVector& x, const Params& params) const
 
 void DriftingOscillator::VectorField(int mode, const StateVector& x, const Params& params,
                                      StateVector* dx) const {
-  const double xi = params[kXi];
-  const double force = params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB];
   dx->resize(4);
-  switch (mode) {
-    case kNoContact:
-      (*dx)[kP] = x[kY];
-      (*dx)[kY] = force;
-      (*dx)[kQ] = -x[kQ] / (2.0 * xi);
-      break;
-    case kContact:
-      (*dx)[kP] = x[kY];
-      (*dx)[kY] = force - (2.0 * xi * x[kY] + x[kQ]);
-      (*dx)[kQ] = x[kY];
-      break;
-    default:  // kProgression
-      (*dx)[kP] = (1.0 - x[kQ]) / (2.0 * xi);
-      (*dx)[kY] = force - 1.0;
-      (*dx)[kQ] = (1.0 - x[kQ]) / (2.0 * xi);
-      break;
-  }
-  (*dx)[kS] = params[kOmega];
+  Field(mode, x, params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB], params, dx->data());
 }
 
 void DriftingOscillator::StateJacobian(int mode, const StateVector& x, const Params& params,
@@ -289,6 +296,42 @@ Transition DriftingOscillator::Jump(int mode, int guard, const StateVector& x,
       break;
   }
   return t;
+}
+
+StateMatrix DriftingOscillator::Saltation(int mode, int guard, int next_mode, const StateVector& x,
+                                          const Params& params) const {
+  // HybridModel::Saltation's arithmetic on the same values, with one cosine for both fields and
+  // without the jump's parameter Jacobian. The jump is the identity except at an impact, which
+  // sets p = q + g: DR's p row is e_q there, so DR f- is f- with its p entry replaced by f-_q
+  // (products of DR's 0 and 1 entries are exact, so is their sum). Every entry of S is formed as
+  // the default forms it, DR_ij + grad_j v_i, zero gradient entries included, so that S matches
+  // bit for bit even where grad h . f- vanishes.
+  const double force = params[kA] * std::cos(x[kS] + params[kPhi0]) + params[kB];
+  double f_minus[4], f_plus[4], jump_f[4], grad[4] = {0.0, 0.0, 0.0, 0.0};
+  Field(mode, x, force, params, f_minus);
+  std::copy(f_minus, f_minus + 4, jump_f);
+  double dr[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};  // DR(i, j)
+  if (mode == kNoContact) {
+    StateVector after = x;
+    after[kP] = x[kQ] + params[kG];
+    Field(next_mode, after, force, params, f_plus);
+    jump_f[kP] = f_minus[kQ];
+    dr[kP][kP] = 0.0, dr[kP][kQ] = 1.0;
+    grad[kP] = -1.0, grad[kQ] = 1.0;
+  } else {
+    Field(next_mode, x, force, params, f_plus);
+    const double sign = (mode == kContact && guard == kProgressionStart) ? -1.0 : 1.0;
+    grad[kY] = sign * 2.0 * params[kXi], grad[kQ] = sign;
+  }
+  // grad . f- with the zero entries' products dropped (exact: they add +-0 to a finite sum).
+  const double denom = mode == kNoContact ? grad[kP] * f_minus[kP] + grad[kQ] * f_minus[kQ]
+                                          : grad[kY] * f_minus[kY] + grad[kQ] * f_minus[kQ];
+  StateMatrix salt(4, 4);
+  for (int i = 0; i < 4; ++i) {
+    const double v = (f_plus[i] - jump_f[i]) / denom;
+    for (int j = 0; j < 4; ++j) salt(i, j) = dr[i][j] + grad[j] * v;
+  }
+  return salt;
 }
 
 bool DriftingOscillator::ModeConstraint(int mode, const StateVector& x, const Params& params,

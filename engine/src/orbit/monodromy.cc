@@ -18,18 +18,17 @@ StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit,
   // No saltation at the section, nor at a tangent end (same mode on both sides: it would be the
   // identity, and its formula divides by h' = 0 there).
   if (seg.guard < 0 || seg.tangent) return phi;
-  // Saltation: S = DR + (f+ - DR f-) grad h / (grad h . f-) (Leine & Nijmeijer 2004).
-  StateVector f_minus, f_plus;
-  model.VectorField(seg.mode, x_end, orbit.params, &f_minus);
-  const Transition tr = model.Jump(seg.mode, seg.guard, x_end, orbit.params);
-  model.VectorField(orbit.signature.segments[i + 1].mode, tr.x, orbit.params, &f_plus);
-  const StateRow grad = model.GuardGradient(seg.mode, seg.guard, x_end, orbit.params);
-  // Fixed-capacity types throughout: this runs once per unknown in every curve Jacobian.
-  const StateVector jump_f = tr.jacobian * f_minus;
-  StateMatrix salt = tr.jacobian;
-  salt.noalias() += ((f_plus - jump_f) / grad.dot(f_minus)) * grad;
-  StateMatrix out;
-  out.noalias() = salt * phi;
+  const StateMatrix salt = model.Saltation(
+      seg.mode, seg.guard, orbit.signature.segments[i + 1].mode, x_end, orbit.params);
+  StateMatrix out(phi.rows(), phi.cols());
+  if (phi.rows() == 4) {
+    // The drifting oscillator's size at fixed size: unrolled, and the same sums in the same
+    // order as the dynamic product (each entry accumulated over k = 0..3 in turn).
+    using Mat4 = Eigen::Matrix4d;
+    Mat4::Map(out.data()).noalias() = Mat4::Map(salt.data()) * Mat4::Map(phi.data());
+  } else {
+    out.noalias() = salt * phi;
+  }
   return out;
 }
 

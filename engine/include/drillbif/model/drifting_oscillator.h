@@ -82,6 +82,9 @@ class DriftingOscillator final : public HybridModel, public LinearForm, public C
                              const Params& params) const override;
   Transition Jump(int mode, int guard, const StateVector& x, const Params& params) const override;
   int ModeAcross(int mode, int guard) const override;
+  // The default's matrix bit for bit, from one cosine of the phase and no parameter Jacobian.
+  StateMatrix Saltation(int mode, int guard, int next_mode, const StateVector& x,
+                        const Params& params) const override;
   // Contact modes (CwoP, CwP) live on Pi: c = p - q - g = 0.
   bool ModeConstraint(int mode, const StateVector& x, const Params& params, double* c,
                       StateRow* grad, ParamVector* param_grad) const override;

@@ -119,6 +119,15 @@ class HybridModel {
   // The mode a transversal crossing of `guard` enters from `mode` (at a grazing touch Jump may
   // stay in `mode`; this is the mode on the guard's other side).
   virtual int ModeAcross(int mode, int guard) const = 0;
+  // The saltation matrix of `guard` of `mode` firing at x with the flow going on in `next_mode`:
+  // S = DR + (f+ - DR f-) grad h / (grad h . f-) (Leine & Nijmeijer 2004), d x_after / d x_before
+  // of the event with the change of its time, f- the field of `mode` at x, DR and f+ the jump's
+  // state Jacobian and `next_mode`'s field after the jump. The default makes it from VectorField,
+  // Jump and GuardGradient. A model overrides it to share their common work (a monodromy factor
+  // needs one per event, and the curves' condition rows one per unknown); an override gives the
+  // default's matrix bit for bit, so that results do not depend on which is used.
+  virtual StateMatrix Saltation(int mode, int guard, int next_mode, const StateVector& x,
+                                const Params& params) const;
 
   // An equality c(x) = 0 that holds throughout `mode` when the mode lives on a surface (the
   // drifting oscillator's contact modes: p - q - g = 0), with its state and parameter gradients.
