@@ -86,25 +86,36 @@ bool CurveCodim2::SameSigns(const std::vector<Codim2TestFunction>& tests, const 
   });
 }
 
+// With y_end, a trial is predicted on the chord between the corrected points that bracket it
+// (both in their hyperplanes normal to t, so the chord's point at sigma is in sigma's): as the
+// bracket closes in, that chord's distance from the curve shrinks with the bracket's square,
+// where y + sigma t's stays the whole step's, and the corrections take fewer Newton iterations.
 bool CurveCodim2::LocateOnStep(const Vec& y, const Vec& t, double h, double f0, double f1,
-                               double tol, const std::function<bool(const Vec&, double*)>& value,
-                               Vec* root) const {
+                               double tol, const Value& value, Vec* root, const Vec* y_end,
+                               bool tangents) const {
   double a = 0.0, fa = f0, b = h, fb = f1;
+  Vec ya = y, yb = y_end != nullptr ? *y_end : Vec();
   int side = 0;
   for (int it = 0; it < 100; ++it) {
     if (system_.Stopped()) return false;
     double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
     if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
+    const Vec prediction =
+        y_end != nullptr ? Vec(ya + (sigma - a) / (b - a) * (yb - ya)) : Vec(y + sigma * t);
     int iterations = 0;
+    Vec tangent;
     double f = 0.0;
-    if (!system_.Correct(y + sigma * t, t, root, &iterations) || !value(*root, &f)) return false;
+    if (!system_.Correct(prediction, t, root, &iterations, tangents ? &tangent : nullptr) ||
+        !value(*root, tangent, &f)) {
+      return false;
+    }
     if (std::abs(f) <= tol || b - a <= 1e-14 * std::max(1.0, h)) return true;
     if ((f > 0.0) == (fa > 0.0)) {
-      a = sigma, fa = f;
+      a = sigma, fa = f, ya = *root;
       if (side == -1) fb *= 0.5;
       side = -1;
     } else {
-      b = sigma, fb = f;
+      b = sigma, fb = f, yb = *root;
       if (side == +1) fa *= 0.5;
       side = +1;
     }
@@ -116,7 +127,7 @@ bool CurveCodim2::LocateCodim2(const Vec& y, const Vec& t, double h, const Codim
                                double d0, double d1, Vec* root) const {
   return LocateOnStep(
       y, t, h, d0, d1, 1e-10,
-      [&](const Vec& p, double* f) {
+      [&](const Vec& p, const Vec&, double* f) {
         *f = TestValue(test, p);
         return true;
       },
@@ -138,38 +149,42 @@ void CurveCodim2::RootsOnStep(const Vec& y, const Vec& t, const Vec& y1, const M
   }
 }
 
-bool CurveCodim2::LocateCusp(const Vec& y, const Vec& t, double h, double psi1, double tol,
-                             Vec* root) const {
+bool CurveCodim2::LocateCusp(const Vec& y, const Vec& t, const Vec& y1, double h, double psi1,
+                             double tol, Vec* root) const {
   const Eigen::Vector2d u = system_.ParamDirection(t);
   return LocateOnStep(
       y, t, h, u.squaredNorm(), psi1, tol * u.norm(),
-      [&](const Vec& p, double* f) {
-        Vec tp;
-        if (!system_.Tangent(p, t, &tp)) return false;
-        *f = u.dot(system_.ParamDirection(tp));
+      [&](const Vec&, const Vec& tangent, double* f) {
+        *f = u.dot(system_.ParamDirection(tangent));
         return true;
       },
-      root);
+      root, &y1, true);
 }
 
 void CurveCodim2::CuspOnStep(const Vec& y, const Vec& t, const Vec& y1, const Vec& t1,
                              std::vector<Codim2Point>* codim2, double tol, int probes) const {
   if (system_.kind() != CurveKind::kFold) return;
   const double h = t.dot(y1 - y);
+  Vec y_reach = y1;
   double reach = h, psi_reach = system_.ParamDirection(t).dot(system_.ParamDirection(t1));
+  // A probe is predicted on the chord from y to y1 (in its hyperplane normal to t, as y + s t):
+  // the probes close in on y1, where the chord's distance from the curve goes to zero and
+  // y + s t's is the whole step's. Its tangent is its corrector's, from the last factorization
+  // (Correct), rather than a new evaluation's (Tangent: a Jacobian evaluated and factorized
+  // again).
   for (int k = 1; k <= probes; ++k) {
     const double s = h * (1.0 - std::ldexp(1.0, -k));
     Vec p, tp;
     int iterations = 0;
-    if (!system_.Correct(y + s * t, t, &p, &iterations) || !system_.Tangent(p, t, &tp)) continue;
+    if (!system_.Correct(y + (s / h) * (y1 - y), t, &p, &iterations, &tp)) continue;
     const double psi = system_.ParamDirection(t).dot(system_.ParamDirection(tp));
     if (psi < 0.0) {
-      reach = s, psi_reach = psi;
+      reach = s, psi_reach = psi, y_reach = p;
       break;
     }
   }
   Vec root, tr;
-  if (!(psi_reach < 0.0 && LocateCusp(y, t, reach, psi_reach, tol, &root))) return;
+  if (!(psi_reach < 0.0 && LocateCusp(y, t, y_reach, reach, psi_reach, tol, &root))) return;
   // A cusp, not a turn: psi = 0 also where the direction has turned through a right angle
   // within the step (a hairpin, |parameter part| ~ |u| there); at a cusp the parameter part
   // itself vanishes (measured at the box's cusps: at most 2.5e-4 |u|, against 0.07 |u| at the

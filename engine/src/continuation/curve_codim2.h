@@ -54,21 +54,28 @@ class CurveCodim2 {
                   std::vector<Codim2Point>* codim2, double tol = 1e-10, int probes = 0) const;
 
  private:
+  // A function of a corrected curve point p and the unit tangent there (along the step's t, from
+  // p's correction; empty unless asked for); false where it cannot be evaluated.
+  using Value = std::function<bool(const Vec& p, const Vec& tangent, double* f)>;
   // The root on the step from y along t of length h of a function of the curve point (values f0,
   // f1 at the step's ends): Illinois on the arclength, each trial point corrected onto the curve,
   // until |value| <= tol or the bracket is below 1e-14 of the step. `value` returns false where
-  // it cannot be evaluated (the root is then not located).
+  // it cannot be evaluated (the root is then not located). `y_end`, when given, is the corrected
+  // point at h (trial points are then predicted between corrected ones); `tangents`: `value` is
+  // given the tangent at each trial point.
   bool LocateOnStep(const Vec& y, const Vec& t, double h, double f0, double f1, double tol,
-                    const std::function<bool(const Vec&, double*)>& value, Vec* root) const;
+                    const Value& value, Vec* root, const Vec* y_end = nullptr,
+                    bool tangents = false) const;
   // The root of a codimension-2 test function on the step (values d0, d1 at its ends), to
   // |value| <= 1e-10.
   bool LocateCodim2(const Vec& y, const Vec& t, double h, const Codim2TestFunction& test, double d0,
                     double d1, Vec* root) const;
-  // A cusp on the step from y (tangent t) of length h, where the tangent's parameter part turns
-  // against its direction u at y: the root of psi = u . (parameter part of the tangent at the
-  // corrected point), psi1 at the step's end, to |psi| <= tol |u| (tol 0: until the sign change
-  // is bracketed to rounding).
-  bool LocateCusp(const Vec& y, const Vec& t, double h, double psi1, double tol, Vec* root) const;
+  // A cusp on the step from y (tangent t) of length h to the curve point y1, where the tangent's
+  // parameter part turns against its direction u at y: the root of psi = u . (parameter part of
+  // the tangent at the corrected point), psi1 at y1, to |psi| <= tol |u| (tol 0: until the sign
+  // change is bracketed to rounding).
+  bool LocateCusp(const Vec& y, const Vec& t, const Vec& y1, double h, double psi1, double tol,
+                  Vec* root) const;
 
   const CurveSystem& system_;
 };
