@@ -191,6 +191,57 @@ TEST(CondensedLu, KeepsADurationWhoseEventRowCannotBeSolvedForIt) {
   ExpectSolvesAsDense(s.a, s.b, lu, "kept duration");
 }
 
+// The elimination relies on no later unknown in a block's rows, not on OrbitBvp's zeros before
+// them (its earlier segments' start columns): a cheaper product that assumed those zeros would
+// be wrong for other shooting systems. Here a block's rows also get entries in an earlier start's
+// columns, and the solution is still the dense one.
+TEST(CondensedLu, UsesEveryNonzeroColumnOfABlocksRows) {
+  DO model;
+  ExactPropagator prop(model);
+  System s = MakeSystem(model, prop, TestOrbits().ten_segments, 1);
+  const int block = 3, row = block * s.block;  // an inner block, past three segments
+  ASSERT_LT(block + 1, s.segments);
+  ASSERT_TRUE(s.a.block(row, s.block, s.block, s.block - 1).isZero(0.0));
+  const double scale = s.a.block(row, row, s.block, s.block).cwiseAbs().maxCoeff();
+  for (int r = 0; r < s.block; ++r) {
+    s.a(row + r, s.block + r % (s.block - 1)) = 0.5 * scale * std::cos(1.0 + r);
+  }
+  ASSERT_GT(1.0 / Condition(s.a), 1e-12);
+  internal::CondensedLu lu(s.segments, s.block, CondensedMode::kCondensed);
+  ASSERT_TRUE(lu.Compute(s.a));
+  ExpectSolvesAsDense(s.a, s.b, lu, "entries in an earlier start's columns");
+}
+
+// The correctors keep one CondensedLu across signatures (Reshape): factorizing systems of other
+// sizes, borders and kept durations in between changes no bit of a system's solution or
+// determinant sign.
+TEST(CondensedLu, ReusedForOtherSystemsSolvesAsAFreshOne) {
+  DO model;
+  ExactPropagator prop(model);
+  const Orbits& orbits = TestOrbits();
+  std::vector<System> systems;
+  for (int q = 0; q <= 2; ++q) systems.push_back(MakeSystem(model, prop, orbits.ten_segments, q));
+  systems.push_back(MakeSystem(model, prop, orbits.reference, 1));
+  systems.push_back(systems[1]);
+  systems.back().a(2 * systems.back().block, 3 * systems.back().block - 1) =
+      0.0;  // a kept duration
+  internal::CondensedLu reused(0, 0, CondensedMode::kCondensed);
+  // Twice through, so that every system follows a different one.
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t i = 0; i < systems.size(); ++i) {
+      const System& s = systems[i];
+      internal::CondensedLu fresh(s.segments, s.block, CondensedMode::kCondensed);
+      ASSERT_TRUE(fresh.Compute(s.a)) << i;
+      reused.Reshape(s.segments, s.block);
+      ASSERT_TRUE(reused.Compute(s.a)) << i;
+      EXPECT_EQ(reused.reduced_size(), fresh.reduced_size()) << i;
+      EXPECT_EQ(reused.Solve(s.b), fresh.Solve(s.b)) << i;
+      EXPECT_EQ(reused.DeterminantSign(), fresh.DeterminantSign()) << i;
+    }
+  }
+  EXPECT_EQ(systems[1].a.rows(), systems[0].a.rows() + 1);
+}
+
 // Above the growth bound, and where the matrix is not a shooting system, the dense factorization
 // answers: the same solution bit for bit as PartialPivLU.
 TEST(CondensedLu, FallsBackToDenseLuAboveTheGrowthBoundOrWithoutTheStructure) {
