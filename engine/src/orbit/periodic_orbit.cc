@@ -189,10 +189,11 @@ bool IsOwnEnd(const HybridModel& model, Propagator& propagator, const PeriodicOr
   return std::isfinite(window) && tau - t <= window;
 }
 
-}  // namespace
-
-std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Propagator& propagator,
-                                                   const PeriodicOrbit& orbit) {
+// AdmissibilityViolations; with first_only, stops at the first violation (the segments are
+// checked in order, so it is the first of the full list): CheckAdmissible needs no more, and the
+// orbits it is asked about are often inadmissible (bisection midpoints past a grazing).
+std::vector<Admissibility> Violations(const HybridModel& model, Propagator& propagator,
+                                      const PeriodicOrbit& orbit, bool first_only) {
   std::vector<Admissibility> found;
   // Vanished segments first: they explain the guard crossings of their neighbours (past a
   // grazing point the fixed-signature branch re-crosses the surface inside the adjacent segments).
@@ -206,7 +207,7 @@ std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Pro
     }
   }
   if (!found.empty()) return found;
-  for (size_t i = 0; i < orbit.durations.size(); ++i) {
+  for (size_t i = 0; i < orbit.durations.size() && !(first_only && !found.empty()); ++i) {
     const SegmentSpec& seg = orbit.signature.segments[i];
     const double tau = orbit.durations[i];
     // No guard may fire before the segment's end. The terminating one fires at tau itself: an
@@ -229,9 +230,16 @@ std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Pro
   return found;
 }
 
+}  // namespace
+
+std::vector<Admissibility> AdmissibilityViolations(const HybridModel& model, Propagator& propagator,
+                                                   const PeriodicOrbit& orbit) {
+  return Violations(model, propagator, orbit, false);
+}
+
 Admissibility CheckAdmissible(const HybridModel& model, Propagator& propagator,
                               const PeriodicOrbit& orbit) {
-  const std::vector<Admissibility> v = AdmissibilityViolations(model, propagator, orbit);
+  const std::vector<Admissibility> v = Violations(model, propagator, orbit, true);
   return v.empty() ? Admissibility{} : v.front();
 }
 
