@@ -62,15 +62,20 @@ void CurveSystem::SetBorders(const Mat& monodromy) const {
   sigma_ = BorderedSigma(ShiftedMonodromy(kind_, monodromy));
 }
 
+double CurveSystem::Condition(const Vec& y) const {
+  // Unpacked into the kept orbit: Condition is called once per difference of the row.
+  bvp1_.Unpack(y.head(m()), ParamsAt(y), &moved_orbit_);
+  return ConditionAt(moved_orbit_);
+}
+
 double CurveSystem::ConditionAt(const PeriodicOrbit& o, std::vector<StateMatrix>* factors,
                                 std::vector<FlowResult>* flows) const {
   if (kind_ == CurveKind::kGrazing) {
     return corner_ >= 0 ? o.durations[corner_] : TangentEndRate(model_, propagator_, o);
   }
-  std::vector<StateMatrix> f = MonodromyFactors(model_, propagator_, o, flows);
-  const double sigma = Sigma(ReducedMonodromy(model_, f));
-  if (factors) *factors = std::move(f);
-  return sigma;
+  std::vector<StateMatrix>& f = factors != nullptr ? *factors : moved_factors_;
+  MonodromyFactorsInto(model_, propagator_, o, &f, flows);
+  return Sigma(ReducedMonodromy(model_, f));
 }
 
 double CurveSystem::Sigma(const Eigen::Ref<const Mat>& monodromy) const {
@@ -132,6 +137,7 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
       if (segments[i].tangent) tangent = i;
     }
     const int block = Block();
+    moved_y_ = y;  // moved one entry at a time and restored: the same bits as a fresh copy
     for (int j = 0; j < n(); ++j) {
       const double h = ForwardStep(y[j]);
       const bool moves_end = tangent < 0 || j >= m() || j / block == tangent ||
@@ -140,9 +146,9 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
         (*jac)(m(), j) = (sigma0 - sigma0) / h;
         continue;
       }
-      Vec yp = y;
-      yp[j] += h;
-      (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
+      moved_y_[j] = y[j] + h;
+      (*jac)(m(), j) = (Condition(moved_y_) - sigma0) / h;
+      moved_y_[j] = y[j];
     }
   } else {
     SigmaRow(y, o, factors, flows, sigma0, jac);
@@ -158,14 +164,15 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
 void CurveSystem::SigmaRow(const Vec& y, const PeriodicOrbit& o,
                            const std::vector<StateMatrix>& base,
                            const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
-  Mat gradient;
-  SigmaWithGradient(kind_, sigma_, ReducedMonodromy(model_, base), &gradient);
-  MonodromyGradientRow(model_, propagator_, o, base, flows, gradient, jac->row(m()).head(m()));
+  SigmaWithGradient(kind_, sigma_, ReducedMonodromy(model_, base), &gradient_);
+  MonodromyGradientRow(model_, propagator_, o, base, flows, gradient_, jac->row(m()).head(m()),
+                       &row_scratch_);
+  moved_y_ = y;  // moved one entry at a time and restored: the same bits as a fresh copy
   for (int j = m(); j < n(); ++j) {
     const double h = ForwardStep(y[j]);
-    Vec yp = y;
-    yp[j] += h;
-    (*jac)(m(), j) = (Condition(yp) - sigma0) / h;
+    moved_y_[j] = y[j] + h;
+    (*jac)(m(), j) = (Condition(moved_y_) - sigma0) / h;
+    moved_y_[j] = y[j];
   }
 }
 

@@ -35,11 +35,19 @@ StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit,
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit,
                                           std::vector<FlowResult>* flows) {
-  std::vector<StateMatrix> factors(orbit.durations.size());
-  if (flows) flows->resize(factors.size());
-  for (size_t i = 0; i < factors.size(); ++i) {
+  std::vector<StateMatrix> factors;
+  MonodromyFactorsInto(model, propagator, orbit, &factors, flows);
+  return factors;
+}
+
+void MonodromyFactorsInto(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, std::vector<StateMatrix>* factors,
+                          std::vector<FlowResult>* flows) {
+  factors->resize(orbit.durations.size());
+  if (flows) flows->resize(factors->size());
+  for (size_t i = 0; i < factors->size(); ++i) {
     if (!flows) {
-      factors[i] = SegmentFactor(model, propagator, orbit, static_cast<int>(i));
+      (*factors)[i] = SegmentFactor(model, propagator, orbit, static_cast<int>(i));
       continue;
     }
     FlowRequest req;
@@ -47,9 +55,8 @@ std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& 
     FlowResult& fr = (*flows)[i];
     fr = propagator.FlowMap(orbit.signature.segments[i].mode, orbit.starts[i], orbit.durations[i],
                             orbit.params, req);
-    factors[i] = FactorFromFlow(model, orbit, static_cast<int>(i), fr.x, fr.state_jacobian);
+    (*factors)[i] = FactorFromFlow(model, orbit, static_cast<int>(i), fr.x, fr.state_jacobian);
   }
-  return factors;
 }
 
 void FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,

@@ -28,6 +28,10 @@ StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit,
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit,
                                           std::vector<FlowResult>* flows = nullptr);
+// The same into *factors (its storage reused: the curve solves make factors per evaluation).
+void MonodromyFactorsInto(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, std::vector<StateMatrix>* factors,
+                          std::vector<FlowResult>* flows = nullptr);
 
 // Every factor of the orbit from its segments' flows (end state and flow Jacobian, as
 // MonodromyFactors' `flows`, or OrbitBvp::Evaluate's): the factors MonodromyFactors gives from
