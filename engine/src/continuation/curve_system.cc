@@ -11,6 +11,16 @@ namespace drillbif::internal {
 using Vec = CurveSystem::Vec;
 using Mat = CurveSystem::Mat;
 
+namespace {
+
+// Whether every entry of `a` is finite, as a.allFinite(), in one vectorized sum: 0 x is +-0 for
+// a finite x and NaN for an infinite or NaN one, so the sum is NaN exactly when some entry is
+// not finite. (allFinite tests entry by entry with a branch each: ~2% of the reference box's
+// trace on these dense (m + 1) x n Jacobians.)
+bool AllFinite(const Mat& a) { return !std::isnan((a.array() * 0.0).sum()); }
+
+}  // namespace
+
 CurveSystem::CurveSystem(const HybridModel& model, Propagator& propagator,
                          const CurveOptions& options, CurveKind kind, int index1, int index2,
                          const PeriodicOrbit& start)
@@ -113,7 +123,10 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
     (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
   }
   if (!jac) return f->allFinite();
-  jac->setZero(m() + 1, n());
+  // Every entry is written below (G's rows from gx, gp1, gp2, the condition's row zeroed and
+  // filled): no zeroing pass over the whole matrix.
+  jac->resize(m() + 1, n());
+  jac->row(m()).setZero();
   jac->topLeftCorner(m(), m()) = gx;
   jac->col(m()).head(m()) = gp1;
   jac->col(m() + 1).head(m()) = gp2;
@@ -153,7 +166,7 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   } else {
     SigmaRow(y, o, factors, flows, sigma0, jac);
   }
-  return f->allFinite() && jac->allFinite();
+  return f->allFinite() && AllFinite(*jac);
 }
 
 // sigma's row: over the orbit's unknowns from sigma's gradient in the monodromy
