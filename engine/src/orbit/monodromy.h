@@ -22,6 +22,9 @@ StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
 // phase, so moving that part of a start by dx moves the end by phi dx and leaves phi as it is).
 StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit, int i,
                            const StateVector& x_end, const StateMatrix& phi);
+// The same into *out (not `phi`), without a copy of the result.
+void FactorFromFlowInto(const HybridModel& model, const PeriodicOrbit& orbit, int i,
+                        const StateVector& x_end, const StateMatrix& phi, StateMatrix* out);
 
 // Every factor of the orbit, in segment order. `flows`, when given, receives each segment's flow
 // (end state and flow Jacobian) its factor was made from.
