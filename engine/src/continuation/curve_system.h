@@ -16,6 +16,7 @@
 
 #include "continuation/bordered_sigma.h"
 #include "continuation/corrector.h"
+#include "continuation/tangent_grazing.h"
 #include "drillbif/continuation/curve.h"
 #include "orbit/orbit_bvp.h"
 
@@ -59,7 +60,7 @@ class CurveSystem : public CorrectorSystem {
 
   // The defining condition: sigma(M -+ I) for folds and period doublings; for grazing, h' at the
   // tangent end (the guard's rate where it touches zero).
-  double Condition(const Vec& y) const { return ConditionAt(Unpack(y)); }
+  double Condition(const Vec& y) const;
   // The same for an unpacked orbit; for fold / PD / NS curves its monodromy factors, and the
   // segments' flows they were made from, are kept in *factors / *flows when asked (the
   // condition's row of the Jacobian reuses them).
@@ -147,6 +148,13 @@ class CurveSystem : public CorrectorSystem {
   mutable PeriodicOrbit orbit_;
   mutable std::vector<FlowResult> flows_;
   mutable std::vector<StateMatrix> factors_;
+  // The condition's row's workspace (SigmaRow, the grazing row, Condition), kept likewise: y with
+  // one entry moved, its orbit and factors, sigma's gradient, MonodromyGradientRow's scratch.
+  mutable Vec moved_y_;
+  mutable PeriodicOrbit moved_orbit_;
+  mutable std::vector<StateMatrix> moved_factors_;
+  mutable Mat gradient_;
+  mutable MonodromyRowScratch row_scratch_;
 };
 
 }  // namespace drillbif::internal

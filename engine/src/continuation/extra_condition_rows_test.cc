@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <vector>
 
 #include "../orbit/monodromy.h"  // the engine's internal headers, by their path from here
@@ -280,6 +281,76 @@ TEST_F(ExtraConditionRows, OrbitRowMatchesCentralDifferences) {
       internal::ConditionRow(model_, prop_, bvp, free_, start_.params, y, condition, &row);
   EXPECT_EQ(value, ValueAt(bvp, y, condition));
   ExpectCentralRow(bvp, y, condition, value, row);
+}
+
+// The rows made with a workspace left over from another orbit (MonodromyRowScratch: more
+// segments, other values, its perturbed orbit elsewhere) are the rows made without one, bit for
+// bit, for MonodromyGradientRow and for MonodromyRow with both differences; and the workspace's
+// orbit, perturbed in place for each unknown, is left the orbit exactly.
+TEST_F(ExtraConditionRows, RowsWithAReusedWorkspaceAreTheSameBits) {
+  const internal::OrbitBvp bvp = Bvp();
+  const int m = bvp.size();
+  std::vector<FlowResult> flows;
+  const std::vector<StateMatrix> factors =
+      internal::MonodromyFactors(model_, prop_, start_, &flows);
+  const Eigen::MatrixXd m0 = internal::ReducedMonodromy(model_, factors);
+  const internal::BorderedSigma sigma(internal::ShiftedMonodromy(CurveKind::kFold, m0));
+  Eigen::MatrixXd gradient;
+  const double c0 = internal::SigmaWithGradient(CurveKind::kFold, sigma, m0, &gradient);
+  auto f = [&sigma](const Eigen::Ref<const Eigen::MatrixXd>& mono) {
+    return sigma(internal::ShiftedMonodromy(CurveKind::kFold, mono));
+  };
+  // A workspace dirtied by another orbit: one segment more, every value moved.
+  internal::MonodromyRowScratch scratch;
+  PeriodicOrbit other = start_;
+  other.signature.segments.push_back(other.signature.segments.back());
+  other.starts.push_back(other.starts.back());
+  other.durations.push_back(0.5);
+  for (StateVector& x : other.starts) x.array() += 0.25;
+  scratch.moved = other;
+  const StateMatrix garbage = StateMatrix::Constant(4, 4, 7.0);
+  scratch.prefix.assign(factors.size() + 2, garbage);
+  scratch.suffix.assign(factors.size() + 2, garbage);
+  scratch.weight.assign(factors.size() + 2, garbage);
+  scratch.later.assign(factors.size() + 2, garbage);
+  scratch.later_rates.assign(factors.size() + 2, 7.0);
+  auto same_bits = [m](const Eigen::RowVectorXd& a, const Eigen::RowVectorXd& b) {
+    return std::memcmp(a.data(), b.data(), sizeof(double) * m) == 0;
+  };
+  auto restored = [this](const PeriodicOrbit& o) {
+    if (o.starts.size() != start_.starts.size() || o.durations != start_.durations ||
+        !(o.signature == start_.signature)) {
+      return false;
+    }
+    for (size_t i = 0; i < o.starts.size(); ++i) {
+      if (o.starts[i].size() != start_.starts[i].size() ||
+          std::memcmp(o.starts[i].data(), start_.starts[i].data(),
+                      sizeof(double) * o.starts[i].size()) != 0) {
+        return false;
+      }
+    }
+    return true;
+  };
+  Eigen::RowVectorXd fresh = Eigen::RowVectorXd::Zero(m), reused = Eigen::RowVectorXd::Zero(m);
+  internal::MonodromyGradientRow(model_, prop_, start_, factors, flows, gradient, fresh);
+  internal::MonodromyGradientRow(model_, prop_, start_, factors, flows, gradient, reused, &scratch);
+  EXPECT_TRUE(same_bits(fresh, reused)) << fresh << "\n" << reused;
+  EXPECT_TRUE(restored(scratch.moved));
+  // Not vacuous: the row has entries.
+  EXPECT_GT(fresh.lpNorm<Eigen::Infinity>(), 0.0);
+  for (const internal::RowDifferences differences :
+       {internal::RowDifferences::kCentral, internal::RowDifferences::kForward}) {
+    scratch.moved = other;
+    scratch.later.assign(factors.size() + 2, garbage);
+    fresh.setZero();
+    reused.setZero();
+    internal::MonodromyRow(model_, prop_, start_, factors, flows, f, differences, c0, fresh);
+    internal::MonodromyRow(model_, prop_, start_, factors, flows, f, differences, c0, reused,
+                           &scratch);
+    EXPECT_TRUE(same_bits(fresh, reused)) << fresh << "\n" << reused;
+    EXPECT_TRUE(restored(scratch.moved));
+    EXPECT_GT(fresh.lpNorm<Eigen::Infinity>(), 0.0);
+  }
 }
 
 }  // namespace

@@ -180,8 +180,16 @@ StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propa
 
 double TangentEndRate(const HybridModel& model, Propagator& propagator,
                       const PeriodicOrbit& orbit) {
-  const std::vector<double> rates = TangentEndRates(model, propagator, orbit);
-  return rates.empty() ? std::numeric_limits<double>::quiet_NaN() : rates.front();
+  // TangentEndRates' first, without its vector: this is a grazing curve's condition, evaluated
+  // once per difference of its row.
+  const auto& segs = orbit.signature.segments;
+  for (size_t k = 0; k < segs.size(); ++k) {
+    if (!segs[k].tangent) continue;
+    const StateVector end =
+        propagator.FlowMap(segs[k].mode, orbit.starts[k], orbit.durations[k], orbit.params, {}).x;
+    return model.Guard(segs[k].mode, segs[k].guard, end, orbit.params).dh;
+  }
+  return std::numeric_limits<double>::quiet_NaN();
 }
 
 std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propagator,
@@ -252,28 +260,38 @@ namespace {
 double Step(double v) { return 1e-6 * (1.0 + std::abs(v)); }
 
 // The orbit at y = (X of `bvp`, the free parameters' values), the other parameters from `params`.
-PeriodicOrbit UnpackWithParams(const OrbitBvp& bvp, const std::vector<int>& free,
-                               const Params& params, const Eigen::VectorXd& y) {
+// Into *o (its storage reused).
+void UnpackWithParams(const OrbitBvp& bvp, const std::vector<int>& free, const Params& params,
+                      const Eigen::VectorXd& y, PeriodicOrbit* o) {
   const int m = bvp.size();
   Params p = params;
   for (size_t l = 0; l < free.size(); ++l) p[free[l]] = y[m + static_cast<int>(l)];
+  bvp.Unpack(y.head(m), p, o);
+}
+
+// The same, returned.
+PeriodicOrbit UnpackWithParams(const OrbitBvp& bvp, const std::vector<int>& free,
+                               const Params& params, const Eigen::VectorXd& y) {
   PeriodicOrbit o;
-  bvp.Unpack(y.head(m), p, &o);
+  UnpackWithParams(bvp, free, params, y, &o);
   return o;
 }
 
 // The monodromy factors of an orbit with one unknown moved (MonodromyRow, MonodromyGradientRow).
 class MovedFactors {
  public:
-  // `flows` are the segments' flows the orbit's factors were made from.
+  // `flows` are the segments' flows the orbit's factors were made from; *moved receives a copy
+  // of the orbit (its storage reused) to perturb.
   MovedFactors(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
-               const std::vector<FlowResult>& flows)
+               const std::vector<FlowResult>& flows, PeriodicOrbit* moved)
       : model_(model),
         propagator_(propagator),
         orbit_(orbit),
         flows_(flows),
-        op_(orbit),
-        affine_(dynamic_cast<const LinearForm*>(&model) != nullptr) {}
+        op_(*moved),
+        affine_(dynamic_cast<const LinearForm*>(&model) != nullptr) {
+    op_ = orbit;
+  }
 
   // F_i with X's unknown r of segment i moved by `by`: its start's component at X's position r
   // (r < d: X has no phase) or its duration (r = d). With a LinearForm the flow is affine in the
@@ -306,8 +324,8 @@ class MovedFactors {
   Propagator& propagator_;
   const PeriodicOrbit& orbit_;
   const std::vector<FlowResult>& flows_;
-  PeriodicOrbit op_;  // the orbit, perturbed in place and restored after each use
-  bool affine_;       // the model has a LinearForm
+  PeriodicOrbit& op_;  // a copy of the orbit, perturbed in place and restored after each use
+  bool affine_;        // the model has a LinearForm
 };
 
 // X's value of unknown r of segment i (a start's component without the phase, or the duration).
@@ -333,18 +351,23 @@ void MonodromyRow(const HybridModel& model, Propagator& propagator, const Period
                   const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
                   const std::function<double(const Eigen::Ref<const Eigen::MatrixXd>&)>& f,
                   RowDifferences differences, double f0,
-                  Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row) {
+                  Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row,
+                  MonodromyRowScratch* scratch) {
   const int k = static_cast<int>(base.size()), d = model.state_dim() - 1;
   const int ps = model.phase_index();
   const double omega = model.ForcingFrequency(orbit.params);
   const bool central = differences == RowDifferences::kCentral;
   auto step = [&](double v) { return central ? Step(v) : ForwardStep(v); };
-  std::vector<StateMatrix> prefix, suffix;
+  MonodromyRowScratch own;
+  MonodromyRowScratch& w = scratch != nullptr ? *scratch : own;
+  std::vector<StateMatrix>& prefix = w.prefix;
+  std::vector<StateMatrix>& suffix = w.suffix;
   PartialProducts(base, &prefix, &suffix);
-  MovedFactors moved(model, propagator, orbit, flows);
+  MovedFactors moved(model, propagator, orbit, flows, &w.moved);
   // later[i] = sum over l > i of suffix[l + 1] (dF_l / ds_l) prefix[l]: d M per unit phase shift
   // of every segment after i (a duration moves the later phases by omega per unit).
-  std::vector<StateMatrix> later(k);
+  std::vector<StateMatrix>& later = w.later;
+  later.resize(k);
   later[k - 1] = StateMatrix::Zero(d + 1, d + 1);
   for (int l = k - 1; l >= 1; --l) {
     const double h = step(orbit.starts[l][ps]);
@@ -377,11 +400,15 @@ void MonodromyGradientRow(const HybridModel& model, Propagator& propagator,
                           const PeriodicOrbit& orbit, const std::vector<StateMatrix>& base,
                           const std::vector<FlowResult>& flows,
                           const Eigen::Ref<const Eigen::MatrixXd>& gradient,
-                          Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row) {
+                          Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row,
+                          MonodromyRowScratch* scratch) {
   const int k = static_cast<int>(base.size()), d = model.state_dim() - 1;
   const int ps = model.phase_index();
   const double omega = model.ForcingFrequency(orbit.params);
-  std::vector<StateMatrix> prefix, suffix;
+  MonodromyRowScratch own;
+  MonodromyRowScratch& w = scratch != nullptr ? *scratch : own;
+  std::vector<StateMatrix>& prefix = w.prefix;
+  std::vector<StateMatrix>& suffix = w.suffix;
   PartialProducts(base, &prefix, &suffix);
   // The gradient in the full M: f does not see the phase row and column.
   StateMatrix full = StateMatrix::Zero(d + 1, d + 1);
@@ -393,14 +420,16 @@ void MonodromyGradientRow(const HybridModel& model, Propagator& propagator,
   // A change dF_i of factor i alone changes M by suffix[i + 1] dF_i prefix[i], and f by
   // <full, suffix[i + 1] dF_i prefix[i]> = <weight[i], dF_i> (Frobenius products) with
   // weight[i] = suffix[i + 1]^T full prefix[i]^T.
-  std::vector<StateMatrix> weight(k);
+  std::vector<StateMatrix>& weight = w.weight;
+  weight.resize(k);
   for (int i = 0; i < k; ++i) {
     weight[i] = suffix[i + 1].transpose() * full * prefix[i].transpose();
   }
-  MovedFactors moved(model, propagator, orbit, flows);
+  MovedFactors moved(model, propagator, orbit, flows, &w.moved);
   // later[i] = sum over l > i of <weight[l], dF_l / ds_l>: d f per unit phase shift of every
   // segment after i (MonodromyRow's later, contracted).
-  std::vector<double> later(k, 0.0);
+  std::vector<double>& later = w.later_rates;
+  later.assign(k, 0.0);
   for (int l = k - 1; l >= 1; --l) {
     const double h = ForwardStep(orbit.starts[l][ps]);
     const StateMatrix dfl = (moved.Phase(l, h) - base[l]) / h;
@@ -441,15 +470,20 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
   } else {
     c0 = condition.of_orbit(o);
   }
+  // y moved in one entry at a time, restored after (the same bits as a fresh copy), and the
+  // moved orbits unpacked into one: no allocation per column.
+  Eigen::VectorXd yq = y;
+  PeriodicOrbit moved;
   for (int j = first; j < n; ++j) {
     const double h = Step(y[j]);
-    Eigen::VectorXd yp = y, ym = y;
-    yp[j] += h;
-    ym[j] -= h;
-    (*row)[j] =
-        (ConditionValue(model, propagator, UnpackWithParams(bvp, free, params, yp), condition) -
-         ConditionValue(model, propagator, UnpackWithParams(bvp, free, params, ym), condition)) /
-        (2.0 * h);
+    yq[j] = y[j] + h;
+    UnpackWithParams(bvp, free, params, yq, &moved);
+    const double cp = ConditionValue(model, propagator, moved, condition);
+    yq[j] = y[j] - h;
+    UnpackWithParams(bvp, free, params, yq, &moved);
+    const double cm = ConditionValue(model, propagator, moved, condition);
+    yq[j] = y[j];
+    (*row)[j] = (cp - cm) / (2.0 * h);
   }
   return c0;
 }

@@ -129,6 +129,16 @@ enum class RowDifferences { kCentral, kForward };
 // The forward-difference step of an unknown of value v: 1.5e-8 (1 + |v|) (RowDifferences).
 inline double ForwardStep(double v) { return 1.5e-8 * (1.0 + std::abs(v)); }
 
+// MonodromyRow's and MonodromyGradientRow's workspace, kept by a caller that makes rows over and
+// over (CurveSystem: one per Newton iteration) so that they do not allocate it anew each time.
+struct MonodromyRowScratch {
+  std::vector<StateMatrix> prefix, suffix;  // the factors' partial products
+  std::vector<StateMatrix> weight;          // MonodromyGradientRow: the gradient at each factor
+  std::vector<StateMatrix> later;           // MonodromyRow: d M per later phase shift
+  std::vector<double> later_rates;          // MonodromyGradientRow: the same, contracted
+  PeriodicOrbit moved;                      // the orbit, perturbed in place and restored
+};
+
 // Differences of f(M) over the orbit's unknowns X (OrbitBvp's order: each segment's start without
 // its phase, then its duration), M the reduced monodromy, recomputing only the monodromy factors
 // (orbit/monodromy.h) an unknown moves: a start's component moves its own factor (for a model
@@ -138,12 +148,14 @@ inline double ForwardStep(double v) { return 1.5e-8 * (1.0 + std::abs(v)); }
 // instead of k^2 / 2 forward; the starts' none with a LinearForm; the second-order terms left out
 // are O(h) forward, below the differences' own truncation, and even in the step centred, where
 // they cancel to O(h^2)). `base` and `flows` are MonodromyFactors(orbit) and the flows they were
-// made from; `f0` is f(M) (used by kForward only).
+// made from; `f0` is f(M) (used by kForward only). `scratch`, when given, is the workspace (its
+// storage reused; the row is the same bits either way).
 void MonodromyRow(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit,
                   const std::vector<StateMatrix>& base, const std::vector<FlowResult>& flows,
                   const std::function<double(const Eigen::Ref<const Eigen::MatrixXd>&)>& f,
                   RowDifferences differences, double f0,
-                  Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row);
+                  Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row,
+                  MonodromyRowScratch* scratch = nullptr);
 
 // The row of a function f of the reduced monodromy M over X (MonodromyRow's unknowns and order)
 // from f's gradient in M (`gradient`, d f / d m_pq, M's size) instead of f evaluated once per
@@ -157,12 +169,13 @@ void MonodromyRow(const HybridModel& model, Propagator& propagator, const Period
 // The row differs from MonodromyRow's forward one by f's own curvature over the step, O(h), of the
 // order of the differences' truncation, and with less rounding (a factor's difference, not the
 // whole product's); it only steers Newton: the residual is exact. MonodromyRow stays for any f
-// without a gradient and for central differences (ConditionRow).
+// without a gradient and for central differences (ConditionRow). `scratch` as MonodromyRow's.
 void MonodromyGradientRow(const HybridModel& model, Propagator& propagator,
                           const PeriodicOrbit& orbit, const std::vector<StateMatrix>& base,
                           const std::vector<FlowResult>& flows,
                           const Eigen::Ref<const Eigen::MatrixXd>& gradient,
-                          Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row);
+                          Eigen::Ref<Eigen::RowVectorXd, 0, Eigen::InnerStride<>> row,
+                          MonodromyRowScratch* scratch = nullptr);
 
 // Newton on (G = 0, c = 0) from `guess` in its signature, with the unknowns X and the parameters
 // `free` (one or two), one condition per free parameter so that the system is square. G's

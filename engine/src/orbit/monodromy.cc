@@ -14,50 +14,63 @@ StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
 
 StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit, int i,
                            const StateVector& x_end, const StateMatrix& phi) {
+  StateMatrix out;
+  FactorFromFlowInto(model, orbit, i, x_end, phi, &out);
+  return out;
+}
+
+void FactorFromFlowInto(const HybridModel& model, const PeriodicOrbit& orbit, int i,
+                        const StateVector& x_end, const StateMatrix& phi, StateMatrix* out) {
   const SegmentSpec& seg = orbit.signature.segments[i];
   // No saltation at the section, nor at a tangent end (same mode on both sides: it would be the
   // identity, and its formula divides by h' = 0 there).
-  if (seg.guard < 0 || seg.tangent) return phi;
+  if (seg.guard < 0 || seg.tangent) {
+    *out = phi;
+    return;
+  }
   const StateMatrix salt = model.Saltation(
       seg.mode, seg.guard, orbit.signature.segments[i + 1].mode, x_end, orbit.params);
-  StateMatrix out(phi.rows(), phi.cols());
+  out->resize(phi.rows(), phi.cols());
   if (phi.rows() == 4) {
     // The drifting oscillator's size at fixed size: unrolled, and the same sums in the same
     // order as the dynamic product (each entry accumulated over k = 0..3 in turn).
     using Mat4 = Eigen::Matrix4d;
-    Mat4::Map(out.data()).noalias() = Mat4::Map(salt.data()) * Mat4::Map(phi.data());
+    Mat4::Map(out->data()).noalias() = Mat4::Map(salt.data()) * Mat4::Map(phi.data());
   } else {
-    out.noalias() = salt * phi;
+    out->noalias() = salt * phi;
   }
-  return out;
 }
 
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit,
                                           std::vector<FlowResult>* flows) {
-  std::vector<StateMatrix> factors(orbit.durations.size());
-  if (flows) flows->resize(factors.size());
-  for (size_t i = 0; i < factors.size(); ++i) {
-    if (!flows) {
-      factors[i] = SegmentFactor(model, propagator, orbit, static_cast<int>(i));
-      continue;
-    }
+  std::vector<StateMatrix> factors;
+  MonodromyFactorsInto(model, propagator, orbit, &factors, flows);
+  return factors;
+}
+
+void MonodromyFactorsInto(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, std::vector<StateMatrix>* factors,
+                          std::vector<FlowResult>* flows) {
+  factors->resize(orbit.durations.size());
+  if (flows) flows->resize(factors->size());
+  FlowResult own;
+  for (size_t i = 0; i < factors->size(); ++i) {
     FlowRequest req;
     req.state_jacobian = true;
-    FlowResult& fr = (*flows)[i];
+    FlowResult& fr = flows ? (*flows)[i] : own;
     fr = propagator.FlowMap(orbit.signature.segments[i].mode, orbit.starts[i], orbit.durations[i],
                             orbit.params, req);
-    factors[i] = FactorFromFlow(model, orbit, static_cast<int>(i), fr.x, fr.state_jacobian);
+    FactorFromFlowInto(model, orbit, static_cast<int>(i), fr.x, fr.state_jacobian, &(*factors)[i]);
   }
-  return factors;
 }
 
 void FactorsFromFlows(const HybridModel& model, const PeriodicOrbit& orbit,
                       const std::vector<FlowResult>& flows, std::vector<StateMatrix>* factors) {
   factors->resize(flows.size());
   for (size_t i = 0; i < flows.size(); ++i) {
-    (*factors)[i] =
-        FactorFromFlow(model, orbit, static_cast<int>(i), flows[i].x, flows[i].state_jacobian);
+    FactorFromFlowInto(model, orbit, static_cast<int>(i), flows[i].x, flows[i].state_jacobian,
+                       &(*factors)[i]);
   }
 }
 
@@ -77,7 +90,16 @@ StateMatrix WithoutPhase(const HybridModel& model, const StateMatrix& full) {
 StateMatrix ReducedMonodromy(const HybridModel& model, const std::vector<StateMatrix>& factors) {
   const int n = model.state_dim();
   StateMatrix m = StateMatrix::Identity(n, n);
-  for (const StateMatrix& f : factors) m = f * m;
+  if (n == 4) {
+    // The drifting oscillator's size at fixed size, as in FactorFromFlow: the same sums in the
+    // same order as the dynamic product (monodromy_test.cc compares the bits).
+    using Mat4 = Eigen::Matrix4d;
+    Mat4 m4 = Mat4::Identity();
+    for (const StateMatrix& f : factors) m4 = Mat4::Map(f.data()) * m4;
+    Mat4::Map(m.data()) = m4;
+  } else {
+    for (const StateMatrix& f : factors) m = f * m;
+  }
   return WithoutPhase(model, m);
 }
 

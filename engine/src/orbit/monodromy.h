@@ -22,12 +22,19 @@ StateMatrix SegmentFactor(const HybridModel& model, Propagator& propagator,
 // phase, so moving that part of a start by dx moves the end by phi dx and leaves phi as it is).
 StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit, int i,
                            const StateVector& x_end, const StateMatrix& phi);
+// The same into *out (not `phi`), without a copy of the result.
+void FactorFromFlowInto(const HybridModel& model, const PeriodicOrbit& orbit, int i,
+                        const StateVector& x_end, const StateMatrix& phi, StateMatrix* out);
 
 // Every factor of the orbit, in segment order. `flows`, when given, receives each segment's flow
 // (end state and flow Jacobian) its factor was made from.
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit,
                                           std::vector<FlowResult>* flows = nullptr);
+// The same into *factors (its storage reused: the curve solves make factors per evaluation).
+void MonodromyFactorsInto(const HybridModel& model, Propagator& propagator,
+                          const PeriodicOrbit& orbit, std::vector<StateMatrix>* factors,
+                          std::vector<FlowResult>* flows = nullptr);
 
 // Every factor of the orbit from its segments' flows (end state and flow Jacobian, as
 // MonodromyFactors' `flows`, or OrbitBvp::Evaluate's): the factors MonodromyFactors gives from

@@ -112,5 +112,42 @@ TEST_F(Monodromy, FactorFromFlowIsTheGenericSaltationTimesTheFlowBitForBit) {
   EXPECT_GT(salted, 0);
 }
 
+// ReducedMonodromy multiplies the factors at fixed size for a 4-dimensional state; the monodromy
+// must not depend on that, so with the reference orbit's factors and with random ones (entries
+// of either sign over several decades, 1 to 6 factors, where a different order of the sums would
+// show in the last bits) it is compared bit for bit with the dynamic-size product, phase row and
+// column dropped.
+TEST_F(Monodromy, ReducedMonodromyIsTheDynamicProductBitForBit) {
+  ASSERT_EQ(model_.state_dim(), 4);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> mantissa(-1.0, 1.0), decade(-3.0, 3.0);
+  for (int trial = 0; trial < 50; ++trial) {
+    std::vector<StateMatrix> factors = internal::MonodromyFactors(model_, prop_, start_);
+    if (trial > 0) {
+      factors.resize(1 + trial % 6);
+      for (StateMatrix& f : factors) {
+        f.resize(4, 4);
+        for (int r = 0; r < 4; ++r) {
+          for (int c = 0; c < 4; ++c) f(r, c) = mantissa(rng) * std::pow(10.0, decade(rng));
+        }
+      }
+    }
+    StateMatrix full = StateMatrix::Identity(4, 4);
+    for (const StateMatrix& f : factors) {
+      StateMatrix next(4, 4);
+      next.noalias() = f * full;
+      full = next;
+    }
+    const StateMatrix expected = internal::WithoutPhase(model_, full);
+    const StateMatrix reduced = internal::ReducedMonodromy(model_, factors);
+    ASSERT_EQ(reduced.rows(), 3);
+    ASSERT_EQ(reduced.cols(), 3);
+    EXPECT_EQ(std::memcmp(reduced.data(), expected.data(), sizeof(double) * 9), 0)
+        << "trial " << trial << "\n"
+        << reduced << "\n"
+        << expected;
+  }
+}
+
 }  // namespace
 }  // namespace drillbif
