@@ -5,6 +5,8 @@
 // M = (0.005, 0), L = (0.01, 0) (no turn, so no chord allowance on it), and one end E.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <utility>
 #include <vector>
 
@@ -50,6 +52,22 @@ TEST(OnTracedCurve, APointBetweenTheLastVertexAndTheEndBeyondItIsOnTheCurve) {
   // The stretch goes on straight (no turn, no allowance): 1e-4 off it is off the curve.
   EXPECT_FALSE(OnTracedCurve(t, 0.011, 1e-4, 1.0, 1.0, kTol));
   EXPECT_FALSE(OnTracedCurve(t, 0.013, 0.0, 1.0, 1.0, kTol));  // beyond the end
+}
+
+// A stretch next to a turning vertex is allowed a bow of |stretch| * min(turn, 0.5) / 4 off its
+// chord (OnCurve): (0, 0) -> (1, 0) -> (1 + cos t, sin t) turns by t at (1, 0). Points below the
+// first stretch's middle, whose distance to the second stretch is ~0.5 or more, lie on the curve
+// just inside the bow and off it just outside; a turn above 0.5 rad gets the cap's bow, 1/8.
+TEST(OnCurve, AStretchNextToATurnIsAllowedItsBowAndNoMore) {
+  for (const double turn : {0.3, 1.0}) {
+    CurveResult c;
+    c.points = {Vertex(0.0, 0.0, {1.0, 2.0}), Vertex(1.0, 0.0, {1.0, 2.0}),
+                Vertex(1.0 + std::cos(turn), std::sin(turn), {1.0, 2.0})};
+    const CurveOutline line = OutlineOf(c);
+    const double bow = std::min(turn, 0.5) / 4.0;
+    EXPECT_TRUE(OnCurve(line, 0.5, -(bow - 1e-3), 1.0, 1.0, kTol)) << turn;
+    EXPECT_FALSE(OnCurve(line, 0.5, -(bow + kTol + 1e-3), 1.0, 1.0, kTol)) << turn;
+  }
 }
 
 TEST(OnTracedCurve, TheEndIsJoinedToTheVertexWithItsDurationsNotTheNearerOne) {

@@ -114,8 +114,12 @@ bool OnCurve(const CurveOutline& c, double u, double v, double w1, double w2, do
   if (n == 1) return (at(0) - x).norm() <= tol;
   for (size_t k = 0; k + 1 < n; ++k) {
     const Eigen::Vector2d a = at(k), b = at(k + 1);
-    const double bow = (b - a).norm() * std::min(std::max(turn(k), turn(k + 1)), 0.5) / 4.0;
-    if (DistanceL2(x, a, b) <= tol + bow) return true;
+    // The bow lies in [0, |b - a| / 8]: the turning angles only decide a distance between.
+    const double distance = DistanceL2(x, a, b), length = (b - a).norm();
+    if (distance <= tol) return true;
+    if (distance > tol + length * 0.5 / 4.0) continue;
+    const double bow = length * std::min(std::max(turn(k), turn(k + 1)), 0.5) / 4.0;
+    if (distance <= tol + bow) return true;
   }
   return false;
 }
