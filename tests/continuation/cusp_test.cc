@@ -9,16 +9,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "drillbif/continuation/curve.h"
 #include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
-#include "problems/reference_box.h"
-#include "problems/reference_orbit.h"
+#include "support/cusp_fold_curve.h"
 #include "support/multipliers.h"
-#include "support/special_point_near.h"
 
 namespace drillbif {
 namespace {
@@ -26,26 +24,13 @@ namespace {
 class CuspTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const StatusOr<PeriodicOrbit> start =
-        testing::SolvedOrbitFromRest(model_, prop_, testing::ReferenceParams());
-    ASSERT_TRUE(start.ok());
-    ContinuationOptions opt;
-    opt.param = "a";
-    opt.min = 0.01, opt.max = 8.0;
-    const ContinuationResult branch = Continue(model_, prop_, *start, opt);
-    const SpecialPoint* fold =
-        testing::SpecialPointNear(branch, SpecialPointKind::kFold, 0.156617, 1e-5);
-    ASSERT_NE(fold, nullptr);
+    const std::optional<SpecialPoint> fold = testing::CuspCurveFold(model_, prop_);
+    ASSERT_TRUE(fold.has_value());
     fold_ = *fold;
   }
 
   CurveResult Curve(std::vector<double> omegas) {
-    const TraceOptions box = testing::ReferenceBox();
-    CurveOptions co;
-    co.param1 = std::string("a");
-    co.param2 = std::string("omega");
-    co.min1 = box.min2, co.max1 = box.max2;
-    co.min2 = box.min1, co.max2 = box.max1;
+    CurveOptions co = testing::CuspCurveOptions();
     co.crossings2 = std::move(omegas);
     return ContinueCurve(model_, prop_, fold_, co);
   }

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,10 +16,7 @@
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/continuation/curve.h"
 #include "drillbif/flow/exact_propagator.h"
-#include "problems/drifting_reference.h"
-#include "problems/reference_box.h"
-#include "problems/reference_orbit.h"
-#include "support/special_point_near.h"
+#include "support/cusp_fold_curve.h"
 
 namespace drillbif {
 namespace {
@@ -36,22 +34,9 @@ using Vec = Eigen::VectorXd;
 TEST(CurveCodim2Cusp, ProbedSearchOfAStepFindsTheCuspThePlainSearchFinds) {
   DriftingOscillator model;
   ExactPropagator prop(model);
-  const StatusOr<PeriodicOrbit> start =
-      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
-  ASSERT_TRUE(start.ok()) << start.status().ToString();
-  ContinuationOptions opt;
-  opt.param = "a";
-  opt.min = 0.01, opt.max = 8.0;
-  const ContinuationResult branch = Continue(model, prop, *start, opt);
-  const SpecialPoint* fold =
-      testing::SpecialPointNear(branch, SpecialPointKind::kFold, 0.156617, 1e-5);
-  ASSERT_NE(fold, nullptr) << branch.summary.message;
-  const TraceOptions box = testing::ReferenceBox();
-  CurveOptions co;
-  co.param1 = std::string("a");
-  co.param2 = std::string("omega");
-  co.min1 = box.min2, co.max1 = box.max2;
-  co.min2 = box.min1, co.max2 = box.max1;
+  const std::optional<SpecialPoint> fold = testing::CuspCurveFold(model, prop);
+  ASSERT_TRUE(fold.has_value());
+  const CurveOptions co = testing::CuspCurveOptions();
   const CurveResult curve = ContinueCurve(model, prop, *fold, co);
   const Codim2Point* cusp = nullptr;
   for (const Codim2Point& q : curve.codim2) {
