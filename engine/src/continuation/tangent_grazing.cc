@@ -178,16 +178,26 @@ StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propa
   return std::move(crossed.orbit);
 }
 
+namespace {
+
+// The guard's rate h' at the end of the tangent segment k.
+double RateAtTangentEnd(const HybridModel& model, Propagator& propagator,
+                        const PeriodicOrbit& orbit, size_t k) {
+  const SegmentSpec& seg = orbit.signature.segments[k];
+  const StateVector end =
+      propagator.FlowMap(seg.mode, orbit.starts[k], orbit.durations[k], orbit.params, {}).x;
+  return model.Guard(seg.mode, seg.guard, end, orbit.params).dh;
+}
+
+}  // namespace
+
 double TangentEndRate(const HybridModel& model, Propagator& propagator,
                       const PeriodicOrbit& orbit) {
   // TangentEndRates' first, without its vector: this is a grazing curve's condition, evaluated
   // once per difference of its row.
   const auto& segs = orbit.signature.segments;
   for (size_t k = 0; k < segs.size(); ++k) {
-    if (!segs[k].tangent) continue;
-    const StateVector end =
-        propagator.FlowMap(segs[k].mode, orbit.starts[k], orbit.durations[k], orbit.params, {}).x;
-    return model.Guard(segs[k].mode, segs[k].guard, end, orbit.params).dh;
+    if (segs[k].tangent) return RateAtTangentEnd(model, propagator, orbit, k);
   }
   return std::numeric_limits<double>::quiet_NaN();
 }
@@ -197,10 +207,7 @@ std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propag
   std::vector<double> rates;
   const auto& segs = orbit.signature.segments;
   for (size_t k = 0; k < segs.size(); ++k) {
-    if (!segs[k].tangent) continue;
-    const StateVector end =
-        propagator.FlowMap(segs[k].mode, orbit.starts[k], orbit.durations[k], orbit.params, {}).x;
-    rates.push_back(model.Guard(segs[k].mode, segs[k].guard, end, orbit.params).dh);
+    if (segs[k].tangent) rates.push_back(RateAtTangentEnd(model, propagator, orbit, k));
   }
   return rates;
 }
