@@ -99,23 +99,26 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
   const int n = static_cast<int>(model.guards(mode).size());
   const double tol = opt.tolerance;
   LocatedEvent out;
-  SegmentPoint cur, next, probe;
-  GuardValue* g = cur.guards;
+  // The step's two ends swap roles by pointer: a SegmentPoint is a few hundred bytes.
+  SegmentPoint ends[2], probe;
+  SegmentPoint* cur = &ends[0];
+  SegmentPoint* next = &ends[1];
+  GuardValue* g = cur->guards;
   bool departing[kMaxGuards] = {};
   double t = 0.0;
-  eval(0.0, &cur);
+  eval(0.0, cur);
   out.evaluations = 1;
   for (int i = 0; i < n; ++i) {
     if (g[i].h <= tol) {
       if (MovesInto(g[i], tol)) {
-        out.end = AdvanceEnd::kEvent, out.guard = i, out.t = 0.0, out.x = cur.x;
+        out.end = AdvanceEnd::kEvent, out.guard = i, out.t = 0.0, out.x = cur->x;
         out.tangential = g[i].h > 0.0 || std::abs(g[i].dh) * std::abs(g[i].dh) <= 2.0 * tol;
         return out;
       }
       departing[i] = true;
     }
   }
-  GuardValue* gn = next.guards;
+  GuardValue* gn = next->guards;
   for (int iter = 0; iter < opt.max_iterations; ++iter) {
     if (!keep_going()) {
       out.end = AdvanceEnd::kFailed;
@@ -124,7 +127,7 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
     }
     double step = t_max - t;
     for (int i = 0; i < n && step > 0.0; ++i) {
-      const double m = cur.bounds[i];
+      const double m = cur->bounds[i];
       double tau;
       if (departing[i]) {
         // Out of the band first; in sqrt(4 tol / m) the guard cannot fall more than 2 tol.
@@ -140,7 +143,7 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
       step = std::min(step, tau);
     }
     const double tn = (t_max - t <= step) ? t_max : t + step;
-    eval(tn, &next);
+    eval(tn, next);
     ++out.evaluations;
 
     int best = -1;
@@ -191,10 +194,10 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
     }
     t = tn;
     std::swap(cur, next);
-    g = cur.guards;
-    gn = next.guards;
+    g = cur->guards;
+    gn = next->guards;
     if (t >= t_max) {
-      out.end = AdvanceEnd::kTimeLimit, out.t = t_max, out.x = cur.x;
+      out.end = AdvanceEnd::kTimeLimit, out.t = t_max, out.x = cur->x;
       return out;
     }
   }
