@@ -77,6 +77,14 @@ Status OrbitBvp::EvaluateInto(const Eigen::Ref<const Eigen::VectorXd>& x, const 
   return EvaluateImpl(x, params, g, &gx, gp, gp2, flows);
 }
 
+void OrbitBvp::NegatedRowsWithoutPhase(const Eigen::MatrixXd& src, int first,
+                                       Eigen::Ref<Eigen::MatrixXd>* gx) const {
+  // As blocks (the rows before the phase's and after it), not row by row: both matrices are
+  // column-major, and a row's entries are a column apart.
+  if (ps_ > 0) gx->middleRows(first, ps_) = -src.topRows(ps_);
+  if (d_ > ps_) gx->middleRows(first + ps_, d_ - ps_) = -src.bottomRows(d_ - ps_);
+}
+
 Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
                               Eigen::VectorXd* g, Eigen::Ref<Eigen::MatrixXd>* gx,
                               Eigen::VectorXd* gp, Eigen::VectorXd* gp2,
@@ -195,25 +203,21 @@ Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const 
         jdend_p[w] = tr.jacobian * dend_p[w] + tr.param_jacobian.col(wanted[w].index);
       }
       const int next = (i + 1) * (d_ + 1);
+      if (gx) NegatedRowsWithoutPhase(jdend, row + 1, gx);
       for (int j = 0, r = 0; j < n; ++j) {
         if (j == ps_) continue;
         (*g)[row + 1 + r] = x[next + r] - tr.x[j];
-        if (gx) {
-          gx->row(row + 1 + r) = -jdend.row(j);
-          (*gx)(row + 1 + r, next + r) += 1.0;
-        }
+        if (gx) (*gx)(row + 1 + r, next + r) += 1.0;
         for (int w = 0; w < num_wanted; ++w) (*wanted[w].out)[row + 1 + r] = -jdend_p[w][j];
         ++r;
       }
     } else {
       // Periodicity back to the first segment's start, then the phase condition.
+      if (gx) NegatedRowsWithoutPhase(dend, row, gx);
       for (int j = 0, r = 0; j < n; ++j) {
         if (j == ps_) continue;
         (*g)[row + r] = x[r] - xe[j];
-        if (gx) {
-          gx->row(row + r) = -dend.row(j);
-          (*gx)(row + r, r) += 1.0;
-        }
+        if (gx) (*gx)(row + r, r) += 1.0;
         for (int w = 0; w < num_wanted; ++w) (*wanted[w].out)[row + r] = -dend_p[w][j];
         ++r;
       }

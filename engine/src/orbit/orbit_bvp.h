@@ -59,6 +59,9 @@ class OrbitBvp {
   Status EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
                       Eigen::VectorXd* g, Eigen::Ref<Eigen::MatrixXd>* gx, Eigen::VectorXd* gp,
                       Eigen::VectorXd* gp2, std::vector<FlowResult>* flows) const;
+  // gx's rows first, first + 1, ... = -(`src`'s rows but the phase's), src n x size().
+  void NegatedRowsWithoutPhase(const Eigen::MatrixXd& src, int first,
+                               Eigen::Ref<Eigen::MatrixXd>* gx) const;
 
   const HybridModel& model_;
   Propagator& propagator_;
