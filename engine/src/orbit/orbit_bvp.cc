@@ -173,7 +173,8 @@ Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const 
       // Event condition, then continuity through the jump into the next segment's start.
       (*g)[row] = model_.Guard(seg.mode, seg.guard, xe, params).h;
       const StateRow grad = model_.GuardGradient(seg.mode, seg.guard, xe, params);
-      if (gx) gx->row(row) = grad * dend;
+      // Straight into gx's row (no temporary: neither factor is gx), the same sums as through one.
+      if (gx) gx->row(row).noalias() = grad * dend;
       if (want_p) {
         const ParamVector pgrad = model_.GuardParamGradient(seg.mode, seg.guard, xe, params);
         for (int w = 0; w < num_wanted; ++w) {
