@@ -74,16 +74,12 @@ bool BranchTracer::System::Evaluate(const Vec& y, Vec* f, Eigen::MatrixXd* jac) 
   const int m = tracer_.m();
   const Params prm = tracer_.ParamsAt(y[m]);
   if (!tracer_.model_.ValidateParams(prm).ok()) return false;
+  if (!jac) return tracer_.bvp_->Evaluate(y.head(m), prm, f, nullptr, nullptr).ok();
+  // G's Jacobian goes straight into jac's left block.
   Vec gp;
-  Eigen::MatrixXd gx;
-  if (!tracer_.bvp_->Evaluate(y.head(m), prm, f, jac ? &gx : nullptr, jac ? &gp : nullptr).ok()) {
-    return false;
-  }
-  if (jac) {
-    jac->resize(m, m + 1);
-    jac->leftCols(m) = gx;
-    jac->col(m) = gp;
-  }
+  jac->resize(m, m + 1);
+  if (!tracer_.bvp_->EvaluateInto(y.head(m), prm, f, jac->leftCols(m), &gp).ok()) return false;
+  jac->col(m) = gp;
   return true;
 }
 

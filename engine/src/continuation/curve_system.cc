@@ -99,19 +99,20 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   Vec& g = g_;
   Vec& gp1 = gp1_;
   Vec& gp2 = gp2_;
-  Mat& gx = gx_;
   std::vector<FlowResult>& flows = flows_;
   std::vector<StateMatrix>& factors = factors_;
   // The condition's monodromy factors are made from the same segments' flows as G (same starts,
   // durations and parameters): taken from G's evaluation where the propagator gives them the
   // same bits whatever else it computed.
   const bool shared_flows = kind_ != CurveKind::kGrazing && propagator_.FlowIndependentOfRequest();
-  if (!bvp1_
-           .Evaluate(y.head(m()), prm, &g, jac ? &gx : nullptr, jac ? &gp1 : nullptr,
-                     jac ? &gp2 : nullptr, shared_flows ? &flows : nullptr)
-           .ok()) {
-    return false;
-  }
+  // G's Jacobian goes straight into jac's top-left block (every entry written there).
+  if (jac) jac->resize(m() + 1, n());
+  const Status evaluated =
+      jac ? bvp1_.EvaluateInto(y.head(m()), prm, &g, jac->topLeftCorner(m(), m()), &gp1, &gp2,
+                               shared_flows ? &flows : nullptr)
+          : bvp1_.Evaluate(y.head(m()), prm, &g, nullptr, nullptr, nullptr,
+                           shared_flows ? &flows : nullptr);
+  if (!evaluated.ok()) return false;
   f->resize(m() + 1);
   f->head(m()) = g;
   bvp1_.Unpack(y.head(m()), prm, &orbit_);
@@ -123,11 +124,9 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
     (*f)[m()] = ConditionAt(o, &factors, jac ? &flows : nullptr);
   }
   if (!jac) return f->allFinite();
-  // Every entry is written below (G's rows from gx, gp1, gp2, the condition's row zeroed and
-  // filled): no zeroing pass over the whole matrix.
-  jac->resize(m() + 1, n());
+  // Every entry is written below (G's rows by the evaluation and from gp1, gp2, the condition's row
+  // zeroed and filled): no zeroing pass over the whole matrix.
   jac->row(m()).setZero();
-  jac->topLeftCorner(m(), m()) = gx;
   jac->col(m()).head(m()) = gp1;
   jac->col(m() + 1).head(m()) = gp2;
   // Forward differences of the condition (one evaluation per unknown, each a monodromy):

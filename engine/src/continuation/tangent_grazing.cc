@@ -512,19 +512,19 @@ StatusOr<PeriodicOrbit> SolveWithConditions(const HybridModel& model, Propagator
   y.head(m) = bvp.Pack(guess);
   for (int l = 0; l < q; ++l) y[m + l] = params[free[l]];
   Eigen::VectorXd g, gp[2], f(n);
-  Eigen::MatrixXd gx, jac(n, n);
+  Eigen::MatrixXd jac(n, n);
   Eigen::RowVectorXd row;
   std::vector<double> steps;  // scaled step norms, for the stagnation test below
   for (int it = 0; it < 30; ++it) {
     for (int l = 0; l < q; ++l) params[free[l]] = y[m + l];
     if (!model.ValidateParams(params).ok()) return Internal("left the parameter domain");
-    if (Status s = bvp.Evaluate(y.head(m), params, &g, &gx, &gp[0], q > 1 ? &gp[1] : nullptr);
+    jac.setZero();
+    if (Status s = bvp.EvaluateInto(y.head(m), params, &g, jac.topLeftCorner(m, m), &gp[0],
+                                    q > 1 ? &gp[1] : nullptr);
         !s.ok()) {
       return s;
     }
     f.head(m) = g;
-    jac.setZero();
-    jac.topLeftCorner(m, m) = gx;
     for (int l = 0; l < q; ++l) jac.col(m + l).head(m) = gp[l];
     for (int l = 0; l < q; ++l) {
       f[m + l] = ConditionRow(model, propagator, bvp, free, params, y, conditions[l], &row);

@@ -64,6 +64,31 @@ void OrbitBvp::Unpack(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& 
 Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
                           Eigen::VectorXd* g, Eigen::MatrixXd* gx, Eigen::VectorXd* gp,
                           Eigen::VectorXd* gp2, std::vector<FlowResult>* flows) const {
+  if (gx == nullptr) return EvaluateImpl(x, params, g, nullptr, gp, gp2, flows);
+  gx->resize(size(), size());
+  Eigen::Ref<Eigen::MatrixXd> block(*gx);
+  return EvaluateImpl(x, params, g, &block, gp, gp2, flows);
+}
+
+Status OrbitBvp::EvaluateInto(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                              Eigen::VectorXd* g, Eigen::Ref<Eigen::MatrixXd> gx,
+                              Eigen::VectorXd* gp, Eigen::VectorXd* gp2,
+                              std::vector<FlowResult>* flows) const {
+  return EvaluateImpl(x, params, g, &gx, gp, gp2, flows);
+}
+
+void OrbitBvp::NegatedRowsWithoutPhase(const Eigen::MatrixXd& src, int first,
+                                       Eigen::Ref<Eigen::MatrixXd>* gx) const {
+  // As blocks (the rows before the phase's and after it), not row by row: both matrices are
+  // column-major, and a row's entries are a column apart.
+  if (ps_ > 0) gx->middleRows(first, ps_) = -src.topRows(ps_);
+  if (d_ > ps_) gx->middleRows(first + ps_, d_ - ps_) = -src.bottomRows(d_ - ps_);
+}
+
+Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                              Eigen::VectorXd* g, Eigen::Ref<Eigen::MatrixXd>* gx,
+                              Eigen::VectorXd* gp, Eigen::VectorXd* gp2,
+                              std::vector<FlowResult>* flows) const {
   const int k = segments(), n = d_ + 1, m = size();
   const double omega = model_.ForcingFrequency(params);
   // The parameter derivatives asked for: (index, output), at most two.
@@ -83,7 +108,10 @@ Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Para
     for (int w = 0; w < num_wanted; ++w) wanted[w].domega = fp(ps_, wanted[w].index);
   }
   g->setZero(m);
-  if (gx) gx->setZero(m, m);
+  // gx's rows are each written whole below (a guard's row by its product over all columns, the
+  // continuity and periodicity rows by negated rows of dend and jdend, the constraint's row
+  // zeroed and filled) but for the phase condition's row, zeroed where it is written: no
+  // zeroing pass over the whole matrix.
   if (gp) gp->setZero(m);
   if (gp2) gp2->setZero(m);
   if (flows) flows->resize(k);
@@ -118,7 +146,14 @@ Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Para
     if (gx) {
       StateVector f;
       model_.VectorField(seg.mode, xe, params, &f);
-      dend.setZero();
+      // Zero where an earlier segment wrote (all of it at the first): its own columns and the
+      // durations before it, the only columns that are not zero already.
+      if (i == 0) {
+        dend.setZero();
+      } else {
+        dend.middleCols(col - (d_ + 1), d_ + 1).setZero();
+        for (int jseg = 0; jseg + 1 < i; ++jseg) dend.col(jseg * (d_ + 1) + d_).setZero();
+      }
       for (int j = 0, r = 0; j < n; ++j) {
         if (j == ps_) continue;
         dend.col(col + r++) = fr.state_jacobian.col(j);
@@ -138,7 +173,8 @@ Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Para
       // Event condition, then continuity through the jump into the next segment's start.
       (*g)[row] = model_.Guard(seg.mode, seg.guard, xe, params).h;
       const StateRow grad = model_.GuardGradient(seg.mode, seg.guard, xe, params);
-      if (gx) gx->row(row) = grad * dend;
+      // Straight into gx's row (no temporary: neither factor is gx), the same sums as through one.
+      if (gx) gx->row(row).noalias() = grad * dend;
       if (want_p) {
         const ParamVector pgrad = model_.GuardParamGradient(seg.mode, seg.guard, xe, params);
         for (int w = 0; w < num_wanted; ++w) {
@@ -168,25 +204,21 @@ Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Para
         jdend_p[w] = tr.jacobian * dend_p[w] + tr.param_jacobian.col(wanted[w].index);
       }
       const int next = (i + 1) * (d_ + 1);
+      if (gx) NegatedRowsWithoutPhase(jdend, row + 1, gx);
       for (int j = 0, r = 0; j < n; ++j) {
         if (j == ps_) continue;
         (*g)[row + 1 + r] = x[next + r] - tr.x[j];
-        if (gx) {
-          gx->row(row + 1 + r) = -jdend.row(j);
-          (*gx)(row + 1 + r, next + r) += 1.0;
-        }
+        if (gx) (*gx)(row + 1 + r, next + r) += 1.0;
         for (int w = 0; w < num_wanted; ++w) (*wanted[w].out)[row + 1 + r] = -jdend_p[w][j];
         ++r;
       }
     } else {
       // Periodicity back to the first segment's start, then the phase condition.
+      if (gx) NegatedRowsWithoutPhase(dend, row, gx);
       for (int j = 0, r = 0; j < n; ++j) {
         if (j == ps_) continue;
         (*g)[row + r] = x[r] - xe[j];
-        if (gx) {
-          gx->row(row + r) = -dend.row(j);
-          (*gx)(row + r, r) += 1.0;
-        }
+        if (gx) (*gx)(row + r, r) += 1.0;
         for (int w = 0; w < num_wanted; ++w) (*wanted[w].out)[row + r] = -dend_p[w][j];
         ++r;
       }
@@ -221,6 +253,7 @@ Status OrbitBvp::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Para
       for (int jseg = 0; jseg < k; ++jseg) total += x[jseg * (d_ + 1) + d_];
       (*g)[row + d_] = total - kTwoPi * signature_.periods / omega;
       if (gx) {
+        gx->row(row + d_).setZero();
         for (int jseg = 0; jseg < k; ++jseg) (*gx)(row + d_, jseg * (d_ + 1) + d_) = 1.0;
       }
       for (int w = 0; w < num_wanted; ++w) {

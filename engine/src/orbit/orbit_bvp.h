@@ -47,8 +47,22 @@ class OrbitBvp {
   Status Evaluate(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
                   Eigen::VectorXd* g, Eigen::MatrixXd* gx, Eigen::VectorXd* gp,
                   Eigen::VectorXd* gp2 = nullptr, std::vector<FlowResult>* flows = nullptr) const;
+  // As Evaluate, with dG/dX written into `gx`, a size() x size() block (e.g. the top-left corner
+  // of a continuation's Jacobian), instead of a matrix that the caller would then copy there.
+  Status EvaluateInto(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                      Eigen::VectorXd* g, Eigen::Ref<Eigen::MatrixXd> gx, Eigen::VectorXd* gp,
+                      Eigen::VectorXd* gp2 = nullptr,
+                      std::vector<FlowResult>* flows = nullptr) const;
 
  private:
+  // Evaluate's body; `gx`, when non-null, is size() x size().
+  Status EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
+                      Eigen::VectorXd* g, Eigen::Ref<Eigen::MatrixXd>* gx, Eigen::VectorXd* gp,
+                      Eigen::VectorXd* gp2, std::vector<FlowResult>* flows) const;
+  // gx's rows first, first + 1, ... = -(`src`'s rows but the phase's), src n x size().
+  void NegatedRowsWithoutPhase(const Eigen::MatrixXd& src, int first,
+                               Eigen::Ref<Eigen::MatrixXd>* gx) const;
+
   const HybridModel& model_;
   Propagator& propagator_;
   Signature signature_;

@@ -6,6 +6,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <string>
 #include <utility>
@@ -71,6 +72,75 @@ TEST(ProductOnColumns, GivesTheBitsOfEigensProduct) {
     }
   }
   EXPECT_GT(compared, 0);
+}
+
+// Bit patterns of a matrix's entries, for comparisons that tell -0 from +0 and NaN from NaN.
+std::vector<uint64_t> Bits(const Eigen::Ref<const Eigen::MatrixXd>& a) {
+  std::vector<uint64_t> bits;
+  for (int j = 0; j < a.cols(); ++j) {
+    for (int i = 0; i < a.rows(); ++i) bits.push_back(std::bit_cast<uint64_t>(a(i, j)));
+  }
+  return bits;
+}
+
+// dG/dX written into a block of a larger matrix holding NaN gives the bits of a fresh Evaluate
+// (so every entry of the block is written, none left from before) and leaves the entries around
+// the block alone; and an OrbitBvp that evaluated elsewhere first (its workspace holding that
+// evaluation's values) gives the bits of a fresh one; those bits are dG/dX's.
+TEST(OrbitBvp, JacobianIntoABlockHasTheBitsOfAFreshEvaluation) {
+  DO model;
+  ExactPropagator prop(model);
+  const StatusOr<PeriodicOrbit> orbit =
+      testing::SolvedOrbitFromRest(model, prop, testing::ReferenceParams());
+  ASSERT_TRUE(orbit.ok()) << orbit.status().ToString();
+  const Eigen::VectorXd x0 =
+      internal::OrbitBvp(model, prop, orbit->signature, DO::kOmega).Pack(*orbit);
+  // Moved off the orbit so that the two evaluations' Jacobians differ in every segment.
+  const Eigen::VectorXd x1 = x0 + 1e-3 * Eigen::VectorXd::Ones(x0.size());
+  const int m = static_cast<int>(x0.size());
+
+  const internal::OrbitBvp fresh(model, prop, orbit->signature, DO::kOmega);
+  ASSERT_GE(fresh.segments(), 2) << "a single segment leaves the workspace reuse untested";
+  Eigen::VectorXd g, gp;
+  Eigen::MatrixXd expected;
+  ASSERT_TRUE(fresh.Evaluate(x1, orbit->params, &g, &expected, &gp).ok());
+
+  const internal::OrbitBvp reused(model, prop, orbit->signature, DO::kOmega);
+  Eigen::VectorXd g0, gp0;
+  Eigen::MatrixXd gx0;
+  ASSERT_TRUE(reused.Evaluate(x0, orbit->params, &g0, &gx0, &gp0).ok());
+  ASSERT_NE(Bits(gx0), Bits(expected));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Eigen::MatrixXd big = Eigen::MatrixXd::Constant(m + 2, m + 3, nan);
+  Eigen::VectorXd g1, gp1;
+  ASSERT_TRUE(reused.EvaluateInto(x1, orbit->params, &g1, big.block(1, 2, m, m), &gp1).ok());
+  EXPECT_EQ(Bits(big.block(1, 2, m, m)), Bits(expected));
+  EXPECT_EQ(Bits(g1), Bits(g));
+  EXPECT_EQ(Bits(gp1), Bits(gp));
+  int untouched = 0;
+  for (int j = 0; j < big.cols(); ++j) {
+    for (int i = 0; i < big.rows(); ++i) {
+      const bool inside = i >= 1 && i <= m && j >= 2 && j < m + 2;
+      if (!inside && std::isnan(big(i, j))) ++untouched;
+    }
+  }
+  EXPECT_EQ(untouched, (m + 2) * (m + 3) - m * m);
+  // And the bits are dG/dX's: central differences of G in each unknown, with step
+  // h = 1e-6 (1 + |x_j|) (truncation h^2 |G'''| / 6 and rounding eps |G| / h both below 1e-9
+  // for these O(1)..O(10) quantities; asserted 1e-6 (1 + |dG/dX|), far below the O(1) error of
+  // an entry left from another segment).
+  const double scale = 1.0 + expected.lpNorm<Eigen::Infinity>();
+  for (int j = 0; j < m; ++j) {
+    const double h = 1e-6 * (1.0 + std::abs(x1[j]));
+    Eigen::VectorXd plus = x1, minus = x1, gplus, gminus;
+    plus[j] += h;
+    minus[j] -= h;
+    ASSERT_TRUE(fresh.Evaluate(plus, orbit->params, &gplus, nullptr, nullptr).ok());
+    ASSERT_TRUE(fresh.Evaluate(minus, orbit->params, &gminus, nullptr, nullptr).ok());
+    EXPECT_LE(((gplus - gminus) / (2.0 * h) - expected.col(j)).lpNorm<Eigen::Infinity>(),
+              1e-6 * scale)
+        << "column " << j;
+  }
 }
 
 class OrbitBvpTest : public ::testing::TestWithParam<std::pair<int, int>> {};
