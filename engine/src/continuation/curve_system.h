@@ -144,7 +144,6 @@ class CurveSystem : public CorrectorSystem {
   // Evaluate's workspace (G and its derivatives, the unpacked orbit, the segments' flows and
   // monodromy factors), kept between calls: a system is used by one thread (its propagator's).
   mutable Vec g_, gp1_, gp2_;
-  mutable Mat gx_;
   mutable PeriodicOrbit orbit_;
   mutable std::vector<FlowResult> flows_;
   mutable std::vector<StateMatrix> factors_;
