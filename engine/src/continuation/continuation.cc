@@ -8,7 +8,6 @@
 
 #include "common/phase_progress.h"
 #include "continuation/branch_tracer.h"
-#include "continuation/directions.h"
 
 namespace drillbif {
 
@@ -112,137 +111,78 @@ std::string ContinuationSummary::BriefReport() const {
                                  " rejected), " + CountOf(newton_iterations, "Newton iteration"));
 }
 
-namespace internal {
-
-namespace {
-
-std::vector<int> Signs(ContinuationDirection direction) {
-  std::vector<int> signs;
-  if (direction != ContinuationDirection::kDecreasing) signs.push_back(+1);
-  if (direction != ContinuationDirection::kIncreasing) signs.push_back(-1);
-  return signs;
-}
-
-// The start's checks before any step: false with `refused` set to Continue's result (failed, or
-// cancelled at the start) when the branch cannot start; else the parameter's index.
-bool StartAccepted(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& start,
-                   const ContinuationOptions& options, PhaseProgress& phase, int* param,
-                   ContinuationResult* refused) {
+ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
+                            const PeriodicOrbit& start, const ContinuationOptions& options,
+                            const ContinuationCallback& callback,
+                            const ProgressCallback& progress) {
+  ContinuationResult result;
+  ContinuationSummary& sum = result.summary;
+  internal::PhaseProgress phase(propagator, progress);
   auto fail = [&](Status s) {
-    refused->summary.Fail(std::move(s));
-    return false;
+    sum.Fail(std::move(s));
+    return result;
+  };
+  auto cancelled_at_start = [&] {
+    sum.Cancel("cancelled before the first step");
+    return result;
   };
   if (Status s = options.Validate(); !s.ok()) return fail(s);
-  StatusOr<int> index = model.ParamIndex(options.param);
-  if (!index.ok()) return fail(Status(StatusCode::kInvalidArgument, index.status().message()));
+  StatusOr<int> param = model.ParamIndex(options.param);
+  if (!param.ok()) return fail(Status(StatusCode::kInvalidArgument, param.status().message()));
   if (Status s = ValidateSignature(model, start.signature); !s.ok()) return fail(s);
   if (Status s = model.ValidateParams(start.params); !s.ok()) return fail(s);
-  const double value = start.params[*index];
+  const double value = start.params[*param];
   if (value < options.min || value > options.max) {
     return fail(InvalidArgument("the start orbit's " + options.param + " = " +
                                 std::to_string(value) + " is outside [min, max]"));
   }
   const Admissibility adm = CheckAdmissible(model, propagator, start);
-  if (phase.stopped()) {
-    refused->summary.Cancel("cancelled before the first step");
-    return false;
-  }
+  if (phase.stopped()) return cancelled_at_start();
   if (!adm.admissible) {
     return fail(Status(StatusCode::kFailedPrecondition,
                        "the start orbit is not admissible: " + adm.message));
   }
-  *param = *index;
-  return true;
-}
 
-// Direction d of `count` from an accepted start (BranchDirection's fields but `refused`).
-BranchDirection RunDirection(const HybridModel& model, Propagator& propagator,
-                             const PeriodicOrbit& start, const ContinuationOptions& options,
-                             int param, int sign, size_t d, size_t count,
-                             const ContinuationCallback& callback, PhaseProgress& phase) {
-  BranchDirection run;
-  run.sign = sign;
-  internal::BranchTracer tracer(model, propagator, options, param);
-  run.init = tracer.Init(start, sign, d == 0, &run.part);
-  if (!run.init.ok()) {
-    run.init_stopped = phase.stopped();
-    return run;
-  }
-  while (tracer.Step(&run.part)) {
-    const double fraction = (d + double(tracer.steps()) / options.steps.max_steps) / count;
-    if ((callback && !callback(run.part.points.back(), fraction)) || !phase.Continue(fraction)) {
-      run.cancelled = true;
-      break;
-    }
-  }
-  run.cancelled = run.cancelled || tracer.termination() == Termination::kCancelled;
-  run.steps = tracer.steps();
-  run.rejected = tracer.rejected();
-  run.newton_iterations = tracer.newton_iterations();
-  run.message = run.cancelled ? "cancelled" : tracer.message();
-  run.failed = tracer.termination() == Termination::kFailed;
-  run.closed = tracer.closed();
-  return run;
-}
-
-}  // namespace
-
-size_t DirectionCount(const ContinuationOptions& options) {
-  return Signs(options.direction).size();
-}
-
-BranchDirection ContinueDirection(const HybridModel& model, Propagator& propagator,
-                                  const PeriodicOrbit& start, const ContinuationOptions& options,
-                                  size_t d, const ContinuationCallback& callback,
-                                  const ProgressCallback& progress) {
-  PhaseProgress phase(propagator, progress);
-  BranchDirection run;
-  int param = 0;
-  if (!StartAccepted(model, propagator, start, options, phase, &param, &run.refused.emplace())) {
-    return run;
-  }
-  run.refused.reset();
-  const std::vector<int> signs = Signs(options.direction);
-  return RunDirection(model, propagator, start, options, param, signs[d], d, signs.size(), callback,
-                      phase);
-}
-
-ContinuationResult JoinDirections(std::vector<BranchDirection> runs) {
-  if (!runs.empty() && runs.front().refused) return *std::move(runs.front().refused);
-  ContinuationResult result;
-  ContinuationSummary& sum = result.summary;
+  std::vector<int> signs;
+  if (options.direction != ContinuationDirection::kDecreasing) signs.push_back(+1);
+  if (options.direction != ContinuationDirection::kIncreasing) signs.push_back(-1);
   std::vector<ContinuationPoint> backward;
   std::vector<std::string> endings;
   sum.termination = Termination::kCompleted;
   bool cancelled = false;
-  for (size_t d = 0; d < runs.size() && !cancelled; ++d) {
-    BranchDirection& run = runs[d];
-    if (!run.init.ok()) {
-      if (run.init_stopped && result.points.empty()) {
-        sum.Cancel("cancelled before the first step");
-        return result;
-      }
-      if (run.init_stopped) {
+  for (size_t d = 0; d < signs.size() && !cancelled; ++d) {
+    internal::BranchTracer tracer(model, propagator, options, *param);
+    ContinuationResult part;
+    if (Status s = tracer.Init(start, signs[d], d == 0, &part); !s.ok()) {
+      if (phase.stopped() && result.points.empty()) return cancelled_at_start();
+      if (phase.stopped()) {
         cancelled = true;
         break;
       }
-      sum.Fail(run.init);
-      return result;
+      return fail(s);
     }
-    cancelled = run.cancelled;
-    sum.steps += run.steps;
-    sum.rejected_steps += run.rejected;
-    sum.newton_iterations += run.newton_iterations;
-    endings.push_back(std::string(run.sign > 0 ? "increasing" : "decreasing") + ": " + run.message);
-    if (run.failed) sum.termination = Termination::kFailed;
+    while (tracer.Step(&part)) {
+      const double fraction = (d + double(tracer.steps()) / options.steps.max_steps) / signs.size();
+      if ((callback && !callback(part.points.back(), fraction)) || !phase.Continue(fraction)) {
+        cancelled = true;
+        break;
+      }
+    }
+    cancelled = cancelled || tracer.termination() == Termination::kCancelled;
+    sum.steps += tracer.steps();
+    sum.rejected_steps += tracer.rejected();
+    sum.newton_iterations += tracer.newton_iterations();
+    const char* way = signs[d] > 0 ? "increasing" : "decreasing";
+    endings.push_back(std::string(way) + ": " + (cancelled ? "cancelled" : tracer.message()));
+    if (tracer.termination() == Termination::kFailed) sum.termination = Termination::kFailed;
     auto& specials = result.special_points;
-    specials.insert(specials.end(), run.part.special_points.begin(), run.part.special_points.end());
-    if (run.sign > 0) {
-      result.points = std::move(run.part.points);
+    specials.insert(specials.end(), part.special_points.begin(), part.special_points.end());
+    if (signs[d] > 0) {
+      result.points = std::move(part.points);
     } else {
-      backward = std::move(run.part.points);
+      backward = std::move(part.points);
     }
-    if (run.closed) break;  // the other direction would retrace the same loop
+    if (tracer.closed()) break;  // the other direction would retrace the same loop
   }
   // Branch order: the decreasing part reversed, then the start and the increasing part.
   std::reverse(backward.begin(), backward.end());
@@ -257,31 +197,6 @@ ContinuationResult JoinDirections(std::vector<BranchDirection> runs) {
     sum.status = Internal(sum.message);
   }
   return result;
-}
-
-}  // namespace internal
-
-ContinuationResult Continue(const HybridModel& model, Propagator& propagator,
-                            const PeriodicOrbit& start, const ContinuationOptions& options,
-                            const ContinuationCallback& callback,
-                            const ProgressCallback& progress) {
-  internal::PhaseProgress phase(propagator, progress);
-  ContinuationResult refused;
-  int param = 0;
-  if (!internal::StartAccepted(model, propagator, start, options, phase, &param, &refused)) {
-    return refused;
-  }
-  // One direction after the other, up to the first that ends the branch (a start that fails or
-  // is stopped, a stop, a closed branch): JoinDirections reads no further.
-  const std::vector<int> signs = internal::Signs(options.direction);
-  std::vector<internal::BranchDirection> runs;
-  for (size_t d = 0; d < signs.size(); ++d) {
-    runs.push_back(internal::RunDirection(model, propagator, start, options, param, signs[d], d,
-                                          signs.size(), callback, phase));
-    const internal::BranchDirection& run = runs.back();
-    if (!run.init.ok() || run.cancelled || run.closed) break;
-  }
-  return internal::JoinDirections(std::move(runs));
 }
 
 }  // namespace drillbif

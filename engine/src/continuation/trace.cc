@@ -6,7 +6,6 @@
 #include <functional>
 #include <limits>
 #include <map>
-#include <memory>
 #include <optional>
 #include <unordered_set>
 #include <utility>
@@ -14,7 +13,6 @@
 
 #include "common/phase_progress.h"
 #include "continuation/curve_tasks.h"
-#include "continuation/directions.h"
 #include "continuation/runner_tasks.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
@@ -394,8 +392,6 @@ class TraceDriver {
     // Per located point (r.special_points): a fold on the period-n orbit traversed twice
     // (internal::TraversedTwice, which simulates: tested on the worker); false where not tested.
     std::vector<bool> twice;
-    // One direction's run, not yet joined with the other's (Split): `r` and `twice` are empty.
-    std::optional<internal::BranchDirection> direction;
   };
   // A seed's attractor (SeedAttractor).
   struct Attractor {
@@ -416,21 +412,15 @@ class TraceDriver {
   };
   template <class Result>
   bool InOrder(std::vector<Job<Result>>& jobs);
-  ContinuationOptions BranchOptions(const PeriodicOrbit& orbit, int axis,
-                                    ContinuationDirection direction) const;
   BranchRun ComputeBranch(const PeriodicOrbit& orbit, int axis, ContinuationDirection direction,
                           Propagator& p, const ContinuationCallback& report) const;
-  bool Split(const PeriodicOrbit& orbit, ContinuationDirection direction) const;
-  BranchRun ComputeDirection(const PeriodicOrbit& orbit, int axis, ContinuationDirection direction,
-                             size_t d, Propagator& p) const;
-  static BranchRun Joined(BranchRun first, BranchRun second);
   static bool TurnOfDoubled(const ContinuationResult& r, const SpecialPoint& s);
   std::vector<std::pair<int, SpecialPoint>> Located(const BranchRun& run, int axis) const;
   bool ApplyBranch(const BranchRun& run, int axis, const std::string& edge);
   ContinuationCallback ReportHere(double from, double to);
   bool EdgeBranches(const std::vector<EdgeEnd>& ends, std::vector<EdgePoint>* on_edge_branches);
-  void AddBranchJobs(PeriodicOrbit orbit, int axis, double from, double to,
-                     ContinuationDirection direction, std::vector<Job<BranchRun>>* jobs);
+  Job<BranchRun> BranchJob(PeriodicOrbit orbit, int axis, double from, double to,
+                           ContinuationDirection direction);
   Attractor SeedAttractor(double seed, Propagator& p) const;
   bool StartBranches();
   bool Seeds();
@@ -460,7 +450,6 @@ class TraceDriver {
   std::function<void()> wait_;
   std::vector<std::pair<int, SpecialPoint>> starts_;  // (axis, located point)
   std::vector<Attractor> attractors_;                 // the seeds', from Seeds to StartBranches
-  std::optional<BranchRun> half_;  // a Split branch's first direction, until its second's apply
   SwitchTally tally_;
   int edge_runs_ = 0;
 };
@@ -492,9 +481,12 @@ bool TraceDriver::Validate() {
   return true;
 }
 
-// The options of the branch through `orbit` in the axis' parameter over the box.
-ContinuationOptions TraceDriver::BranchOptions(const PeriodicOrbit& orbit, int axis,
-                                               ContinuationDirection direction) const {
+// The branch through `orbit` in the axis' parameter over the box, on propagator `p` (a worker's):
+// the continuation and the tests of its located points that need flows. Touches no state of the
+// trace. `report`: the continuation's callback (progress on the calling thread), or empty.
+TraceDriver::BranchRun TraceDriver::ComputeBranch(const PeriodicOrbit& orbit, int axis,
+                                                  ContinuationDirection direction, Propagator& p,
+                                                  const ContinuationCallback& report) const {
   const Axis& a = axes_[axis];
   ContinuationOptions branch = options_.branch;
   branch.direction = direction;
@@ -506,20 +498,11 @@ ContinuationOptions TraceDriver::BranchOptions(const PeriodicOrbit& orbit, int a
   branch.max = a.max;
   // A period-2 branch that reaches a branch point has met the doubled period-1 branch at
   // another doubling; beyond it run the same orbits shifted by one period: stop there.
-  if (orbit.signature.periods > 1) branch.stop_at.push_back(SpecialPointKind::kBranchPoint);
-  return branch;
-}
-
-// The branch through `orbit` in the axis' parameter over the box, on propagator `p` (a worker's):
-// the continuation and the tests of its located points that need flows. Touches no state of the
-// trace. `report`: the continuation's callback (progress on the calling thread), or empty.
-TraceDriver::BranchRun TraceDriver::ComputeBranch(const PeriodicOrbit& orbit, int axis,
-                                                  ContinuationDirection direction, Propagator& p,
-                                                  const ContinuationCallback& report) const {
   const bool doubled = orbit.signature.periods > 1;
+  if (doubled) branch.stop_at.push_back(SpecialPointKind::kBranchPoint);
   BranchRun run;
   run.periods = orbit.signature.periods;
-  run.r = Continue(model_, p, orbit, BranchOptions(orbit, axis, direction), report);
+  run.r = Continue(model_, p, orbit, branch, report);
   const std::vector<SpecialPoint>& specials = run.r.special_points;
   run.twice.assign(specials.size(), false);
   for (size_t k = 0; k < specials.size(); ++k) {
@@ -528,38 +511,6 @@ TraceDriver::BranchRun TraceDriver::ComputeBranch(const PeriodicOrbit& orbit, in
       run.twice[k] = internal::TraversedTwice(model_, p, s.point.orbit);
     }
   }
-  return run;
-}
-
-// Whether the branch through `orbit` runs as two tasks, one per direction (ComputeDirection, then
-// Joined): both ways on more than one thread, where its located points need no flows of the
-// whole branch (period 1: no folds on an orbit traversed twice to test). An edge branch both
-// ways over the reference box takes ~0.4 s, and the edge rounds' two ran alone on the workers.
-bool TraceDriver::Split(const PeriodicOrbit& orbit, ContinuationDirection direction) const {
-  return workers_->threads() > 1 && orbit.signature.periods == 1 &&
-         direction == ContinuationDirection::kBoth;
-}
-
-// Direction d of the branch ComputeBranch computes (Split).
-TraceDriver::BranchRun TraceDriver::ComputeDirection(const PeriodicOrbit& orbit, int axis,
-                                                     ContinuationDirection direction, size_t d,
-                                                     Propagator& p) const {
-  BranchRun run;
-  run.periods = orbit.signature.periods;
-  run.direction =
-      internal::ContinueDirection(model_, p, orbit, BranchOptions(orbit, axis, direction), d);
-  return run;
-}
-
-// The branch of two directions' runs (Split): ComputeBranch's, bit for bit.
-TraceDriver::BranchRun TraceDriver::Joined(BranchRun first, BranchRun second) {
-  std::vector<internal::BranchDirection> runs;
-  runs.push_back(*std::move(first.direction));
-  runs.push_back(*std::move(second.direction));
-  BranchRun run;
-  run.periods = first.periods;
-  run.r = internal::JoinDirections(std::move(runs));
-  run.twice.assign(run.r.special_points.size(), false);
   return run;
 }
 
@@ -650,41 +601,18 @@ ContinuationCallback TraceDriver::ReportHere(double from, double to) {
 }
 
 // The job of the branch through `orbit` (ComputeBranch, then ApplyBranch), progress from `from`
-// to `to`, appended to `jobs`; two jobs, one per direction, where it is Split (the first's run
-// held in half_ until the second's is applied).
-void TraceDriver::AddBranchJobs(PeriodicOrbit orbit, int axis, double from, double to,
-                                ContinuationDirection direction,
-                                std::vector<Job<BranchRun>>* jobs) {
-  if (!Split(orbit, direction)) {
-    Job<BranchRun>& job = jobs->emplace_back();
-    job.from = from, job.to = to;
-    job.compute = [this, orbit = std::move(orbit), axis, direction](
-                      Propagator& p, const ContinuationCallback& report) {
-      return ComputeBranch(orbit, axis, direction, p, report);
-    };
-    job.apply = [this, axis](BranchRun* run) { return ApplyBranch(*run, axis, ""); };
-    return;
-  }
-  auto shared = std::make_shared<const PeriodicOrbit>(std::move(orbit));
-  for (size_t d = 0; d < 2; ++d) {
-    Job<BranchRun>& job = jobs->emplace_back();
-    job.from = from + (to - from) * 0.5 * d, job.to = from + (to - from) * 0.5 * (d + 1);
-    job.compute = [this, shared, axis, direction, d](Propagator& p, const ContinuationCallback&) {
-      return ComputeDirection(*shared, axis, direction, d, p);
-    };
-    if (d == 0) {
-      job.apply = [this](BranchRun* run) {
-        half_ = std::move(*run);
-        return true;
-      };
-    } else {
-      job.apply = [this, axis](BranchRun* run) {
-        const BranchRun whole = Joined(*std::move(half_), std::move(*run));
-        half_.reset();
-        return ApplyBranch(whole, axis, "");
-      };
-    }
-  }
+// to `to`.
+TraceDriver::Job<TraceDriver::BranchRun> TraceDriver::BranchJob(PeriodicOrbit orbit, int axis,
+                                                                double from, double to,
+                                                                ContinuationDirection direction) {
+  Job<BranchRun> job;
+  job.from = from, job.to = to;
+  job.compute = [this, orbit = std::move(orbit), axis, direction](
+                    Propagator& p, const ContinuationCallback& report) {
+    return ComputeBranch(orbit, axis, direction, p, report);
+  };
+  job.apply = [this, axis](BranchRun* run) { return ApplyBranch(*run, axis, ""); };
+  return job;
 }
 
 // Runs the jobs as tasks on the workers (with one thread, each on the calling thread when its
@@ -764,7 +692,8 @@ bool TraceDriver::StartBranches() {
   // each other: tasks on the workers, applied in this order.
   std::vector<Job<BranchRun>> jobs;
   for (int axis = 0; axis < 2; ++axis) {
-    AddBranchJobs(start_, axis, 0.05 * axis, 0.05 * (axis + 1), options_.branch.direction, &jobs);
+    jobs.push_back(
+        BranchJob(start_, axis, 0.05 * axis, 0.05 * (axis + 1), options_.branch.direction));
   }
   for (Attractor& a : attractors_) {
     if (!a.note.empty()) {
@@ -777,7 +706,7 @@ bool TraceDriver::StartBranches() {
       continue;
     }
     for (int axis = 0; axis < 2; ++axis) {
-      AddBranchJobs(a.orbit, axis, 0.1, 0.1, options_.branch.direction, &jobs);
+      jobs.push_back(BranchJob(a.orbit, axis, 0.1, 0.1, options_.branch.direction));
     }
   }
   attractors_.clear();
@@ -1040,15 +969,6 @@ bool TraceDriver::EdgeBranches(const std::vector<EdgeEnd>& ends,
         }
         running[edge] = true;
         queued.push_back(j);
-        if (Split(e.orbit, ContinuationDirection::kBoth)) {
-          for (size_t d = 0; d < 2; ++d) {
-            tasks.Push([this, &e, d](int worker) {
-              return ComputeDirection(e.orbit, e.along, ContinuationDirection::kBoth, d,
-                                      workers_->at(worker));
-            });
-          }
-          continue;
-        }
         tasks.Push([this, &e](int worker) {
           return ComputeBranch(e.orbit, e.along, ContinuationDirection::kBoth, workers_->at(worker),
                                ReportHere(0.99, 0.99));
@@ -1069,7 +989,6 @@ bool TraceDriver::EdgeBranches(const std::vector<EdgeEnd>& ends,
     const size_t j = queued.front();
     queued.pop_front();
     BranchRun run = *tasks.TakeFront(wait_);
-    if (run.direction && !Stopped()) run = Joined(std::move(run), *tasks.TakeFront(wait_));
     if (Stopped()) return false;
     // Its edge points now, for the decisions on the ends after it along the same edge.
     const EdgeEnd& e = ends[j];
