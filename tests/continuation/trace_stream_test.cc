@@ -194,6 +194,13 @@ TEST_F(TraceStream, TheSameCurvesWhateverTheThreads) {
     ASSERT_TRUE(one.summary.status.ok());
     ASSERT_FALSE(one.summary.cancelled());
     ASSERT_GE(one.curves.size(), 3u);
+    // Branches along the box's edges ran: with more threads, computed ahead of their round.
+    EXPECT_TRUE(std::any_of(one.summary.notes.begin(), one.summary.notes.end(),
+                            [](const std::string& n) {
+                              return n.find("branches run along the box's edges") !=
+                                     std::string::npos;
+                            }))
+        << "max_period " << max_period;
     for (const int threads : {2, 3}) {
       o.threads = threads;
       o.vertex_states = threads != 2;

@@ -4,9 +4,12 @@
 #include <cmath>
 #include <deque>
 #include <functional>
+#include <future>
 #include <limits>
 #include <map>
+#include <memory>
 #include <optional>
+#include <tuple>
 #include <unordered_set>
 #include <utility>
 #include <vector>
@@ -319,6 +322,9 @@ class TraceDriver {
         result_(*result),
         sum_(result->summary) {}
 
+  // Branches computed ahead end at their next poll; their threads are joined (prefetched_).
+  ~TraceDriver() { prefetch_abandon_ = true; }
+
   // TraceCurves without its notes' last pass and the last curves' hand-over.
   void Run() {
     if (!Validate()) return;
@@ -326,8 +332,14 @@ class TraceDriver {
     // waits for one, it polls the trace's throttle and abandons the tasks at a stop.
     workers_.emplace(propagator_, options_.task_runner != nullptr ? 1 : ThreadsOf(options_));
     wait_ = [this] {
-      if (!phase_.Continue()) workers_->Abandon();
+      if (phase_.Continue()) return;
+      workers_->Abandon();
+      prefetch_abandon_ = true;
     };
+    // The first edge round's branches computed ahead, while the curves are traced and switched
+    // (AdvanceEdgeChains): with more than one thread, on threads of their own.
+    prefetching_ =
+        options_.edge_branches && options_.task_runner == nullptr && workers_->threads() > 1;
     if (!Seeds() || !StartBranches() || !DoubledBranches()) return;
     if (!TraceStarts(0, options_.max_period > 1 ? 0.2 : 0.1, 1.0) || !SwitchFrom(0) || Stopped()) {
       return;
@@ -355,6 +367,17 @@ class TraceDriver {
     int along;             // the axis of the branch along the edge
     PeriodicOrbit orbit;   // the curve's end vertex
     std::string from_end;  // where it is, for the branch's note
+    size_t curve;          // the curve's index
+    int end;               // 0: its first point, 1: its last
+  };
+  // An edge end's place (curve, end, edge): the key of a branch computed ahead.
+  using EdgeKey = std::tuple<size_t, int, int>;
+  static EdgeKey KeyOf(const EdgeEnd& e) { return {e.curve, e.end, e.at.edge}; }
+  // One edge's chain of the first edge round, followed ahead (AdvanceEdgeChains).
+  struct EdgeChain {
+    std::deque<EdgeEnd> ends;        // the ends on the edge of the curves seen, not decided on
+    std::vector<EdgePoint> located;  // the points of the chain's branches so far
+    std::optional<EdgeEnd> running;  // the end whose branch runs ahead
   };
 
   bool Validate();
@@ -362,6 +385,7 @@ class TraceDriver {
   // edge rounds (their work not known ahead) stay where switching left it. Never backwards.
   // Also hands over the curves final by now (stream). False once cancelled.
   bool Report(double fraction) {
+    if (prefetching_) AdvanceEdgeChains();
     reported_ = std::max(reported_, fraction);
     if (!sum_.cancelled() && (!phase_.Continue(reported_) || !stream_.Flush(false))) {
       sum_.Cancel(kCancelledMessage);
@@ -410,6 +434,11 @@ class TraceDriver {
     // Applies the result; false when the trace was stopped.
     std::function<bool(Result*)> apply;
   };
+  // A branch computed ahead, and the end it runs through.
+  struct Ahead {
+    EdgeEnd end;
+    std::shared_future<BranchRun> run;
+  };
   template <class Result>
   bool InOrder(std::vector<Job<Result>>& jobs);
   BranchRun ComputeBranch(const PeriodicOrbit& orbit, int axis, ContinuationDirection direction,
@@ -431,6 +460,11 @@ class TraceDriver {
   bool TraceStarts(size_t first, double from, double to);
   bool SwitchFrom(size_t first_curve);
   bool EdgeRounds();
+  std::vector<EdgeEnd> EdgeEndsOf(size_t c) const;
+  bool Covered(const std::vector<EdgePoint>& located, const EdgePoint& at, int along) const;
+  void AdvanceEdgeChains();
+  static bool SameEnd(const EdgeEnd& a, const EdgeEnd& b);
+  std::shared_future<BranchRun> ComputeAhead(const EdgeEnd& e);
   bool LastResortStepOffs();
   void Notes();
 
@@ -452,6 +486,15 @@ class TraceDriver {
   std::vector<Attractor> attractors_;                 // the seeds', from Seeds to StartBranches
   SwitchTally tally_;
   int edge_runs_ = 0;
+  // The first edge round's branches computed ahead (AdvanceEdgeChains). Declared in this order:
+  // the futures are destroyed first, joining their threads, before the propagators they run on.
+  bool prefetching_ = false;
+  size_t prefetch_seen_ = 0;  // the curves whose edge ends were handed to the chains
+  EdgeChain chains_[4];
+  std::atomic<bool> prefetch_abandon_{false};
+  std::vector<std::unique_ptr<ProgressThrottle>> prefetch_throttles_;
+  std::vector<std::unique_ptr<Propagator>> prefetch_propagators_;
+  std::map<EdgeKey, Ahead> prefetched_;
 };
 
 bool TraceDriver::Validate() {
@@ -893,8 +936,8 @@ bool TraceDriver::SwitchFrom(size_t first_curve) {
 // the curves of their points, and the curves leaving those curves' codimension-2 points; again for
 // the ends of the curves added, until no end is new.
 bool TraceDriver::EdgeRounds() {
+  prefetching_ = false;  // the branches computed ahead are the first round's
   std::vector<EdgePoint> on_edge_branches;
-  const double bounds[4] = {options_.min1, options_.max1, options_.min2, options_.max2};
   size_t ends_from = 0;
   while (options_.edge_branches) {
     const size_t starts_before = starts_.size(), curves_before = result_.curves.size();
@@ -902,26 +945,7 @@ bool TraceDriver::EdgeRounds() {
     // (CurveStream).
     std::vector<EdgeEnd> ends;
     for (size_t c = ends_from; c < curves_before; ++c) {
-      const CurveResult& curve = result_.curves[c].curve;
-      if (curve.kind == CurveKind::kGrazing || curve.points.empty()) continue;
-      const SpecialPointKind kind = curve.kind == CurveKind::kFold ? SpecialPointKind::kFold
-                                    : curve.kind == CurveKind::kPeriodDoubling
-                                        ? SpecialPointKind::kPeriodDoubling
-                                        : SpecialPointKind::kNeimarkSacker;
-      for (const CurvePoint* end : {&curve.points.front(), &curve.points.back()}) {
-        for (int edge = 0; edge < 4; ++edge) {
-          // A curve that leaves the box ends on it exactly: its last point is solved there.
-          if ((edge < 2 ? end->value1 : end->value2) != bounds[edge]) continue;
-          const int along = edge < 2 ? 1 : 0;
-          ends.push_back(
-              {{edge, kind, end->orbit.signature.periods, along == 0 ? end->value1 : end->value2},
-               along,
-               end->orbit,
-               std::string(CurveKindName(curve.kind)) + " curve's end at " + options_.param1 +
-                   " = " + std::to_string(end->value1) + ", " + options_.param2 + " = " +
-                   std::to_string(end->value2)});
-        }
-      }
+      for (EdgeEnd& e : EdgeEndsOf(c)) ends.push_back(std::move(e));
     }
     if (!EdgeBranches(ends, &on_edge_branches)) return false;
     ends_from = curves_before;
@@ -933,6 +957,112 @@ bool TraceDriver::EdgeRounds() {
   return true;
 }
 
+// The ends of curve c on the box's edges (fold, PD and NS curves), in the order the edge rounds
+// take them: its first point's, then its last's, each on edges 0 .. 3.
+std::vector<TraceDriver::EdgeEnd> TraceDriver::EdgeEndsOf(size_t c) const {
+  std::vector<EdgeEnd> ends;
+  const double bounds[4] = {options_.min1, options_.max1, options_.min2, options_.max2};
+  const CurveResult& curve = result_.curves[c].curve;
+  if (curve.kind == CurveKind::kGrazing || curve.points.empty()) return ends;
+  const SpecialPointKind kind = curve.kind == CurveKind::kFold ? SpecialPointKind::kFold
+                                : curve.kind == CurveKind::kPeriodDoubling
+                                    ? SpecialPointKind::kPeriodDoubling
+                                    : SpecialPointKind::kNeimarkSacker;
+  for (int which = 0; which < 2; ++which) {
+    const CurvePoint* end = which == 0 ? &curve.points.front() : &curve.points.back();
+    for (int edge = 0; edge < 4; ++edge) {
+      // A curve that leaves the box ends on it exactly: its last point is solved there.
+      if ((edge < 2 ? end->value1 : end->value2) != bounds[edge]) continue;
+      const int along = edge < 2 ? 1 : 0;
+      ends.push_back(
+          {{edge, kind, end->orbit.signature.periods, along == 0 ? end->value1 : end->value2},
+           along,
+           end->orbit,
+           std::string(CurveKindName(curve.kind)) + " curve's end at " + options_.param1 + " = " +
+               std::to_string(end->value1) + ", " + options_.param2 + " = " +
+               std::to_string(end->value2),
+           c,
+           which});
+    }
+  }
+  return ends;
+}
+
+// Whether a branch along the same edge located the end's point already.
+bool TraceDriver::Covered(const std::vector<EdgePoint>& located, const EdgePoint& at,
+                          int along) const {
+  const double tol = 1e-6 * (axes_[along].max - axes_[along].min);
+  return std::any_of(located.begin(), located.end(), [&](const EdgePoint& e) {
+    return e.edge == at.edge && e.kind == at.kind && e.periods == at.periods &&
+           std::abs(e.value - at.value) <= tol;
+  });
+}
+
+// Whether two edge ends are the same point of the same orbit, to the bit (a branch computed ahead
+// through one is the other's).
+bool TraceDriver::SameEnd(const EdgeEnd& a, const EdgeEnd& b) {
+  const PeriodicOrbit &x = a.orbit, &y = b.orbit;
+  return a.at.edge == b.at.edge && a.at.kind == b.at.kind && a.at.value == b.at.value &&
+         a.along == b.along && x.signature == y.signature && x.params == y.params &&
+         x.starts == y.starts && x.durations == y.durations;
+}
+
+// The branch through an edge end, started on a thread and a propagator of its own.
+std::shared_future<TraceDriver::BranchRun> TraceDriver::ComputeAhead(const EdgeEnd& e) {
+  std::unique_ptr<Propagator> p = propagator_.Clone();
+  if (p == nullptr) return {};
+  prefetch_throttles_.push_back(std::make_unique<ProgressThrottle>(
+      [this](double) { return !prefetch_abandon_.load(std::memory_order_relaxed); }));
+  p->set_progress(prefetch_throttles_.back().get());
+  Propagator* on = p.get();
+  prefetch_propagators_.push_back(std::move(p));
+  return std::async(std::launch::async,
+                    [this, e, on] {
+                      return ComputeBranch(e.orbit, e.along, ContinuationDirection::kBoth, *on, {});
+                    })
+      .share();
+}
+
+// The first edge round's chains (EdgeBranches), followed ahead while the curves are traced and
+// switched: the round takes each edge's ends in the curves' order, and whether an end needs its
+// branch depends only on the branches before it along that edge. So once the curves before an
+// end are applied and its edge's branches before it have run, its decision is the round's: its
+// branch is computed then, on a thread of its own, and the round takes it from prefetched_ (the
+// same bytes: a branch reads only its end). In the reference box both branches of the round
+// (~0.4 s each, one after the other, the other cores idle) start from curves of the located
+// starts, and run while the curves are switched.
+void TraceDriver::AdvanceEdgeChains() {
+  for (; prefetch_seen_ < result_.curves.size(); ++prefetch_seen_) {
+    for (EdgeEnd& e : EdgeEndsOf(prefetch_seen_)) chains_[e.at.edge].ends.push_back(std::move(e));
+  }
+  for (EdgeChain& chain : chains_) {
+    if (chain.running) {
+      const std::shared_future<BranchRun>& run = prefetched_.at(KeyOf(*chain.running)).run;
+      if (run.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
+      if (run.get().r.summary.termination == Termination::kCancelled) {
+        prefetching_ = false;  // stopped: the round computes what it needs
+        return;
+      }
+      // As EdgeBranches records an applied branch.
+      chain.located.push_back(chain.running->at);
+      for (const auto& [axis, s] : Located(run.get(), chain.running->along)) {
+        chain.located.push_back(
+            {chain.running->at.edge, s.kind, s.point.orbit.signature.periods, s.point.value});
+      }
+      chain.running.reset();
+    }
+    while (!chain.ends.empty() && !chain.running) {
+      EdgeEnd e = std::move(chain.ends.front());
+      chain.ends.pop_front();
+      if (Covered(chain.located, e.at, e.along)) continue;
+      std::shared_future<BranchRun> run = ComputeAhead(e);
+      if (!run.valid()) return;
+      prefetched_.emplace(KeyOf(e), Ahead{e, std::move(run)});
+      chain.running = std::move(e);
+    }
+  }
+}
+
 // One edge round's branches, through the ends in order, each unless a branch along the same edge
 // located its point already (on_edge_branches: the rounds' edge points, this one's added). Whether
 // an end needs its branch depends on the branches before it along the same edge only (each
@@ -942,13 +1072,6 @@ bool TraceDriver::EdgeRounds() {
 // the threads and the schedule, and no branch computed in vain.
 bool TraceDriver::EdgeBranches(const std::vector<EdgeEnd>& ends,
                                std::vector<EdgePoint>* on_edge_branches) {
-  auto covered = [&](const EdgePoint& at, int along) {
-    const double tol = 1e-6 * (axes_[along].max - axes_[along].min);
-    return std::any_of(on_edge_branches->begin(), on_edge_branches->end(), [&](const EdgePoint& e) {
-      return e.edge == at.edge && e.kind == at.kind && e.periods == at.periods &&
-             std::abs(e.value - at.value) <= tol;
-    });
-  };
   internal::TaskStage<BranchRun> stage(*workers_);
   internal::OrderedTasks<BranchRun>& tasks = stage.tasks();
   std::vector<std::optional<BranchRun>> runs(ends.size());
@@ -963,12 +1086,19 @@ bool TraceDriver::EdgeBranches(const std::vector<EdgeEnd>& ends,
       for (size_t& j = next[edge]; !running[edge] && j < ends.size(); ++j) {
         const EdgeEnd& e = ends[j];
         if (e.at.edge != edge) continue;
-        if (covered(e.at, e.along)) {
+        if (Covered(*on_edge_branches, e.at, e.along)) {
           skipped[j] = true;
           continue;
         }
         running[edge] = true;
         queued.push_back(j);
+        // Computed ahead (AdvanceEdgeChains) through this very end: taken, and no longer held.
+        if (const auto ahead = prefetched_.find(KeyOf(e));
+            ahead != prefetched_.end() && SameEnd(ahead->second.end, e)) {
+          tasks.Push([run = std::move(ahead->second.run)](int) { return run.get(); });
+          prefetched_.erase(ahead);
+          continue;
+        }
         tasks.Push([this, &e](int worker) {
           return ComputeBranch(e.orbit, e.along, ContinuationDirection::kBoth, workers_->at(worker),
                                ReportHere(0.99, 0.99));
