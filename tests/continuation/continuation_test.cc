@@ -459,6 +459,46 @@ TEST(Continuation, CrossesAGuardTouchHiddenBehindAVanishingSegment) {
   ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, "omega = 0.05, a");
 }
 
+// A vanishing segment located where the points next to its root do not correct: on the
+// omega-branch at a = 0.15 from omega = 0.1, an NC segment between two impacts vanishes at
+// omega = 0.2555708 (GRAZING_L2, the branch stationary in omega there), and at that root its two
+// events' rows coincide, so trial points within ~1e-4 of it (in arclength) fail to correct. The
+// location gave up where its first trial point and the bracket's midpoint both failed, which
+// hung on rounding: with the condensed solve the branch FAILED there ("could not locate or
+// cross: segment 1 (NC) has duration -0.0119"). Both solves now complete with the same special
+// points, each located to locate_tolerance, so within twice that of each other.
+TEST(Continuation, LocatesAVanishingSegmentWhoseNeighbourhoodDoesNotCorrect) {
+  DO model;
+  ExactPropagator prop(model);
+  // The attractor there, simulated from the reference orbit's start (trace_test's completeness
+  // check starts this branch so).
+  const PeriodicOrbit reference = StartOrbit(model, prop, testing::ReferenceParams());
+  Params prm = reference.params;
+  prm[DO::kOmega] = 0.1;
+  prm[DO::kA] = 0.15;
+  StatusOr<PeriodicOrbit> start = OrbitFromSimulation(model, prop, prm, reference.starts[0]);
+  ASSERT_TRUE(start.ok()) << start.status().ToString();
+  ASSERT_EQ(SolveOrbit(model, prop, {}, &*start).termination, Termination::kCompleted);
+  ContinuationResult r[2];
+  for (const bool condensed : {false, true}) {
+    ContinuationOptions opt;
+    opt.param = "omega";
+    opt.min = 0.05, opt.max = 2.0;
+    opt.steps.condensed_solve = condensed;
+    r[condensed] = Continue(model, prop, *start, opt);
+    EXPECT_EQ(r[condensed].summary.termination, Termination::kCompleted)
+        << (condensed ? "condensed: " : "dense: ") << r[condensed].summary.message;
+  }
+  EXPECT_NE(Find(r[0], SpecialPointKind::kGrazingL2, 0.25557, 0.25558), nullptr);
+  ASSERT_EQ(r[0].special_points.size(), r[1].special_points.size());
+  const double tol = 2.0 * ContinuationOptions().locate_tolerance;
+  for (size_t i = 0; i < r[0].special_points.size(); ++i) {
+    const SpecialPoint &p = r[0].special_points[i], &q = r[1].special_points[i];
+    EXPECT_EQ(p.kind, q.kind) << i;
+    EXPECT_NEAR(p.point.value, q.point.value, tol) << SpecialPointKindName(p.kind);
+  }
+}
+
 TEST(Continuation, CallbackReceivesEveryPointAndCanCancel) {
   DO model;
   ExactPropagator prop(model);

@@ -168,6 +168,15 @@ bool BranchTracer::PointAt(double sigma, Vec* y) {
   return Correct(y_ + sigma * t_, t_, y, &iterations);
 }
 
+bool BranchTracer::PointTowards(double a, double* sigma, Vec* y) {
+  for (int k = 0; k < 8; ++k) {
+    *sigma = 0.5 * (a + *sigma);
+    if (propagator_.stopped()) return false;
+    if (PointAt(*sigma, y)) return true;
+  }
+  return false;
+}
+
 bool BranchTracer::Locate(double h, double psi0, double psi1,
                           const std::function<double(const Vec&)>& psi, bool stationary,
                           Vec* y_root) {
@@ -183,7 +192,16 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
     if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
     if (!PointAt(sigma, &y)) {
       sigma = 0.5 * (a + b);
-      if (!PointAt(sigma, &y)) return have;
+      if (!PointAt(sigma, &y)) {
+        // Trial points next to a vanishing segment's root may not correct (at the root its two
+        // events' rows coincide; docs/engine.md, "Why the branches stay dense"). With a point
+        // already corrected, the bracket so far is the location; with none, points closer to the
+        // admissible end are tried before the location is given up (where the first trial and
+        // the midpoint failed, the omega-branch at a = 0.15 from omega = 0.1 FAILED with the
+        // condensed solve or under rounding-level changes of the flows: "could not locate or
+        // cross: segment 1 (NC) has duration -0.0119").
+        if (have || !PointTowards(a, &sigma, &y)) return have;
+      }
     }
     have = true;
     *y_root = y;

@@ -95,6 +95,9 @@ class BranchTracer {
   TestValues Tests(const Vec& y, const Vec& t, double det, const ContinuationPoint& p) const;
   // The point at arclength sigma in [0, h] of the current step (predicted along t_, corrected).
   bool PointAt(double sigma, Vec* y);
+  // PointAt at arclengths halving the distance from *sigma to a (up to 8 times) until one
+  // corrects; *sigma: that arclength. False where none does.
+  bool PointTowards(double a, double* sigma, Vec* y);
   // Locates a root of psi between the current point (sigma 0, value psi0) and sigma = h (psi1).
   // `stationary`: the parameter is stationary at the root (a fold), so the bracket is shrunk in
   // arclength rather than stopped on the parameter's spread.
