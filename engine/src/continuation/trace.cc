@@ -412,7 +412,11 @@ class TraceDriver {
   struct BranchRun {
     std::string note;  // non-empty: no branch to run (a doubling without one), the note instead
     int periods = 1;   // of the branch's orbits
+    // The branch's points are dropped once it has run (ComputeBranch): the trace reads its
+    // located points and counts the others. An edge branch computed ahead is held until its round
+    // takes it, and whole it held ~6500 points with their orbits.
     ContinuationResult r;
+    int64_t points = 0;  // r.points' count before they were dropped
     // Per located point (r.special_points): a fold on the period-n orbit traversed twice
     // (internal::TraversedTwice, which simulates: tested on the worker); false where not tested.
     std::vector<bool> twice;
@@ -546,6 +550,8 @@ TraceDriver::BranchRun TraceDriver::ComputeBranch(const PeriodicOrbit& orbit, in
   BranchRun run;
   run.periods = orbit.signature.periods;
   run.r = Continue(model_, p, orbit, branch, report);
+  run.points = static_cast<int64_t>(run.r.points.size());
+  std::vector<ContinuationPoint>().swap(run.r.points);
   const std::vector<SpecialPoint>& specials = run.r.special_points;
   run.twice.assign(specials.size(), false);
   for (size_t k = 0; k < specials.size(); ++k) {
@@ -578,7 +584,7 @@ bool TraceDriver::ApplyBranch(const BranchRun& run, int axis, const std::string&
     if (!sum_.cancelled()) sum_.Cancel(kCancelledMessage);
     return false;
   }
-  sum_.branch_points += static_cast<int64_t>(r.points.size());
+  sum_.branch_points += run.points;
   if (r.summary.termination == Termination::kFailed && edge.empty()) {
     sum_.notes.push_back("the " + PeriodPrefix(run.periods) + *a.name +
                          "-branch failed: " + r.summary.message);
