@@ -414,7 +414,7 @@ class TraceDriver {
     int periods = 1;   // of the branch's orbits
     // The branch's points are dropped once it has run (ComputeBranch): the trace reads its
     // located points and counts the others. An edge branch computed ahead is held until its round
-    // takes it, and whole it held ~6500 points with their orbits.
+    // takes it; whole, it would hold ~6500 points with their orbits.
     ContinuationResult r;
     int64_t points = 0;  // r.points' count before they were dropped
     // Per located point (r.special_points): a fold on the period-n orbit traversed twice
