@@ -17,6 +17,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -955,7 +956,20 @@ StatusOr<std::unique_ptr<JobStore>> SqliteJobStore::Open(const std::string& path
     return in_file(failed.Error(rc, "open"));
   }
   auto store = std::make_unique<SqliteStoreImpl>(db, path, options);
-  if (Status s = store->Configure(); !s.ok()) return in_file(s);
+  // Another process opening the same file at the same moment (its first connection recovering
+  // the WAL) can make a step of Configure return SQLITE_BUSY at once, without the busy handler's
+  // wait: the kill -9 test's parent, opening while its child did, failed so ("the job store is
+  // busy; retry later"). Every step is idempotent (the migrations run in one transaction), so
+  // Configure is retried for up to busy_timeout_ms, as a statement would wait.
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(options.busy_timeout_ms);
+  Status configured = store->Configure();
+  while (configured.code() == StatusCode::kUnavailable &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    configured = store->Configure();
+  }
+  if (!configured.ok()) return in_file(configured);
   return std::unique_ptr<JobStore>(std::move(store));
 }
 
