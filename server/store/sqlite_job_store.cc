@@ -956,11 +956,12 @@ StatusOr<std::unique_ptr<JobStore>> SqliteJobStore::Open(const std::string& path
     return in_file(failed.Error(rc, "open"));
   }
   auto store = std::make_unique<SqliteStoreImpl>(db, path, options);
-  // Another process opening the same file at the same moment (its first connection recovering
-  // the WAL) can make a step of Configure return SQLITE_BUSY at once, without the busy handler's
-  // wait: the kill -9 test's parent, opening while its child did, failed so ("the job store is
-  // busy; retry later"). Every step is idempotent (the migrations run in one transaction), so
-  // Configure is retried for up to busy_timeout_ms, as a statement would wait.
+  // Another process opening the same file at the same moment can make a step of Configure return
+  // SQLITE_BUSY at once, without the busy handler's wait (the kill -9 test's parent, opening while
+  // its child did, failed so: "the job store is busy; retry later"; a connection that merely holds
+  // the file locked does get the wait, so the two first connections meeting is the likely cause,
+  // not reproduced on demand). Every step is idempotent (the migrations run in one transaction),
+  // so Configure is retried for up to busy_timeout_ms, as a statement would wait.
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(options.busy_timeout_ms);
   Status configured = store->Configure();
