@@ -466,6 +466,8 @@ class TraceDriver {
   bool EdgeRounds();
   std::vector<EdgeEnd> EdgeEndsOf(size_t c) const;
   bool Covered(const std::vector<EdgePoint>& located, const EdgePoint& at, int along) const;
+  void RecordEdgePoints(const EdgeEnd& e, const BranchRun& run,
+                        std::vector<EdgePoint>* located) const;
   void AdvanceEdgeChains();
   static bool SameEnd(const EdgeEnd& a, const EdgeEnd& b);
   std::shared_future<BranchRun> ComputeAhead(const EdgeEnd& e);
@@ -1004,6 +1006,17 @@ bool TraceDriver::Covered(const std::vector<EdgePoint>& located, const EdgePoint
   });
 }
 
+// The edge points a branch through end e adds for the decisions on the ends after it along the
+// same edge: e's own, and those it located (none where it was cancelled).
+void TraceDriver::RecordEdgePoints(const EdgeEnd& e, const BranchRun& run,
+                                   std::vector<EdgePoint>* located) const {
+  located->push_back(e.at);
+  if (run.r.summary.termination == Termination::kCancelled) return;
+  for (const auto& [axis, s] : Located(run, e.along)) {
+    located->push_back({e.at.edge, s.kind, s.point.orbit.signature.periods, s.point.value});
+  }
+}
+
 // Whether two edge ends are the same point of the same orbit, to the bit (a branch computed ahead
 // through one is the other's).
 bool TraceDriver::SameEnd(const EdgeEnd& a, const EdgeEnd& b) {
@@ -1049,12 +1062,7 @@ void TraceDriver::AdvanceEdgeChains() {
         prefetching_ = false;  // stopped: the round computes what it needs
         return;
       }
-      // As EdgeBranches records an applied branch.
-      chain.located.push_back(chain.running->at);
-      for (const auto& [axis, s] : Located(run.get(), chain.running->along)) {
-        chain.located.push_back(
-            {chain.running->at.edge, s.kind, s.point.orbit.signature.periods, s.point.value});
-      }
+      RecordEdgePoints(*chain.running, run.get(), &chain.located);
       chain.running.reset();
     }
     while (!chain.ends.empty() && !chain.running) {
@@ -1128,13 +1136,7 @@ bool TraceDriver::EdgeBranches(const std::vector<EdgeEnd>& ends,
     if (Stopped()) return false;
     // Its edge points now, for the decisions on the ends after it along the same edge.
     const EdgeEnd& e = ends[j];
-    on_edge_branches->push_back(e.at);
-    if (run.r.summary.termination != Termination::kCancelled) {
-      for (const auto& [axis, s] : Located(run, e.along)) {
-        on_edge_branches->push_back(
-            {e.at.edge, s.kind, s.point.orbit.signature.periods, s.point.value});
-      }
-    }
+    RecordEdgePoints(e, run, on_edge_branches);
     running[e.at.edge] = false;
     runs[j] = std::move(run);
   }
