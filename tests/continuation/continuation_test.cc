@@ -490,12 +490,53 @@ TEST(Continuation, LocatesAVanishingSegmentWhoseNeighbourhoodDoesNotCorrect) {
         << (condensed ? "condensed: " : "dense: ") << r[condensed].summary.message;
   }
   EXPECT_NE(Find(r[0], SpecialPointKind::kGrazingL2, 0.25557, 0.25558), nullptr);
+  // A fold just before the signature's representation changes (its first segment vanishing at
+  // the section, at omega = 0.2038366: no grazing), once left untested there: its multiplier at 1.
+  const SpecialPoint* fold = Find(r[0], SpecialPointKind::kFold, 0.2038364, 0.2038365);
+  ASSERT_NE(fold, nullptr);
+  EXPECT_LE(testing::DistanceToMultiplier(fold->point.stability, 1.0), 1e-6);
   ASSERT_EQ(r[0].special_points.size(), r[1].special_points.size());
   const double tol = 2.0 * ContinuationOptions().locate_tolerance;
   for (size_t i = 0; i < r[0].special_points.size(); ++i) {
     const SpecialPoint &p = r[0].special_points[i], &q = r[1].special_points[i];
     EXPECT_EQ(p.kind, q.kind) << i;
     EXPECT_NEAR(p.point.value, q.point.value, tol) << SpecialPointKindName(p.kind);
+  }
+}
+
+// Longer steps (aiming at 4 corrector iterations, as the trace's branches do) locate every
+// special point that the default steps locate. On the a-branch at omega = 0.1 a step of 0.48 ran
+// past a fold 9.8e-7 before a grazing (the turn at a = 0.1568849) and a step after a switch past
+// another (a = 0.1974666): the side before the grazing never tested for folds. And a step passed
+// the period doubling at a = 0.2098364 where a multiplier crossed the structural-zero threshold,
+// and the doubling was tested only between points with as many multipliers.
+TEST(Continuation, LongerStepsLocateEveryPointTheDefaultStepsLocate) {
+  DO model;
+  ExactPropagator prop(model);
+  const PeriodicOrbit start = StartOrbit(model, prop, testing::ReferenceParams());
+  ContinuationResult r[2];
+  for (const int target : {3, 4}) {
+    ContinuationOptions opt;
+    opt.param = "a";
+    opt.min = 0.01, opt.max = 8.0;
+    opt.steps.target_iterations = target;
+    r[target - 3] = Continue(model, prop, start, opt);
+    ASSERT_EQ(r[target - 3].summary.termination, Termination::kCompleted)
+        << r[target - 3].summary.message;
+  }
+  EXPECT_LT(r[1].summary.steps, r[0].summary.steps);
+  EXPECT_NE(Find(r[1], SpecialPointKind::kFold, 0.156884, 0.156886), nullptr);
+  EXPECT_NE(Find(r[1], SpecialPointKind::kFold, 0.197466, 0.197467), nullptr);
+  EXPECT_NE(Find(r[1], SpecialPointKind::kPeriodDoubling, 0.209836, 0.209837), nullptr);
+  // Each located to locate_tolerance in the parameter (a fold in arclength, tighter still).
+  const double tol = 2.0 * ContinuationOptions().locate_tolerance;
+  EXPECT_EQ(r[0].special_points.size(), r[1].special_points.size());
+  for (int k : {0, 1}) {
+    for (const SpecialPoint& p : r[k].special_points) {
+      const SpecialPoint* q = Find(r[1 - k], p.kind, p.point.value - tol, p.point.value + tol);
+      EXPECT_NE(q, nullptr) << SpecialPointKindName(p.kind) << " at a = " << p.point.value
+                            << " only with target_iterations " << 3 + k;
+    }
   }
 }
 

@@ -163,6 +163,17 @@ TestValues BranchTracer::Tests(const Vec& y, const Vec& t, double det,
   return v;
 }
 
+bool BranchTracer::HasUnitMultiplier(const Vec& y) {
+  // A smooth fold's multiplier at 1, located to 1e-9 of a step in arclength: within 2.1e-10 of 1
+  // at every fold of the a-branch at omega = 0.1, where the fixed-signature system's own folds
+  // next to grazing points had none nearer than 0.92.
+  constexpr double kUnitTolerance = 1e-6;
+  const auto& mu = MakePoint(y).stability.multipliers;
+  return std::any_of(mu.begin(), mu.end(), [](const std::complex<double>& z) {
+    return std::abs(z - 1.0) <= kUnitTolerance;
+  });
+}
+
 bool BranchTracer::PointAt(double sigma, Vec* y) {
   int iterations = 0;
   return Correct(y_ + sigma * t_, t_, y, &iterations);
@@ -241,7 +252,8 @@ void BranchTracer::AddSpecial(SpecialPointKind kind, const Vec& y, std::string d
   result->special_points.push_back(std::move(sp));
 }
 
-void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, ContinuationResult* result) {
+void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, ContinuationResult* result,
+                                       bool before_grazing) {
   const TestValues& t0 = tests_;
   Vec y;
   auto tests_at = [&](const Vec& yy) {
@@ -255,11 +267,16 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   };
   if (Sign(t0.fold) != Sign(t1.fold)) {
     if (Locate(
-            h, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y)) {
+            h, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y) &&
+        (!before_grazing || HasUnitMultiplier(y))) {
       AddSpecial(SpecialPointKind::kFold, y, "", result);
     }
   }
-  if (Sign(t0.period_doubling) != Sign(t1.period_doubling) && t0.nontrivial == t1.nontrivial) {
+  // The multipliers left out of the list (structural zeros, the constraint's unit multiplier)
+  // contribute positive factors (1, 2), so the product's sign compares across a change of their
+  // count: next to a grazing a multiplier passes the structural-zero threshold, and on the
+  // a-branch at omega = 0.1 a step passing the period doubling at a = 0.2098364 ended where it had.
+  if (Sign(t0.period_doubling) != Sign(t1.period_doubling)) {
     if (Locate(
             h, t0.period_doubling, t1.period_doubling,
             [&](const Vec& yy) { return tests_at(yy).period_doubling; }, false, &y)) {
@@ -405,10 +422,12 @@ std::optional<ContinuationPoint> BranchTracer::SideBeforeGrazing(const Vec& y_st
     if (Tangent(y_before, t_, &t_before, &det_before)) {
       TestValues before = Tests(y_before, t_before, det_before, *before_point);
       // The fixed-signature system degenerates at the grazing point (a fold of it, or a sign
-      // change of its bordered determinant there): neither belongs to a physical orbit.
-      before.fold = tests_.fold;
+      // change of its bordered determinant there): neither belongs to a physical orbit. A fold
+      // of the old signature's orbits before the grazing point is reported (the a-branch at
+      // omega = 0.1 turns at a = 0.1568849, 9.8e-7 before a grazing that a step of 0.48 from
+      // before the turn overran), told from the system's own fold by its multiplier at 1.
       before.branch_point = tests_.branch_point;
-      DetectSpecialPoints(sigma, before, result);
+      DetectSpecialPoints(sigma, before, result, /*before_grazing=*/true);
     }
   }
   return before_point;

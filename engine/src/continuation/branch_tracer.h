@@ -8,7 +8,6 @@
 #include <Eigen/Dense>
 #include <cstdint>
 #include <functional>
-#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -93,6 +92,8 @@ class BranchTracer {
   ContinuationPoint MakePoint(const Vec& y) const;
   double Measure(const Vec& y, int index) const;
   TestValues Tests(const Vec& y, const Vec& t, double det, const ContinuationPoint& p) const;
+  // Whether the orbit at y has a multiplier at 1 (a smooth fold's).
+  bool HasUnitMultiplier(const Vec& y);
   // The point at arclength sigma in [0, h] of the current step (predicted along t_, corrected).
   bool PointAt(double sigma, Vec* y);
   // PointAt at arclengths halving the distance from *sigma to a (up to 8 times) until one
@@ -104,8 +105,11 @@ class BranchTracer {
   bool Locate(double h, double psi0, double psi1, const std::function<double(const Vec&)>& psi,
               bool stationary, Vec* y_root);
   // Detects sign changes of the test functions between the current point and (y1, tests1) at
-  // arclength h, and appends the located special points.
-  void DetectSpecialPoints(double h, const TestValues& tests1, ContinuationResult* result);
+  // arclength h, and appends the located special points. `before_grazing`: (y1, tests1) lies just
+  // before a grazing point, where the fixed-signature system may fold by itself; a fold is then
+  // reported only where a multiplier lies at 1.
+  void DetectSpecialPoints(double h, const TestValues& tests1, ContinuationResult* result,
+                           bool before_grazing = false);
   // The corrected point y1 of a step has a segment of zero length (to rounding) that was clearly
   // positive at the current point. A segment that starts and ends on the same surface (a CwP
   // phase between two l1 events) has a degenerate family of zero-length solutions: for any
