@@ -220,7 +220,7 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
   std::vector<SpecialPoint> located[2];  // on the omega-branch (a = 0.3), on the a-branch
   int corner_starts = 0;
   for (const char* param : {"omega", "a"}) {
-    ContinuationOptions branch;
+    ContinuationOptions branch = opt.branch;  // the trace's steps
     branch.param = param;
     branch.min = std::string(param) == "omega" ? opt.min1 : opt.min2;
     branch.max = std::string(param) == "omega" ? opt.max1 : opt.max2;
@@ -1095,7 +1095,7 @@ TEST_F(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
   const TraceResult r = TraceCurves(model_, prop_, start_, opt);
   ASSERT_TRUE(r.summary.status.ok()) << r.summary.status.ToString();
 
-  // The reference branches, level by level.
+  // The reference branches, level by level (with the default steps, shorter than the trace's).
   ContinuationOptions branch;
   branch.param = "omega";
   branch.min = opt.min1, branch.max = opt.max1;
@@ -1128,12 +1128,15 @@ TEST_F(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
       double best = 1e300;
       for (const ContinuationResult& b : level) {
         for (const SpecialPoint& s : b.special_points) {
-          const bool same = c.curve.kind == CurveKind::kFold ? s.kind == SpecialPointKind::kFold
-                            : c.curve.kind == CurveKind::kPeriodDoubling
-                                ? s.kind == SpecialPointKind::kPeriodDoubling
-                                : (s.kind == SpecialPointKind::kGrazingL1 ||
-                                   s.kind == SpecialPointKind::kGrazingL2 ||
-                                   s.kind == SpecialPointKind::kGrazingPi);
+          const bool same =
+              c.curve.kind == CurveKind::kFold ? s.kind == SpecialPointKind::kFold
+              : c.curve.kind == CurveKind::kPeriodDoubling
+                  ? s.kind == SpecialPointKind::kPeriodDoubling
+                  : (s.kind == SpecialPointKind::kGrazingL1 ||
+                     s.kind == SpecialPointKind::kGrazingL2 ||
+                     s.kind == SpecialPointKind::kGrazingPi ||
+                     // a corner's signature change: the trace's grazing start
+                     (s.kind == SpecialPointKind::kSignatureChange && HasCorner(s.point.orbit)));
           if (same && s.point.orbit.signature.periods == 4) {
             best = std::min(best, std::abs(s.point.value - x.value1));
           }
