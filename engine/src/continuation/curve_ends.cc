@@ -145,9 +145,12 @@ namespace {
 // progression threshold just before a short progression phase between two contact phases
 // vanishes (a PD curve of the reference box with longer steps: l1 inside CwoP 6e-3 before its
 // end, CwP 3e-3 long, bracket 6e-3 as Newton fails next to the end); j at most 1e-2 long (a
-// touch inside a segment followed by a long one is an interior grazing, the touch form's). -1:
-// none of these. A solution is kept only within the bracket (CurveEnds::AcceptEnd), so a wrong
-// guess costs a Newton run.
+// touch inside a segment followed by a long one is an interior grazing, the touch form's); or a
+// guard firing at the very start of a segment while the one before it is at most 1e-3 long: that
+// one vanishing brings the start onto the guard (a flight starting on the impact surface as the
+// contact phase before it, 6.7e-5 long, shrinks away at a double grazing). -1: none of these. A
+// solution is kept only within the bracket (CurveEnds::AcceptEnd), so a wrong guess costs a Newton
+// run.
 int VanishingSegment(const Admissibility& v, const PeriodicOrbit& o) {
   const std::vector<SegmentSpec>& segs = o.signature.segments;
   const int i = v.segment;
@@ -163,6 +166,7 @@ int VanishingSegment(const Admissibility& v, const PeriodicOrbit& o) {
       o.durations[i + 1] <= 1e-2) {
     return i + 1;
   }
+  if (i >= 1 && v.at_start && std::abs(o.durations[i - 1]) <= 1e-3) return i - 1;
   return -1;
 }
 
