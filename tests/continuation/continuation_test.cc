@@ -504,7 +504,7 @@ TEST(Continuation, LocatesAVanishingSegmentWhoseNeighbourhoodDoesNotCorrect) {
   }
 }
 
-// Longer steps (aiming at 4 corrector iterations, as the trace's branches do) locate every
+// Longer steps (aiming at 4 corrector iterations, as the curves' do) locate every
 // special point that the default steps locate. On the a-branch at omega = 0.1 a step of 0.48 ran
 // past a fold 9.8e-7 before a grazing (the turn at a = 0.1568849) and a step after a switch past
 // another (a = 0.1974666): the side before the grazing never tested for folds. And a step passed

@@ -32,6 +32,14 @@ bool HasCorner(const PeriodicOrbit& o) {
                      [](double d) { return std::abs(d) <= 1e-9; });
 }
 
+// A located point the trace starts a grazing curve from: a grazing, or a signature change at a
+// corner (its orbit holding a segment at zero length, no tangent end).
+bool IsGrazingStart(const SpecialPoint& s) {
+  return s.kind == SpecialPointKind::kGrazingL1 || s.kind == SpecialPointKind::kGrazingL2 ||
+         s.kind == SpecialPointKind::kGrazingPi ||
+         (s.kind == SpecialPointKind::kSignatureChange && HasCorner(s.point.orbit));
+}
+
 // A corner's grazing curve.
 bool IsCornerCurve(const CurveResult& c) {
   return c.kind == CurveKind::kGrazing && !c.points.empty() &&
@@ -229,11 +237,9 @@ TEST_P(TraceSteps, EveryLocatedPointIsOnATracedCurveOrExplained) {
     for (const SpecialPoint& s : one.special_points) {
       // A signature change at a corner (its orbit holding a segment at zero length, no tangent
       // end) is a grazing too: the trace starts that corner's curve there, as a GRAZING_* point.
-      const bool corner = s.kind == SpecialPointKind::kSignatureChange && HasCorner(s.point.orbit);
-      const bool traceable =
-          s.kind == SpecialPointKind::kFold || s.kind == SpecialPointKind::kPeriodDoubling ||
-          s.kind == SpecialPointKind::kGrazingL1 || s.kind == SpecialPointKind::kGrazingL2 ||
-          s.kind == SpecialPointKind::kGrazingPi || corner;
+      const bool corner = s.kind == SpecialPointKind::kSignatureChange && IsGrazingStart(s);
+      const bool traceable = s.kind == SpecialPointKind::kFold ||
+                             s.kind == SpecialPointKind::kPeriodDoubling || IsGrazingStart(s);
       if (!traceable) continue;
       corner_starts += corner;
       bool accounted = false;
@@ -1128,15 +1134,10 @@ TEST_F(Trace, PeriodFourCurvesMatchThePeriodFourBranches) {
       double best = 1e300;
       for (const ContinuationResult& b : level) {
         for (const SpecialPoint& s : b.special_points) {
-          const bool same =
-              c.curve.kind == CurveKind::kFold ? s.kind == SpecialPointKind::kFold
-              : c.curve.kind == CurveKind::kPeriodDoubling
-                  ? s.kind == SpecialPointKind::kPeriodDoubling
-                  : (s.kind == SpecialPointKind::kGrazingL1 ||
-                     s.kind == SpecialPointKind::kGrazingL2 ||
-                     s.kind == SpecialPointKind::kGrazingPi ||
-                     // a corner's signature change: the trace's grazing start
-                     (s.kind == SpecialPointKind::kSignatureChange && HasCorner(s.point.orbit)));
+          const bool same = c.curve.kind == CurveKind::kFold ? s.kind == SpecialPointKind::kFold
+                            : c.curve.kind == CurveKind::kPeriodDoubling
+                                ? s.kind == SpecialPointKind::kPeriodDoubling
+                                : IsGrazingStart(s);
           if (same && s.point.orbit.signature.periods == 4) {
             best = std::min(best, std::abs(s.point.value - x.value1));
           }

@@ -168,7 +168,9 @@ bool BranchTracer::HasUnitMultiplier(const Vec& y) {
   // at every fold of the a-branch at omega = 0.1, where the fixed-signature system's own folds
   // next to grazing points had none nearer than 0.92.
   constexpr double kUnitTolerance = 1e-6;
-  const auto& mu = MakePoint(y).stability.multipliers;
+  PeriodicOrbit o;
+  bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &o);
+  const std::vector<std::complex<double>> mu = OrbitStability(model_, propagator_, o).multipliers;
   return std::any_of(mu.begin(), mu.end(), [](const std::complex<double>& z) {
     return std::abs(z - 1.0) <= kUnitTolerance;
   });
