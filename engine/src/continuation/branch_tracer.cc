@@ -117,10 +117,16 @@ bool BranchTracer::TangentFromCorrector(Vec* t, double* det) const {
   return true;
 }
 
+PeriodicOrbit BranchTracer::OrbitAt(const Vec& y) const {
+  PeriodicOrbit o;
+  bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &o);
+  return o;
+}
+
 ContinuationPoint BranchTracer::MakePoint(const Vec& y) const {
   ContinuationPoint p;
   p.value = y[m()];
-  bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &p.orbit);
+  p.orbit = OrbitAt(y);
   p.measures = OrbitMeasures(model_, propagator_, p.orbit, options_.point_measures);
   p.stability = OrbitStability(model_, propagator_, p.orbit);
   p.period = kTwoPi * p.orbit.signature.periods / model_.ForcingFrequency(p.orbit.params);
@@ -128,9 +134,7 @@ ContinuationPoint BranchTracer::MakePoint(const Vec& y) const {
 }
 
 double BranchTracer::Measure(const Vec& y, int index) const {
-  PeriodicOrbit o;
-  bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &o);
-  return OrbitMeasures(model_, propagator_, o, 1u << index)[index];
+  return OrbitMeasures(model_, propagator_, OrbitAt(y), 1u << index)[index];
 }
 
 TestValues BranchTracer::Tests(const Vec& y, const Vec& t, double det,
@@ -168,9 +172,8 @@ bool BranchTracer::HasUnitMultiplier(const Vec& y) {
   // at every fold of the a-branch at omega = 0.1, where the fixed-signature system's own folds
   // next to grazing points had none nearer than 0.92.
   constexpr double kUnitTolerance = 1e-6;
-  PeriodicOrbit o;
-  bvp_->Unpack(y.head(m()), ParamsAt(y[m()]), &o);
-  const std::vector<std::complex<double>> mu = OrbitStability(model_, propagator_, o).multipliers;
+  const std::vector<std::complex<double>> mu =
+      OrbitStability(model_, propagator_, OrbitAt(y)).multipliers;
   return std::any_of(mu.begin(), mu.end(), [](const std::complex<double>& z) {
     return std::abs(z - 1.0) <= kUnitTolerance;
   });
@@ -314,9 +317,7 @@ void BranchTracer::LocateViolations(const std::vector<Admissibility>& violations
                                     const Vec& y_end, double before, GrazingCrossing* crossing) {
   for (const Admissibility& v : violations) {
     auto psi = [&](const Vec& yy) {
-      PeriodicOrbit o;
-      bvp_->Unpack(yy.head(m()), ParamsAt(yy[m()]), &o);
-      return ViolationTestFunction(model_, propagator_, o, v);
+      return ViolationTestFunction(model_, propagator_, OrbitAt(yy), v);
     };
     const double psi0 = psi(y_), psi1 = psi(y_end);
     Vec y_v;
@@ -355,8 +356,7 @@ void BranchTracer::LocateHiddenGuardCrossing(const std::vector<Admissibility>& v
   Vec y_pre;
   const double sigma_pre = sigma_star * (1.0 - 1e-6);
   if (sigma_pre > 0.0 && PointAt(sigma_pre, &y_pre)) {
-    PeriodicOrbit o;
-    bvp_->Unpack(y_pre.head(m()), ParamsAt(y_pre[m()]), &o);
+    const PeriodicOrbit o = OrbitAt(y_pre);
     std::vector<Admissibility> hidden;
     for (const Admissibility& v : AdmissibilityViolations(model_, propagator_, o)) {
       if (v.guard >= 0 && !near_vanishing(v.segment)) hidden.push_back(v);
@@ -572,9 +572,7 @@ void BranchTracer::OrientNewBranch(double* det) {
     Vec y_try;
     int trial_iterations = 0;
     if (!Correct(y_ + sigma * t_, t_, &y_try, &trial_iterations)) return false;
-    PeriodicOrbit o;
-    bvp_->Unpack(y_try.head(m()), ParamsAt(y_try[m()]), &o);
-    return CheckAdmissible(model_, propagator_, o).admissible;
+    return CheckAdmissible(model_, propagator_, OrbitAt(y_try)).admissible;
   };
   const double trial = std::max(options_.steps.min_step, std::min(h_, options_.steps.initial_step));
   if (!admissible_at(trial) && admissible_at(-trial)) {

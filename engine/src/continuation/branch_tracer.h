@@ -89,6 +89,8 @@ class BranchTracer {
   // the direction's side, and det [G_X G_l; v^T] = v . c with c along the tangent, so the sign of
   // that determinant is the sign of det with the tangent itself.
   bool TangentFromCorrector(Vec* t, double* det) const;
+  // The orbit of the current signature at y (the unknowns and the parameter).
+  PeriodicOrbit OrbitAt(const Vec& y) const;
   ContinuationPoint MakePoint(const Vec& y) const;
   double Measure(const Vec& y, int index) const;
   TestValues Tests(const Vec& y, const Vec& t, double det, const ContinuationPoint& p) const;
