@@ -241,11 +241,17 @@ void Encode(const Admissibility& in, v1::TaskAdmissibility* out) {
   out->set_segment(in.segment);
   out->set_guard(in.guard);
   out->set_at_start(in.at_start);
+  out->set_time(in.time);
   out->set_message(in.message);
 }
 
 Status Decode(const v1::TaskAdmissibility& in, Admissibility* out) {
-  *out = Admissibility{in.admissible(), in.segment(), in.guard(), in.at_start(), in.message()};
+  out->admissible = in.admissible();
+  out->segment = in.segment();
+  out->guard = in.guard();
+  out->at_start = in.at_start();
+  out->time = in.time();
+  out->message = in.message();
   return Status::Ok();
 }
 

@@ -205,6 +205,55 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchSteppingOffATouchNextToAnotherEventClo
   }
 }
 
+// The period-2 branch born at the a-branch's doubling at a = 0.298478 (omega = 0.1), continued
+// down to a = 0.25, turns at a fold (0.26281) and touches Pi a quarter of the way into its last
+// free flight at a = 0.2726287, 1.4e-3 in a before the flight after the section vanishes (a
+// change of representation only). Steps aiming at 4 iterations took both in one: the vanishing,
+// next to that flight across the section, was crossed first, the touch was left violated and
+// the branch FAILED at its next step. It now locates the same points as the default steps.
+TEST(PeriodDoublingSwitch, PeriodTwoBranchLocatesATouchBeforeTheSectionMovesInTheSameStep) {
+  DO model;
+  ExactPropagator prop(model);
+  const SpecialPoint pd = DoublingOnBranch(model, prop, "a", 0.25, 0.75, 0.2984, 0.2986);
+  const StatusOr<PeriodicOrbit> alg =
+      SwitchAtPeriodDoublingAlgebraic(model, prop, pd.point.orbit, "a");
+  ASSERT_TRUE(alg.ok()) << alg.status().ToString();
+  ContinuationResult r[2];
+  for (const int target : {3, 4}) {
+    ContinuationOptions opt;
+    opt.param = "a";
+    opt.min = 0.25, opt.max = 0.75;
+    opt.steps.target_iterations = target;
+    opt.direction = alg->params[DO::kA] > pd.point.value ? ContinuationDirection::kIncreasing
+                                                         : ContinuationDirection::kDecreasing;
+    r[target - 3] = Continue(model, prop, *alg, opt);
+    ASSERT_EQ(r[target - 3].summary.termination, Termination::kCompleted)
+        << "target_iterations " << target << ": " << r[target - 3].summary.message;
+  }
+  EXPECT_LT(r[1].summary.steps, r[0].summary.steps);
+  // Each located to locate_tolerance in the parameter (a fold in arclength, tighter still).
+  const double tol = 2.0 * ContinuationOptions().locate_tolerance;
+  auto has = [&](const ContinuationResult& in, SpecialPointKind kind, double a) {
+    return std::any_of(in.special_points.begin(), in.special_points.end(),
+                       [&](const SpecialPoint& s) {
+                         return s.kind == kind && std::abs(s.point.value - a) <= tol;
+                       });
+  };
+  bool touch = false;
+  for (const SpecialPoint& s : r[1].special_points) {
+    touch |= s.kind == SpecialPointKind::kGrazingPi && std::abs(s.point.value - 0.2726287) < 1e-7;
+  }
+  EXPECT_TRUE(touch);
+  EXPECT_EQ(r[0].special_points.size(), r[1].special_points.size());
+  for (int k : {0, 1}) {
+    for (const SpecialPoint& p : r[k].special_points) {
+      EXPECT_TRUE(has(r[1 - k], p.kind, p.point.value))
+          << SpecialPointKindName(p.kind) << " at a = " << p.point.value
+          << " only with target_iterations " << 3 + k;
+    }
+  }
+}
+
 TEST(PeriodDoublingSwitch, AlgebraicSwitchRejectsBadInput) {
   DO model;
   ExactPropagator prop(model);

@@ -161,6 +161,7 @@ void Compare(const std::string& path, const Admissibility& a, const Admissibilit
   Compare(path + ".segment", a.segment, b.segment, d);
   Compare(path + ".guard", a.guard, b.guard, d);
   Compare(path + ".at_start", a.at_start, b.at_start, d);
+  Compare(path + ".time", a.time, b.time, d);
   Compare(path + ".message", a.message, b.message, d);
 }
 void Compare(const std::string& path, const ContinuationSummary& a, const ContinuationSummary& b,
@@ -343,7 +344,7 @@ class Filler {
     q.point = MakeCurvePoint();
     q.detail = Text();
     q.bracket = Real();
-    q.violation = Admissibility{flag_, Int(), Int(), !flag_, Text()};
+    q.violation = Admissibility{flag_, Int(), Int(), !flag_, Real(), Text()};
     q.same_as_curve = Int();
     q.same_as_index = Int();
     return q;
@@ -750,6 +751,7 @@ TEST(TraceTaskCodecTest, EqualityNoticesAChangeOfAnyCandidateTaskField) {
           {"value.point.violation.guard", [](CandidateTask& t) { ++t.point.violation.guard; }},
           {"value.point.violation.at_start",
            [](CandidateTask& t) { t.point.violation.at_start ^= true; }},
+          {"value.point.violation.time", [](CandidateTask& t) { t.point.violation.time += 1.0; }},
           {"value.point.violation.message",
            [](CandidateTask& t) { t.point.violation.message[4] = 'x'; }},
           {"value.point.same_as_curve", [](CandidateTask& t) { ++t.point.same_as_curve; }},

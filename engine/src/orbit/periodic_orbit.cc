@@ -201,7 +201,7 @@ std::vector<Admissibility> Violations(const HybridModel& model, Propagator& prop
     const double tau = orbit.durations[i];
     if (!(tau > 0.0)) {
       const int mode = orbit.signature.segments[i].mode;
-      found.push_back({false, static_cast<int>(i), -1, false,
+      found.push_back({false, static_cast<int>(i), -1, false, 0.0,
                        "segment " + std::to_string(i) + " (" + std::string(model.mode_name(mode)) +
                            ") has duration " + std::to_string(tau) + " <= 0"});
     }
@@ -220,7 +220,7 @@ std::vector<Admissibility> Violations(const HybridModel& model, Propagator& prop
     const bool own_end = r.end == AdvanceEnd::kEvent && r.guard == seg.guard &&
                          IsOwnEnd(model, propagator, orbit, i, r.duration);
     if (r.end == AdvanceEnd::kEvent && !own_end) {
-      found.push_back({false, static_cast<int>(i), r.guard, r.duration == 0.0,
+      found.push_back({false, static_cast<int>(i), r.guard, r.duration == 0.0, r.duration,
                        "segment " + std::to_string(i) + " (" +
                            std::string(model.mode_name(seg.mode)) + ") crosses " +
                            model.guards(seg.mode)[r.guard].surface +

@@ -62,6 +62,7 @@ struct Admissibility {
   int segment = -1;
   int guard = -1;
   bool at_start = false;  // the guard fires at once at the segment's start
+  double time = 0.0;      // where the guard fires, from the segment's start (0 for a duration)
   std::string message;
 };
 
