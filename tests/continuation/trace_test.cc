@@ -744,6 +744,13 @@ TEST_F(Trace, InvalidRequestsNameTheProblem) {
     EXPECT_EQ(r.summary.status.code(), StatusCode::kInvalidArgument) << bad;
     EXPECT_NE(r.summary.status.message().find("max_period"), std::string::npos) << bad;
   }
+  for (int bad : {0, -1, ContinuationOptions().steps.max_iterations + 1}) {
+    TraceOptions steps = testing::ReferenceBox();
+    steps.doubled_branch_target_iterations = bad;
+    EXPECT_NE(steps.Validate().message().find("doubled_branch_target_iterations"),
+              std::string::npos)
+        << bad;
+  }
 }
 
 // Period-2 curves, on request: in omega in [0.05, 0.45], a in [0.27, 0.32] the period-2 branches

@@ -131,7 +131,7 @@ bool GrazingCurvesAtFlipGrazings(const HybridModel& model, Propagator& propagato
             why = doubled.status().message();
             continue;
           }
-          ContinuationOptions branch = options.branch;
+          ContinuationOptions branch = options.BranchOptions(doubled->signature.periods);
           branch.locate_measure_maxima = false;
           branch.point_measures = 0u;
           branch.param = *names[a];

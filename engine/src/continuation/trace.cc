@@ -49,12 +49,24 @@ Status TraceOptions::Validate() const {
     return InvalidArgument("threads: need 0 (every core) .. " + std::to_string(kMaxTraceThreads) +
                            ", got " + std::to_string(threads));
   }
+  if (doubled_branch_target_iterations < 1 ||
+      doubled_branch_target_iterations > branch.steps.max_iterations) {
+    return InvalidArgument("doubled_branch_target_iterations: need 1 .. branch max_iterations (" +
+                           std::to_string(branch.steps.max_iterations) + "), got " +
+                           std::to_string(doubled_branch_target_iterations));
+  }
   if (max_period < 1 || max_period > 16 || (max_period & (max_period - 1)) != 0) {
     return InvalidArgument(
         "max_period: need 1, 2, 4, 8 or 16 (periods of a doubling cascade), got " +
         std::to_string(max_period));
   }
   return Status::Ok();
+}
+
+ContinuationOptions TraceOptions::BranchOptions(int periods) const {
+  ContinuationOptions o = branch;
+  if (periods > 1) o.steps.target_iterations = doubled_branch_target_iterations;
+  return o;
 }
 
 namespace internal {
@@ -537,7 +549,7 @@ TraceDriver::BranchRun TraceDriver::ComputeBranch(const PeriodicOrbit& orbit, in
                                                   ContinuationDirection direction, Propagator& p,
                                                   const ContinuationCallback& report) const {
   const Axis& a = axes_[axis];
-  ContinuationOptions branch = options_.branch;
+  ContinuationOptions branch = options_.BranchOptions(orbit.signature.periods);
   branch.direction = direction;
   // Only the branches' bifurcations start curves: no ROP / Pc maxima, no measures kept.
   branch.locate_measure_maxima = false;

@@ -100,7 +100,23 @@ struct TraceOptions : ParameterBox {
   // Where the tasks run instead of those threads (continuation/trace_tasks.h), e.g. as child jobs
   // of the service's store; null: the threads. Not owned; must outlive the trace.
   TraceTaskRunner* task_runner = nullptr;
-  ContinuationOptions branch;  // for the one-parameter runs (param, min, max are set here)
+  // For the one-parameter runs (param, min, max are set here; BranchOptions). The steps aim at 4
+  // corrector iterations, as the curves' do: on the reference box's period-1 branches about half
+  // the steps of 3, and every special point that 3 locates.
+  ContinuationOptions branch = [] {
+    ContinuationOptions o;
+    o.steps.target_iterations = 4;
+    return o;
+  }();
+  // The steps of the branches of period-2n orbits (born at doublings and flip-grazings, or run
+  // along the box's edges from period-2n curves) aim at this many iterations instead. Their
+  // events crowd (each copy of a nearly twice-traversed orbit reaches a surface at nearly the
+  // same parameter) and steps aiming at 4 took two in one: with max_period 2 over the reference
+  // box, three period-2 branches FAILED and two edge branches stopped early, where 3 completes
+  // every one.
+  int doubled_branch_target_iterations = 3;
+  // `branch` for the branch of an orbit of `periods` periods.
+  ContinuationOptions BranchOptions(int periods) const;
   // For the curves (params and box are set here). Its crossings1 / crossings2 are values of
   // param1 / param2 of these options, whichever order a curve is traced in.
   CurveOptions curve;
