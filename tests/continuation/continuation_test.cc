@@ -12,6 +12,7 @@
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
 #include "support/multipliers.h"
+#include "support/special_point_near.h"
 
 namespace drillbif {
 namespace {
@@ -529,15 +530,9 @@ TEST(Continuation, LongerStepsLocateEveryPointTheDefaultStepsLocate) {
   EXPECT_NE(Find(r[1], SpecialPointKind::kFold, 0.197466, 0.197467), nullptr);
   EXPECT_NE(Find(r[1], SpecialPointKind::kPeriodDoubling, 0.209836, 0.209837), nullptr);
   // Each located to locate_tolerance in the parameter (a fold in arclength, tighter still).
-  const double tol = 2.0 * ContinuationOptions().locate_tolerance;
-  EXPECT_EQ(r[0].special_points.size(), r[1].special_points.size());
-  for (int k : {0, 1}) {
-    for (const SpecialPoint& p : r[k].special_points) {
-      const SpecialPoint* q = Find(r[1 - k], p.kind, p.point.value - tol, p.point.value + tol);
-      EXPECT_NE(q, nullptr) << SpecialPointKindName(p.kind) << " at a = " << p.point.value
-                            << " only with target_iterations " << 3 + k;
-    }
-  }
+  testing::ExpectSameSpecialPoints(r[0], "with target_iterations 3", r[1],
+                                   "with target_iterations 4",
+                                   2.0 * ContinuationOptions().locate_tolerance);
 }
 
 TEST(Continuation, CallbackReceivesEveryPointAndCanCancel) {

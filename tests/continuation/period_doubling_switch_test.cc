@@ -11,6 +11,7 @@
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
 #include "support/period_two.h"
+#include "support/special_point_near.h"
 
 namespace drillbif {
 namespace {
@@ -231,27 +232,12 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchLocatesATouchBeforeTheSectionMovesInTh
         << "target_iterations " << target << ": " << r[target - 3].summary.message;
   }
   EXPECT_LT(r[1].summary.steps, r[0].summary.steps);
+  EXPECT_NE(testing::SpecialPointNear(r[1], SpecialPointKind::kGrazingPi, 0.2726287, 1e-7),
+            nullptr);
   // Each located to locate_tolerance in the parameter (a fold in arclength, tighter still).
-  const double tol = 2.0 * ContinuationOptions().locate_tolerance;
-  auto has = [&](const ContinuationResult& in, SpecialPointKind kind, double a) {
-    return std::any_of(in.special_points.begin(), in.special_points.end(),
-                       [&](const SpecialPoint& s) {
-                         return s.kind == kind && std::abs(s.point.value - a) <= tol;
-                       });
-  };
-  bool touch = false;
-  for (const SpecialPoint& s : r[1].special_points) {
-    touch |= s.kind == SpecialPointKind::kGrazingPi && std::abs(s.point.value - 0.2726287) < 1e-7;
-  }
-  EXPECT_TRUE(touch);
-  EXPECT_EQ(r[0].special_points.size(), r[1].special_points.size());
-  for (int k : {0, 1}) {
-    for (const SpecialPoint& p : r[k].special_points) {
-      EXPECT_TRUE(has(r[1 - k], p.kind, p.point.value))
-          << SpecialPointKindName(p.kind) << " at a = " << p.point.value
-          << " only with target_iterations " << 3 + k;
-    }
-  }
+  testing::ExpectSameSpecialPoints(r[0], "with target_iterations 3", r[1],
+                                   "with target_iterations 4",
+                                   2.0 * ContinuationOptions().locate_tolerance);
 }
 
 TEST(PeriodDoublingSwitch, AlgebraicSwitchRejectsBadInput) {

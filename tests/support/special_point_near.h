@@ -3,7 +3,10 @@
 #ifndef DRILLBIF_TESTS_SUPPORT_SPECIAL_POINT_NEAR_H_
 #define DRILLBIF_TESTS_SUPPORT_SPECIAL_POINT_NEAR_H_
 
+#include <gtest/gtest.h>
+
 #include <cmath>
+#include <string>
 
 #include "drillbif/continuation/continuation.h"
 
@@ -18,6 +21,22 @@ inline const SpecialPoint* SpecialPointNear(const ContinuationResult& r, Special
     if (!best || std::abs(s.point.value - value) < std::abs(best->point.value - value)) best = &s;
   }
   return best;
+}
+
+// Two runs of one branch locate the same special points: as many, each of either within `tol` of
+// one of the same kind of the other. `name_a` / `name_b` say which run is which in a failure.
+inline void ExpectSameSpecialPoints(const ContinuationResult& a, const std::string& name_a,
+                                    const ContinuationResult& b, const std::string& name_b,
+                                    double tol) {
+  EXPECT_EQ(a.special_points.size(), b.special_points.size());
+  for (const SpecialPoint& p : a.special_points) {
+    EXPECT_NE(SpecialPointNear(b, p.kind, p.point.value, tol), nullptr)
+        << SpecialPointKindName(p.kind) << " at " << p.point.value << " only " << name_a;
+  }
+  for (const SpecialPoint& p : b.special_points) {
+    EXPECT_NE(SpecialPointNear(a, p.kind, p.point.value, tol), nullptr)
+        << SpecialPointKindName(p.kind) << " at " << p.point.value << " only " << name_b;
+  }
 }
 
 }  // namespace drillbif::testing

@@ -111,9 +111,10 @@ struct TraceOptions : ParameterBox {
   // The steps of the branches of period-2n orbits (born at doublings and flip-grazings, or run
   // along the box's edges from period-2n curves) aim at this many iterations instead. Their
   // events crowd (each copy of a nearly twice-traversed orbit reaches a surface at nearly the
-  // same parameter) and steps aiming at 4 took two in one: with max_period 2 over the reference
-  // box, three period-2 branches FAILED and two edge branches stopped early, where 3 completes
-  // every one.
+  // same parameter), and with max_period 2 over the reference box steps aiming at 4 left three
+  // period-2 branches FAILED and two edge branches stopped early, where 3 completes every one
+  // (the failures examined: a step over two events, a new signature's first point already past
+  // a second one).
   int doubled_branch_target_iterations = 3;
   // `branch` for the branch of an orbit of `periods` periods.
   ContinuationOptions BranchOptions(int periods) const;
