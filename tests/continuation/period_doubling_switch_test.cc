@@ -105,6 +105,17 @@ SpecialPoint DoublingOnBranch(const DO& model, Propagator& prop, const std::stri
   return {};
 }
 
+// The period-2 branch from the algebraic switch's orbit `alg` at the doubling `pd`, continued with
+// `opt` (its param, bounds and steps) away from the doubling only: towards it, it runs through
+// the branch point onto the same orbits shifted by one period.
+ContinuationResult AwayFromDoubling(const DO& model, Propagator& prop, const SpecialPoint& pd,
+                                    const PeriodicOrbit& alg, ContinuationOptions opt) {
+  const int i = model.ParamIndex(opt.param).value();
+  opt.direction = alg.params[i] > pd.point.value ? ContinuationDirection::kIncreasing
+                                                 : ContinuationDirection::kDecreasing;
+  return Continue(model, prop, alg, opt);
+}
+
 // Algebraic switching (no simulation) lands on the same period-2 branch as the simulation-based
 // switch: continued to the simulated orbit's b, ROP and multipliers agree.
 TEST(PeriodDoublingSwitch, AlgebraicSwitchFindsTheBranchTheSimulationFinds) {
@@ -188,9 +199,7 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchSteppingOffATouchNextToAnotherEventClo
   opt.param = "a";
   opt.min = 0.01;
   opt.max = 8.0;
-  opt.direction = alg->params[DO::kA] > pd.point.value ? ContinuationDirection::kIncreasing
-                                                       : ContinuationDirection::kDecreasing;
-  const ContinuationResult r = Continue(model, prop, *alg, opt);
+  const ContinuationResult r = AwayFromDoubling(model, prop, pd, *alg, opt);
   EXPECT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
   double highest = 0.0;
   for (const ContinuationPoint& p : r.points) highest = std::max(highest, p.value);
@@ -225,9 +234,7 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchLocatesATouchBeforeTheSectionMovesInTh
     opt.param = "a";
     opt.min = 0.25, opt.max = 0.75;
     opt.steps.target_iterations = target;
-    opt.direction = alg->params[DO::kA] > pd.point.value ? ContinuationDirection::kIncreasing
-                                                         : ContinuationDirection::kDecreasing;
-    r[target - 3] = Continue(model, prop, *alg, opt);
+    r[target - 3] = AwayFromDoubling(model, prop, pd, *alg, opt);
     ASSERT_EQ(r[target - 3].summary.termination, Termination::kCompleted)
         << "target_iterations " << target << ": " << r[target - 3].summary.message;
   }
