@@ -699,13 +699,14 @@ TEST_P(StoreChildrenTest, ACancelThatWaitsForAClaimInProgressStopsTheClaimedChil
       sqlite3_close(db);
     });
   } else {
-    // One psql command is one transaction: the row stays locked through the sleep.
+    // One psql command is one transaction: the row stays locked through the sleep. The claim
+    // holds the row once its session sleeps; the table's lock alone is no sign of it, since
+    // the UPDATE takes that lock while it is planned, before it reaches the row.
     claimer =
         std::thread([&] { EXPECT_EQ(SqlInt("SELECT 1; " + claim + " SELECT pg_sleep(1);"), 1); });
-    for (int i = 0; i < 200 && !holding; ++i) {
-      holding = SqlInt(
-                    "SELECT COUNT(*) FROM pg_locks l JOIN pg_class c ON c.oid = l.relation "
-                    "WHERE c.relname = 'jobs' AND l.mode = 'RowExclusiveLock'") > 0;
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!holding && std::chrono::steady_clock::now() < give_up) {
+      holding = SqlInt("SELECT COUNT(*) FROM pg_stat_activity WHERE wait_event = 'PgSleep'") > 0;
     }
   }
   while (!holding && GetParam() == drillbif::testing::StoreKind::kSqlite) {
