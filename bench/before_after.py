@@ -5,12 +5,17 @@ so that both see the same machine, and the medians and their ratio are printed.
 Usage:
   bench/before_after.py --before OLD/build/bench/curve_bench --after build/bench/curve_bench \\
       --filter-before 'BM_TraceReferenceBox/3/1$' --filter-after 'BM_TraceReferenceBox/3/1$' \\
-      [--filter-after-extra 'BM_TraceReferenceBox/3/2$'] [--runs 3]
+      [--filter-after-extra 'BM_TraceReferenceBox/3/2$'] [--runs 3] [--pin CPU]
 
 Each run is one process with --benchmark_filter and JSON output; the real time of every
 benchmark it ran (ms) and its counters are collected. The build before a change may name its
 benchmarks otherwise (e.g. without a threads argument): hence the two filters. Extra filters for
 the build after (e.g. the same benchmark on two threads) run in the same alternation.
+
+--pin CPU runs the two one-thread filters (before, after) on that CPU only (taskset); the extra
+filters, meant for more threads, run unpinned. A virtual machine's CPUs need not be equally fast
+at a given time (docs/performance.md measures this machine's): unpinned, a one-thread run's time
+also depends on the CPU the scheduler gives it.
 """
 import argparse
 import json
@@ -19,9 +24,10 @@ import subprocess
 import sys
 
 
-def run(binary, pattern):
+def run(binary, pattern, cpu=None):
+    pin = [] if cpu is None else ["taskset", "-c", str(cpu)]
     out = subprocess.run(
-        [binary, "--benchmark_filter=" + pattern, "--benchmark_format=json"],
+        pin + [binary, "--benchmark_filter=" + pattern, "--benchmark_format=json"],
         check=True, capture_output=True, text=True).stdout
     results = {}
     for b in json.loads(out)["benchmarks"]:
@@ -44,13 +50,14 @@ def main():
     p.add_argument("--filter-after", required=True)
     p.add_argument("--filter-after-extra", action="append", default=[])
     p.add_argument("--runs", type=int, default=3)
+    p.add_argument("--pin", type=int, default=None, metavar="CPU")
     a = p.parse_args()
-    jobs = [("before", a.before, a.filter_before), ("after", a.after, a.filter_after)]
-    jobs += [("after", a.after, f) for f in a.filter_after_extra]
+    jobs = [("before", a.before, a.filter_before, a.pin), ("after", a.after, a.filter_after, a.pin)]
+    jobs += [("after", a.after, f, None) for f in a.filter_after_extra]
     times = {}
     for r in range(a.runs):
-        for label, binary, pattern in jobs:
-            for name, (ms, counters) in run(binary, pattern).items():
+        for label, binary, pattern, cpu in jobs:
+            for name, (ms, counters) in run(binary, pattern, cpu).items():
                 key = (label, name)
                 times.setdefault(key, ([], counters))[0].append(ms)
                 print(f"run {r + 1}: {label:6} {name}: {ms:.0f} ms {counters}", flush=True)
