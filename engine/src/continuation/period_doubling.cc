@@ -1,4 +1,7 @@
-// Branch switching at period doubling (see continuation/continuation.h).
+// Branch switching at period doubling (see continuation/continuation.h), and orbits traversed
+// twice told from period-2n ones (continuation/period_doubling.h).
+#include "continuation/period_doubling.h"
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <algorithm>
@@ -6,6 +9,7 @@
 
 #include "common/phase_progress.h"
 #include "drillbif/continuation/continuation.h"
+#include "drillbif/simulate/simulator.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif {
@@ -218,3 +222,32 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoublingAlgebraic(const HybridModel& model
 }
 
 }  // namespace drillbif
+
+namespace drillbif::internal {
+
+double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, const StateVector& y) {
+  double sum = 0.0;
+  for (int i = 0; i < model.state_dim(); ++i) {
+    if (i != model.phase_index()) sum += (x[i] - y[i]) * (x[i] - y[i]);
+  }
+  return std::sqrt(sum);
+}
+
+bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o) {
+  if (o.signature.periods % 2 != 0) return false;
+  SimulationOptions half;
+  half.transient_periods = 0;
+  half.sample_periods = o.signature.periods / 2;
+  half.outputs = SimulationOutputs{false, true, false, false, 0.0};
+  const SimulationResult s = Simulate(model, propagator, o.params, o.starts[0], half);
+  if (!s.summary.completed() || s.poincare.size() != static_cast<size_t>(half.sample_periods)) {
+    return false;
+  }
+  double size = 0.0;
+  for (int i = 0; i < model.state_dim(); ++i) {
+    if (i != model.phase_index()) size = std::max(size, std::abs(o.starts[0][i]));
+  }
+  return DistanceWithoutPhase(model, s.poincare.back().x, o.starts[0]) <= 1e-6 * (1.0 + size);
+}
+
+}  // namespace drillbif::internal

@@ -20,7 +20,6 @@
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
 #include "drillbif/common/threads.h"
-#include "drillbif/simulate/simulator.h"
 #include "region/segment_index.h"
 
 namespace drillbif {
@@ -202,31 +201,6 @@ std::string PeriodPrefix(int periods) {
 bool IsGrazing(SpecialPointKind kind) {
   return kind == SpecialPointKind::kGrazingL1 || kind == SpecialPointKind::kGrazingL2 ||
          kind == SpecialPointKind::kGrazingPi;
-}
-
-double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, const StateVector& y) {
-  double sum = 0.0;
-  for (int i = 0; i < model.state_dim(); ++i) {
-    if (i != model.phase_index()) sum += (x[i] - y[i]) * (x[i] - y[i]);
-  }
-  return std::sqrt(sum);
-}
-
-bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o) {
-  if (o.signature.periods % 2 != 0) return false;
-  SimulationOptions half;
-  half.transient_periods = 0;
-  half.sample_periods = o.signature.periods / 2;
-  half.outputs = SimulationOutputs{false, true, false, false, 0.0};
-  const SimulationResult s = Simulate(model, propagator, o.params, o.starts[0], half);
-  if (!s.summary.completed() || s.poincare.size() != static_cast<size_t>(half.sample_periods)) {
-    return false;
-  }
-  double size = 0.0;
-  for (int i = 0; i < model.state_dim(); ++i) {
-    if (i != model.phase_index()) size = std::max(size, std::abs(o.starts[0][i]));
-  }
-  return DistanceWithoutPhase(model, s.poincare.back().x, o.starts[0]) <= 1e-6 * (1.0 + size);
 }
 
 }  // namespace internal

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "continuation/period_doubling.h"
 #include "drillbif/continuation/trace.h"
 #include "drillbif/continuation/trace_tasks.h"
 
@@ -57,18 +58,6 @@ bool IsGrazing(SpecialPointKind kind);
 
 // "" for period 1, else "period-n " (for notes).
 std::string PeriodPrefix(int periods);
-
-// Euclidean distance of two states over every component but the phase.
-double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, const StateVector& y);
-
-// Whether a period-2n orbit is the period-n orbit traversed twice: direct simulation from its
-// section state returns after n forcing periods to 1e-6 (1 + |x|) (DistanceWithoutPhase; |x| the
-// largest component but the phase). A doubled
-// orbit returns to the corrector's tolerance amplified by its multipliers (2.7e-12 measured at
-// the fold TraceCurves skips so, on the period-2 omega-branch at a = 0.3); the genuine
-// period-2 folds of those branches, no closer than 0.29; the fold where a period-2 branch turns
-// at its birth (told apart by its branch point), ~sqrt of its location tolerance (1.3e-3).
-bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o);
 
 // The candidates at codimension-2 point `point` of a curve of kind `from_kind` (CandidatesTask).
 std::vector<SwitchCandidate> CandidatesAt(const HybridModel& model, Propagator& propagator,
