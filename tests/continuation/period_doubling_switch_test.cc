@@ -186,9 +186,9 @@ TEST(PeriodDoublingSwitch, AlgebraicSwitchWorksWhereSimulationFindsNothing) {
 // contact phase inserted there, stepped off at 1e-3, came out cancelled by the CwoP phase after
 // it (-1e-3 long) and the branch FAILED at its next step, as did the reference box traced with
 // max_period 2. So the step off is also tried shorter (1e-4, 1e-5; here none gives positive
-// durations and the shortest is kept); the branch goes on and closes on itself with every
-// point admissible.
-TEST(PeriodDoublingSwitch, PeriodTwoBranchSteppingOffATouchNextToAnotherEventCloses) {
+// durations and the shortest is kept); the branch goes on, through the touch, to the branch point
+// at the other doubling with every point admissible.
+TEST(PeriodDoublingSwitch, PeriodTwoBranchSteppingOffATouchNextToAnotherEventGoesOn) {
   DO model;
   ExactPropagator prop(model);
   const SpecialPoint pd = DoublingOnBranch(model, prop, "a", 0.01, 8.0, 0.4575, 0.4578);
@@ -204,6 +204,8 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchSteppingOffATouchNextToAnotherEventClo
   double highest = 0.0;
   for (const ContinuationPoint& p : r.points) highest = std::max(highest, p.value);
   EXPECT_GT(highest, 2.1822) << r.summary.message;  // through the touch
+  EXPECT_NE(r.summary.message.find("stopped at BRANCH_POINT"), std::string::npos)
+      << r.summary.message;
   for (const ContinuationPoint& p : r.points) {
     const bool special = std::any_of(
         r.special_points.begin(), r.special_points.end(),
@@ -245,6 +247,54 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchLocatesATouchBeforeTheSectionMovesInTh
   testing::ExpectSameSpecialPoints(r[0], "with target_iterations 3", r[1],
                                    "with target_iterations 4",
                                    2.0 * ContinuationOptions().locate_tolerance);
+}
+
+// The period-2 omega-branch (a = 0.3) born at the period-1 doubling near omega = 0.2698 runs to
+// the one near 1.6258, where it meets the period-1 orbit traversed twice again: a branch point,
+// beyond which run the same orbits shifted by one period, back to the first doubling. Continued
+// both ways it ends at a branch point each way and reports each special point once. (Run on
+// through the branch point it came back to its start, every special point twice.) The one it
+// runs to is located to locate_tolerance (1e-10) in omega, as is the doubling by the period-1
+// branch: within twice that. Where it was born it turns (the tip of the doubling's pitchfork):
+// there the parameter is stationary, so the branch point's parameter bracket does not bound it
+// (2.3e-9 off), but the fold at the tip (a multiplier at +1, the square of the doubling's -1) is
+// located to 1e-10 too.
+TEST(PeriodDoublingSwitch, APeriodTwoBranchEndsAtTheDoublingsItJoinsAndReportsEachPointOnce) {
+  DO model;
+  ExactPropagator prop(model);
+  const SpecialPoint born = DoublingOnBranch(model, prop, "omega", 0.05, 2.0, 0.26, 0.28);
+  const SpecialPoint joined = DoublingOnBranch(model, prop, "omega", 0.05, 2.0, 1.6, 1.65);
+  const StatusOr<PeriodicOrbit> alg =
+      SwitchAtPeriodDoublingAlgebraic(model, prop, born.point.orbit, "omega");
+  ASSERT_TRUE(alg.ok()) << alg.status().ToString();
+  ContinuationOptions opt;
+  opt.param = "omega";
+  opt.min = 0.05, opt.max = 2.0;
+  const ContinuationResult r = Continue(model, prop, *alg, opt);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  EXPECT_EQ(r.summary.message.find("returned to its start"), std::string::npos);
+  const double tolerance = 2.0 * opt.locate_tolerance;
+  EXPECT_NE(
+      testing::SpecialPointNear(r, SpecialPointKind::kBranchPoint, joined.point.value, tolerance),
+      nullptr)
+      << r.summary.message;
+  EXPECT_NE(testing::SpecialPointNear(r, SpecialPointKind::kFold, born.point.value, tolerance),
+            nullptr)
+      << r.summary.message;
+  EXPECT_NE(testing::SpecialPointNear(r, SpecialPointKind::kBranchPoint, born.point.value, 1e-3),
+            nullptr)
+      << r.summary.message;
+  int branch_points = 0;
+  for (size_t i = 0; i < r.special_points.size(); ++i) {
+    const SpecialPoint& s = r.special_points[i];
+    branch_points += s.kind == SpecialPointKind::kBranchPoint;
+    for (size_t j = 0; j < i; ++j) {
+      const SpecialPoint& t = r.special_points[j];
+      EXPECT_FALSE(t.kind == s.kind && std::abs(t.point.value - s.point.value) <= 1e-9)
+          << SpecialPointKindName(s.kind) << " at omega = " << s.point.value << " twice";
+    }
+  }
+  EXPECT_EQ(branch_points, 2) << r.summary.message;
 }
 
 TEST(PeriodDoublingSwitch, AlgebraicSwitchRejectsBadInput) {

@@ -415,12 +415,15 @@ TEST(RunContinue, FollowsThePeriodDoubledBranch) {
 
 // The period-n windows of the b-sweep at a = 0.3, omega = 0.1 (MODEL.md: a reverse period-adding
 // cascade accumulating at b = 0): the attractor found by simulation at b inside a window, of
-// period n, is continued over b in [0, 0.2]. Both ends of the branch reach b = 0, where the orbit
-// degenerates (its free flight touches Pi at every maximum), and the run completes; every fold
-// has a multiplier at +1 and every period doubling one at -1. The folds are located to 1e-10 in b
-// and the multiplier moves like sqrt(b_fold - b), so about 1e-5 from +1 at worst; 1e-4 as in
+// period n, is continued over b in [0, 0.2]. Each end of the branch reaches b = 0, where the orbit
+// degenerates (its free flight touches Pi at every maximum), or, `doubling` > 0, the period-1
+// orbit's doubling there: a branch point where the period-2 branch meets the period-1 orbit
+// traversed twice, located to 1e-10 in b, against MODEL.md's 8 digits; beyond it the same orbits
+// shifted by one period, the branch's other half again. The run completes; every fold has a
+// multiplier at +1 and every period doubling one at -1. The folds are located to 1e-10 in b and
+// the multiplier moves like sqrt(b_fold - b), so about 1e-5 from +1 at worst; 1e-4 as in
 // FoldHasAMultiplierAtOne (a period doubling is a regular zero of mu + 1: ~1e-10). About 1 s each.
-void ExpectWindowBranchCompletes(double b, const std::string& period) {
+void ExpectWindowBranchCompletes(double b, const std::string& period, double doubling = 0.0) {
   SCOPED_TRACE("start at b = " + std::to_string(b));
   v1::ContinueRequest request;
   request.mutable_params()->set_b(b);
@@ -439,8 +442,26 @@ void ExpectWindowBranchCompletes(double b, const std::string& period) {
   // Each end of the branch at an end of the range, to the tracer's "next to the bound" (1e-6 of
   // the range).
   constexpr double kNear = 1e-6 * 0.2;
+  int at_doubling = 0;
   for (const double end : {r->points(0).value(), r->points(r->points_size() - 1).value()}) {
+    // The end one step past the branch point, on the shifted copy (5e-7 in b here): told from
+    // the bounds by being within 1e-3 of it; the branch point itself is checked below.
+    if (doubling > 0.0 && std::abs(end - doubling) <= 1e-3) {
+      ++at_doubling;
+      continue;
+    }
     EXPECT_TRUE(end <= kNear || end >= 0.2 - kNear) << "branch ends at b = " << end;
+  }
+  if (doubling > 0.0) {
+    EXPECT_EQ(at_doubling, 1) << r->message();
+    EXPECT_THAT(r->message(), HasSubstr("stopped at BRANCH_POINT")) << r->message();
+    // MODEL.md's 8 digits (5e-9) and the location (1e-10).
+    EXPECT_TRUE(std::any_of(r->special_points().begin(), r->special_points().end(),
+                            [&](const v1::SpecialPoint& s) {
+                              return s.kind() == v1::SpecialPoint::BRANCH_POINT &&
+                                     std::abs(s.value() - doubling) <= 5.1e-9;
+                            }))
+        << "no branch point at b = " << doubling;
   }
   int folds = 0, doublings = 0;
   for (const v1::SpecialPoint& sp : r->special_points()) {
@@ -459,7 +480,7 @@ void ExpectWindowBranchCompletes(double b, const std::string& period) {
 }
 
 TEST(RunContinue, PeriodTwoWindowBranchCompletesOverTheRange) {
-  ExpectWindowBranchCompletes(0.068, " x2");
+  ExpectWindowBranchCompletes(0.068, " x2", 0.11001173);
 }
 
 TEST(RunContinue, PeriodThreeWindowBranchCompletesOverTheRange) {

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "continuation/arclength.h"
+#include "continuation/period_doubling.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 
@@ -58,6 +59,7 @@ Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_star
   y_[m()] = start.params[param_];
   start_y_ = y_;
   start_signature_ = start.signature;
+  halves_meet_ = start.signature.periods % 2 == 0 && !TraversedTwice(model_, propagator_, start);
   Vec prev = Vec::Zero(m() + 1);
   prev[m()] = sign > 0 ? 1.0 : -1.0;
   double det = 0.0;
@@ -675,9 +677,17 @@ bool BranchTracer::CollapsedSegment(const Vec& y1) const {
 }
 
 void BranchTracer::NoteStop(SpecialPointKind kind) {
+  if (!stop_kind_.empty()) return;
   const auto& stops = options_.stop_at;
-  if (stop_kind_.empty() && std::find(stops.begin(), stops.end(), kind) != stops.end()) {
+  if (std::find(stops.begin(), stops.end(), kind) != stops.end()) {
     stop_kind_ = SpecialPointKindName(kind);
+  } else if (kind == SpecialPointKind::kBranchPoint && halves_meet_) {
+    const int periods = bvp_->signature().periods;
+    const std::string half = std::to_string(periods / 2);
+    stop_kind_ = std::string(SpecialPointKindName(kind)) + " (an orbit of " +
+                 std::to_string(periods) + " periods meets one of " + half +
+                 " traversed twice; beyond it the same orbits, shifted by " + half +
+                 (periods == 2 ? " period)" : " periods)");
   }
 }
 

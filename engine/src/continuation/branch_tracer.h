@@ -123,7 +123,8 @@ class BranchTracer {
   // Records a located special point (and whether the options stop at its kind).
   void AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
                   ContinuationResult* result);
-  // Marks the branch to stop after this step when `kind` is one of options.stop_at.
+  // Marks the branch to stop after this step when `kind` is one of options.stop_at, or a branch
+  // point where the branch meets its own shifted copy (halves_meet_).
   void NoteStop(SpecialPointKind kind);
   // Handles an inadmissible corrected point at arclength h (its violations): locates the earliest
   // grazing, records it and switches the signature. False when the branch cannot go on.
@@ -186,6 +187,16 @@ class BranchTracer {
   Vec y_, t_;    // current point (X, lambda) and unit tangent
   Vec start_y_;  // the start point, to notice a closed branch
   Signature start_signature_;
+  // The start has an even number of periods and is no orbit of half as many traversed twice. The
+  // shift by half the period maps such an orbit onto another of the same branch, and at a period
+  // doubling of the half-period orbit the branch meets that orbit traversed twice (the orbits the
+  // shift fixes) and turns back as its own shifted copy, through the points it has located
+  // already: the period-2 omega-branch at a = 0.3 born at the doubling near omega = 0.2698 met
+  // the one near 1.6258 and came back to its start, every special point reported twice; the
+  // period-4 a-branch at omega = 0.09 ran round that copy to max_steps. Such a branch stops at
+  // its branch points. (A branch of orbits traversed twice goes on through them: it stays in
+  // the orbits the shift fixes, and each branch point is where a period-2n branch leaves.)
+  bool halves_meet_ = false;
   bool closed_ = false;
   System system_{*this};
   // Its last factorization is the last corrector iteration's bordered matrix (dense unless

@@ -47,7 +47,7 @@ SegmentSpec Across(const HybridModel& model, int mode, int guard) {
 }  // namespace
 
 GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagator,
-                                 const PeriodicOrbit& orbit, int segment, int guard) {
+                                 const PeriodicOrbit& orbit, int segment, int guard, double near) {
   const int mode = orbit.signature.segments[segment].mode;
   const StateVector& x0 = orbit.starts[segment];
   const double tau = orbit.durations[segment];
@@ -84,14 +84,12 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
   // it: a dip narrower than two samples next to an end (a free flight of length 95 leaving the
   // slider, whose gap comes back to within 1e-3 of zero 2 time units after separation, between
   // the first two samples 1.5 apart) has h[1] above the end's h[0] = 0. Such a minimum is located
-  // by Newton on h' safeguarded by bisection inside the interval. The ends of the segment are
-  // left out: the segment starts or ends on some guards, where h' may vanish by construction.
+  // by Newton on h' safeguarded by bisection inside the interval (`dip`). The ends of the segment
+  // are left out: the segment starts or ends on some guards, where h' may vanish by construction.
   // Intervals next to a sampled minimum are left to its refinement above, so that a minimum both
   // find is the same to the last bit (a touch time 1e-14 apart took the period-2 omega-branch
   // onto another side of the branch point at the period-1 doubling near omega = 1.6258).
-  for (int j = 0; j < kSamples; ++j) {
-    if (!(g[j].dh < 0.0 && g[j + 1].dh > 0.0) || refined[j] || refined[j + 1]) continue;
-    double lo = tau * j / kSamples, hi = tau * (j + 1) / kSamples;
+  auto dip = [&](double lo, double hi) {
     double t = 0.5 * (lo + hi);
     GuardValue v = at(t);
     for (int it = 0; it < 100 && hi - lo > t_tolerance; ++it) {
@@ -106,8 +104,33 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
       t = newton > lo && newton < hi ? newton : 0.5 * (lo + hi);
       v = at(t);
     }
-    if (!(t > t_tolerance && t < tau - t_tolerance)) continue;
-    if (v.h < best.h) best = {t, v.h};
+    if (t > t_tolerance && t < tau - t_tolerance && v.h < best.h) best = {t, v.h};
+  };
+  for (int j = 0; j < kSamples; ++j) {
+    if (!(g[j].dh < 0.0 && g[j + 1].dh > 0.0) || refined[j] || refined[j + 1]) continue;
+    dip(tau * j / kSamples, tau * (j + 1) / kSamples);
+  }
+  // The dip that a crossing seen at `near` enters, where neither pass above finds it: h' falling
+  // and rising again between two samples, as where a segment starts on a guard with h' = 0 (a
+  // free flight leaving the slider at a vanishing force rate, which comes back to Pi 0.30 into a
+  // flight 92 long, inside the first sample interval of 1.44; the period-4 a-branch at
+  // omega = 0.09 near a = 0.685). Its h' is sampled 32 times over the interval around `near` and
+  // the next one, and a fall-to-rise refined as above.
+  const double w = tau / kSamples;
+  if (near > 0.0 && near < tau && !(std::isfinite(best.h) && std::abs(best.t - near) <= 2.0 * w)) {
+    constexpr int kFine = 32;
+    const double lo = std::max(0.0, near - w), hi = std::min(tau, near + 2.0 * w);
+    double t0 = lo;
+    GuardValue v0 = at(t0);
+    for (int j = 1; j <= kFine; ++j) {
+      const double t1 = lo + (hi - lo) * j / kFine;
+      const GuardValue v1 = at(t1);
+      if (v0.dh < 0.0 && v1.dh > 0.0) {
+        dip(t0, t1);
+        break;
+      }
+      t0 = t1, v0 = v1;
+    }
   }
   return std::isfinite(best.h) ? best : sampled;
 }
@@ -119,7 +142,9 @@ double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
     const SegmentSpec& seg = orbit.signature.segments[violation.segment];
     return model.Guard(seg.mode, violation.guard, orbit.starts[violation.segment], orbit.params).h;
   }
-  return SegmentGuardMinimum(model, propagator, orbit, violation.segment, violation.guard).h;
+  return SegmentGuardMinimum(model, propagator, orbit, violation.segment, violation.guard,
+                             violation.time)
+      .h;
 }
 
 SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
@@ -193,7 +218,8 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
     // The touching time: the guard's interior minimum.
     const StateVector x0 = o.starts[i];
     const double tau = o.durations[i];
-    const double t_touch = SegmentGuardMinimum(model, propagator, orbit, i, violation.guard).t;
+    const double t_touch =
+        SegmentGuardMinimum(model, propagator, orbit, i, violation.guard, violation.time).t;
     StateVector xt = propagator.FlowMap(seg.mode, x0, t_touch, o.params, {}).x;
     const StateVector x_across = model.Jump(seg.mode, violation.guard, xt, o.params).x;
     segs[i].guard = violation.guard;

@@ -16,12 +16,15 @@ namespace drillbif::internal {
 // (a smooth function of the orbit near a touch). Endpoint values do not count: the segment
 // starts or ends on some guards by construction. Without an interior local minimum, the smallest
 // interior sample stands in (positive while admissible, so it still brackets a later touch).
+// `near`: where a crossing of that guard was seen (Admissibility::time), if known; a dip there
+// that no sample shows is searched for more finely.
 struct GuardMinimum {
   double t = 0.0;
   double h = std::numeric_limits<double>::infinity();
 };
 GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagator,
-                                 const PeriodicOrbit& orbit, int segment, int guard);
+                                 const PeriodicOrbit& orbit, int segment, int guard,
+                                 double near = -1.0);
 
 // The test function of a violation found by CheckAdmissible: positive while admissible, zero at
 // the grazing point. (-1 guard: the segment's duration; else the guard's interior minimum.)

@@ -532,9 +532,9 @@ TraceDriver::BranchRun TraceDriver::ComputeBranch(const PeriodicOrbit& orbit, in
   branch.min = a.min;
   branch.max = a.max;
   // A period-2 branch that reaches a branch point has met the doubled period-1 branch at
-  // another doubling; beyond it run the same orbits shifted by one period: stop there.
+  // another doubling; beyond it run the same orbits shifted by one period: it stops there
+  // (BranchTracer::NoteStop).
   const bool doubled = orbit.signature.periods > 1;
-  if (doubled) branch.stop_at.push_back(SpecialPointKind::kBranchPoint);
   BranchRun run;
   run.periods = orbit.signature.periods;
   run.r = Continue(model_, p, orbit, branch, report);
