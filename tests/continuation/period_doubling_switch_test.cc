@@ -273,13 +273,20 @@ TEST(PeriodDoublingSwitch, APeriodTwoBranchEndsAtTheDoublingsItJoinsAndReportsEa
   const ContinuationResult r = Continue(model, prop, *alg, opt);
   ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
   EXPECT_EQ(r.summary.message.find("returned to its start"), std::string::npos);
-  EXPECT_NE(testing::SpecialPointNear(r, SpecialPointKind::kFold, born.point.value,
-                                      2.0 * opt.locate_tolerance),
-            nullptr)
-      << r.summary.message;
+  // At each doubling the branch turns where it meets the period-1 orbit traversed twice: its fold
+  // and its branch point are that orbit, at the doubling the period-1 branch locates (its
+  // parameter bracketed to locate_tolerance; the turn solved to far below). ROP and Pc are even
+  // about the turn (beyond it the same orbits, shifted): no maximum there.
   for (const double doubling : {born.point.value, joined.point.value}) {
-    EXPECT_NE(testing::SpecialPointNear(r, SpecialPointKind::kBranchPoint, doubling, 1e-3), nullptr)
-        << "no branch point next to omega = " << doubling << ": " << r.summary.message;
+    for (const SpecialPointKind kind : {SpecialPointKind::kFold, SpecialPointKind::kBranchPoint}) {
+      EXPECT_NE(testing::SpecialPointNear(r, kind, doubling, 2.0 * opt.locate_tolerance), nullptr)
+          << "no " << SpecialPointKindName(kind) << " at omega = " << doubling << ": "
+          << r.summary.message;
+    }
+    for (const SpecialPointKind kind : {SpecialPointKind::kRopMax, SpecialPointKind::kPowerMax}) {
+      EXPECT_EQ(testing::SpecialPointNear(r, kind, doubling, 1e-6), nullptr)
+          << SpecialPointKindName(kind) << " at the turn at omega = " << doubling;
+    }
   }
   int branch_points = 0;
   for (size_t i = 0; i < r.special_points.size(); ++i) {

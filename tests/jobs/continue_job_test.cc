@@ -455,10 +455,10 @@ void ExpectWindowBranchCompletes(double b, const std::string& period, double dou
   if (doubling > 0.0) {
     EXPECT_EQ(at_doubling, 1) << r->message();
     EXPECT_THAT(r->message(), HasSubstr("stopped at BRANCH_POINT")) << r->message();
-    // The branch turns there (the tip of the doubling's pitchfork): its fold, located in
-    // arclength (the parameter stationary, so to far below 1e-10 in b), is the doubling to
-    // MODEL.md's 8 digits (5e-9); the branch point, located on the determinant's sign alone, is
-    // not located that closely at such a tip (docs/engine.md) and only placed there.
+    // The branch turns there (the tip of the doubling's pitchfork): its fold and its branch
+    // point are the period-1 orbit traversed twice at its doubling, solved to far below 1e-10 in
+    // b, so the doubling to MODEL.md's 8 digits (5e-9). No ROP or Pc maximum there: both are
+    // even about the turn, beyond which run the same orbits, shifted.
     auto near = [&](v1::SpecialPoint::Kind kind, double within) {
       return std::any_of(r->special_points().begin(), r->special_points().end(),
                          [&](const v1::SpecialPoint& s) {
@@ -466,8 +466,10 @@ void ExpectWindowBranchCompletes(double b, const std::string& period, double dou
                          });
     };
     EXPECT_TRUE(near(v1::SpecialPoint::FOLD, 5.1e-9)) << "no fold at b = " << doubling;
-    EXPECT_TRUE(near(v1::SpecialPoint::BRANCH_POINT, 1e-3))
+    EXPECT_TRUE(near(v1::SpecialPoint::BRANCH_POINT, 5.1e-9))
         << "no branch point at b = " << doubling;
+    EXPECT_FALSE(near(v1::SpecialPoint::ROP_MAX, 1e-6)) << "a ROP maximum at the turn";
+    EXPECT_FALSE(near(v1::SpecialPoint::POWER_MAX, 1e-6)) << "a Pc maximum at the turn";
   }
   int folds = 0, doublings = 0;
   for (const v1::SpecialPoint& sp : r->special_points()) {

@@ -272,7 +272,8 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
     if (!Tangent(yy, t_, &t, &det)) t = t_, det = t0.branch_point;
     return Tests(yy, t, det, MakePoint(yy));
   };
-  if (Sign(t0.fold) != Sign(t1.fold)) {
+  const bool at_turn = ReportTurn(h, t1, result);
+  if (!at_turn && Sign(t0.fold) != Sign(t1.fold)) {
     if (Locate(
             h, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y) &&
         (!before_grazing || HasUnitMultiplier(y))) {
@@ -299,7 +300,7 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
       AddSpecial(SpecialPointKind::kNeimarkSacker, y, "", result);
     }
   }
-  if (Sign(t0.branch_point) != Sign(t1.branch_point) && t0.branch_point != 0.0) {
+  if (!at_turn && Sign(t0.branch_point) != Sign(t1.branch_point) && t0.branch_point != 0.0) {
     // det changes sign without passing zero continuously: locate on the sign alone.
     if (Locate(
             h, t0.branch_point, t1.branch_point,
@@ -307,12 +308,41 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
       AddSpecial(SpecialPointKind::kBranchPoint, y, "", result);
     }
   }
-  if (options_.locate_measure_maxima && t0.power == t1.power && t0.slope > 0.0 && t1.slope < 0.0) {
+  if (options_.locate_measure_maxima && !at_turn && t0.power == t1.power && t0.slope > 0.0 &&
+      t1.slope < 0.0) {
     if (Locate(
             h, t0.slope, t1.slope, [&](const Vec& yy) { return tests_at(yy).slope; }, false, &y)) {
       AddSpecial(t0.power ? SpecialPointKind::kPowerMax : SpecialPointKind::kRopMax, y, "", result);
     }
   }
+}
+
+bool BranchTracer::ReportTurn(double h, const TestValues& t1, ContinuationResult* result) {
+  const TestValues& t0 = tests_;
+  Vec tip;
+  if (!halves_meet_ || Sign(t0.branch_point) == Sign(t1.branch_point) || t0.branch_point == 0.0 ||
+      !TipInStep(h, &tip)) {
+    return false;
+  }
+  const int half = start_signature_.periods / 2;
+  const std::string detail = "the branch's turn: the orbit of " + std::to_string(half) +
+                             (half == 1 ? " period" : " periods") +
+                             " traversed twice, at its period doubling";
+  if (Sign(t0.fold) != Sign(t1.fold)) AddSpecial(SpecialPointKind::kFold, tip, detail, result);
+  AddSpecial(SpecialPointKind::kBranchPoint, tip, detail, result);
+  return true;
+}
+
+bool BranchTracer::TipInStep(double h, Vec* tip) {
+  const StatusOr<PeriodicOrbit> o =
+      internal::PitchforkTip(model_, propagator_, OrbitAt(y_), param_);
+  if (!o.ok() || !(o->signature == bvp_->signature())) return false;
+  Vec y(m() + 1);
+  y << bvp_->Pack(*o), o->params[param_];
+  const double sigma = t_.dot(y - y_);
+  if (!(sigma > 0.0 && sigma < h && (y - y_).norm() <= h)) return false;
+  *tip = y;
+  return true;
 }
 
 void BranchTracer::LocateViolations(const std::vector<Admissibility>& violations, double h_end,

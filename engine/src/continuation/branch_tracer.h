@@ -120,6 +120,18 @@ class BranchTracer {
   // point. Such a step is retried shorter, so that the vanishing is bracketed (a negative
   // duration) or the earlier events on the physical branch are seen.
   bool CollapsedSegment(const Vec& y1) const;
+  // Where the branch meets its shifted copy (halves_meet_: the branch point's test changes sign in
+  // the step to tests1 at arclength h), the orbit of half the periods traversed twice at its
+  // doubling is the branch's turn (a fold in the parameter) and its branch point: both reported
+  // at that orbit, solved directly (TipInStep). The corrector's system is singular there, so
+  // trial points near it fail to correct or land on the orbits traversed twice, and neither point
+  // is located onto it (docs/engine.md). ROP and Pc are even in arclength about the turn (the
+  // orbits beyond are the same, shifted): their stationary point there is no maximum, and the
+  // caller reports none in this step. False (nothing reported) where there is no such turn.
+  bool ReportTurn(double h, const TestValues& tests1, ContinuationResult* result);
+  // The turn within the step from y_ of arclength h (internal::PitchforkTip from y_'s orbit) into
+  // *tip; false where it is not solved or lies outside the step.
+  bool TipInStep(double h, Vec* tip);
   // Records a located special point (and whether the options stop at its kind).
   void AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
                   ContinuationResult* result);

@@ -8,8 +8,11 @@
 #include <cmath>
 
 #include "common/phase_progress.h"
+#include "continuation/bordered_sigma.h"
+#include "continuation/tangent_grazing.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/simulate/simulator.h"
+#include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif {
@@ -39,6 +42,31 @@ StatusOr<PeriodicOrbit> Doubled(const PeriodicOrbit& o) {
   push(seg.front(), o.starts[k - 1], o.durations[k - 1] + o.durations[0]);
   for (int i = 1; i < k; ++i) push(seg[i], o.starts[i], o.durations[i]);
   return d;
+}
+
+// The first pass of an orbit whose signature is Doubled's of one of half the periods: the inverse
+// of Doubled where the two passes agree (the half-period orbit's last segment is the second
+// pass's last, since the first pass's runs on into the next period).
+StatusOr<PeriodicOrbit> FirstPass(const PeriodicOrbit& d) {
+  const std::vector<SegmentSpec>& seg = d.signature.segments;
+  const int total = static_cast<int>(seg.size()), k = (total + 1) / 2;
+  bool doubled = d.signature.periods % 2 == 0 && total % 2 == 1 && k >= 2 && seg[k - 1] == seg[0] &&
+                 seg[total - 1].mode == seg[0].mode;
+  for (int i = 1; doubled && i + 1 < k; ++i) doubled = seg[k - 1 + i] == seg[i];
+  if (!doubled) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "the orbit's signature is no signature of half as many periods doubled");
+  }
+  PeriodicOrbit h;
+  h.params = d.params;
+  h.signature.periods = d.signature.periods / 2;
+  for (int i = 0; i < k; ++i) {
+    const int from = i + 1 < k ? i : total - 1;
+    h.signature.segments.push_back(seg[from]);
+    h.starts.push_back(d.starts[i]);
+    h.durations.push_back(d.durations[from]);
+  }
+  return h;
 }
 
 // The unit null vector of the m x (m + 1) matrix [gx gp] (the branch's tangent), from the SVD.
@@ -248,6 +276,28 @@ bool TraversedTwice(const HybridModel& model, Propagator& propagator, const Peri
     if (i != model.phase_index()) size = std::max(size, std::abs(o.starts[0][i]));
   }
   return DistanceWithoutPhase(model, s.poincare.back().x, o.starts[0]) <= 1e-6 * (1.0 + size);
+}
+
+StatusOr<PeriodicOrbit> PitchforkTip(const HybridModel& model, Propagator& propagator,
+                                     const PeriodicOrbit& near, int param) {
+  StatusOr<PeriodicOrbit> half = FirstPass(near);
+  if (!half.ok()) return half.status();
+  const CurveKind kind = CurveKind::kPeriodDoubling;
+  const BorderedSigma sigma(
+      ShiftedMonodromy(kind, ReducedMonodromy(model, MonodromyFactors(model, propagator, *half))));
+  const ExtraCondition doubling = ExtraCondition::OfMonodromy(
+      [kind, sigma](const Eigen::MatrixXd& m) { return sigma(ShiftedMonodromy(kind, m)); });
+  StatusOr<PeriodicOrbit> at =
+      SolveWithConditions(model, propagator, *half, {param}, {doubling}, 1e-12,
+                          "the period doubling of the orbit of " +
+                              std::to_string(half->signature.periods) + " periods");
+  if (!at.ok()) return at.status();
+  StatusOr<PeriodicOrbit> tip = Doubled(*at);
+  if (tip.ok() && !(tip->signature == near.signature)) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "the doubling's orbit traversed twice has another signature than the branch's");
+  }
+  return tip;
 }
 
 }  // namespace drillbif::internal

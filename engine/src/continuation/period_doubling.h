@@ -21,6 +21,15 @@ double DistanceWithoutPhase(const HybridModel& model, const StateVector& x, cons
 // point), ~sqrt of its location tolerance (1.3e-3).
 bool TraversedTwice(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& o);
 
+// Where a branch of orbits of 2n periods meets the orbit of n periods traversed twice (the
+// branch's turn, a pitchfork of the 2n-period system): that orbit at its period doubling, as an
+// orbit of 2n periods in `near`'s signature. `near` is an orbit of the branch next to the
+// meeting; its first pass is the guess for the orbit of n periods, solved with parameter `param`
+// free and the doubling's condition (sigma of M + I, SolveWithConditions). FAILED_PRECONDITION
+// where `near`'s signature is no signature of n periods doubled, INTERNAL where Newton fails.
+StatusOr<PeriodicOrbit> PitchforkTip(const HybridModel& model, Propagator& propagator,
+                                     const PeriodicOrbit& near, int param);
+
 }  // namespace drillbif::internal
 
 #endif  // DRILLBIF_CONTINUATION_PERIOD_DOUBLING_H_
