@@ -273,10 +273,14 @@ TEST(PeriodDoublingSwitch, APeriodTwoBranchEndsAtTheDoublingsItJoinsAndReportsEa
   const ContinuationResult r = Continue(model, prop, *alg, opt);
   ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
   EXPECT_EQ(r.summary.message.find("returned to its start"), std::string::npos);
-  // At each doubling the branch turns where it meets the period-1 orbit traversed twice: its fold
-  // and its branch point are that orbit, at the doubling the period-1 branch locates (its
-  // parameter bracketed to locate_tolerance; the turn solved to far below). ROP and Pc are even
-  // about the turn (beyond it the same orbits, shifted): no maximum there.
+  // At each doubling the branch turns where it meets the period-1 orbit traversed twice: its fold,
+  // its branch point and its last point are that orbit, at the doubling the period-1 branch
+  // locates (its parameter bracketed to locate_tolerance; the turn solved to far below). ROP and
+  // Pc are even about the turn (beyond it the same orbits, shifted): no maximum there.
+  ASSERT_GE(r.points.size(), 2u);
+  const double ends[2] = {r.points.front().value, r.points.back().value};
+  EXPECT_NEAR(std::min(ends[0], ends[1]), born.point.value, 2.0 * opt.locate_tolerance);
+  EXPECT_NEAR(std::max(ends[0], ends[1]), joined.point.value, 2.0 * opt.locate_tolerance);
   for (const double doubling : {born.point.value, joined.point.value}) {
     for (const SpecialPointKind kind : {SpecialPointKind::kFold, SpecialPointKind::kBranchPoint}) {
       EXPECT_NE(testing::SpecialPointNear(r, kind, doubling, 2.0 * opt.locate_tolerance), nullptr)

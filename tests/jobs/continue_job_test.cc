@@ -440,13 +440,13 @@ void ExpectWindowBranchCompletes(double b, const std::string& period, double dou
   ASSERT_NE(start, r->points().end());
   EXPECT_THAT(start->signature_text(), ::testing::EndsWith(period));
   // Each end of the branch at an end of the range, to the tracer's "next to the bound" (1e-6 of
-  // the range).
+  // the range), or at the branch's turn at the doubling: the period-1 orbit traversed twice,
+  // solved there (far below 1e-10 in b), so the doubling to MODEL.md's 8 digits (5e-9).
   constexpr double kNear = 1e-6 * 0.2;
+  constexpr double kPublished = 5.1e-9;
   int at_doubling = 0;
   for (const double end : {r->points(0).value(), r->points(r->points_size() - 1).value()}) {
-    // The end one step past the branch point, on the shifted copy (5e-7 in b here): told from
-    // the bounds by being within 1e-3 of it; the branch point itself is checked below.
-    if (doubling > 0.0 && std::abs(end - doubling) <= 1e-3) {
+    if (doubling > 0.0 && std::abs(end - doubling) <= kPublished) {
       ++at_doubling;
       continue;
     }
@@ -455,18 +455,17 @@ void ExpectWindowBranchCompletes(double b, const std::string& period, double dou
   if (doubling > 0.0) {
     EXPECT_EQ(at_doubling, 1) << r->message();
     EXPECT_THAT(r->message(), HasSubstr("stopped at BRANCH_POINT")) << r->message();
-    // The branch turns there (the tip of the doubling's pitchfork): its fold and its branch
-    // point are the period-1 orbit traversed twice at its doubling, solved to far below 1e-10 in
-    // b, so the doubling to MODEL.md's 8 digits (5e-9). No ROP or Pc maximum there: both are
-    // even about the turn, beyond which run the same orbits, shifted.
+    // The turn (the tip of the doubling's pitchfork) is the branch's fold and its branch point.
+    // No ROP or Pc maximum there: both are even about the turn, beyond which run the same
+    // orbits, shifted.
     auto near = [&](v1::SpecialPoint::Kind kind, double within) {
       return std::any_of(r->special_points().begin(), r->special_points().end(),
                          [&](const v1::SpecialPoint& s) {
                            return s.kind() == kind && std::abs(s.value() - doubling) <= within;
                          });
     };
-    EXPECT_TRUE(near(v1::SpecialPoint::FOLD, 5.1e-9)) << "no fold at b = " << doubling;
-    EXPECT_TRUE(near(v1::SpecialPoint::BRANCH_POINT, 5.1e-9))
+    EXPECT_TRUE(near(v1::SpecialPoint::FOLD, kPublished)) << "no fold at b = " << doubling;
+    EXPECT_TRUE(near(v1::SpecialPoint::BRANCH_POINT, kPublished))
         << "no branch point at b = " << doubling;
     EXPECT_FALSE(near(v1::SpecialPoint::ROP_MAX, 1e-6)) << "a ROP maximum at the turn";
     EXPECT_FALSE(near(v1::SpecialPoint::POWER_MAX, 1e-6)) << "a Pc maximum at the turn";

@@ -329,7 +329,9 @@ bool BranchTracer::ReportTurn(double h, const TestValues& t1, ContinuationResult
                              (half == 1 ? " period" : " periods") +
                              " traversed twice, at its period doubling";
   if (Sign(t0.fold) != Sign(t1.fold)) AddSpecial(SpecialPointKind::kFold, tip, detail, result);
+  const size_t before = result->special_points.size();
   AddSpecial(SpecialPointKind::kBranchPoint, tip, detail, result);
+  if (result->special_points.size() > before) turn_ = result->special_points.back().point;
   return true;
 }
 
@@ -745,6 +747,7 @@ bool BranchTracer::Step(ContinuationResult* result) {
     Finish(Termination::kCancelled, "cancelled");
     return false;
   };
+  turn_.reset();
   while (true) {
     Vec y1;
     int iterations = 0;
@@ -850,6 +853,12 @@ bool BranchTracer::Step(ContinuationResult* result) {
     const TestValues tests1 = Tests(y1, t1, det, p1);
     if (options_.locate) DetectSpecialPoints(h, tests1, result);
     if (propagator_.stopped()) return cancelled();
+    if (turn_) {
+      // Beyond the turn run the same orbits, shifted: the branch ends there (NoteStop has set
+      // its stop, which the next call reports).
+      result->points.push_back(std::move(*turn_));
+      return true;
+    }
     // Back within one step of the start, in its signature, after going round: a closed branch
     // (an isola, or a period-2n branch that joins two period doublings of its parent). Going on
     // would retrace it until max_steps.

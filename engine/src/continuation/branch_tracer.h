@@ -127,7 +127,8 @@ class BranchTracer {
   // trial points near it fail to correct or land on the orbits traversed twice, and neither point
   // is located onto it (docs/engine.md). ROP and Pc are even in arclength about the turn (the
   // orbits beyond are the same, shifted): their stationary point there is no maximum, and the
-  // caller reports none in this step. False (nothing reported) where there is no such turn.
+  // caller reports none in this step; the turn is the branch's last point (turn_). False (nothing
+  // reported) where there is no such turn.
   bool ReportTurn(double h, const TestValues& tests1, ContinuationResult* result);
   // The turn within the step from y_ of arclength h (internal::PitchforkTip from y_'s orbit) into
   // *tip; false where it is not solved or lies outside the step.
@@ -210,6 +211,8 @@ class BranchTracer {
   // the orbits the shift fixes, and each branch point is where a period-2n branch leaves.)
   bool halves_meet_ = false;
   bool closed_ = false;
+  // The turn ReportTurn reported in this step, if any: the branch's last point.
+  std::optional<ContinuationPoint> turn_;
   System system_{*this};
   // Its last factorization is the last corrector iteration's bordered matrix (dense unless
   // condensed_solve).
