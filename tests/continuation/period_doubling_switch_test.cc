@@ -50,6 +50,52 @@ TEST(PeriodDoublingSwitch, FindsTheAttractingPeriodTwoOrbitBornAtTheDoubling) {
                                        1e-9 * (1 + doubled->starts[0].norm()), 1e-3);
 }
 
+// Switching by simulation on the a-branch at omega = 0.3. 1e-3 from its doubling near a = 2.2431
+// the period-1 multiplier lies so close to -1 that after 500 periods the transient still
+// alternates on either side: the simulation returns after two periods first, and Newton lands on
+// the period-1 orbit traversed twice. Returned as a period-2 orbit, its "period-2 branch" was the
+// doubled period-1 branch, which went on through the doublings and FAILED where two of its
+// segments vanish at once. The switch refuses that orbit, and the one at the doubling near
+// a = 0.2758 is a genuine period-2 orbit whose branch ends at turns at two doublings.
+TEST(PeriodDoublingSwitch, SimulationSwitchRefusesThePeriodOneOrbitTraversedTwice) {
+  DO model;
+  ExactPropagator prop(model);
+  Params params = testing::ReferenceParams();
+  params[DO::kOmega] = 0.3;
+  params[DO::kA] = 2.5;
+  const StatusOr<PeriodicOrbit> found = testing::SolvedOrbitFromRest(model, prop, params);
+  ASSERT_TRUE(found.ok()) << found.status().ToString();
+  ContinuationOptions opt;
+  opt.param = "a";
+  opt.min = 0.01, opt.max = 8.0;
+  const ContinuationResult r = Continue(model, prop, *found, opt);
+  const SpecialPoint* slow =
+      testing::SpecialPointNear(r, SpecialPointKind::kPeriodDoubling, 2.2431, 1e-3);
+  const SpecialPoint* pd =
+      testing::SpecialPointNear(r, SpecialPointKind::kPeriodDoubling, 0.2758, 1e-3);
+  ASSERT_TRUE(slow && pd) << r.summary.message;
+  const StatusOr<PeriodicOrbit> refused = SwitchAtPeriodDoubling(model, prop, *slow, "a");
+  EXPECT_EQ(refused.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(refused.status().message().find("period-1 orbit traversed twice"), std::string::npos)
+      << refused.status().message();
+  const StatusOr<PeriodicOrbit> doubled = SwitchAtPeriodDoubling(model, prop, *pd, "a");
+  ASSERT_TRUE(doubled.ok()) << doubled.status().ToString();
+  EXPECT_EQ(doubled->signature.periods, 2);
+  // Returns after two periods to the solve's accuracy, and not after one (its halves split by
+  // ~sqrt of the 1e-3 offset).
+  testing::ExpectPeriodTwoBySimulation(model, prop, *doubled,
+                                       1e-9 * (1 + doubled->starts[0].norm()), 1e-3);
+  const ContinuationResult two = Continue(model, prop, *doubled, opt);
+  EXPECT_EQ(two.summary.termination, Termination::kCompleted) << two.summary.message;
+  int turns = 0;
+  for (const SpecialPoint& s : two.special_points) {
+    turns += s.kind == SpecialPointKind::kBranchPoint &&
+             testing::SpecialPointNear(r, SpecialPointKind::kPeriodDoubling, s.point.value,
+                                       2.0 * opt.locate_tolerance) != nullptr;
+  }
+  EXPECT_EQ(turns, 2) << two.summary.message;
+}
+
 // Continued towards the doubling, the period-2 branch meets the (doubled) period-1 branch there:
 // in the period-2 boundary-value system that is a branch point, located at the PD value.
 TEST(PeriodDoublingSwitch, PeriodTwoBranchHasABranchPointAtTheDoubling) {

@@ -138,8 +138,19 @@ StatusOr<PeriodicOrbit> SwitchAtPeriodDoubling(const HybridModel& model, Propaga
     PeriodicOrbit doubled = *found;
     const OrbitSolveSummary s = SolveOrbit(model, propagator, {}, &doubled);
     if (phase.stopped()) return Cancelled("period-doubling switch cancelled");
-    if (s.completed()) return doubled;
-    tried += " " + param + " = " + std::to_string(p[*index]) + ": " + s.message + ";";
+    if (!s.completed()) {
+      tried += " " + param + " = " + std::to_string(p[*index]) + ": " + s.message + ";";
+      continue;
+    }
+    // On the side where the period-n orbit attracts, its multiplier next to -1 makes the transient
+    // decay slowly, and a simulation still alternating returns after 2n periods first: Newton then
+    // lands on the period-n orbit traversed twice.
+    if (internal::TraversedTwice(model, propagator, doubled)) {
+      tried += " " + param + " = " + std::to_string(p[*index]) + ": the simulation settled on " +
+               "the period-" + std::to_string(n) + " orbit traversed twice;";
+      continue;
+    }
+    return doubled;
   }
   return Status(StatusCode::kFailedPrecondition,
                 "no attracting period-" + std::to_string(2 * n) + " orbit next to the period " +
