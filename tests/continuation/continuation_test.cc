@@ -470,6 +470,51 @@ TEST(Continuation, APeriodFourBranchLocatesAReturnInsideOneSampleAndEndsAtItsBra
   ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, "omega = 0.09, a");
 }
 
+// A guard crossing entering through a segment's end: on the omega-branch of the period-2
+// attractor at omega = 0.07, a = 0.5, near omega = 0.5286 the contact phase that the section
+// splits reaches the progression threshold l1 at the section. The phase after the section takes
+// a CwP phase first (a SIGNATURE_CHANGE); the one before it then crosses l1 just before its end,
+// the section, with h falling all the way there. Its interior samples stayed positive (the
+// violation's test function 4e-4 at both ends of the step) and the branch FAILED ("could not
+// locate or cross: segment 3 (CwoP) crosses l1 at t = 2.749364 of 2.764830"). Now the end's
+// value counts, the crossing is located where h vanishes at the section, and the CwP phase runs
+// across the section; the branch ends at its turns, every point admissible.
+TEST(Continuation, LocatesAndCrossesAGuardCrossingEnteringThroughASegmentsEnd) {
+  DO model;
+  ExactPropagator prop(model);
+  Params prm = testing::ReferenceParams();
+  prm[DO::kOmega] = 0.07;
+  prm[DO::kA] = 0.5;
+  const PeriodicOrbit start = StartOrbit(model, prop, prm);
+  ASSERT_EQ(start.signature.periods, 2);
+  ContinuationOptions opt;
+  opt.param = "omega";
+  opt.min = 0.05, opt.max = 2.0;
+  const ContinuationResult r = Continue(model, prop, start, opt);
+  ASSERT_EQ(r.summary.termination, Termination::kCompleted) << r.summary.message;
+  // The crossing: a GRAZING_L1 whose old signature's last segment (ending at the section) is a
+  // contact phase, located where its l1 guard vanishes at the section, to the locator's value
+  // tolerance (1e-10) on h.
+  const SpecialPoint* through = nullptr;
+  for (const SpecialPoint& s : r.special_points) {
+    const PeriodicOrbit& o = s.point.orbit;
+    if (s.kind != SpecialPointKind::kGrazingL1 ||
+        o.signature.segments.back().mode != DO::kContact) {
+      continue;
+    }
+    const int last = static_cast<int>(o.durations.size()) - 1;
+    const StateVector end =
+        prop.FlowMap(DO::kContact, o.starts[last], o.durations[last], o.params, {}).x;
+    if (std::abs(model.Guard(DO::kContact, DO::kProgressionStart, end, o.params).h) <= 1e-10) {
+      through = &s;
+    }
+  }
+  ASSERT_NE(through, nullptr) << "no l1 crossing at the end of the phase before the section";
+  EXPECT_EQ(through->point.orbit.signature.segments.front().mode, DO::kProgression)
+      << through->detail;
+  ExpectAdmissibleAwayFromSpecialPoints(model, prop, r, "omega = 0.07 start, omega");
+}
+
 // A guard crossing hidden behind a vanishing segment: at omega = 0.05 (reached from the reference
 // orbit by the omega-branch) the a-branch meets, near a = 0.21531, a touch of Pi inside a free
 // flight 72 long 1.2e-6 in a before its first segment (a free flight 0.02 long) vanishes, both

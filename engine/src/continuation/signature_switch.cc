@@ -44,6 +44,17 @@ SegmentSpec Across(const HybridModel& model, int mode, int guard) {
   return s;
 }
 
+// The guard of mode `to` on the surface of guard `guard` of mode `from`: -1 for the section
+// (guard -1), -2 where `to` has none.
+int GuardOnSurface(const HybridModel& model, int from, int guard, int to) {
+  if (guard < 0) return -1;
+  const std::vector<GuardSpec>& g = model.guards(to);
+  for (size_t j = 0; j < g.size(); ++j) {
+    if (g[j].surface == model.guards(from)[guard].surface) return static_cast<int>(j);
+  }
+  return -2;
+}
+
 }  // namespace
 
 GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagator,
@@ -132,7 +143,14 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
       t0 = t1, v0 = v1;
     }
   }
-  return std::isfinite(best.h) ? best : sampled;
+  GuardMinimum found = std::isfinite(best.h) ? best : sampled;
+  // A guard other than the one the segment ends on is not zero at the end by construction: where
+  // it falls through zero just before the end (its crossing entering through the segment's end
+  // event, the two events about to swap), the minimum is the end's value.
+  if (guard != orbit.signature.segments[segment].guard && g[kSamples].h < found.h) {
+    found = {tau, g[kSamples].h};
+  }
+  return found;
 }
 
 double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
@@ -222,6 +240,20 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
         SegmentGuardMinimum(model, propagator, orbit, i, violation.guard, violation.time).t;
     StateVector xt = propagator.FlowMap(seg.mode, x0, t_touch, o.params, {}).x;
     const StateVector x_across = model.Jump(seg.mode, violation.guard, xt, o.params).x;
+    const int across_end = GuardOnSurface(model, seg.mode, seg.guard, across.mode);
+    if (t_touch == tau && across_end >= -1) {
+      // The crossing enters through the segment's end (the two events about to swap): the
+      // segment ends on the guard, and the mode across it runs on to the old end (the section,
+      // or the same surface).
+      segs[i].guard = violation.guard;
+      segs.insert(segs.begin() + i + 1, {across.mode, across_end});
+      o.durations.insert(o.durations.begin() + i + 1, 0.0);
+      o.starts.insert(o.starts.begin() + i + 1, x_across);
+      out.new_segment = i + 1;
+      out.detail =
+          SignatureString(model, orbit.signature) + " -> " + SignatureString(model, o.signature);
+      return out;
+    }
     segs[i].guard = violation.guard;
     segs.insert(segs.begin() + i + 1, {across, {seg.mode, seg.guard}});
     o.durations[i] = t_touch;

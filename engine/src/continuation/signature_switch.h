@@ -13,9 +13,11 @@ namespace drillbif::internal {
 
 // The lowest interior local minimum over (0, tau) of guard `guard` along segment `segment`:
 // dense samples, each sampled local minimum refined by Newton on h' to the stationary point
-// (a smooth function of the orbit near a touch). Endpoint values do not count: the segment
-// starts or ends on some guards by construction. Without an interior local minimum, the smallest
-// interior sample stands in (positive while admissible, so it still brackets a later touch).
+// (a smooth function of the orbit near a touch). The start's value does not count, nor the end's
+// for the guard the segment ends on: the segment starts or ends on some guards by construction.
+// Without an interior local minimum, the smallest interior sample stands in (positive while
+// admissible, so it still brackets a later touch). The end's value of another guard counts (at
+// t = tau) where it is lower: a crossing entering through the segment's end.
 // `near`: where a crossing of that guard was seen (Admissibility::time), if known; a dip there
 // that no sample shows is searched for more finely.
 struct GuardMinimum {
