@@ -44,17 +44,6 @@ SegmentSpec Across(const HybridModel& model, int mode, int guard) {
   return s;
 }
 
-// The guard of mode `to` on the surface of guard `guard` of mode `from`: -1 for the section
-// (guard -1), -2 where `to` has none.
-int GuardOnSurface(const HybridModel& model, int from, int guard, int to) {
-  if (guard < 0) return -1;
-  const std::vector<GuardSpec>& g = model.guards(to);
-  for (size_t j = 0; j < g.size(); ++j) {
-    if (g[j].surface == model.guards(from)[guard].surface) return static_cast<int>(j);
-  }
-  return -2;
-}
-
 }  // namespace
 
 GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagator,
@@ -143,23 +132,30 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
       t0 = t1, v0 = v1;
     }
   }
-  GuardMinimum found = std::isfinite(best.h) ? best : sampled;
-  // A guard other than the one the segment ends on is not zero at the end by construction: where
-  // it falls through zero just before the end (its crossing entering through the segment's end
-  // event, the two events about to swap), the minimum is the end's value.
-  if (guard != orbit.signature.segments[segment].guard && g[kSamples].h < found.h) {
-    found = {tau, g[kSamples].h};
-  }
-  return found;
+  return std::isfinite(best.h) ? best : sampled;
+}
+
+GuardMinimum AtStartMinimum(const HybridModel& model, Propagator& propagator,
+                            const PeriodicOrbit& orbit, const Admissibility& violation) {
+  const int i = violation.segment;
+  const SegmentSpec& seg = orbit.signature.segments[i];
+  const GuardMinimum start{0.0,
+                           model.Guard(seg.mode, violation.guard, orbit.starts[i], orbit.params).h};
+  const GuardMinimum inner = SegmentGuardMinimum(model, propagator, orbit, i, violation.guard);
+  const double tau = orbit.durations[i];
+  if (!(inner.t > 0.0 && inner.t < tau && inner.h < start.h)) return start;
+  // A stationary point (SegmentGuardMinimum's refined minima; its smallest sample, where h has no
+  // interior minimum, is not one: h' there is h'' times a sample spacing or more).
+  const GuardValue v = model.Guard(
+      seg.mode, violation.guard,
+      propagator.FlowMap(seg.mode, orbit.starts[i], inner.t, orbit.params, {}).x, orbit.params);
+  return v.ddh > 0.0 && std::abs(v.dh) <= 1e-6 * v.ddh * tau ? inner : start;
 }
 
 double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
                              const PeriodicOrbit& orbit, const Admissibility& violation) {
   if (violation.guard < 0) return orbit.durations[violation.segment];
-  if (violation.at_start) {
-    const SegmentSpec& seg = orbit.signature.segments[violation.segment];
-    return model.Guard(seg.mode, violation.guard, orbit.starts[violation.segment], orbit.params).h;
-  }
+  if (violation.at_start) return AtStartMinimum(model, propagator, orbit, violation).h;
   return SegmentGuardMinimum(model, propagator, orbit, violation.segment, violation.guard,
                              violation.time)
       .h;
@@ -217,7 +213,7 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
       o.starts.erase(o.starts.begin() + i);
       o.durations.erase(o.durations.begin() + i);
     }
-  } else if (violation.at_start) {
+  } else if (violation.at_start && AtStartMinimum(model, propagator, orbit, violation).t == 0.0) {
     // The segment's guard fires at its very start (e.g. the force at impact fell below the
     // progression threshold): a zero-length segment of the mode across that guard now comes first,
     // ending where the old segment begins.
@@ -240,20 +236,6 @@ SwitchedOrbit SwitchSignature(const HybridModel& model, Propagator& propagator,
         SegmentGuardMinimum(model, propagator, orbit, i, violation.guard, violation.time).t;
     StateVector xt = propagator.FlowMap(seg.mode, x0, t_touch, o.params, {}).x;
     const StateVector x_across = model.Jump(seg.mode, violation.guard, xt, o.params).x;
-    const int across_end = GuardOnSurface(model, seg.mode, seg.guard, across.mode);
-    if (t_touch == tau && across_end >= -1) {
-      // The crossing enters through the segment's end (the two events about to swap): the
-      // segment ends on the guard, and the mode across it runs on to the old end (the section,
-      // or the same surface).
-      segs[i].guard = violation.guard;
-      segs.insert(segs.begin() + i + 1, {across.mode, across_end});
-      o.durations.insert(o.durations.begin() + i + 1, 0.0);
-      o.starts.insert(o.starts.begin() + i + 1, x_across);
-      out.new_segment = i + 1;
-      out.detail =
-          SignatureString(model, orbit.signature) + " -> " + SignatureString(model, o.signature);
-      return out;
-    }
     segs[i].guard = violation.guard;
     segs.insert(segs.begin() + i + 1, {across, {seg.mode, seg.guard}});
     o.durations[i] = t_touch;

@@ -13,11 +13,9 @@ namespace drillbif::internal {
 
 // The lowest interior local minimum over (0, tau) of guard `guard` along segment `segment`:
 // dense samples, each sampled local minimum refined by Newton on h' to the stationary point
-// (a smooth function of the orbit near a touch). The start's value does not count, nor the end's
-// for the guard the segment ends on: the segment starts or ends on some guards by construction.
-// Without an interior local minimum, the smallest interior sample stands in (positive while
-// admissible, so it still brackets a later touch). The end's value of another guard counts (at
-// t = tau) where it is lower: a crossing entering through the segment's end.
+// (a smooth function of the orbit near a touch). Endpoint values do not count: the segment
+// starts or ends on some guards by construction. Without an interior local minimum, the smallest
+// interior sample stands in (positive while admissible, so it still brackets a later touch).
 // `near`: where a crossing of that guard was seen (Admissibility::time), if known; a dip there
 // that no sample shows is searched for more finely.
 struct GuardMinimum {
@@ -28,8 +26,20 @@ GuardMinimum SegmentGuardMinimum(const HybridModel& model, Propagator& propagato
                                  const PeriodicOrbit& orbit, int segment, int guard,
                                  double near = -1.0);
 
+// For a violation whose guard fires at its segment's start (Admissibility::at_start): the guard
+// at the start (t = 0), or its interior minimum where that is a stationary point below the start
+// value. Where h falls after the start, that touch inside the segment comes first as the
+// parameter moves, and it is crossed as a touch (SwitchSignature splits the segment there): the
+// contact phase that the section splits on the a-branch of the period-2 attractor at
+// omega = 0.6, a = 0.2 touches l1 0.058 after the section, 2.3e-4 in a before the guard fires at
+// the section; switched at the section instead, the inserted CwP phase ended at once ("could not
+// locate or cross: segment 0 (CwP) crosses l1 at t = 0").
+GuardMinimum AtStartMinimum(const HybridModel& model, Propagator& propagator,
+                            const PeriodicOrbit& orbit, const Admissibility& violation);
+
 // The test function of a violation found by CheckAdmissible: positive while admissible, zero at
-// the grazing point. (-1 guard: the segment's duration; else the guard's interior minimum.)
+// the grazing point. (-1 guard: the segment's duration; at the start, AtStartMinimum's value;
+// else the guard's interior minimum.)
 double ViolationTestFunction(const HybridModel& model, Propagator& propagator,
                              const PeriodicOrbit& orbit, const Admissibility& violation);
 
