@@ -298,13 +298,12 @@ TEST(PeriodDoublingSwitch, PeriodTwoBranchLocatesATouchBeforeTheSectionMovesInTh
 // The period-2 omega-branch (a = 0.3) born at the period-1 doubling near omega = 0.2698 runs to
 // the one near 1.6258, where it meets the period-1 orbit traversed twice again: a branch point,
 // beyond which run the same orbits shifted by one period, back to the first doubling. Continued
-// both ways it ends at a branch point next to each doubling and reports each special point once.
-// (Run on through the branch point it came back to its start, every special point twice.) Where
-// it was born it turns (the tip of the doubling's pitchfork): the fold there, located in
-// arclength (the parameter stationary), is the doubling to the period-1 branch's location
-// (locate_tolerance, 1e-10; twice that apart at most). The branch points, located on the
-// determinant's sign alone, are not located that closely at such a tip (docs/engine.md) and are
-// only placed next to the doublings (1e-3; the doublings lie 1.36 apart).
+// both ways it ends at the branch point at each doubling and reports each special point once.
+// (Run on through the branch point it came back to its start, every special point twice.) At
+// each doubling it turns (the tip of the doubling's pitchfork), and its fold, its branch point and
+// its last point are the period-1 orbit traversed twice, solved at its doubling (far below
+// 1e-10): the doubling to the period-1 branch's location (locate_tolerance, 1e-10; twice that
+// apart at most).
 TEST(PeriodDoublingSwitch, APeriodTwoBranchEndsAtTheDoublingsItJoinsAndReportsEachPointOnce) {
   DO model;
   ExactPropagator prop(model);
