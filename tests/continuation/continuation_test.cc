@@ -425,8 +425,7 @@ TEST(Continuation, SwitchesBothCopiesOfATwiceTraversedOrbitAtOnce) {
   for (const ContinuationPoint& p : r.points) highest = std::max(highest, p.value);
   EXPECT_EQ(highest, opt.max) << r.summary.message;
   // The turn, where the branch meets the period-1 orbit traversed twice: a fold (a multiplier at
-  // +1, the square of that orbit's -1) and a branch point (the bordered determinant's sign; at a
-  // pitchfork's tip not located to locate_tolerance: docs/engine.md), where the direction ends.
+  // +1, the square of that orbit's -1) and a branch point, where the direction ends.
   EXPECT_NE(Find(r, SpecialPointKind::kFold, 0.09, 0.092), nullptr) << r.summary.message;
   EXPECT_NE(Find(r, SpecialPointKind::kBranchPoint, 0.09, 0.092), nullptr) << r.summary.message;
   EXPECT_NE(r.summary.message.find("decreasing: stopped at BRANCH_POINT"), std::string::npos)
