@@ -7,9 +7,7 @@
 #include <functional>
 #include <vector>
 
-#include "continuation/bordered_sigma.h"
 #include "continuation/tangent_grazing.h"
-#include "orbit/monodromy.h"
 
 namespace drillbif::internal {
 
@@ -24,10 +22,7 @@ ExtraCondition OwnCondition(const HybridModel& model, Propagator& propagator,
       return TangentEndRate(model, propagator, o);
     });
   }
-  const BorderedSigma sigma(
-      ShiftedMonodromy(kind, ReducedMonodromy(model, MonodromyFactors(model, propagator, guess))));
-  return ExtraCondition::OfMonodromy(
-      [kind, sigma](const Eigen::MatrixXd& m) { return sigma(ShiftedMonodromy(kind, m)); });
+  return ExtraCondition::Sigma(model, propagator, guess, kind);
 }
 
 // `guess` with its zero-length `segment` made `length` long, taken from the next segment: the

@@ -8,11 +8,9 @@
 #include <cmath>
 
 #include "common/phase_progress.h"
-#include "continuation/bordered_sigma.h"
 #include "continuation/tangent_grazing.h"
 #include "drillbif/continuation/continuation.h"
 #include "drillbif/simulate/simulator.h"
-#include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
 
 namespace drillbif {
@@ -293,11 +291,8 @@ StatusOr<PeriodicOrbit> PitchforkTip(const HybridModel& model, Propagator& propa
                                      const PeriodicOrbit& near, int param) {
   StatusOr<PeriodicOrbit> half = FirstPass(near);
   if (!half.ok()) return half.status();
-  const CurveKind kind = CurveKind::kPeriodDoubling;
-  const BorderedSigma sigma(
-      ShiftedMonodromy(kind, ReducedMonodromy(model, MonodromyFactors(model, propagator, *half))));
-  const ExtraCondition doubling = ExtraCondition::OfMonodromy(
-      [kind, sigma](const Eigen::MatrixXd& m) { return sigma(ShiftedMonodromy(kind, m)); });
+  const ExtraCondition doubling =
+      ExtraCondition::Sigma(model, propagator, *half, CurveKind::kPeriodDoubling);
   StatusOr<PeriodicOrbit> at =
       SolveWithConditions(model, propagator, *half, {param}, {doubling}, 1e-12,
                           "the period doubling of the orbit of " +

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "continuation/bordered_sigma.h"
 #include "continuation/signature_switch.h"
 #include "orbit/monodromy.h"
 #include "orbit/orbit_bvp.h"
@@ -238,6 +239,14 @@ ExtraCondition ExtraCondition::OfMonodromy(std::function<double(const Eigen::Mat
   c.kind = Kind::kMonodromy;
   c.of_monodromy = std::move(f);
   return c;
+}
+
+ExtraCondition ExtraCondition::Sigma(const HybridModel& model, Propagator& propagator,
+                                     const PeriodicOrbit& at, CurveKind kind) {
+  const BorderedSigma sigma(
+      ShiftedMonodromy(kind, ReducedMonodromy(model, MonodromyFactors(model, propagator, at))));
+  return OfMonodromy(
+      [kind, sigma](const Eigen::MatrixXd& m) { return sigma(ShiftedMonodromy(kind, m)); });
 }
 
 ExtraCondition ExtraCondition::OfOrbit(std::function<double(const PeriodicOrbit&)> f) {

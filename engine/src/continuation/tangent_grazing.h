@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "drillbif/continuation/curve.h"
 #include "drillbif/orbit/periodic_orbit.h"
 
 namespace drillbif::internal {
@@ -96,6 +97,11 @@ struct ExtraCondition {
   static ExtraCondition OfMonodromy(std::function<double(const Eigen::MatrixXd&)> f);
   // Any other function of the orbit.
   static ExtraCondition OfOrbit(std::function<double(const PeriodicOrbit&)> f);
+  // sigma of the shifted monodromy of `kind` (fold, period doubling, Neimark-Sacker; not
+  // kGrazing), bordered at `at`'s (bordered_sigma.h): the defining condition of a bifurcation
+  // of that kind near `at`.
+  static ExtraCondition Sigma(const HybridModel& model, Propagator& propagator,
+                              const PeriodicOrbit& at, CurveKind kind);
 
   Kind kind = Kind::kOrbit;
   int segment = -1;                                            // kDuration: the held segment
