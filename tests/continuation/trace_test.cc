@@ -1040,7 +1040,11 @@ TEST_F(Trace, LongPeriodTwoCurvesAreTracedToTheirEndsAndClaimOnlyTheEndsReached)
     }
     EXPECT_TRUE(located) << n;
   }
-  EXPECT_GT(not_started, from_unverified);
+  // Notes from located points are checked above where there are any; this box has none left.
+  // Its one such note named a period-2 PD curve "leaving" the FLIP_GRAZING at (0.097334,
+  // 0.691376) as not started, while that curve was the one ending there; once the period-2
+  // starts moved at rounding level (their branches' special points located from the bracket's
+  // chord), the point is solved in tangent form and no such note is given.
   EXPECT_GT(from_unverified, 0);
 }
 

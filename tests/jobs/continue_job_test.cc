@@ -486,6 +486,73 @@ void ExpectWindowBranchCompletes(double b, const std::string& period, double dou
   EXPECT_GT(doublings, 0);
 }
 
+// The request of `drillctl continue --param <param> --min <min> --max <max> --omega <omega>
+// --a <a> --follow-pd`.
+StatusOr<v1::ContinueResult> FollowPdFrom(const char* param, double min, double max, double omega,
+                                          double a) {
+  v1::ContinueRequest request;
+  request.set_param(param);
+  request.set_min(min);
+  request.set_max(max);
+  request.mutable_params()->set_omega(omega);
+  request.mutable_params()->set_a(a);
+  request.set_follow_period_doubling(true);
+  return RunContinue(request);
+}
+
+// On the period-4 a-branch at omega = 0.07 (from the period-2 attractor at a = 0.5) the ROP is
+// largest at the GRAZING_L2 at a = 0.63006770600: the slope of ROP along the old signature turns
+// negative 1e-4 of arclength before it, where a is nearly stationary. Trial points predicted
+// along the step's tangent there did not correct (8 iterations, converging linearly next to the
+// vanishing segment), and the ROP_MAX was reported at the last trial that did, a = 0.6300676692,
+// bracketed to 6.2e-6, with an ROP 3.9e-9 below the grazing's, 3.7e-8 away. A maximum is not
+// exceeded next to it: within the bracket's width the ROP differs by O(|ROP''| 1e-20), so 1e-12
+// is rounding's margin on an ROP of 0.70.
+TEST(RunContinue, RopMaximumNextToAGrazingIsNotExceededThere) {
+  const StatusOr<v1::ContinueResult> r = FollowPdFrom("a", 0.01, 8.0, 0.07, 0.5);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const v1::ContinueResult& doubled = r->period_doubled_branch();
+  ASSERT_EQ(doubled.status(), "COMPLETED") << doubled.message();
+  const std::vector<v1::SpecialPoint> grazings = OfKind(doubled, v1::SpecialPoint::GRAZING_L2);
+  const auto grazing = std::find_if(
+      grazings.begin(), grazings.end(),
+      [](const v1::SpecialPoint& g) { return std::abs(g.value() - 0.630067706) < 1e-8; });
+  ASSERT_NE(grazing, grazings.end());
+  int maxima = 0;
+  for (const v1::SpecialPoint& m : OfKind(doubled, v1::SpecialPoint::ROP_MAX)) {
+    if (std::abs(m.value() - grazing->value()) > 1e-6) continue;
+    ++maxima;
+    EXPECT_GE(m.rop(), grazing->rop() - 1e-12)
+        << "ROP_MAX at a = " << m.value() << " below the grazing's ROP at a = " << grazing->value();
+  }
+  EXPECT_EQ(maxima, 1);
+}
+
+// The period-4 a-branch at omega = 0.6 (from the period-2 attractor at a = 0.2) locates a
+// GRAZING_L2 at a = 0.3241 where a CwoP phase vanishes. A trial point of that location 4e-9 of
+// arclength from the root, predicted on the bracket's chord, corrected onto the degenerate family
+// of zero-length solutions at a = 2.7e9: the grazing was reported there, and the branch FAILED
+// after it. A point between two of the branch's points lies within their distance of their chord.
+TEST(RunContinue, GrazingLocationStaysOnItsBranch) {
+  const StatusOr<v1::ContinueResult> r = FollowPdFrom("a", 0.01, 8.0, 0.6, 0.2);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const v1::ContinueResult& doubled = r->period_doubled_branch();
+  EXPECT_EQ(doubled.status(), "COMPLETED") << doubled.message();
+  for (const v1::BranchPoint& p : doubled.points()) {
+    EXPECT_TRUE(p.value() >= 0.01 && p.value() <= 8.0) << "a point at a = " << p.value();
+  }
+  for (const v1::SpecialPoint& s : doubled.special_points()) {
+    EXPECT_TRUE(s.value() >= 0.01 && s.value() <= 8.0)
+        << v1::SpecialPoint::Kind_Name(s.kind()) << " at a = " << s.value();
+  }
+  EXPECT_NE(std::find_if(doubled.special_points().begin(), doubled.special_points().end(),
+                         [](const v1::SpecialPoint& s) {
+                           return s.kind() == v1::SpecialPoint::GRAZING_L2 &&
+                                  std::abs(s.value() - 0.3241) < 1e-4;
+                         }),
+            doubled.special_points().end());
+}
+
 TEST(RunContinue, PeriodTwoWindowBranchCompletesOverTheRange) {
   ExpectWindowBranchCompletes(0.068, " x2", 0.11001173);
 }

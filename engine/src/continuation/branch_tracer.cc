@@ -195,12 +195,23 @@ bool BranchTracer::PointTowards(double a, double* sigma, Vec* y) {
   return false;
 }
 
-bool BranchTracer::Locate(double h, double psi0, double psi1,
+bool BranchTracer::PointBetween(double sigma, double a, const Vec& y_a, double b, const Vec& y_b,
+                                Vec* y) {
+  int iterations = 0;
+  const Vec y_pred = y_a + (sigma - a) / (b - a) * (y_b - y_a);
+  // The branch between two of its points strays from their chord by O(curvature (b - a)^2):
+  // farther than b - a, the corrector has found another solution (at a vanishing segment's root,
+  // the degenerate family of zero-length solutions: a trial of the period-4 a-branch from
+  // omega = 0.6, a = 0.2, 4e-9 of arclength from such a root, landed at a = 2.7e9).
+  return Correct(y_pred, t_, y, &iterations) && (*y - y_pred).norm() <= b - a;
+}
+
+bool BranchTracer::Locate(double h, const Vec& y_h, double psi0, double psi1,
                           const std::function<double(const Vec&)>& psi, bool stationary,
                           Vec* y_root) {
   // Illinois: regula falsi that halves the stale end's value, superlinear and bracketing.
   double a = 0.0, fa = psi0, b = h, fb = psi1;
-  double lambda_a = y_[m()], lambda_b = lambda_a;
+  Vec y_a = y_, y_b = y_h;
   int side = 0;
   Vec y;
   bool have = false;
@@ -208,9 +219,9 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
     if (propagator_.stopped()) return false;
     double sigma = (fb - fa) != 0.0 ? (a * fb - b * fa) / (fb - fa) : 0.5 * (a + b);
     if (!(sigma > a && sigma < b)) sigma = 0.5 * (a + b);
-    if (!PointAt(sigma, &y)) {
+    if (!PointBetween(sigma, a, y_a, b, y_b, &y)) {
       sigma = 0.5 * (a + b);
-      if (!PointAt(sigma, &y)) {
+      if (!PointBetween(sigma, a, y_a, b, y_b, &y)) {
         // Trial points next to a vanishing segment's root may not correct (at the root its two
         // events' rows coincide; docs/engine.md, "Why the branches stay dense"). With a point
         // already corrected, the bracket so far is the location; with none, points closer to the
@@ -226,11 +237,11 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
     const double f = psi(y);
     if (f == 0.0) return true;
     if (Sign(f) == Sign(fa)) {
-      a = sigma, fa = f, lambda_a = y[m()];
+      a = sigma, fa = f, y_a = y;
       if (side == -1) fb *= 0.5;
       side = -1;
     } else {
-      b = sigma, fb = f, lambda_b = y[m()];
+      b = sigma, fb = f, y_b = y;
       if (side == +1) fa *= 0.5;
       side = +1;
     }
@@ -239,10 +250,8 @@ bool BranchTracer::Locate(double h, double psi0, double psi1,
     // defining condition holds even where it varies fast (multipliers near a grazing).
     constexpr double kValueTolerance = 1e-10;
     const bool narrow = b - a <= 1e-14 * std::max(1.0, h);
-    const bool bracketed =
-        stationary
-            ? b - a <= 1e-9 * std::max(1.0, h)
-            : (side != 0 && std::abs(lambda_b - lambda_a) <= options_.locate_tolerance && it > 0);
+    const bool bracketed = stationary ? b - a <= 1e-9 * std::max(1.0, h)
+                                      : std::abs(y_b[m()] - y_a[m()]) <= options_.locate_tolerance;
     if (narrow || (bracketed && std::abs(f) <= kValueTolerance)) return true;
   }
   return have;
@@ -259,8 +268,8 @@ void BranchTracer::AddSpecial(SpecialPointKind kind, const Vec& y, std::string d
   result->special_points.push_back(std::move(sp));
 }
 
-void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, ContinuationResult* result,
-                                       bool before_grazing) {
+void BranchTracer::DetectSpecialPoints(double h, const Vec& y1, const TestValues& t1,
+                                       ContinuationResult* result, bool before_grazing) {
   const TestValues& t0 = tests_;
   Vec y;
   auto tests_at = [&](const Vec& yy) {
@@ -275,7 +284,7 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   const bool at_turn = ReportTurn(h, t1, result);
   if (!at_turn && Sign(t0.fold) != Sign(t1.fold)) {
     if (Locate(
-            h, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y) &&
+            h, y1, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y) &&
         (!before_grazing || HasUnitMultiplier(y))) {
       AddSpecial(SpecialPointKind::kFold, y, "", result);
     }
@@ -286,7 +295,7 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   // a-branch at omega = 0.1 a step passing the period doubling at a = 0.2098364 ended where it had.
   if (Sign(t0.period_doubling) != Sign(t1.period_doubling)) {
     if (Locate(
-            h, t0.period_doubling, t1.period_doubling,
+            h, y1, t0.period_doubling, t1.period_doubling,
             [&](const Vec& yy) { return tests_at(yy).period_doubling; }, false, &y)) {
       AddSpecial(SpecialPointKind::kPeriodDoubling, y, "", result);
     }
@@ -294,7 +303,7 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   if (Sign(t0.neimark_sacker) != Sign(t1.neimark_sacker) && t0.nontrivial == t1.nontrivial &&
       t0.nontrivial >= 2 && (t0.complex_pair || t1.complex_pair)) {
     if (Locate(
-            h, t0.neimark_sacker, t1.neimark_sacker,
+            h, y1, t0.neimark_sacker, t1.neimark_sacker,
             [&](const Vec& yy) { return tests_at(yy).neimark_sacker; }, false, &y) &&
         tests_at(y).complex_pair) {
       AddSpecial(SpecialPointKind::kNeimarkSacker, y, "", result);
@@ -303,7 +312,7 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   if (!at_turn && Sign(t0.branch_point) != Sign(t1.branch_point) && t0.branch_point != 0.0) {
     // det changes sign without passing zero continuously: locate on the sign alone.
     if (Locate(
-            h, t0.branch_point, t1.branch_point,
+            h, y1, t0.branch_point, t1.branch_point,
             [&](const Vec& yy) { return tests_at(yy).branch_point; }, false, &y)) {
       AddSpecial(SpecialPointKind::kBranchPoint, y, "", result);
     }
@@ -311,7 +320,8 @@ void BranchTracer::DetectSpecialPoints(double h, const TestValues& t1, Continuat
   if (options_.locate_measure_maxima && !at_turn && t0.power == t1.power && t0.slope > 0.0 &&
       t1.slope < 0.0) {
     if (Locate(
-            h, t0.slope, t1.slope, [&](const Vec& yy) { return tests_at(yy).slope; }, false, &y)) {
+            h, y1, t0.slope, t1.slope, [&](const Vec& yy) { return tests_at(yy).slope; }, false,
+            &y)) {
       AddSpecial(t0.power ? SpecialPointKind::kPowerMax : SpecialPointKind::kRopMax, y, "", result);
     }
   }
@@ -355,7 +365,8 @@ void BranchTracer::LocateViolations(const std::vector<Admissibility>& violations
     };
     const double psi0 = psi(y_), psi1 = psi(y_end);
     Vec y_v;
-    if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h_end, psi0, psi1, psi, true, &y_v)) continue;
+    if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h_end, y_end, psi0, psi1, psi, true, &y_v))
+      continue;
     const double sigma = t_.dot(y_v - y_);
     if (!(sigma < before)) continue;
     crossing->located.push_back({sigma, y_v[m()], v});
@@ -397,7 +408,7 @@ void BranchTracer::LocateHiddenGuardCrossing(const std::vector<Admissibility>& v
   const double sigma_star = crossing->sigma;
   Vec y_pre;
   const double sigma_pre = sigma_star * (1.0 - 1e-6);
-  if (sigma_pre > 0.0 && PointAt(sigma_pre, &y_pre)) {
+  if (sigma_pre > 0.0 && PointBetween(sigma_pre, 0.0, y_, sigma_star, crossing->y, &y_pre)) {
     const PeriodicOrbit o = OrbitAt(y_pre);
     std::vector<Admissibility> hidden;
     for (const Admissibility& v : AdmissibilityViolations(model_, propagator_, o)) {
@@ -454,10 +465,13 @@ std::optional<ContinuationPoint> BranchTracer::SideBeforeGrazing(const Vec& y_st
   // itself is degenerate (a zero-length segment, or a guard touching zero inside one) and in
   // general has neither side's multipliers: the period-2 a-branch at omega = 0.4644 has
   // |mu| = 1.67 just before its GRAZING_L1 at a = 0.2048239 and 2.02 just after, and 0.215 at it.
-  const double sigma_before = t_.dot(y_star - y_) * (1.0 - 1e-6);
+  const double sigma_star = t_.dot(y_star - y_);
+  const double sigma_before = sigma_star * (1.0 - 1e-6);
   Vec y_before;
   std::optional<ContinuationPoint> before_point;
-  if (PointAt(sigma_before, &y_before)) before_point = MakePoint(y_before);
+  if (PointBetween(sigma_before, 0.0, y_, sigma_star, y_star, &y_before)) {
+    before_point = MakePoint(y_before);
+  }
   if (options_.locate && before_point.has_value()) {
     // Up to just before the grazing point.
     const double sigma = sigma_before;
@@ -471,7 +485,7 @@ std::optional<ContinuationPoint> BranchTracer::SideBeforeGrazing(const Vec& y_st
       // omega = 0.1 turns at a = 0.1568849, 9.8e-7 before a grazing that a step of 0.48 from
       // before the turn overran), told from the system's own fold by its multiplier at 1.
       before.branch_point = tests_.branch_point;
-      DetectSpecialPoints(sigma, before, result, /*before_grazing=*/true);
+      DetectSpecialPoints(sigma, y_before, before, result, /*before_grazing=*/true);
     }
   }
   return before_point;
@@ -823,7 +837,7 @@ bool BranchTracer::Step(ContinuationResult* result) {
       // Land on the bound exactly (the parameter is monotone over one short step).
       Vec y_b;
       if (Locate(
-              h, y_[m()] - bound, value - bound, [&](const Vec& yy) { return yy[m()] - bound; },
+              h, y1, y_[m()] - bound, value - bound, [&](const Vec& yy) { return yy[m()] - bound; },
               false, &y_b)) {
         // The bracket stops at locate_tolerance in the parameter: solve once more with the
         // parameter fixed at the bound (the branch crosses it transversally here), so that the
@@ -851,7 +865,7 @@ bool BranchTracer::Step(ContinuationResult* result) {
       return false;
     }
     const TestValues tests1 = Tests(y1, t1, det, p1);
-    if (options_.locate) DetectSpecialPoints(h, tests1, result);
+    if (options_.locate) DetectSpecialPoints(h, y1, tests1, result);
     if (propagator_.stopped()) return cancelled();
     if (turn_) {
       // Beyond the turn run the same orbits, shifted: the branch ends there (NoteStop has set

@@ -101,17 +101,25 @@ class BranchTracer {
   // PointAt at arclengths halving the distance from *sigma to a (up to 8 times) until one
   // corrects; *sigma: that arclength. False where none does.
   bool PointTowards(double a, double* sigma, Vec* y);
-  // Locates a root of psi between the current point (sigma 0, value psi0) and sigma = h (psi1).
-  // `stationary`: the parameter is stationary at the root (a fold), so the bracket is shrunk in
-  // arclength rather than stopped on the parameter's spread.
-  bool Locate(double h, double psi0, double psi1, const std::function<double(const Vec&)>& psi,
-              bool stationary, Vec* y_root);
+  // The point at arclength sigma in (a, b) between the corrected points y_a at a and y_b at b of
+  // the current step: predicted on their chord (which lies in sigma's hyperplane of PointAt, so
+  // the point is PointAt's, to the corrector's tolerance), corrected.
+  bool PointBetween(double sigma, double a, const Vec& y_a, double b, const Vec& y_b, Vec* y);
+  // Locates a root of psi between the current point (sigma 0, value psi0) and the corrected point
+  // y_h at sigma = h (psi1), its trials predicted on the bracket's chord (PointBetween): from the
+  // step's tangent alone, trials next to a root near a grazing, a few 1e-3 of arclength from the
+  // vanishing segment's root, started off by the tangent's O(sigma^2) error and ran out of
+  // iterations converging linearly, and the bracket stopped wide. `stationary`: the parameter is
+  // stationary at the root (a fold), so the bracket is shrunk in arclength rather than stopped on
+  // the parameter's spread.
+  bool Locate(double h, const Vec& y_h, double psi0, double psi1,
+              const std::function<double(const Vec&)>& psi, bool stationary, Vec* y_root);
   // Detects sign changes of the test functions between the current point and (y1, tests1) at
   // arclength h, and appends the located special points. `before_grazing`: (y1, tests1) lies just
   // before a grazing point, where the fixed-signature system may fold by itself; a fold is then
   // reported only where a multiplier lies at 1.
-  void DetectSpecialPoints(double h, const TestValues& tests1, ContinuationResult* result,
-                           bool before_grazing = false);
+  void DetectSpecialPoints(double h, const Vec& y1, const TestValues& tests1,
+                           ContinuationResult* result, bool before_grazing = false);
   // The corrected point y1 of a step has a segment of zero length (to rounding) that was clearly
   // positive at the current point. A segment that starts and ends on the same surface (a CwP
   // phase between two l1 events) has a degenerate family of zero-length solutions: for any
