@@ -500,6 +500,41 @@ StatusOr<v1::ContinueResult> FollowPdFrom(const char* param, double min, double 
   return RunContinue(request);
 }
 
+// The period-8 omega-branch born at a doubling of the period-4 attractor at omega = 0.15, a = 0.5
+// runs to the other doubling it joins, at omega = 0.4631173123, a period doubling 1.3e-8 and a
+// grazing 4e-9 before it. Next to that turn its system is ill-conditioned (smallest singular
+// value ~1e-6 of ~2e3 over the last 1.6e-3 of its halves' durations), the corrector's steps
+// stagnate at rounding noise, and the branch crept at 1e-13 per step until it FAILED ("the
+// corrector failed down to min_step at omega = 0.463117"). The turn, solved within a step that
+// fails to correct, ends it: the period-4 orbit at its doubling (located on the period-4 branch
+// independently, by the sign of prod(mu + 1)), traversed twice, with its multiplier at +1.
+TEST(RunContinue, PeriodEightBranchEndsAtItsTurnWhereItsStepsStopCorrecting) {
+  const StatusOr<v1::ContinueResult> r = FollowPdFrom("omega", 0.05, 2.0, 0.15, 0.5);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const v1::ContinueResult& doubled = r->period_doubled_branch();
+  ASSERT_EQ(doubled.status(), "COMPLETED") << doubled.message();
+  ASSERT_FALSE(doubled.points().empty());
+  EXPECT_THAT(doubled.points(0).signature_text(), ::testing::EndsWith(" x8"));
+  constexpr double kLocateTolerance = 1e-10;  // the request's default locate_tolerance
+  int turns = 0;
+  for (const v1::SpecialPoint& s : doubled.special_points()) {
+    if (s.kind() != v1::SpecialPoint::BRANCH_POINT) continue;
+    ++turns;
+    const std::vector<v1::SpecialPoint> doublings = OfKind(*r, v1::SpecialPoint::PERIOD_DOUBLING);
+    EXPECT_TRUE(std::any_of(doublings.begin(), doublings.end(),
+                            [&](const v1::SpecialPoint& d) {
+                              return std::abs(d.value() - s.value()) <= 2 * kLocateTolerance;
+                            }))
+        << "the turn at omega = " << s.value() << " is no doubling of the period-4 branch";
+    // One nontrivial multiplier: the doubling's -1, squared. Solved to the corrector's
+    // tolerance, ~1e-10 relative; 1e-6 is the fold's test (a multiplier at 1) of the branches.
+    ASSERT_EQ(s.multipliers_size(), 1);
+    EXPECT_NEAR(s.multipliers(0).re(), 1.0, 1e-6) << "at omega = " << s.value();
+  }
+  EXPECT_EQ(turns, 2) << doubled.message();
+  EXPECT_NEAR(doubled.points(doubled.points_size() - 1).value(), 0.4631173123, 1e-10);
+}
+
 // On the period-4 a-branch at omega = 0.07 (from the period-2 attractor at a = 0.5) the ROP is
 // largest at the GRAZING_L2 at a = 0.63006770600: the slope of ROP along the old signature turns
 // negative 1e-4 of arclength before it, where a is nearly stationary. Trial points predicted

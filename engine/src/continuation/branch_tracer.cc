@@ -334,15 +334,29 @@ bool BranchTracer::ReportTurn(double h, const TestValues& t1, ContinuationResult
       !TipInStep(h, &tip)) {
     return false;
   }
+  AddTurn(tip, Sign(t0.fold) != Sign(t1.fold), result);
+  return true;
+}
+
+void BranchTracer::AddTurn(const Vec& tip, bool fold, ContinuationResult* result) {
   const int half = start_signature_.periods / 2;
   const std::string detail = "the branch's turn: the orbit of " + std::to_string(half) +
                              (half == 1 ? " period" : " periods") +
                              " traversed twice, at its period doubling";
-  if (Sign(t0.fold) != Sign(t1.fold)) AddSpecial(SpecialPointKind::kFold, tip, detail, result);
+  if (fold) AddSpecial(SpecialPointKind::kFold, tip, detail, result);
   const size_t before = result->special_points.size();
   AddSpecial(SpecialPointKind::kBranchPoint, tip, detail, result);
   if (result->special_points.size() > before) turn_ = result->special_points.back().point;
-  return true;
+}
+
+bool BranchTracer::TurnAhead(ContinuationResult* result) {
+  Vec tip;
+  if (!halves_meet_ || !TipInStep(h_, &tip) ||
+      !AdmissibilityViolations(model_, propagator_, OrbitAt(tip)).empty()) {
+    return false;
+  }
+  AddTurn(tip, /*fold=*/true, result);
+  return turn_.has_value();
 }
 
 bool BranchTracer::TipInStep(double h, Vec* tip) {
@@ -767,6 +781,13 @@ bool BranchTracer::Step(ContinuationResult* result) {
     int iterations = 0;
     const bool corrected = Correct(y_ + h_ * t_, t_, &y1, &iterations);
     if (!corrected || CollapsedSegment(y1)) {
+      if (propagator_.stopped()) return cancelled();
+      if (TurnAhead(result)) {
+        if (propagator_.stopped()) return cancelled();
+        ++steps_;
+        result->points.push_back(std::move(*turn_));
+        return true;
+      }
       if (propagator_.stopped()) return cancelled();
       ++rejected_;
       h_ *= 0.5;

@@ -138,6 +138,14 @@ class BranchTracer {
   // caller reports none in this step; the turn is the branch's last point (turn_). False (nothing
   // reported) where there is no such turn.
   bool ReportTurn(double h, const TestValues& tests1, ContinuationResult* result);
+  // Reports the turn at `tip` (a FOLD too where `fold`) and keeps it as the branch's last point.
+  void AddTurn(const Vec& tip, bool fold, ContinuationResult* result);
+  // Where a step of a branch that meets its shifted copy fails to correct, the turn may lie
+  // within it: next to the turn the system is singular, and steps that do not jump across it
+  // shrink to min_step (the period-2 omega-branch from omega = 1.5, a = 5.0, at 1.13664). The
+  // turn solved within the failed step and admissible is reported there (AddTurn, a fold); true
+  // when it is.
+  bool TurnAhead(ContinuationResult* result);
   // The turn within the step from y_ of arclength h (internal::PitchforkTip from y_'s orbit) into
   // *tip; false where it is not solved or lies outside the step.
   bool TipInStep(double h, Vec* tip);
