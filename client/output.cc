@@ -312,6 +312,9 @@ void AppendSpecialPoints(const google::protobuf::RepeatedPtrField<v1::SpecialPoi
       line.append(" near_grazing_distance=");
       AppendNumber(near.distance(), &line);
     }
+    // The width of the interval known to hold the point (0: solved directly).
+    line.append(" bracket=");
+    AppendNumber(sp.bracket(), &line);
     AppendComment(line, out);
   }
 }

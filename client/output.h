@@ -59,6 +59,9 @@ std::string SweepResultToCsv(const v1::SweepResult& result);
 // and at a grazing each side's stability at the end (the point's own stable needs both):
 //   ... [stable_before=... mu_abs_max_before=...] [stable_after=... mu_abs_max_after=...]
 //   [stability_changes=true]
+// (a fold / PD / NS next to a grazing: [near_grazing=... near_grazing_value=...
+// near_grazing_distance=...]) and last the width of the interval known to hold the point:
+//   ... bracket=...
 std::string ContinueResultToCsv(const v1::ContinueResult& result);
 
 // Trace result as CSV: "# status=..." lines when it did not complete, then

@@ -176,6 +176,7 @@ void ToProto(const SpecialPoint& in, v1::SpecialPoint* out) {
   out->set_kind(kind);
   const ContinuationPoint& pt = in.point;
   out->set_value(pt.value);
+  out->set_bracket(in.bracket);
   *out->mutable_params() = ToProtoParams(pt.orbit.params);
   out->set_rop(MeasureOf(pt, Osc::kDrift));
   out->set_power(MeasureOf(pt, Osc::kPower));

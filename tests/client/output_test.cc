@@ -198,9 +198,9 @@ TEST(Output, ContinueCsvGrazingLineEndsWithEachSidesStability) {
   const std::string csv = ContinueResultToCsv(r);
   EXPECT_THAT(csv, HasSubstr(" stable=false signature= detail=A -> B stable_before=true "
                              "mu_abs_max_before=0.5 stable_after=false mu_abs_max_after=2 "
-                             "stability_changes=true\n"));
+                             "stability_changes=true bracket=0\n"));
   EXPECT_THAT(csv, HasSubstr("# GRAZING_PI value=0 rop=0 power=0 stable=false signature= "
-                             "stable_before=false mu_abs_max_before=1.5\n"));
+                             "stable_before=false mu_abs_max_before=1.5 bracket=0\n"));
 }
 
 // A bifurcation next to a grazing ends its line with the grazing's kind, value and distance,
@@ -220,8 +220,8 @@ TEST(Output, ContinueCsvLineOfABifurcationNextToAGrazingEndsWithTheGrazing) {
   const std::string csv = ContinueResultToCsv(r);
   EXPECT_THAT(csv, HasSubstr("# PERIOD_DOUBLING value=0.25 rop=0 power=0 stable=false signature= "
                              "near_grazing=GRAZING_PI near_grazing_value=0.125 "
-                             "near_grazing_distance=0.125\n"));
-  EXPECT_THAT(csv, HasSubstr("# FOLD value=0.5 rop=0 power=0 stable=false signature=\n"));
+                             "near_grazing_distance=0.125 bracket=0\n"));
+  EXPECT_THAT(csv, HasSubstr("# FOLD value=0.5 rop=0 power=0 stable=false signature= bracket=0\n"));
 }
 
 TEST(Output, TraceCsvHasOneCommentLinePerUnverifiedEndAndCodim2Point) {

@@ -88,6 +88,22 @@ TEST(RunContinue, FindsThePublishedFoldAndRopMaximumInB) {
   }
 }
 
+// Each located point says how narrowly: the fold and the ROP maximum, located by bracketing,
+// carry a bracket of at most the request's locate_tolerance (1e-10, the default; the fold's, in
+// the parameter that is stationary there, is the parameter's spread over an arclength bracket of
+// 1e-9, ~1e-18); the published values lie within it plus their 8 digits' rounding.
+TEST(RunContinue, LocatedPointsCarryTheirBracket) {
+  constexpr double kLocateTolerance = 1e-10;
+  const v1::ContinueResult& r = FoldResult();
+  ASSERT_EQ(r.special_points_size(), 2);
+  for (const v1::SpecialPoint& sp : r.special_points()) {
+    EXPECT_GE(sp.bracket(), 0.0) << v1::SpecialPoint::Kind_Name(sp.kind());
+    EXPECT_LE(sp.bracket(), kLocateTolerance) << v1::SpecialPoint::Kind_Name(sp.kind());
+    const double published = sp.kind() == v1::SpecialPoint::FOLD ? kFoldB : kRopMaxB;
+    EXPECT_LE(std::abs(sp.value() - published), 5e-9 + sp.bracket());
+  }
+}
+
 TEST(RunContinue, FoldHasAMultiplierAtOne) {
   // The period-1 orbit has one nontrivial multiplier (two structural zeros, MODEL.md); at a fold
   // it is +1. It moves like sqrt(b_fold - b) along the branch, so a fold located to 1e-10 in b
@@ -520,10 +536,12 @@ TEST(RunContinue, PeriodEightBranchEndsAtItsTurnWhereItsStepsStopCorrecting) {
   for (const v1::SpecialPoint& s : doubled.special_points()) {
     if (s.kind() != v1::SpecialPoint::BRANCH_POINT) continue;
     ++turns;
+    EXPECT_EQ(s.bracket(), 0.0) << "the turn is solved, not bracketed";
     const std::vector<v1::SpecialPoint> doublings = OfKind(*r, v1::SpecialPoint::PERIOD_DOUBLING);
     EXPECT_TRUE(std::any_of(doublings.begin(), doublings.end(),
                             [&](const v1::SpecialPoint& d) {
-                              return std::abs(d.value() - s.value()) <= 2 * kLocateTolerance;
+                              return d.bracket() <= kLocateTolerance &&
+                                     std::abs(d.value() - s.value()) <= 2 * kLocateTolerance;
                             }))
         << "the turn at omega = " << s.value() << " is no doubling of the period-4 branch";
     // One nontrivial multiplier: the doubling's -1, squared. Solved to the corrector's
@@ -557,6 +575,7 @@ TEST(RunContinue, RopMaximumNextToAGrazingIsNotExceededThere) {
   for (const v1::SpecialPoint& m : OfKind(doubled, v1::SpecialPoint::ROP_MAX)) {
     if (std::abs(m.value() - grazing->value()) > 1e-6) continue;
     ++maxima;
+    EXPECT_LE(m.bracket(), 1e-10);  // the request's default locate_tolerance
     EXPECT_GE(m.rop(), grazing->rop() - 1e-12)
         << "ROP_MAX at a = " << m.value() << " below the grazing's ROP at a = " << grazing->value();
   }

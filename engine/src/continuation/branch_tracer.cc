@@ -208,10 +208,11 @@ bool BranchTracer::PointBetween(double sigma, double a, const Vec& y_a, double b
 
 bool BranchTracer::Locate(double h, const Vec& y_h, double psi0, double psi1,
                           const std::function<double(const Vec&)>& psi, bool stationary,
-                          Vec* y_root) {
+                          Vec* y_root, double* bracket) {
   // Illinois: regula falsi that halves the stale end's value, superlinear and bracketing.
   double a = 0.0, fa = psi0, b = h, fb = psi1;
   Vec y_a = y_, y_b = y_h;
+  *bracket = std::abs(y_h[m()] - y_[m()]);
   int side = 0;
   Vec y;
   bool have = false;
@@ -235,7 +236,10 @@ bool BranchTracer::Locate(double h, const Vec& y_h, double psi0, double psi1,
     have = true;
     *y_root = y;
     const double f = psi(y);
-    if (f == 0.0) return true;
+    if (f == 0.0) {
+      *bracket = 0.0;
+      return true;
+    }
     if (Sign(f) == Sign(fa)) {
       a = sigma, fa = f, y_a = y;
       if (side == -1) fb *= 0.5;
@@ -245,23 +249,25 @@ bool BranchTracer::Locate(double h, const Vec& y_h, double psi0, double psi1,
       if (side == +1) fa *= 0.5;
       side = +1;
     }
+    *bracket = std::abs(y_b[m()] - y_a[m()]);
     // Located: the parameter bracketed to locate_tolerance (or, where it is stationary, the
     // arclength to 1e-9 of the step) and the test function itself below kValueTolerance, so the
     // defining condition holds even where it varies fast (multipliers near a grazing).
     constexpr double kValueTolerance = 1e-10;
     const bool narrow = b - a <= 1e-14 * std::max(1.0, h);
-    const bool bracketed = stationary ? b - a <= 1e-9 * std::max(1.0, h)
-                                      : std::abs(y_b[m()] - y_a[m()]) <= options_.locate_tolerance;
+    const bool bracketed =
+        stationary ? b - a <= 1e-9 * std::max(1.0, h) : *bracket <= options_.locate_tolerance;
     if (narrow || (bracketed && std::abs(f) <= kValueTolerance)) return true;
   }
   return have;
 }
 
-void BranchTracer::AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
-                              ContinuationResult* result) {
+void BranchTracer::AddSpecial(SpecialPointKind kind, const Vec& y, double bracket,
+                              std::string detail, ContinuationResult* result) {
   SpecialPoint sp;
   sp.kind = kind;
   sp.point = MakePoint(y);
+  sp.bracket = bracket;
   sp.detail = std::move(detail);
   if (propagator_.stopped()) return;  // computed after a stop: not kept
   NoteStop(kind);
@@ -272,6 +278,7 @@ void BranchTracer::DetectSpecialPoints(double h, const Vec& y1, const TestValues
                                        ContinuationResult* result, bool before_grazing) {
   const TestValues& t0 = tests_;
   Vec y;
+  double bracket = 0.0;
   auto tests_at = [&](const Vec& yy) {
     Vec t;
     double det = 0.0;
@@ -284,9 +291,10 @@ void BranchTracer::DetectSpecialPoints(double h, const Vec& y1, const TestValues
   const bool at_turn = ReportTurn(h, t1, result);
   if (!at_turn && Sign(t0.fold) != Sign(t1.fold)) {
     if (Locate(
-            h, y1, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y) &&
+            h, y1, t0.fold, t1.fold, [&](const Vec& yy) { return tests_at(yy).fold; }, true, &y,
+            &bracket) &&
         (!before_grazing || HasUnitMultiplier(y))) {
-      AddSpecial(SpecialPointKind::kFold, y, "", result);
+      AddSpecial(SpecialPointKind::kFold, y, bracket, "", result);
     }
   }
   // The multipliers left out of the list (structural zeros, the constraint's unit multiplier)
@@ -296,33 +304,34 @@ void BranchTracer::DetectSpecialPoints(double h, const Vec& y1, const TestValues
   if (Sign(t0.period_doubling) != Sign(t1.period_doubling)) {
     if (Locate(
             h, y1, t0.period_doubling, t1.period_doubling,
-            [&](const Vec& yy) { return tests_at(yy).period_doubling; }, false, &y)) {
-      AddSpecial(SpecialPointKind::kPeriodDoubling, y, "", result);
+            [&](const Vec& yy) { return tests_at(yy).period_doubling; }, false, &y, &bracket)) {
+      AddSpecial(SpecialPointKind::kPeriodDoubling, y, bracket, "", result);
     }
   }
   if (Sign(t0.neimark_sacker) != Sign(t1.neimark_sacker) && t0.nontrivial == t1.nontrivial &&
       t0.nontrivial >= 2 && (t0.complex_pair || t1.complex_pair)) {
     if (Locate(
             h, y1, t0.neimark_sacker, t1.neimark_sacker,
-            [&](const Vec& yy) { return tests_at(yy).neimark_sacker; }, false, &y) &&
+            [&](const Vec& yy) { return tests_at(yy).neimark_sacker; }, false, &y, &bracket) &&
         tests_at(y).complex_pair) {
-      AddSpecial(SpecialPointKind::kNeimarkSacker, y, "", result);
+      AddSpecial(SpecialPointKind::kNeimarkSacker, y, bracket, "", result);
     }
   }
   if (!at_turn && Sign(t0.branch_point) != Sign(t1.branch_point) && t0.branch_point != 0.0) {
     // det changes sign without passing zero continuously: locate on the sign alone.
     if (Locate(
             h, y1, t0.branch_point, t1.branch_point,
-            [&](const Vec& yy) { return tests_at(yy).branch_point; }, false, &y)) {
-      AddSpecial(SpecialPointKind::kBranchPoint, y, "", result);
+            [&](const Vec& yy) { return tests_at(yy).branch_point; }, false, &y, &bracket)) {
+      AddSpecial(SpecialPointKind::kBranchPoint, y, bracket, "", result);
     }
   }
   if (options_.locate_measure_maxima && !at_turn && t0.power == t1.power && t0.slope > 0.0 &&
       t1.slope < 0.0) {
     if (Locate(
-            h, y1, t0.slope, t1.slope, [&](const Vec& yy) { return tests_at(yy).slope; }, false,
-            &y)) {
-      AddSpecial(t0.power ? SpecialPointKind::kPowerMax : SpecialPointKind::kRopMax, y, "", result);
+            h, y1, t0.slope, t1.slope, [&](const Vec& yy) { return tests_at(yy).slope; }, false, &y,
+            &bracket)) {
+      AddSpecial(t0.power ? SpecialPointKind::kPowerMax : SpecialPointKind::kRopMax, y, bracket, "",
+                 result);
     }
   }
 }
@@ -343,9 +352,9 @@ void BranchTracer::AddTurn(const Vec& tip, bool fold, ContinuationResult* result
   const std::string detail = "the branch's turn: the orbit of " + std::to_string(half) +
                              (half == 1 ? " period" : " periods") +
                              " traversed twice, at its period doubling";
-  if (fold) AddSpecial(SpecialPointKind::kFold, tip, detail, result);
+  if (fold) AddSpecial(SpecialPointKind::kFold, tip, 0.0, detail, result);
   const size_t before = result->special_points.size();
-  AddSpecial(SpecialPointKind::kBranchPoint, tip, detail, result);
+  AddSpecial(SpecialPointKind::kBranchPoint, tip, 0.0, detail, result);
   if (result->special_points.size() > before) turn_ = result->special_points.back().point;
 }
 
@@ -379,14 +388,18 @@ void BranchTracer::LocateViolations(const std::vector<Admissibility>& violations
     };
     const double psi0 = psi(y_), psi1 = psi(y_end);
     Vec y_v;
-    if (!(psi0 > 0.0 && psi1 <= 0.0) || !Locate(h_end, y_end, psi0, psi1, psi, true, &y_v))
+    double bracket = 0.0;
+    if (!(psi0 > 0.0 && psi1 <= 0.0) ||
+        !Locate(h_end, y_end, psi0, psi1, psi, true, &y_v, &bracket)) {
       continue;
+    }
     const double sigma = t_.dot(y_v - y_);
     if (!(sigma < before)) continue;
     crossing->located.push_back({sigma, y_v[m()], v});
     if (sigma < crossing->sigma) {
       crossing->sigma = sigma;
       crossing->y = y_v;
+      crossing->bracket = bracket;
       crossing->violation = v;
     }
   }
@@ -432,8 +445,8 @@ void BranchTracer::LocateHiddenGuardCrossing(const std::vector<Admissibility>& v
   }
 }
 
-ContinuationPoint BranchTracer::RefinedGrazingPoint(const ContinuationPoint& at_graze,
-                                                    int segment) {
+ContinuationPoint BranchTracer::RefinedGrazingPoint(const ContinuationPoint& at_graze, int segment,
+                                                    bool* solved_exactly) {
   // A vanishing segment: the bracket on its duration may close on the degenerate family of
   // zero-length solutions (tangent_grazing.h); the tangency system pins the grazing point.
   // From the located point, else from the last admissible one.
@@ -455,6 +468,7 @@ ContinuationPoint BranchTracer::RefinedGrazingPoint(const ContinuationPoint& at_
     }
     solved = Status(StatusCode::kNotFound, "no sound tangency solution");
   }
+  *solved_exactly = solved.ok();
   if (solved.ok()) {
     // Back to the old signature, with segment i of zero length at the touching point.
     PeriodicOrbit old = *solved;
@@ -667,9 +681,11 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
   // Special points of the old signature before the grazing point.
   const ContinuationPoint at_graze = MakePoint(crossing.y);
   // The point reported: for a vanishing segment, refined by the tangency system.
-  const ContinuationPoint reported = crossing.violation.guard < 0
-                                         ? RefinedGrazingPoint(at_graze, crossing.violation.segment)
-                                         : at_graze;
+  bool solved_exactly = false;
+  const ContinuationPoint reported =
+      crossing.violation.guard < 0
+          ? RefinedGrazingPoint(at_graze, crossing.violation.segment, &solved_exactly)
+          : at_graze;
   const std::optional<ContinuationPoint> before_point = SideBeforeGrazing(crossing.y, result);
   std::vector<int> inserted;  // the zero-length segments inserted, in sw.orbit
   const SwitchedOrbit sw = SwitchTogether(at_graze.orbit, CrossedTogether(crossing, h), &inserted);
@@ -682,6 +698,7 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     SpecialPoint sp;
     sp.kind = sw.kind;
     sp.point = reported;
+    sp.bracket = solved_exactly ? 0.0 : crossing.bracket;
     if (before_point.has_value()) {
       sp.before = SideOf(before_point->stability);
       sp.point.stability = before_point->stability;
@@ -857,9 +874,10 @@ bool BranchTracer::Step(ContinuationResult* result) {
     if (outside) {
       // Land on the bound exactly (the parameter is monotone over one short step).
       Vec y_b;
+      double bracket = 0.0;
       if (Locate(
               h, y1, y_[m()] - bound, value - bound, [&](const Vec& yy) { return yy[m()] - bound; },
-              false, &y_b)) {
+              false, &y_b, &bracket)) {
         // The bracket stops at locate_tolerance in the parameter: solve once more with the
         // parameter fixed at the bound (the branch crosses it transversally here), so that the
         // point lies on the bound to rounding whatever the bracket's last iterate was.

@@ -112,8 +112,10 @@ class BranchTracer {
   // iterations converging linearly, and the bracket stopped wide. `stationary`: the parameter is
   // stationary at the root (a fold), so the bracket is shrunk in arclength rather than stopped on
   // the parameter's spread.
+  // *bracket: the width in the parameter of the interval left holding the root.
   bool Locate(double h, const Vec& y_h, double psi0, double psi1,
-              const std::function<double(const Vec&)>& psi, bool stationary, Vec* y_root);
+              const std::function<double(const Vec&)>& psi, bool stationary, Vec* y_root,
+              double* bracket);
   // Detects sign changes of the test functions between the current point and (y1, tests1) at
   // arclength h, and appends the located special points. `before_grazing`: (y1, tests1) lies just
   // before a grazing point, where the fixed-signature system may fold by itself; a fold is then
@@ -149,8 +151,8 @@ class BranchTracer {
   // The turn within the step from y_ of arclength h (internal::PitchforkTip from y_'s orbit) into
   // *tip; false where it is not solved or lies outside the step.
   bool TipInStep(double h, Vec* tip);
-  // Records a located special point (and whether the options stop at its kind).
-  void AddSpecial(SpecialPointKind kind, const Vec& y, std::string detail,
+  // Records a special point located within `bracket` (and whether the options stop at its kind).
+  void AddSpecial(SpecialPointKind kind, const Vec& y, double bracket, std::string detail,
                   ContinuationResult* result);
   // Marks the branch to stop after this step when `kind` is one of options.stop_at, or a branch
   // point where the branch meets its own shifted copy (halves_meet_).
@@ -171,6 +173,7 @@ class BranchTracer {
     std::vector<Located> located;
     double sigma = std::numeric_limits<double>::infinity();  // the earliest's arclength from y_
     Vec y;                                                   // the earliest's point
+    double bracket = 0.0;                                    // and its Locate bracket
     Admissibility violation;                                 // and what it violates
   };
   // Each of `violations`, violated at y_end (arclength h_end), located between y_ and there;
@@ -183,8 +186,9 @@ class BranchTracer {
                                  GrazingCrossing* crossing);
   // The grazing point reported where `segment` vanishes: at_graze refined by the tangency
   // system, back in the old signature with that segment of zero length (at_graze when the
-  // tangency system has no sound solution).
-  ContinuationPoint RefinedGrazingPoint(const ContinuationPoint& at_graze, int segment);
+  // tangency system has no sound solution; *solved_exactly false).
+  ContinuationPoint RefinedGrazingPoint(const ContinuationPoint& at_graze, int segment,
+                                        bool* solved_exactly);
   // The old signature's point just before the grazing point y_star (none when it cannot be
   // corrected), after detecting the special points between y_ and it.
   std::optional<ContinuationPoint> SideBeforeGrazing(const Vec& y_star, ContinuationResult* result);

@@ -87,6 +87,11 @@ struct SpecialPoint {
   // segment or touching guard, is degenerate and in general has neither side's multipliers), and
   // point.stability.stable is true only when both sides are known and stable.
   ContinuationPoint point;
+  // Width, in the continued parameter, of the interval known to hold the point: at most
+  // locate_tolerance where its location converged; 0 where it is solved directly (a branch's turn,
+  // a grazing solved in tangent form); wider where trial points next to it stopped correcting,
+  // the point then being the last trial that did, inside the interval.
+  double bracket = 0.0;
   std::string detail;  // e.g. the signature before and after a switch
   // At a grazing or signature change (else not known): the stability just before the point on the
   // old signature (1e-6 of the step's arclength before it) and just after it on the new one (the
