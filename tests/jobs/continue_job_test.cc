@@ -516,6 +516,32 @@ StatusOr<v1::ContinueResult> FollowPdFrom(const char* param, double min, double 
   return RunContinue(request);
 }
 
+// The period-doubled branch's turns (its BRANCH_POINTs), each checked to be the parent orbit at
+// one of its doublings (located on the parent branch independently, by the sign of
+// prod(mu + 1)), traversed twice: solved, not bracketed, with one nontrivial multiplier, the
+// doubling's -1 squared, at 1 to the corrector's tolerance (~1e-10 relative; 1e-6 is the
+// branches' fold test of a multiplier at 1).
+std::vector<v1::SpecialPoint> TurnsAtParentDoublings(const v1::ContinueResult& r) {
+  constexpr double kLocateTolerance = 1e-10;  // the request's default locate_tolerance
+  const std::vector<v1::SpecialPoint> doublings = OfKind(r, v1::SpecialPoint::PERIOD_DOUBLING);
+  const std::vector<v1::SpecialPoint> turns =
+      OfKind(r.period_doubled_branch(), v1::SpecialPoint::BRANCH_POINT);
+  for (const v1::SpecialPoint& s : turns) {
+    EXPECT_EQ(s.bracket(), 0.0) << "the turn is solved, not bracketed";
+    EXPECT_TRUE(std::any_of(doublings.begin(), doublings.end(),
+                            [&](const v1::SpecialPoint& d) {
+                              return d.bracket() <= kLocateTolerance &&
+                                     std::abs(d.value() - s.value()) <= 2 * kLocateTolerance;
+                            }))
+        << "the turn at " << s.value() << " is no doubling of the parent branch";
+    EXPECT_EQ(s.multipliers_size(), 1) << "at " << s.value();
+    if (s.multipliers_size() == 1) {
+      EXPECT_NEAR(s.multipliers(0).re(), 1.0, 1e-6);
+    }
+  }
+  return turns;
+}
+
 // The period-8 omega-branch born at a doubling of the period-4 attractor at omega = 0.15, a = 0.5
 // runs to the other doubling it joins, at omega = 0.4631173123, a period doubling 1.3e-8 and a
 // grazing 4e-9 before it. Next to that turn its system is ill-conditioned (smallest singular
@@ -531,26 +557,36 @@ TEST(RunContinue, PeriodEightBranchEndsAtItsTurnWhereItsStepsStopCorrecting) {
   ASSERT_EQ(doubled.status(), "COMPLETED") << doubled.message();
   ASSERT_FALSE(doubled.points().empty());
   EXPECT_THAT(doubled.points(0).signature_text(), ::testing::EndsWith(" x8"));
-  constexpr double kLocateTolerance = 1e-10;  // the request's default locate_tolerance
-  int turns = 0;
-  for (const v1::SpecialPoint& s : doubled.special_points()) {
-    if (s.kind() != v1::SpecialPoint::BRANCH_POINT) continue;
-    ++turns;
-    EXPECT_EQ(s.bracket(), 0.0) << "the turn is solved, not bracketed";
-    const std::vector<v1::SpecialPoint> doublings = OfKind(*r, v1::SpecialPoint::PERIOD_DOUBLING);
-    EXPECT_TRUE(std::any_of(doublings.begin(), doublings.end(),
-                            [&](const v1::SpecialPoint& d) {
-                              return d.bracket() <= kLocateTolerance &&
-                                     std::abs(d.value() - s.value()) <= 2 * kLocateTolerance;
-                            }))
-        << "the turn at omega = " << s.value() << " is no doubling of the period-4 branch";
-    // One nontrivial multiplier: the doubling's -1, squared. Solved to the corrector's
-    // tolerance, ~1e-10 relative; 1e-6 is the fold's test (a multiplier at 1) of the branches.
-    ASSERT_EQ(s.multipliers_size(), 1);
-    EXPECT_NEAR(s.multipliers(0).re(), 1.0, 1e-6) << "at omega = " << s.value();
-  }
-  EXPECT_EQ(turns, 2) << doubled.message();
+  EXPECT_EQ(TurnsAtParentDoublings(*r).size(), 2u) << doubled.message();
   EXPECT_NEAR(doubled.points(doubled.points_size() - 1).value(), 0.4631173123, 1e-10);
+}
+
+// The period-16 omega-branch born at a doubling of the period-8 attractor at omega = 1.0, a = 2.5
+// stops correcting 2.3e-2 of arclength before its turn at omega = 0.27075185 (Newton's steps
+// stagnate at 2e-9 against a tolerance of 4e-10, the residual at 1e-11), farther than its failed
+// step (1.1e-2) reaches: it crept at 1e-7 .. 1e-5 per step and FAILED ("the corrector failed down
+// to min_step at omega = 0.270755"). The turn solved ahead, with nothing but the turn between
+// (the parameter's change that of a quadratic turn, no multiplier crossing -1), ends it; its
+// detail says that the stretch before it was not traced.
+TEST(RunContinue, PeriodSixteenBranchEndsAtItsTurnSolvedBeyondItsFailedStep) {
+  const StatusOr<v1::ContinueResult> r = FollowPdFrom("omega", 0.05, 2.0, 1.0, 2.5);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const v1::ContinueResult& doubled = r->period_doubled_branch();
+  ASSERT_EQ(doubled.status(), "COMPLETED") << doubled.message();
+  ASSERT_FALSE(doubled.points().empty());
+  EXPECT_THAT(doubled.points(0).signature_text(), ::testing::EndsWith(" x16"));
+  const std::vector<v1::SpecialPoint> turns = TurnsAtParentDoublings(*r);
+  ASSERT_EQ(turns.size(), 2u) << doubled.message();
+  const auto ahead = std::find_if(turns.begin(), turns.end(), [](const v1::SpecialPoint& s) {
+    return std::abs(s.value() - 0.27075185) < 1e-8;
+  });
+  ASSERT_NE(ahead, turns.end());
+  EXPECT_THAT(ahead->detail(), ::testing::HasSubstr("past the last corrected point"));
+  // The branch's decreasing end: no point beyond the turn.
+  const auto lowest = std::min_element(
+      doubled.points().begin(), doubled.points().end(),
+      [](const v1::BranchPoint& p, const v1::BranchPoint& q) { return p.value() < q.value(); });
+  EXPECT_EQ(lowest->value(), ahead->value());
 }
 
 // On the period-4 a-branch at omega = 0.07 (from the period-2 attractor at a = 0.5) the ROP is

@@ -343,15 +343,16 @@ bool BranchTracer::ReportTurn(double h, const TestValues& t1, ContinuationResult
       !TipInStep(h, &tip)) {
     return false;
   }
-  AddTurn(tip, Sign(t0.fold) != Sign(t1.fold), result);
+  AddTurn(tip, Sign(t0.fold) != Sign(t1.fold), "", result);
   return true;
 }
 
-void BranchTracer::AddTurn(const Vec& tip, bool fold, ContinuationResult* result) {
+void BranchTracer::AddTurn(const Vec& tip, bool fold, const std::string& reached,
+                           ContinuationResult* result) {
   const int half = start_signature_.periods / 2;
   const std::string detail = "the branch's turn: the orbit of " + std::to_string(half) +
                              (half == 1 ? " period" : " periods") +
-                             " traversed twice, at its period doubling";
+                             " traversed twice, at its period doubling" + reached;
   if (fold) AddSpecial(SpecialPointKind::kFold, tip, 0.0, detail, result);
   const size_t before = result->special_points.size();
   AddSpecial(SpecialPointKind::kBranchPoint, tip, 0.0, detail, result);
@@ -360,24 +361,49 @@ void BranchTracer::AddTurn(const Vec& tip, bool fold, ContinuationResult* result
 
 bool BranchTracer::TurnAhead(ContinuationResult* result) {
   Vec tip;
-  if (!halves_meet_ || !TipInStep(h_, &tip) ||
-      !AdmissibilityViolations(model_, propagator_, OrbitAt(tip)).empty()) {
-    return false;
-  }
-  AddTurn(tip, /*fold=*/true, result);
+  double sigma = 0.0;
+  if (!halves_meet_ || !SolveTip(&tip, &sigma) || !(sigma > 0.0)) return false;
+  const bool in_step = sigma < h_ && (tip - y_).norm() <= h_;
+  if (!in_step && !OnlyTheTurnAhead(tip, sigma)) return false;
+  if (!AdmissibilityViolations(model_, propagator_, OrbitAt(tip)).empty()) return false;
+  AddTurn(tip, /*fold=*/true,
+          in_step ? std::string()
+                  : "; solved " + ShortNumber(sigma) +
+                        " of arclength past the last corrected point, where steps stopped "
+                        "correcting",
+          result);
   return turn_.has_value();
 }
 
-bool BranchTracer::TipInStep(double h, Vec* tip) {
+bool BranchTracer::OnlyTheTurnAhead(const Vec& tip, double sigma) {
+  // Quadratic to 25%: with a cubic term, p = p_tip - A s^2 + B s^3 in the arclength s to the
+  // turn, the ratio is 1 + (B/A) s0 / 2 + O(s0^2) at s0 = sigma, and dp/dsigma vanishes before
+  // the turn (a second fold) only where (B/A) s0 reaches 2/3, where the ratio has no bound.
+  constexpr double kQuadraticTolerance = 0.25;
+  const double ratio = (tip[m()] - y_[m()]) / (0.5 * t_[m()] * sigma);
+  if (!(sigma <= options_.steps.max_step) || !(std::abs(ratio - 1.0) <= kQuadraticTolerance)) {
+    return false;
+  }
+  const TestValues& t0 = tests_;
+  const TestValues t1 = Tests(tip, t_, t0.branch_point, MakePoint(tip));
+  const bool pair = t0.complex_pair || t1.complex_pair;
+  return Sign(t0.period_doubling) == Sign(t1.period_doubling) &&
+         (!pair || Sign(t0.neimark_sacker) == Sign(t1.neimark_sacker));
+}
+
+bool BranchTracer::SolveTip(Vec* tip, double* sigma) {
   const StatusOr<PeriodicOrbit> o =
       internal::PitchforkTip(model_, propagator_, OrbitAt(y_), param_);
   if (!o.ok() || !(o->signature == bvp_->signature())) return false;
-  Vec y(m() + 1);
-  y << bvp_->Pack(*o), o->params[param_];
-  const double sigma = t_.dot(y - y_);
-  if (!(sigma > 0.0 && sigma < h && (y - y_).norm() <= h)) return false;
-  *tip = y;
+  tip->resize(m() + 1);
+  *tip << bvp_->Pack(*o), o->params[param_];
+  *sigma = t_.dot(*tip - y_);
   return true;
+}
+
+bool BranchTracer::TipInStep(double h, Vec* tip) {
+  double sigma = 0.0;
+  return SolveTip(tip, &sigma) && sigma > 0.0 && sigma < h && (*tip - y_).norm() <= h;
 }
 
 void BranchTracer::LocateViolations(const std::vector<Admissibility>& violations, double h_end,

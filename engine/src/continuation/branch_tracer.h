@@ -140,16 +140,29 @@ class BranchTracer {
   // caller reports none in this step; the turn is the branch's last point (turn_). False (nothing
   // reported) where there is no such turn.
   bool ReportTurn(double h, const TestValues& tests1, ContinuationResult* result);
-  // Reports the turn at `tip` (a FOLD too where `fold`) and keeps it as the branch's last point.
-  void AddTurn(const Vec& tip, bool fold, ContinuationResult* result);
+  // Reports the turn at `tip` (a FOLD too where `fold`; `reached` appended to its detail) and
+  // keeps it as the branch's last point.
+  void AddTurn(const Vec& tip, bool fold, const std::string& reached, ContinuationResult* result);
   // Where a step of a branch that meets its shifted copy fails to correct, the turn may lie
-  // within it: next to the turn the system is singular, and steps that do not jump across it
-  // shrink to min_step (the period-2 omega-branch from omega = 1.5, a = 5.0, at 1.13664). The
-  // turn solved within the failed step and admissible is reported there (AddTurn, a fold); true
-  // when it is.
+  // ahead: next to the turn the system is singular, and steps that do not jump across it shrink
+  // to min_step (the period-2 omega-branch from omega = 1.5, a = 5.0, at 1.13664). The turn,
+  // solved from y_ and admissible, is reported (AddTurn, a fold) where it lies within the failed
+  // step, or beyond it where nothing else lies between (OnlyTheTurnAhead: the period-16
+  // omega-branch from omega = 1.0, a = 2.5, whose steps stop correcting 2.3e-2 of arclength
+  // before its turn at 0.27075185, where the failed step was 1.1e-2 long); true when it is.
   bool TurnAhead(ContinuationResult* result);
-  // The turn within the step from y_ of arclength h (internal::PitchforkTip from y_'s orbit) into
-  // *tip; false where it is not solved or lies outside the step.
+  // Whether the turn at `tip`, `sigma` ahead of y_ along t_ and beyond the failed step, is all
+  // that lies between: within max_step, the parameter's change that of a quadratic turn (the
+  // mean of its rates at y_, t_[m()], and at the turn, 0; no second fold between) and no
+  // multiplier crossing -1 or, with a complex pair, the unit circle (the signs of the
+  // period-doubling and Neimark-Sacker tests at both ends). The stretch is not traced: the
+  // turn's detail says how far it was solved ahead.
+  bool OnlyTheTurnAhead(const Vec& tip, double sigma);
+  // The turn solved from y_'s orbit (internal::PitchforkTip, in the branch's signature) into
+  // *tip, with its arclength ahead of y_ along t_ in *sigma; false where it is not solved.
+  bool SolveTip(Vec* tip, double* sigma);
+  // The turn within the step from y_ of arclength h into *tip; false where it is not solved or
+  // lies outside the step.
   bool TipInStep(double h, Vec* tip);
   // Records a special point located within `bracket` (and whether the options stop at its kind).
   void AddSpecial(SpecialPointKind kind, const Vec& y, double bracket, std::string detail,
