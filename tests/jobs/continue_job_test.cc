@@ -627,6 +627,44 @@ TEST(RunContinue, RopMaximumNextToAGrazingIsNotExceededThere) {
   EXPECT_GE(next_to_grazing, 1);
 }
 
+// On the a-branch at omega = 0.15 (from the attractor at a = 0.5) the ROP rises into the
+// GRAZING_PI at a = 0.6213554427, where an impact appears, and falls beyond it: the branch's ROP
+// has a corner maximum there (slopes 2.5e-3 before and -1.3e-7 after along the branch), which the
+// smooth maxima's test (a sign change of the slope between two points of one signature) does not
+// see. Checked on the branch's own points, independently of the slopes: the points next to the
+// grazing on either side have a lower ROP (by 6.3e-5 and 2.2e-7).
+TEST(RunContinue, RopMaximumAtAGrazingIsReportedThere) {
+  v1::ContinueRequest request;
+  request.set_param("a");
+  request.set_min(0.01);
+  request.set_max(8.0);
+  request.mutable_params()->set_omega(0.15);
+  request.mutable_params()->set_a(0.5);
+  const StatusOr<v1::ContinueResult> r = RunContinue(request);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(r->status(), "COMPLETED") << r->message();
+  const std::vector<v1::SpecialPoint> grazings = OfKind(*r, v1::SpecialPoint::GRAZING_PI);
+  const auto grazing = std::find_if(
+      grazings.begin(), grazings.end(),
+      [](const v1::SpecialPoint& g) { return std::abs(g.value() - 0.6213554427) < 1e-9; });
+  ASSERT_NE(grazing, grazings.end());
+  const std::vector<v1::SpecialPoint> maxima = OfKind(*r, v1::SpecialPoint::ROP_MAX);
+  const auto corner = std::find_if(maxima.begin(), maxima.end(), [&](const v1::SpecialPoint& m) {
+    return m.value() == grazing->value();
+  });
+  ASSERT_NE(corner, maxima.end()) << "no ROP_MAX at the GRAZING_PI at a = " << grazing->value();
+  EXPECT_EQ(corner->rop(), grazing->rop());
+  EXPECT_EQ(corner->bracket(), grazing->bracket());
+  EXPECT_THAT(corner->detail(), ::testing::HasSubstr("at the GRAZING_PI"));
+  const auto& points = r->points();
+  const auto at = std::find_if(points.begin(), points.end(), [&](const v1::BranchPoint& p) {
+    return p.value() == grazing->value();
+  });
+  ASSERT_TRUE(at != points.end() && at != points.begin() && at + 1 != points.end());
+  EXPECT_LT((at - 1)->rop(), at->rop());
+  EXPECT_LT((at + 1)->rop(), at->rop());
+}
+
 // Each grazing carries the stability of the branch just before it. Next to a vanishing segment
 // the rows of its two events nearly coincide, and the point 1e-6 of the arclength before the
 // grazing may not correct: four of the grazings of these two branches (GRAZING_L2 at

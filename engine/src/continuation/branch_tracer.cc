@@ -512,8 +512,8 @@ ContinuationPoint BranchTracer::RefinedGrazingPoint(const ContinuationPoint& at_
   return reported;
 }
 
-std::optional<ContinuationPoint> BranchTracer::SideBeforeGrazing(const Vec& y_star,
-                                                                 ContinuationResult* result) {
+std::optional<ContinuationPoint> BranchTracer::SideBeforeGrazing(
+    const Vec& y_star, ContinuationResult* result, std::optional<TestValues>* tests_before) {
   // The old signature's branch just before the grazing point: the side before's stability, and
   // the end of the interval searched for special points. The monodromy at the grazing point
   // itself is degenerate (a zero-length segment, or a guard touching zero inside one) and in
@@ -547,6 +547,7 @@ std::optional<ContinuationPoint> BranchTracer::SideBeforeGrazing(const Vec& y_st
       // before the turn overran), told from the system's own fold by its multiplier at 1.
       before.branch_point = tests_.branch_point;
       DetectSpecialPoints(sigma, y_before, before, result, /*before_grazing=*/true);
+      *tests_before = before;
     }
   }
   return before_point;
@@ -726,7 +727,9 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     y_graze.head(m()) = bvp_->Pack(reported.orbit);
     y_graze[m()] = reported.value;
   }
-  const std::optional<ContinuationPoint> before_point = SideBeforeGrazing(y_graze, result);
+  std::optional<TestValues> tests_before;
+  const std::optional<ContinuationPoint> before_point =
+      SideBeforeGrazing(y_graze, result, &tests_before);
   std::vector<int> inserted;  // the zero-length segments inserted, in sw.orbit
   const SwitchedOrbit sw = SwitchTogether(at_graze.orbit, CrossedTogether(crossing, h), &inserted);
   if (propagator_.stopped()) return false;  // nothing computed after a stop is kept
@@ -771,8 +774,34 @@ bool BranchTracer::CrossGrazing(double h, const std::vector<Admissibility>& viol
     sp.after = SideOf(point_.stability);
     sp.point.stability.stable = sp.before.known && sp.before.stable && sp.after.stable;
     result->points[pt_index].stability.stable = sp.point.stability.stable;
+    if (tests_before.has_value() && crossing.violation.guard >= 0) {
+      AddCornerMaximum(*tests_before, sp_index, result);
+    }
   }
   return true;
+}
+
+void BranchTracer::AddCornerMaximum(const TestValues& before, size_t grazing,
+                                    ContinuationResult* result) {
+  // The slopes' error: Richardson truncation ~1e-12 and rounding ~1e-13 (Tests); a slope within
+  // it has no established sign.
+  constexpr double kSlopeError = 1e-11;
+  if (!options_.locate || !options_.locate_measure_maxima || before.power != tests_.power ||
+      !(before.slope > kSlopeError && tests_.slope < -kSlopeError)) {
+    return;
+  }
+  SpecialPoint sp = result->special_points[grazing];
+  const std::string measure = tests_.power ? "Pc" : "ROP";
+  sp.detail = "at the " + std::string(SpecialPointKindName(sp.kind)) + ": " + measure +
+              " rises into the grazing on the old signature (slope " + ShortNumber(before.slope) +
+              " along the branch) and falls beyond it on the new one (" +
+              ShortNumber(tests_.slope) + ")";
+  sp.kind = tests_.power ? SpecialPointKind::kPowerMax : SpecialPointKind::kRopMax;
+  sp.before = sp.after = SideStability();
+  sp.near_grazing = NearGrazing();
+  if (propagator_.stopped()) return;
+  NoteStop(sp.kind);
+  result->special_points.push_back(std::move(sp));
 }
 
 bool BranchTracer::CollapsedSegment(const Vec& y1) const {

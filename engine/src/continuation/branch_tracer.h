@@ -203,8 +203,20 @@ class BranchTracer {
   ContinuationPoint RefinedGrazingPoint(const ContinuationPoint& at_graze, int segment,
                                         bool* solved_exactly);
   // The old signature's point just before the grazing point y_star (none when it cannot be
-  // corrected), after detecting the special points between y_ and it.
-  std::optional<ContinuationPoint> SideBeforeGrazing(const Vec& y_star, ContinuationResult* result);
+  // corrected), after detecting the special points between y_ and it; its test values into
+  // *tests_before where they are computed.
+  std::optional<ContinuationPoint> SideBeforeGrazing(const Vec& y_star, ContinuationResult* result,
+                                                     std::optional<TestValues>* tests_before);
+  // A maximum of ROP (Pc where the orbit never progresses) at the grazing point
+  // result->special_points[grazing], where the measure's slope along the branch is positive on
+  // the old signature just before it (`before`) and negative on the new one at its first point
+  // (tests_), each beyond the slopes' error: the measure's largest value is the grazing's, a
+  // corner of the branch's measure, not a smooth maximum. Reported at the grazing's point and
+  // within its bracket, where a guard touches: where a segment vanishes the old signature's
+  // measure is stationary at the grazing to first order (its slope 1e-6 of the step before it
+  // 1e-11 .. 5e-8 against 1e-4 .. 1e-2 beyond, and its sign changing with the step), so whether
+  // the grazing is the maximum is not established.
+  void AddCornerMaximum(const TestValues& before, size_t grazing, ContinuationResult* result);
   // The crossing's violation and its twins at the same point, by decreasing segment index.
   std::vector<Admissibility> CrossedTogether(const GrazingCrossing& crossing, double h) const;
   // The orbit at_graze switched at each of `together` in turn; `inserted` receives the

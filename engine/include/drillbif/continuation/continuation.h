@@ -94,8 +94,8 @@ struct SpecialPoint {
   double bracket = 0.0;
   std::string detail;  // e.g. the signature before and after a switch
   // At a grazing or signature change (else not known): the stability just before the point on the
-  // old signature (1e-6 of the step's arclength before it) and just after it on the new one (the
-  // first point of the new signature's branch).
+  // old signature (1e-6 of the step's arclength before it, up to 1e-2 where nearer points do not
+  // correct) and just after it on the new one (the first point of the new signature's branch).
   SideStability before, after;
   // For a fold, period doubling or Neimark-Sacker point: the grazing of the same branch it sits
   // next to, if any (see NearGrazing).
