@@ -520,9 +520,9 @@ std::optional<ContinuationPoint> BranchTracer::SideBeforeGrazing(
   // general has neither side's multipliers: the period-2 a-branch at omega = 0.4644 has
   // |mu| = 1.67 just before its GRAZING_L1 at a = 0.2048239 and 2.02 just after, and 0.215 at it.
   // Next to a vanishing segment the rows of its two events nearly coincide and a point that
-  // close may not correct (on the period-4 a-branch at omega = 0.07, 12 of 121 grazing points
-  // solved in tangent form): the first of 1e-6, 1e-5, .. 1e-2 of the arclength before the
-  // grazing that corrects is the side before.
+  // close may not correct (the period-2 and period-4 a-branches at omega = 0.07 from a = 0.5: at
+  // 12 of their 121 grazing points): the first of 1e-6, 1e-5, .. 1e-2 of the arclength before
+  // the grazing that corrects is the side before.
   const double sigma_star = t_.dot(y_star - y_);
   double sigma_before = sigma_star;
   Vec y_before;
