@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/format.h"
+#include "continuation/curve_ends.h"
 #include "continuation/curve_tasks.h"
 #include "continuation/grazing_end.h"
 #include "continuation/runner_tasks.h"
@@ -265,7 +266,8 @@ CandidateRun RunCandidate(const HybridModel& model, Propagator& propagator,
   for (PeriodicOrbit& start : starts) {
     seed.point.orbit = std::move(start);
     seed.point.stability = OrbitStability(model, propagator, seed.point.orbit);
-    CurveResult curve = ContinueCurve(model, propagator, seed, co);
+    CurveResult curve =
+        ContinueCurveFromRoot(model, propagator, seed, orbit, candidate.step_off, co);
     run.stopped = propagator.stopped();
     // Started at a last-resort length but never away from the point: the next length is tried
     // (see ApplyRun).

@@ -145,6 +145,13 @@ class CurveTracer {
     return true;
   }
 
+  // The codimension-2 point `root` the curve was stepped off (its segment `vanishing` of zero
+  // length) or, `vanishing` -1, started at (after CorrectStart: its corrected start) as a known
+  // end (CurveEnds::SetKnownEnd).
+  void SetKnownEnd(const PeriodicOrbit& root, int vanishing) {
+    ends_.SetKnownEnd(vanishing < 0 ? start_ : system_.Pack(root), vanishing);
+  }
+
   // The start (on the curve after CorrectStart).
   const Vec& start() const { return start_; }
   // The curve point of y.
@@ -358,11 +365,9 @@ std::string CurveTracer::Trace(const Eigen::Vector2d& dir, const CurveOutputs& o
   return "reached max_steps";
 }
 
-}  // namespace
-
-CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
-                          const SpecialPoint& start, const CurveOptions& options,
-                          const ProgressCallback& progress) {
+CurveResult TraceCurve(const HybridModel& model, Propagator& propagator, const SpecialPoint& start,
+                       const PeriodicOrbit* root, int vanishing, const CurveOptions& options,
+                       const ProgressCallback& progress) {
   CurveResult result;
   ContinuationSummary& sum = result.summary;
   internal::PhaseProgress phase(propagator, progress);
@@ -423,12 +428,14 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
                                               "NEIMARK_SACKER or GRAZING point, not at ") +
                                   SpecialPointKindName(start.kind)));
   }
-  CurveTracer tracer(model, propagator, options, result.kind, *i1, *i2,
-                     result.kind == CurveKind::kGrazing ? tangent_orbit : orbit);
+  const PeriodicOrbit& traced = result.kind == CurveKind::kGrazing ? tangent_orbit : orbit;
+  CurveTracer tracer(model, propagator, options, result.kind, *i1, *i2, traced);
   if (!tracer.CorrectStart()) {
     if (phase.stopped()) return cancelled();
     return fail(Internal("could not put the start point on the curve"));
   }
+  if (root != nullptr && root->signature == traced.signature) tracer.SetKnownEnd(*root, vanishing);
+
   CurvePoint start_point = tracer.MakePoint(tracer.start());
   if (phase.stopped()) return cancelled();
   // One direction, through Poincare-section crossings: each goes on with a tracer in the rotated
@@ -507,6 +514,20 @@ CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
     sum.message = sum.status.message();
   }
   return result;
+}
+
+}  // namespace
+
+CurveResult ContinueCurve(const HybridModel& model, Propagator& propagator,
+                          const SpecialPoint& start, const CurveOptions& options,
+                          const ProgressCallback& progress) {
+  return TraceCurve(model, propagator, start, nullptr, -1, options, progress);
+}
+
+CurveResult internal::ContinueCurveFromRoot(const HybridModel& model, Propagator& propagator,
+                                            const SpecialPoint& start, const PeriodicOrbit& root,
+                                            int vanishing, const CurveOptions& options) {
+  return TraceCurve(model, propagator, start, &root, vanishing, options, {});
 }
 
 }  // namespace drillbif

@@ -6,6 +6,8 @@
 #define DRILLBIF_CONTINUATION_CURVE_ENDS_H_
 
 #include <Eigen/Dense>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +54,12 @@ class CurveEnds {
   CurveEnds(const CurveSystem& system, const CurveCodim2& codim2)
       : system_(system), codim2_(codim2) {}
 
+  // A point of the curve (its unknowns) known to lie on its admissibility boundary: the
+  // codimension-2 point a switched curve was stepped off, where its segment `vanishing` is of
+  // zero length, or (`vanishing` -1) the point it starts at (ContinueCurveFromRoot). A bisection
+  // whose bracket holds the point tries points next to it first (TryKnownEnd).
+  void SetKnownEnd(const Vec& y, int vanishing) { known_end_ = y, known_vanishing_ = vanishing; }
+
   // How a direction that saw a stop ends (nothing computed after the stop is kept).
   static constexpr const char* kCancelledEnd = "cancelled";
 
@@ -94,6 +102,10 @@ class CurveEnds {
   bool IsSectionCrossing(const Admissibility& v, const PeriodicOrbit& end) const;
   bool MayBeSectionCrossing(const Admissibility& v) const;
   void Bisect(const Vec& t, double tol, Boundary* b) const;
+  void TryKnownEnd(const Vec& t, double tol, Boundary* b,
+                   const std::function<void(const Vec&)>& trial) const;
+  // Trial points before a known end (TryKnownEnd): 0.25, 2, 16, 128, 1024 tolerances.
+  static constexpr int kKnownEndTrials = 5;
   Side CorrectMidpoint(PseudoArclengthCorrector* corrector, const Vec& t, const Vec& mid,
                        const Admissibility& seen, Vec* yc, std::string* why,
                        Admissibility* violation) const;
@@ -109,7 +121,17 @@ class CurveEnds {
 
   const CurveSystem& system_;
   const CurveCodim2& codim2_;
+  std::optional<Vec> known_end_;
+  int known_vanishing_ = -1;
 };
+
+// ContinueCurve from `start`, stepped off the codimension-2 point `root` (an orbit of start's
+// signature whose segment `vanishing` is of zero length), or started at it (`vanishing` -1,
+// `root` the start's orbit): the curve's end there is bracketed from points next to the root
+// before the whole step is bisected (CurveEnds::SetKnownEnd).
+CurveResult ContinueCurveFromRoot(const HybridModel& model, Propagator& propagator,
+                                  const SpecialPoint& start, const PeriodicOrbit& root,
+                                  int vanishing, const CurveOptions& options);
 
 }  // namespace drillbif::internal
 

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "curve_ends.h"
 #include "problems/reference_box.h"
 #include "support/multipliers.h"
 #include "support/reference_orbit_test.h"
@@ -335,6 +336,51 @@ TEST_F(GrazingEnd, SteppedOffAFlipGrazingRootThePdCurveOfTheCrossingEndsThere) {
     RecordProperty("back_at_root_" + std::to_string(roots), measured);
   }
   EXPECT_EQ(roots, 2) << message;
+}
+
+// Switching traces a curve stepped off a root with the root known (ContinueCurveFromRoot): the
+// bisection of its end there tries the points next to the root first. The PD curves stepped off
+// the two flip-grazing roots above end where the same curves traced without the root end: every
+// codimension-2 point of either is found by the other, of the same kind, within 1e-9 of the box
+// (the located points' agreement between curves), and bracketed within the bisection's 1e-8.
+TEST_F(GrazingEnd, AKnownRootBracketsTheCurvesEndWhereTheBisectionAloneDoes) {
+  const CurveOptions opt = OmegaABox();
+  const TraceOptions box = testing::ReferenceBox();
+  const double w1 = box.max1 - box.min1, w2 = box.max2 - box.min2;
+  std::string message;
+  const std::vector<CrossingAtRoot> at = CrossingsAtFlipGrazingRoots(&message);
+  ASSERT_EQ(at.size(), 2u) << message;
+  for (const auto& [root, crossing, inserted] : at) {
+    const StatusOr<PeriodicOrbit> off = internal::SolveSegmentLength(
+        model_, prop_, crossing, inserted, 1e-3, CurveKind::kPeriodDoubling, DO::kOmega, DO::kA);
+    ASSERT_TRUE(off.ok()) << "at omega = " << root.point.value1 << ": " << off.status().ToString();
+    SpecialPoint seed;
+    seed.kind = SpecialPointKind::kPeriodDoubling;
+    seed.point.value = off->params[DO::kOmega];
+    seed.point.orbit = *off;
+    seed.point.stability = OrbitStability(model_, prop_, *off);
+    const CurveResult plain = ContinueCurve(model_, prop_, seed, opt);
+    const CurveResult known =
+        internal::ContinueCurveFromRoot(model_, prop_, seed, crossing, inserted, opt);
+    ASSERT_EQ(known.summary.termination, Termination::kCompleted) << known.summary.message;
+    auto found_in = [&](const CurveResult& in, const Codim2Point& p) {
+      return std::any_of(in.codim2.begin(), in.codim2.end(), [&](const Codim2Point& q) {
+        return q.kind == p.kind && std::hypot((q.point.value1 - p.point.value1) / w1,
+                                              (q.point.value2 - p.point.value2) / w2) <= 1e-9;
+      });
+    };
+    ASSERT_FALSE(plain.codim2.empty()) << plain.summary.message;
+    EXPECT_EQ(known.codim2.size(), plain.codim2.size()) << known.summary.message;
+    for (const Codim2Point& p : plain.codim2) {
+      EXPECT_TRUE(found_in(known, p))
+          << Codim2KindName(p.kind) << " at (" << p.point.value1 << ", " << p.point.value2 << ")";
+    }
+    for (const Codim2Point& q : known.codim2) {
+      EXPECT_TRUE(found_in(plain, q))
+          << Codim2KindName(q.kind) << " at (" << q.point.value1 << ", " << q.point.value2 << ")";
+      EXPECT_LE(q.bracket, 1e-8) << Codim2KindName(q.kind) << ": " << q.detail;
+    }
+  }
 }
 
 // Along the level set of orbits with the inserted phase `length` long, a secant on the PD
