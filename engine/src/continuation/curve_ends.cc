@@ -181,14 +181,14 @@ int VanishingSegment(const Admissibility& v, const PeriodicOrbit& o) {
 
 }  // namespace
 
-// A known end (SetKnownEnd) inside the bracket: trial points next to it first, a quarter of the
-// tolerance after it, then (a root stepped off) before it a quarter of the tolerance, 8, 64, ...
-// times that while they are beyond, at most kKnownEndTrials. Each is a trial like any midpoint,
-// so the bracket holds whatever they give; where the boundary is next to the known point the
-// bracket is then closed, or a few halvings from closing, instead of ~17 halvings of the whole
-// step. A root stepped off: only where the bracket's violation is that root's segment vanishing.
-// A curve's own start: only where its first step corrected beyond it, and the trial after it
-// kept only where it violates what that step did (else the bracket is left as it was).
+// A known end (SetKnownEnd) inside the bracket: trial points next to it first. Each is a trial
+// like any midpoint, so the bracket holds whatever they give; where the boundary is next to the
+// known point the bracket is then closed, or a few halvings from closing, instead of ~17
+// halvings of the whole step. A root stepped off, where the bracket's violation is that root's
+// segment vanishing: before it a quarter of the tolerance, 8, 64, ... times that while they are
+// beyond (at most kKnownEndTrials), then a quarter of the tolerance after it. A curve's own
+// start, where its first step corrected beyond it: a quarter of the tolerance after it, kept
+// only where that point violates what the step did (else the bracket is left as it was).
 // Measured in the reference box's trace (`trace_network 1`): of the 335 curves stepped off a
 // root, 329 had an end so bracketed, the boundary within a quarter tolerance of the root at 164,
 // within 2, 16 and 128 before it at 51, 64 and 47 (the root is known to the accuracy it was
@@ -210,18 +210,21 @@ void CurveEnds::TryKnownEnd(const Vec& t, double tol, Boundary* b,
   };
   const double quarter = 0.25 * tol;
   if (!inside(quarter) || system_.Stopped()) return;
-  const Boundary seen = *b;
-  trial(*known_end_ + quarter * t);
   if (at_start) {
+    const Boundary seen = *b;
+    trial(*known_end_ + quarter * t);
     if (!SameViolation(b->violation, seen.violation)) *b = seen;
     return;
   }
+  // Before the root first: Newton converges on that side, where beyond it, next to the
+  // vanishing segment's singular saltation, it can fail after every iteration.
   double back = quarter;
   for (int k = 0; k < kKnownEndTrials && inside(-back) && !system_.Stopped(); ++k, back *= 8.0) {
     const Vec before = b->ya;
     trial(*known_end_ - back * t);
     if (b->ya != before) break;  // admissible: the boundary is bracketed next to the root
   }
+  if (inside(quarter) && !system_.Stopped()) trial(*known_end_ + quarter * t);
 }
 
 // A solved end is kept when within the bracket of the end (beyond it, within what the curve
