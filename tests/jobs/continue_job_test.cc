@@ -542,6 +542,19 @@ std::vector<v1::SpecialPoint> TurnsAtParentDoublings(const v1::ContinueResult& r
   return turns;
 }
 
+// The omega-branch over [0.05, 2] from the attractor at (omega, a), followed through its period
+// doubling (FollowPdFrom) into *out; its period-doubled branch COMPLETED, its signatures ending
+// in `suffix` (" x8": period 8).
+void DoubledOmegaBranch(double omega, double a, const char* suffix, v1::ContinueResult* out) {
+  StatusOr<v1::ContinueResult> r = FollowPdFrom("omega", 0.05, 2.0, omega, a);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const v1::ContinueResult& doubled = r->period_doubled_branch();
+  ASSERT_EQ(doubled.status(), "COMPLETED") << doubled.message();
+  ASSERT_FALSE(doubled.points().empty());
+  EXPECT_THAT(doubled.points(0).signature_text(), ::testing::EndsWith(suffix));
+  *out = *std::move(r);
+}
+
 // The period-8 omega-branch born at a doubling of the period-4 attractor at omega = 0.15, a = 0.5
 // runs to the other doubling it joins, at omega = 0.4631173123, a period doubling 1.3e-8 and a
 // grazing 4e-9 before it. Next to that turn its system is ill-conditioned (smallest singular
@@ -551,13 +564,10 @@ std::vector<v1::SpecialPoint> TurnsAtParentDoublings(const v1::ContinueResult& r
 // fails to correct, ends it: the period-4 orbit at its doubling (located on the period-4 branch
 // independently, by the sign of prod(mu + 1)), traversed twice, with its multiplier at +1.
 TEST(RunContinue, PeriodEightBranchEndsAtItsTurnWhereItsStepsStopCorrecting) {
-  const StatusOr<v1::ContinueResult> r = FollowPdFrom("omega", 0.05, 2.0, 0.15, 0.5);
-  ASSERT_TRUE(r.ok()) << r.status().ToString();
-  const v1::ContinueResult& doubled = r->period_doubled_branch();
-  ASSERT_EQ(doubled.status(), "COMPLETED") << doubled.message();
-  ASSERT_FALSE(doubled.points().empty());
-  EXPECT_THAT(doubled.points(0).signature_text(), ::testing::EndsWith(" x8"));
-  EXPECT_EQ(TurnsAtParentDoublings(*r).size(), 2u) << doubled.message();
+  v1::ContinueResult r;
+  ASSERT_NO_FATAL_FAILURE(DoubledOmegaBranch(0.15, 0.5, " x8", &r));
+  const v1::ContinueResult& doubled = r.period_doubled_branch();
+  EXPECT_EQ(TurnsAtParentDoublings(r).size(), 2u) << doubled.message();
   EXPECT_NEAR(doubled.points(doubled.points_size() - 1).value(), 0.4631173123, 1e-10);
 }
 
@@ -569,13 +579,10 @@ TEST(RunContinue, PeriodEightBranchEndsAtItsTurnWhereItsStepsStopCorrecting) {
 // (the parameter's change that of a quadratic turn, no multiplier crossing -1), ends it; its
 // detail says that the stretch before it was not traced.
 TEST(RunContinue, PeriodSixteenBranchEndsAtItsTurnSolvedBeyondItsFailedStep) {
-  const StatusOr<v1::ContinueResult> r = FollowPdFrom("omega", 0.05, 2.0, 1.0, 2.5);
-  ASSERT_TRUE(r.ok()) << r.status().ToString();
-  const v1::ContinueResult& doubled = r->period_doubled_branch();
-  ASSERT_EQ(doubled.status(), "COMPLETED") << doubled.message();
-  ASSERT_FALSE(doubled.points().empty());
-  EXPECT_THAT(doubled.points(0).signature_text(), ::testing::EndsWith(" x16"));
-  const std::vector<v1::SpecialPoint> turns = TurnsAtParentDoublings(*r);
+  v1::ContinueResult r;
+  ASSERT_NO_FATAL_FAILURE(DoubledOmegaBranch(1.0, 2.5, " x16", &r));
+  const v1::ContinueResult& doubled = r.period_doubled_branch();
+  const std::vector<v1::SpecialPoint> turns = TurnsAtParentDoublings(r);
   ASSERT_EQ(turns.size(), 2u) << doubled.message();
   const auto ahead = std::find_if(turns.begin(), turns.end(), [](const v1::SpecialPoint& s) {
     return std::abs(s.value() - 0.27075185) < 1e-8;
