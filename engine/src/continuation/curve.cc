@@ -435,7 +435,6 @@ CurveResult TraceCurve(const HybridModel& model, Propagator& propagator, const S
     return fail(Internal("could not put the start point on the curve"));
   }
   if (root != nullptr && root->signature == traced.signature) tracer.SetKnownEnd(*root, vanishing);
-
   CurvePoint start_point = tracer.MakePoint(tracer.start());
   if (phase.stopped()) return cancelled();
   // One direction, through Poincare-section crossings: each goes on with a tracer in the rotated
