@@ -187,7 +187,8 @@ void MonodromyGradientRow(const HybridModel& model, Propagator& propagator,
 // `free` (one or two), one condition per free parameter so that the system is square. G's
 // Jacobian is exact, the conditions' rows ConditionRow's (they only steer Newton, the residual is
 // exact). Stops at a scaled step <= tolerance; INTERNAL when Newton fails or stagnates (no tenfold
-// shrinking of the step over 8 iterations, after 16) (`what` names the system).
+// shrinking of the step over 8 iterations, after 16; or its steps shrinking by one ratio, too
+// slowly to reach the tolerance in the 30 iterations) (`what` names the system).
 StatusOr<PeriodicOrbit> SolveWithConditions(const HybridModel& model, Propagator& propagator,
                                             const PeriodicOrbit& guess,
                                             const std::vector<int>& free,
