@@ -41,7 +41,9 @@ StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator&
 // the side of the crossing: that curve's own system is singular at its end (the segment's length
 // goes like the square root of the distance), so it is started from a point off it. From a
 // zero-length `segment` in `guess` the orbit with the segment `length` long is solved first with
-// one parameter free (no monodromy), then the whole system from it.
+// one parameter free (no monodromy), then the whole system from it (each parameter in turn; not
+// from `guess` itself, where the system is singular: a fold / PD / NS curve's step-off fails
+// where neither gives it).
 StatusOr<PeriodicOrbit> SolveSegmentLength(const HybridModel& model, Propagator& propagator,
                                            const PeriodicOrbit& guess, int segment, double length,
                                            CurveKind kind, int index1, int index2,
