@@ -9,11 +9,11 @@ void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<
     out->noalias() = a * b;
     return;
   }
-  out->setZero(n, m);
+  out->resize(n, m);
   for (const int c : columns) {
     for (int i = 0; i < n; ++i) {
-      // From +0, in the depth's order, as the kernel; its final `destination + 1 * sum` with
-      // the zeroed destination changes no bit (a sum started from +0 is never -0).
+      // From +0, in the depth's order, as the kernel; its final `destination + 1 * sum` with a
+      // zeroed destination changes no bit (a sum started from +0 is never -0).
       double sum = 0.0;
       for (int p = 0; p < n; ++p) sum = a(i, p) * b(p, c) + sum;
       (*out)(i, c) = sum;
@@ -79,10 +79,12 @@ Status OrbitBvp::EvaluateInto(const Eigen::Ref<const Eigen::VectorXd>& x, const 
 
 void OrbitBvp::NegatedRowsWithoutPhase(const Eigen::MatrixXd& src, int first,
                                        Eigen::Ref<Eigen::MatrixXd>* gx) const {
-  // As blocks (the rows before the phase's and after it), not row by row: both matrices are
-  // column-major, and a row's entries are a column apart.
-  if (ps_ > 0) gx->middleRows(first, ps_) = -src.topRows(ps_);
-  if (d_ > ps_) gx->middleRows(first + ps_, d_ - ps_) = -src.bottomRows(d_ - ps_);
+  // Column by column (both matrices are column-major: a column's rows are adjacent).
+  for (const int c : dend_columns_) {
+    for (int j = 0, r = 0; j <= d_; ++j) {
+      if (j != ps_) (*gx)(first + r++, c) = -src(j, c);
+    }
+  }
 }
 
 Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
@@ -108,10 +110,9 @@ Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const 
     for (int w = 0; w < num_wanted; ++w) wanted[w].domega = fp(ps_, wanted[w].index);
   }
   g->setZero(m);
-  // gx's rows are each written whole below (a guard's row by its product over all columns, the
-  // continuity and periodicity rows by negated rows of dend and jdend, the constraint's row
-  // zeroed and filled) but for the phase condition's row, zeroed where it is written: no
-  // zeroing pass over the whole matrix.
+  // gx is zeroed once, then each segment's rows are written in the columns where they are not
+  // zero: its own start and duration and the earlier durations (dend_columns_).
+  if (gx) gx->setZero();
   if (gp) gp->setZero(m);
   if (gp2) gp2->setZero(m);
   if (flows) flows->resize(k);
@@ -163,6 +164,10 @@ Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const 
       for (int jseg = 0; jseg < i; ++jseg) {
         dend.col(jseg * (d_ + 1) + d_) += omega * fr.state_jacobian.col(ps_);
       }
+      // dend is zero outside these columns.
+      dend_columns_.clear();
+      for (int jseg = 0; jseg < i; ++jseg) dend_columns_.push_back(jseg * (d_ + 1) + d_);
+      for (int j = 0; j <= d_; ++j) dend_columns_.push_back(col + j);
     }
     for (int w = 0; w < num_wanted; ++w) {
       dend_p[w] = fr.param_jacobian.col(wanted[w].index) +
@@ -173,8 +178,10 @@ Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const 
       // Event condition, then continuity through the jump into the next segment's start.
       (*g)[row] = model_.Guard(seg.mode, seg.guard, xe, params).h;
       const StateRow grad = model_.GuardGradient(seg.mode, seg.guard, xe, params);
-      // Straight into gx's row (no temporary: neither factor is gx), the same sums as through one.
-      if (gx) gx->row(row).noalias() = grad * dend;
+      // Column by column, each the dot product Eigen's product of the row and dend would sum.
+      if (gx) {
+        for (const int c : dend_columns_) (*gx)(row, c) = grad.dot(dend.col(c).transpose());
+      }
       if (want_p) {
         const ParamVector pgrad = model_.GuardParamGradient(seg.mode, seg.guard, xe, params);
         for (int w = 0; w < num_wanted; ++w) {
@@ -191,14 +198,9 @@ Status OrbitBvp::EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const 
       } else {
         tr = model_.Jump(seg.mode, seg.guard, xe, params);
       }
-      if (gx) {
-        // dend is zero outside this segment's columns and the earlier durations' (one product
-        // per segment over all m columns dominated the evaluation's cost).
-        dend_columns_.clear();
-        for (int jseg = 0; jseg < i; ++jseg) dend_columns_.push_back(jseg * (d_ + 1) + d_);
-        for (int j = 0; j <= d_; ++j) dend_columns_.push_back(col + j);
-        ProductOnColumns(tr.jacobian, dend, dend_columns_, &jdend);
-      }
+      // Only dend's nonzero columns (one product per segment over all m columns dominated the
+      // evaluation's cost).
+      if (gx) ProductOnColumns(tr.jacobian, dend, dend_columns_, &jdend);
       StateVector jdend_p[2];
       for (int w = 0; w < num_wanted; ++w) {
         jdend_p[w] = tr.jacobian * dend_p[w] + tr.param_jacobian.col(wanted[w].index);

@@ -13,12 +13,12 @@
 
 namespace drillbif::internal {
 
-// *out = a * b for an n x n `a` and an n x m `b` whose columns other than `columns` are zero,
-// computing only those: the same bits as Eigen's `out->noalias() = a * b` (its general product
-// kernel for these shapes starts every entry from +0, adds the depth's products in order, and adds
-// the sum, times alpha = 1, to the zeroed destination, so a zero column gives +0 for a finite
-// `a`). Where Eigen would take its coefficient-based product instead (2 n + m below
-// EIGEN_GEMM_TO_COEFFBASED_THRESHOLD), or `a` is not finite, it is Eigen's product itself.
+// The columns `columns` of a * b, for an n x n `a` and an n x m `b`, into *out (resized to n x m;
+// its other columns are left as they were or are a * b's): the same bits as Eigen's
+// `out->noalias() = a * b` gives them (its general product kernel for these shapes starts every
+// entry from +0, adds the depth's products in order, and adds the sum, times alpha = 1, to the
+// zeroed destination). Where Eigen would take its coefficient-based product instead (2 n + m
+// below EIGEN_GEMM_TO_COEFFBASED_THRESHOLD), or `a` is not finite, it is Eigen's product itself.
 void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<const int> columns,
                       Eigen::MatrixXd* out);
 
@@ -59,7 +59,8 @@ class OrbitBvp {
   Status EvaluateImpl(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& params,
                       Eigen::VectorXd* g, Eigen::Ref<Eigen::MatrixXd>* gx, Eigen::VectorXd* gp,
                       Eigen::VectorXd* gp2, std::vector<FlowResult>* flows) const;
-  // gx's rows first, first + 1, ... = -(`src`'s rows but the phase's), src n x size().
+  // gx's rows first, first + 1, ... = -(`src`'s rows but the phase's) in the columns
+  // dend_columns_ (src n x size()).
   void NegatedRowsWithoutPhase(const Eigen::MatrixXd& src, int first,
                                Eigen::Ref<Eigen::MatrixXd>* gx) const;
 
@@ -72,7 +73,7 @@ class OrbitBvp {
   // Evaluate's workspace (d end / dX, and the jump's Jacobian times it), kept so that Newton's
   // iterations do not allocate it anew: an OrbitBvp is used by one thread (its propagator's).
   mutable Eigen::MatrixXd dend_, jdend_;
-  mutable std::vector<int> dend_columns_;  // dend_'s columns that are not zero
+  mutable std::vector<int> dend_columns_;  // dend_'s columns that are not zero (its segment's)
 };
 
 }  // namespace drillbif::internal
