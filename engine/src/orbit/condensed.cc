@@ -71,9 +71,11 @@ bool CondensedLu::Condense(const Eigen::MatrixXd& a) {
   // xi's order] for det(a)'s sign: there a is [[M_w, M_xi], [N_w, N_xi]] with M_w block lower
   // triangular (diagonal blocks [[pivot, 0], [*, I]], or I where the duration is kept), and the
   // reduced matrix is the Schur complement N_xi - N_w M_w^-1 M_xi.
-  std::vector<int> row_order, col_order, kept_rows, kept_cols;
-  row_order.reserve(size);
-  col_order.reserve(size);
+  std::vector<int>& row_order = row_order_;
+  std::vector<int>& col_order = col_order_;
+  std::vector<int> kept_rows, kept_cols;
+  row_order.clear();
+  col_order.clear();
   double sign = 1.0;
   Eigen::MatrixXd known(n_, most);
   for (int i = 0; i + 1 < k_; ++i) {
@@ -127,8 +129,7 @@ bool CondensedLu::Condense(const Eigen::MatrixXd& a) {
   for (int j = 0; j < q; ++j) col_order.push_back(m + j);
   for (int j = 0; j < d; ++j) col_order.push_back(j);
   col_order.insert(col_order.end(), kept_cols.begin(), kept_cols.end());
-  sign_ = sign * PermutationSign(row_order) * PermutationSign(col_order) *
-          Sign(reduced_lu_.determinant());
+  sign_ = sign * Sign(reduced_lu_.determinant());
   return true;
 }
 
@@ -160,7 +161,8 @@ Eigen::VectorXd CondensedLu::Solve(const Eigen::VectorXd& b) const {
 }
 
 double CondensedLu::DeterminantSign() const {
-  return condensed_ ? sign_ : Sign(dense_lu_.determinant());
+  if (!condensed_) return Sign(dense_lu_.determinant());
+  return sign_ * PermutationSign(row_order_) * PermutationSign(col_order_);
 }
 
 }  // namespace drillbif::internal

@@ -7,6 +7,7 @@
 #define DRILLBIF_ORBIT_CONDENSED_H_
 
 #include <Eigen/Dense>
+#include <vector>
 
 namespace drillbif::internal {
 
@@ -80,7 +81,10 @@ class CondensedLu {
   Eigen::VectorXd pivot_;  // event row i's own-duration entry; 0: duration kept
   Eigen::PartialPivLU<Eigen::MatrixXd> reduced_lu_;
   Eigen::PartialPivLU<Eigen::MatrixXd> dense_lu_;
-  double sign_ = 0.0;  // det(a)'s sign from the permutations and eliminated pivots (condensed)
+  // det(a)'s sign but the permutations' (the eliminated pivots' and the reduced LU's), and the
+  // permutations, whose signs are taken only when asked for (condensed).
+  double sign_ = 0.0;
+  std::vector<int> row_order_, col_order_;
 };
 
 }  // namespace drillbif::internal
