@@ -11,12 +11,15 @@ void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<
   }
   out->resize(n, m);
   for (const int c : columns) {
-    for (int i = 0; i < n; ++i) {
-      // From +0, in the depth's order, as the kernel; its final `destination + 1 * sum` with a
-      // zeroed destination changes no bit (a sum started from +0 is never -0).
-      double sum = 0.0;
-      for (int p = 0; p < n; ++p) sum = a(i, p) * b(p, c) + sum;
-      (*out)(i, c) = sum;
+    // Each entry from +0, in the depth's order, as the kernel; its final `destination + 1 * sum`
+    // with a zeroed destination changes no bit (a sum started from +0 is never -0). The rows
+    // innermost, a column of `a` at a time.
+    double* o = &(*out)(0, c);
+    for (int i = 0; i < n; ++i) o[i] = 0.0;
+    for (int p = 0; p < n; ++p) {
+      const double bp = b(p, c);
+      const double* ap = &a(0, p);
+      for (int i = 0; i < n; ++i) o[i] = ap[i] * bp + o[i];
     }
   }
 }
