@@ -2,6 +2,23 @@
 
 namespace drillbif::internal {
 
+namespace {
+
+// out = a * b for an n x n column-major `a` (leading dimension lda) and an n-vector b, each entry
+// summed from +0 in the depth's order; N: n known at compile time (0: not), so that the rows,
+// innermost, are unrolled and vectorized.
+template <int N>
+void ColumnProduct(int n, const double* a, int lda, const double* b, double* out) {
+  if constexpr (N > 0) n = N;
+  double acc[N > 0 ? N : 8] = {};
+  for (int p = 0; p < n; ++p) {
+    for (int i = 0; i < n; ++i) acc[i] = a[p * lda + i] * b[p] + acc[i];
+  }
+  for (int i = 0; i < n; ++i) out[i] = acc[i];
+}
+
+}  // namespace
+
 void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<const int> columns,
                       Eigen::MatrixXd* out) {
   const int n = static_cast<int>(a.rows()), m = static_cast<int>(b.cols());
@@ -10,16 +27,14 @@ void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<
     return;
   }
   out->resize(n, m);
+  // Each entry from +0, in the depth's order, as the kernel; its final `destination + 1 * sum`
+  // with a zeroed destination changes no bit (a sum started from +0 is never -0).
+  const int lda = static_cast<int>(a.outerStride());
   for (const int c : columns) {
-    // Each entry from +0, in the depth's order, as the kernel; its final `destination + 1 * sum`
-    // with a zeroed destination changes no bit (a sum started from +0 is never -0). The rows
-    // innermost, a column of `a` at a time.
-    double* o = &(*out)(0, c);
-    for (int i = 0; i < n; ++i) o[i] = 0.0;
-    for (int p = 0; p < n; ++p) {
-      const double bp = b(p, c);
-      const double* ap = &a(0, p);
-      for (int i = 0; i < n; ++i) o[i] = ap[i] * bp + o[i];
+    if (n == 4) {
+      ColumnProduct<4>(n, a.data(), lda, &b(0, c), &(*out)(0, c));
+    } else {
+      ColumnProduct<0>(n, a.data(), lda, &b(0, c), &(*out)(0, c));
     }
   }
 }
