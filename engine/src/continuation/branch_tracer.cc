@@ -72,14 +72,14 @@ Status BranchTracer::Init(const PeriodicOrbit& start, int sign, bool record_star
   return Status::Ok();
 }
 
-bool BranchTracer::System::Evaluate(const Vec& y, Vec* f, Eigen::MatrixXd* jac) const {
+bool BranchTracer::System::EvaluateInto(const Vec& y, Vec* f,
+                                        Eigen::Ref<Eigen::MatrixXd>* jac) const {
   const int m = tracer_.m();
   const Params prm = tracer_.ParamsAt(y[m]);
   if (!tracer_.model_.ValidateParams(prm).ok()) return false;
   if (!jac) return tracer_.bvp_->Evaluate(y.head(m), prm, f, nullptr, nullptr).ok();
   // G's Jacobian goes straight into jac's left block.
   Vec gp;
-  jac->resize(m, m + 1);
   if (!tracer_.bvp_->EvaluateInto(y.head(m), prm, f, jac->leftCols(m), &gp).ok()) return false;
   jac->col(m) = gp;
   return true;

@@ -67,7 +67,7 @@ class BranchTracer {
   class System : public CorrectorSystem {
    public:
     explicit System(const BranchTracer& tracer) : tracer_(tracer) {}
-    bool Evaluate(const Vec& y, Vec* f, Eigen::MatrixXd* jac) const override;
+    bool EvaluateInto(const Vec& y, Vec* f, Eigen::Ref<Eigen::MatrixXd>* jac) const override;
     bool Stopped() const override { return tracer_.propagator_.stopped(); }
     bool Valid(const Vec& y) const override;
     int Segments() const override { return tracer_.bvp_->segments(); }

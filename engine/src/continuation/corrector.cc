@@ -17,7 +17,9 @@ bool PseudoArclengthCorrector::Correct(const CorrectorOptions& options, const Ve
   *y = y_pred;
   steps_ = 0;
   Vec f;
-  Mat jac, a(n, n);
+  Mat a(n, n);
+  // F's Jacobian straight into the bordered matrix's top rows (no copy per iteration).
+  Eigen::Ref<Mat> jac(a.topRows(n - 1));
   Vec r(n);
   double last_norm = std::numeric_limits<double>::infinity();
   // The condition's residual must be small too, not only the step (condition_tolerance; why: the
@@ -44,15 +46,12 @@ bool PseudoArclengthCorrector::Correct(const CorrectorOptions& options, const Ve
     // After convergence, chord steps: the residual alone (for a curve one monodromy, not one
     // per unknown) and the last factorization (the Jacobian moves by O(the step), ~1e-10).
     const bool chord = converged_at > 0;
-    if (!system_.Evaluate(*y, &f, chord ? nullptr : &jac)) return chord && settle(after == 0);
+    if (!system_.EvaluateInto(*y, &f, chord ? nullptr : &jac)) return chord && settle(after == 0);
     const double condition = std::abs(f[n - 2]);
     if (chord && (condition <= options.condition_tolerance || condition > 0.5 * last_condition)) {
       return settle(after == 0 || condition <= last_condition);
     }
-    if (!chord) {
-      a.topRows(n - 1) = jac;
-      a.bottomRows(1) = dir.transpose();
-    }
+    if (!chord) a.bottomRows(1) = dir.transpose();
     r.head(n - 1) = f;
     r[n - 1] = dir.dot(*y - y_pred);
     if (!chord) {

@@ -30,8 +30,16 @@ class CorrectorSystem {
   // F(y) (n - 1 values) into *f and, when `jac` is given, its Jacobian (n - 1 rows, n columns).
   // False where F cannot be evaluated at y (parameters out of the model's range, a flow that
   // fails, a value that is not finite where the system checks it).
-  virtual bool Evaluate(const Eigen::VectorXd& y, Eigen::VectorXd* f,
-                        Eigen::MatrixXd* jac) const = 0;
+  bool Evaluate(const Eigen::VectorXd& y, Eigen::VectorXd* f, Eigen::MatrixXd* jac) const {
+    if (jac == nullptr) return EvaluateInto(y, f, nullptr);
+    jac->resize(y.size() - 1, y.size());
+    Eigen::Ref<Eigen::MatrixXd> block(*jac);
+    return EvaluateInto(y, f, &block);
+  }
+  // As Evaluate, with the Jacobian written into *jac, n - 1 rows and n columns (the corrector's
+  // bordered matrix but its last row), every entry.
+  virtual bool EvaluateInto(const Eigen::VectorXd& y, Eigen::VectorXd* f,
+                            Eigen::Ref<Eigen::MatrixXd>* jac) const = 0;
   // Whether a stop was requested: the corrector gives up at its next iteration.
   virtual bool Stopped() const = 0;
   // Whether a converged point is one the caller keeps (CorrectorOptions::validate_result).

@@ -24,10 +24,16 @@ class FunctionSystem : public CorrectorSystem {
   using Function = std::function<void(const Vec& y, Vec* f, Mat* jac)>;
   explicit FunctionSystem(Function f) : f_(std::move(f)) {}
 
-  bool Evaluate(const Vec& y, Vec* f, Mat* jac) const override {
+  bool EvaluateInto(const Vec& y, Vec* f, Eigen::Ref<Mat>* jac) const override {
     ++evaluations;
-    if (jac) ++jacobians;
-    f_(y, f, jac);
+    if (jac == nullptr) {
+      f_(y, f, nullptr);
+    } else {
+      ++jacobians;
+      Mat j;
+      f_(y, f, &j);
+      *jac = j;
+    }
     return f->allFinite();
   }
   bool Stopped() const override { return stopped; }

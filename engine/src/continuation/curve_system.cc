@@ -17,7 +17,7 @@ namespace {
 // a finite x and NaN for an infinite or NaN one, so the sum is NaN exactly when some entry is
 // not finite. (allFinite tests entry by entry with a branch each: ~2% of the reference box's
 // trace on these dense (m + 1) x n Jacobians.)
-bool AllFinite(const Mat& a) { return !std::isnan((a.array() * 0.0).sum()); }
+bool AllFinite(const Eigen::Ref<const Mat>& a) { return !std::isnan((a.array() * 0.0).sum()); }
 
 }  // namespace
 
@@ -92,7 +92,7 @@ double CurveSystem::Sigma(const Eigen::Ref<const Mat>& monodromy) const {
   return sigma_(ShiftedMonodromy(kind_, monodromy));
 }
 
-bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
+bool CurveSystem::EvaluateInto(const Vec& y, Vec* f, Eigen::Ref<Mat>* jac) const {
   const Params prm = ParamsAt(y);
   if (!model_.ValidateParams(prm).ok()) return false;
   // Members, kept between calls so that Newton's iterations do not allocate them anew.
@@ -106,7 +106,6 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
   // same bits whatever else it computed.
   const bool shared_flows = kind_ != CurveKind::kGrazing && propagator_.FlowIndependentOfRequest();
   // G's Jacobian goes straight into jac's top-left block (every entry written there).
-  if (jac) jac->resize(m() + 1, n());
   const Status evaluated =
       jac ? bvp1_.EvaluateInto(y.head(m()), prm, &g, jac->topLeftCorner(m(), m()), &gp1, &gp2,
                                shared_flows ? &flows : nullptr)
@@ -175,7 +174,8 @@ bool CurveSystem::Evaluate(const Vec& y, Vec* f, Mat* jac) const {
 // Unpack(y), `base` its factors, `flows` the segments' flows they were made from.
 void CurveSystem::SigmaRow(const Vec& y, const PeriodicOrbit& o,
                            const std::vector<StateMatrix>& base,
-                           const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const {
+                           const std::vector<FlowResult>& flows, double sigma0,
+                           Eigen::Ref<Mat>* jac) const {
   SigmaWithGradient(kind_, sigma_, ReducedMonodromy(model_, base), &gradient_);
   MonodromyGradientRow(model_, propagator_, o, base, flows, gradient_, jac->row(m()).head(m()),
                        &row_scratch_);

@@ -49,7 +49,7 @@ class CurveSystem : public CorrectorSystem {
   int index2() const { return index2_; }
 
   // CorrectorSystem: F(y) = (G, condition) and its Jacobian (n - 1 rows, n columns).
-  bool Evaluate(const Vec& y, Vec* f, Mat* jac) const override;
+  bool EvaluateInto(const Vec& y, Vec* f, Eigen::Ref<Mat>* jac) const override;
   // Whether the propagator's throttle has seen a stop: nothing computed since is kept.
   bool Stopped() const override { return propagator_.stopped(); }
   int Segments() const override { return bvp1_.segments(); }
@@ -127,7 +127,7 @@ class CurveSystem : public CorrectorSystem {
   double Sigma(const Eigen::Ref<const Mat>& monodromy) const;
   // The condition's row of the Jacobian (forward differences).
   void SigmaRow(const Vec& y, const PeriodicOrbit& o, const std::vector<StateMatrix>& base,
-                const std::vector<FlowResult>& flows, double sigma0, Mat* jac) const;
+                const std::vector<FlowResult>& flows, double sigma0, Eigen::Ref<Mat>* jac) const;
 
   const HybridModel& model_;
   Propagator& propagator_;
