@@ -26,6 +26,42 @@ double PermutationSign(const std::vector<int>& perm) {
 
 double Sign(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
 
+// known's first r columns = inner block i's rows of `a` (n of them, rows of n unknowns per segment)
+// times the unknowns' expressions e over the columns before the block's duration, where those
+// rows are zero in the earlier starts' columns (a shooting system's: a segment's end moves with
+// its own start and, through its phase, the earlier durations). Summed over the nonzero columns
+// only, the earlier durations' then the own start's, each entry from +0 in the columns' order, as
+// Eigen's product of the whole rows sums: the zeros left out change no bit but a zero's sign.
+// False (nothing written) where the rows are not zero there. N: n known at compile time (0: not,
+// n <= kMaxBlock), so that the rows, innermost, are unrolled.
+constexpr int kMaxBlock = 64;
+template <int N>
+bool ShootingBlockProduct(const Eigen::MatrixXd& a, const Eigen::MatrixXd& e, int n, int i, int r,
+                          Eigen::MatrixXd* known) {
+  if constexpr (N > 0) n = N;
+  const int row = i * n, d = n - 1;
+  for (int s = 0; s < i; ++s) {
+    for (int p = s * n; p < s * n + d; ++p) {
+      const double* q = &a(row, p);
+      for (int j = 0; j < n; ++j) {
+        if (q[j] != 0.0) return false;
+      }
+    }
+  }
+  for (int col = 0; col < r; ++col) {
+    double acc[N > 0 ? N : kMaxBlock] = {};
+    auto add = [&](int p) {
+      const double* q = &a(row, p);
+      const double x = e(p, col);
+      for (int j = 0; j < n; ++j) acc[j] = q[j] * x + acc[j];
+    };
+    for (int s = 0; s < i; ++s) add(s * n + d);
+    for (int p = i * n; p < i * n + d; ++p) add(p);
+    for (int j = 0; j < n; ++j) (*known)(j, col) = acc[j];
+  }
+  return true;
+}
+
 }  // namespace
 
 CondensedLu::CondensedLu(int segments, int block, CondensedMode mode, double max_growth)
@@ -82,7 +118,12 @@ bool CondensedLu::Condense(const Eigen::MatrixXd& a) {
     const int row = i * n_, c = i * n_ + d;  // c: this segment's duration column
     // The block's rows applied to the unknowns already expressed in xi (columns before c, the
     // parameters).
-    known.leftCols(r).noalias() = a.block(row, 0, n_, c) * e_.topLeftCorner(c, r);
+    const bool sparse = n_ == 4
+                            ? ShootingBlockProduct<4>(a, e_, n_, i, r, &known)
+                            : n_ <= kMaxBlock && ShootingBlockProduct<0>(a, e_, n_, i, r, &known);
+    if (!sparse) {
+      known.leftCols(r).noalias() = a.block(row, 0, n_, c) * e_.topLeftCorner(c, r);
+    }
     known.leftCols(q) += a.block(row, m, n_, q);
     const double pivot = a(row, c);
     const double scale = a.block(row, i * n_, 1, n_).cwiseAbs().maxCoeff();

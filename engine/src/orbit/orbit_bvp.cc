@@ -97,11 +97,11 @@ Status OrbitBvp::EvaluateInto(const Eigen::Ref<const Eigen::VectorXd>& x, const 
 
 void OrbitBvp::NegatedRowsWithoutPhase(const Eigen::MatrixXd& src, int first,
                                        Eigen::Ref<Eigen::MatrixXd>* gx) const {
-  // Column by column (both matrices are column-major: a column's rows are adjacent).
+  // Column by column (both matrices are column-major: a column's rows are adjacent), the rows
+  // before the phase's and after it.
   for (const int c : dend_columns_) {
-    for (int j = 0, r = 0; j <= d_; ++j) {
-      if (j != ps_) (*gx)(first + r++, c) = -src(j, c);
-    }
+    for (int r = 0; r < ps_; ++r) (*gx)(first + r, c) = -src(r, c);
+    for (int r = ps_; r < d_; ++r) (*gx)(first + r, c) = -src(r + 1, c);
   }
 }
 
