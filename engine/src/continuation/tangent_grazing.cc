@@ -387,8 +387,8 @@ void PartialProducts(const std::vector<StateMatrix>& base, std::vector<StateMatr
   prefix->resize(k + 1);
   suffix->resize(k + 1);
   (*prefix)[0] = (*suffix)[k] = StateMatrix::Identity(n, n);
-  for (int i = 0; i < k; ++i) (*prefix)[i + 1] = base[i] * (*prefix)[i];
-  for (int i = k - 1; i >= 0; --i) (*suffix)[i] = (*suffix)[i + 1] * base[i];
+  for (int i = 0; i < k; ++i) MultiplyFactors(base[i], (*prefix)[i], &(*prefix)[i + 1]);
+  for (int i = k - 1; i >= 0; --i) MultiplyFactors((*suffix)[i + 1], base[i], &(*suffix)[i]);
 }
 
 }  // namespace

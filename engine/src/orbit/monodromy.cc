@@ -30,16 +30,9 @@ void FactorFromFlowInto(const HybridModel& model, const PeriodicOrbit& orbit, in
   }
   const StateMatrix salt = model.Saltation(
       seg.mode, seg.guard, orbit.signature.segments[i + 1].mode, x_end, orbit.params);
-  out->resize(phi.rows(), phi.cols());
-  if (phi.rows() == 4) {
-    // The drifting oscillator's size at fixed size: unrolled, and the same sums in the same
-    // order as the dynamic product (each entry accumulated over k = 0..3 in turn).
-    using Mat4 = Eigen::Matrix4d;
-    Mat4::Map(out->data()).noalias() = Mat4::Map(salt.data()) * Mat4::Map(phi.data());
-  } else {
-    out->noalias() = salt * phi;
-  }
+  MultiplyFactors(salt, phi, out);
 }
+
 
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit,

@@ -26,6 +26,20 @@ StateMatrix FactorFromFlow(const HybridModel& model, const PeriodicOrbit& orbit,
 void FactorFromFlowInto(const HybridModel& model, const PeriodicOrbit& orbit, int i,
                         const StateVector& x_end, const StateMatrix& phi, StateMatrix* out);
 
+// *out = a * b for two factors (state_dim x state_dim; `out` neither of them): for a state of four
+// (the drifting oscillator's) at fixed size, unrolled, with the same sums in the same order as the
+// dynamic-size product (each entry accumulated over k = 0..3 in turn; monodromy_test compares
+// the bits).
+inline void MultiplyFactors(const StateMatrix& a, const StateMatrix& b, StateMatrix* out) {
+  out->resize(a.rows(), b.cols());
+  if (a.rows() == 4 && a.cols() == 4 && b.cols() == 4) {
+    using Mat4 = Eigen::Matrix4d;
+    Mat4::Map(out->data()).noalias() = Mat4::Map(a.data()) * Mat4::Map(b.data());
+  } else {
+    out->noalias() = a * b;
+  }
+}
+
 // Every factor of the orbit, in segment order. `flows`, when given, receives each segment's flow
 // (end state and flow Jacobian) its factor was made from.
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,

@@ -112,6 +112,52 @@ TEST_F(Monodromy, FactorFromFlowIsTheGenericSaltationTimesTheFlowBitForBit) {
   EXPECT_GT(salted, 0);
 }
 
+// MultiplyFactors multiplies two factors at fixed size for a 4-dimensional state: compared bit
+// for bit with the dynamic-size product, for entries of either sign over several decades with
+// exact zeros, negative zeros and ones among them, but for the sign of a zero: the fixed-size
+// product starts each sum from its first product, the dynamic one from +0, so a sum of products
+// that are all -0 is -0 in one and +0 in the other (equal values; a zero's sign changes no sum,
+// product or quotient that is not itself zero or a division by it).
+TEST(MultiplyFactors, IsTheDynamicProductBitForBit) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> mantissa(-1.0, 1.0), decade(-3.0, 3.0);
+  std::uniform_int_distribution<int> pick(0, 7);
+  auto entry = [&]() {
+    switch (pick(rng)) {
+      case 0:
+        return 0.0;
+      case 1:
+        return -0.0;
+      case 2:
+        return 1.0;
+      default:
+        return mantissa(rng) * std::pow(10.0, decade(rng));
+    }
+  };
+  for (int trial = 0; trial < 200; ++trial) {
+    StateMatrix a(4, 4), b(4, 4);
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) {
+        a(r, c) = entry();
+        b(r, c) = entry();
+      }
+    }
+    StateMatrix expected(4, 4), got;
+    expected.noalias() = a * b;
+    internal::MultiplyFactors(a, b, &got);
+    ASSERT_EQ(got.rows(), 4);
+    ASSERT_EQ(got.cols(), 4);
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) {
+        const bool same_bits = std::memcmp(&got(r, c), &expected(r, c), sizeof(double)) == 0;
+        EXPECT_TRUE(same_bits || (got(r, c) == 0.0 && expected(r, c) == 0.0))
+            << "trial " << trial << " entry (" << r << ", " << c << "): " << got(r, c)
+            << " against " << expected(r, c);
+      }
+    }
+  }
+}
+
 // ReducedMonodromy multiplies the factors at fixed size for a 4-dimensional state; the monodromy
 // must not depend on that, so with the reference orbit's factors and with random ones (entries
 // of either sign over several decades, 1 to 6 factors, where a different order of the sums would
