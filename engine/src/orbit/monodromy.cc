@@ -33,7 +33,6 @@ void FactorFromFlowInto(const HybridModel& model, const PeriodicOrbit& orbit, in
   MultiplyFactors(salt, phi, out);
 }
 
-
 std::vector<StateMatrix> MonodromyFactors(const HybridModel& model, Propagator& propagator,
                                           const PeriodicOrbit& orbit,
                                           std::vector<FlowResult>* flows) {

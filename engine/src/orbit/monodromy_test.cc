@@ -12,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "problems/awkward_entries.h"
 #include "support/reference_orbit_test.h"
 
 namespace drillbif {
@@ -119,21 +120,7 @@ TEST_F(Monodromy, FactorFromFlowIsTheGenericSaltationTimesTheFlowBitForBit) {
 // that are all -0 is -0 in one and +0 in the other (equal values; a zero's sign changes no sum,
 // product or quotient that is not itself zero or a division by it).
 TEST(MultiplyFactors, IsTheDynamicProductBitForBit) {
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> mantissa(-1.0, 1.0), decade(-3.0, 3.0);
-  std::uniform_int_distribution<int> pick(0, 7);
-  auto entry = [&]() {
-    switch (pick(rng)) {
-      case 0:
-        return 0.0;
-      case 1:
-        return -0.0;
-      case 2:
-        return 1.0;
-      default:
-        return mantissa(rng) * std::pow(10.0, decade(rng));
-    }
-  };
+  testing::AwkwardEntries entry(7);
   for (int trial = 0; trial < 200; ++trial) {
     StateMatrix a(4, 4), b(4, 4);
     for (int r = 0; r < 4; ++r) {

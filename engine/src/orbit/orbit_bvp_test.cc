@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "drillbif/flow/exact_propagator.h"
+#include "problems/awkward_entries.h"
 #include "problems/drifting_reference.h"
 #include "problems/reference_orbit.h"
 
@@ -28,21 +29,7 @@ using DO = DriftingOscillator;
 // general product, with random zero columns and entries that are exact zeros, negative zeros and
 // cancelling values.
 TEST(ProductOnColumns, GivesTheBitsOfEigensProduct) {
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::uniform_int_distribution<int> pick(0, 9);
-  auto entry = [&]() {
-    switch (pick(rng)) {
-      case 0:
-        return 0.0;
-      case 1:
-        return -0.0;
-      case 2:
-        return 1.0;
-      default:
-        return u(rng) * std::pow(10.0, 4.0 * u(rng));
-    }
-  };
+  testing::AwkwardEntries entry(11);
   int compared = 0;
   for (int n = 2; n <= 8; ++n) {
     for (int m = 1; m <= 40; ++m) {
@@ -53,7 +40,7 @@ TEST(ProductOnColumns, GivesTheBitsOfEigensProduct) {
       Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, m);
       std::vector<int> columns;
       for (int c = 0; c < m; ++c) {
-        if (pick(rng) < 4) continue;
+        if (!entry.Keep()) continue;
         columns.push_back(c);
         for (int i = 0; i < n; ++i) b(i, c) = entry();
       }
