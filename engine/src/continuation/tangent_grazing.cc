@@ -557,7 +557,7 @@ StatusOr<PeriodicOrbit> SolveWithConditions(const HybridModel& model, Propagator
   for (int it = 0; it < kMaxConditionIterations; ++it) {
     for (int l = 0; l < q; ++l) params[free[l]] = y[m + l];
     if (!model.ValidateParams(params).ok()) return Internal("left the parameter domain");
-    jac.setZero();
+    // Every entry of jac is written below: G_X (zeroed by EvaluateInto), G_p, the condition rows.
     if (Status s = bvp.EvaluateInto(y.head(m), params, &g, jac.topLeftCorner(m, m), &gp[0],
                                     q > 1 ? &gp[1] : nullptr);
         !s.ok()) {
