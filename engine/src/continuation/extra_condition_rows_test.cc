@@ -283,6 +283,37 @@ TEST_F(ExtraConditionRows, OrbitRowMatchesCentralDifferences) {
   ExpectCentralRow(bvp, y, condition, value, row);
 }
 
+// A function of one segment's flow (OfSegmentFlow) gets the row of the same function as any
+// function of the orbit (OfOrbit), bit for bit: the unknowns it skips are those that leave the
+// segment's flow alone. Segment 1, so that an earlier duration (through the phase) moves it too.
+TEST_F(ExtraConditionRows, SegmentFlowRowIsTheOrbitRowBitForBit) {
+  const internal::OrbitBvp bvp = Bvp();
+  const Eigen::VectorXd y = Unknowns(bvp);
+  const int segment = 1;
+  auto rate = [this](const PeriodicOrbit& o) {
+    const SegmentSpec& s = o.signature.segments[segment];
+    const StateVector end =
+        prop_.FlowMap(s.mode, o.starts[segment], o.durations[segment], o.params, {}).x;
+    return model_.Guard(s.mode, std::max(0, s.guard), end, o.params).dh;
+  };
+  Eigen::RowVectorXd of_orbit, of_segment;
+  const double value = internal::ConditionRow(model_, prop_, bvp, free_, start_.params, y,
+                                              ExtraCondition::OfOrbit(rate), &of_orbit);
+  EXPECT_EQ(internal::ConditionRow(model_, prop_, bvp, free_, start_.params, y,
+                                   ExtraCondition::OfSegmentFlow(segment, rate), &of_segment),
+            value);
+  ASSERT_EQ(of_segment.size(), of_orbit.size());
+  EXPECT_EQ(std::memcmp(of_segment.data(), of_orbit.data(), sizeof(double) * of_orbit.size()), 0)
+      << "OfSegmentFlow:\n"
+      << of_segment << "\nOfOrbit:\n"
+      << of_orbit;
+  // Not trivially: the first segment's duration moves the phase (a nonzero entry), its start
+  // components do not (zero entries, the ones skipped).
+  const int block = bvp.DurationIndex(0) + 1;
+  EXPECT_NE(of_orbit[bvp.DurationIndex(0)], 0.0);
+  EXPECT_EQ(of_orbit.head(block - 1).cwiseAbs().maxCoeff(), 0.0);
+}
+
 // The rows made with a workspace left over from another orbit (MonodromyRowScratch: more
 // segments, other values, its perturbed orbit elsewhere) are the rows made without one, bit for
 // bit, for MonodromyGradientRow and for MonodromyRow with both differences; and the workspace's

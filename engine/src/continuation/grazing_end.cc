@@ -18,9 +18,11 @@ namespace {
 ExtraCondition OwnCondition(const HybridModel& model, Propagator& propagator,
                             const PeriodicOrbit& guess, CurveKind kind) {
   if (kind == CurveKind::kGrazing) {
-    return ExtraCondition::OfOrbit([&model, &propagator](const PeriodicOrbit& o) {
-      return TangentEndRate(model, propagator, o);
-    });
+    const std::vector<int> tangents = TangentSegments(guess.signature);
+    return ExtraCondition::OfSegmentFlow(tangents.empty() ? -1 : tangents.front(),
+                                         [&model, &propagator](const PeriodicOrbit& o) {
+                                           return TangentEndRate(model, propagator, o);
+                                         });
   }
   return ExtraCondition::Sigma(model, propagator, guess, kind);
 }
@@ -54,12 +56,14 @@ StatusOr<PeriodicOrbit> SolveGrazingEnd(const HybridModel& model, Propagator& pr
   }
   // h' at the last tangent end, and the curve's own condition: on a grazing curve h' at the
   // first, so that both touches count, whichever of them is the new one.
-  return SolveWithConditions(model, propagator, guess, {index1, index2},
-                             {ExtraCondition::OfOrbit([&](const PeriodicOrbit& o) {
-                                return TangentEndRates(model, propagator, o).back();
-                              }),
-                              OwnCondition(model, propagator, guess, kind)},
-                             tolerance, "codimension-2 system");
+  const int last = TangentSegments(guess.signature).back();
+  return SolveWithConditions(
+      model, propagator, guess, {index1, index2},
+      {ExtraCondition::OfSegmentFlow(
+           last,
+           [&](const PeriodicOrbit& o) { return RateAtTangentEnd(model, propagator, o, last); }),
+       OwnCondition(model, propagator, guess, kind)},
+      tolerance, "codimension-2 system");
 }
 
 StatusOr<PeriodicOrbit> SolveZeroLengthEnd(const HybridModel& model, Propagator& propagator,

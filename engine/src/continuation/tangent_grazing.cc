@@ -179,18 +179,13 @@ StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propa
   return std::move(crossed.orbit);
 }
 
-namespace {
-
-// The guard's rate h' at the end of the tangent segment k.
 double RateAtTangentEnd(const HybridModel& model, Propagator& propagator,
-                        const PeriodicOrbit& orbit, size_t k) {
+                        const PeriodicOrbit& orbit, int k) {
   const SegmentSpec& seg = orbit.signature.segments[k];
   const StateVector end =
       propagator.FlowMap(seg.mode, orbit.starts[k], orbit.durations[k], orbit.params, {}).x;
   return model.Guard(seg.mode, seg.guard, end, orbit.params).dh;
 }
-
-}  // namespace
 
 double TangentEndRate(const HybridModel& model, Propagator& propagator,
                       const PeriodicOrbit& orbit) {
@@ -198,9 +193,17 @@ double TangentEndRate(const HybridModel& model, Propagator& propagator,
   // once per difference of its row.
   const auto& segs = orbit.signature.segments;
   for (size_t k = 0; k < segs.size(); ++k) {
-    if (segs[k].tangent) return RateAtTangentEnd(model, propagator, orbit, k);
+    if (segs[k].tangent) return RateAtTangentEnd(model, propagator, orbit, static_cast<int>(k));
   }
   return std::numeric_limits<double>::quiet_NaN();
+}
+
+std::vector<int> TangentSegments(const Signature& signature) {
+  std::vector<int> tangents;
+  for (size_t k = 0; k < signature.segments.size(); ++k) {
+    if (signature.segments[k].tangent) tangents.push_back(static_cast<int>(k));
+  }
+  return tangents;
 }
 
 std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propagator,
@@ -208,7 +211,9 @@ std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propag
   std::vector<double> rates;
   const auto& segs = orbit.signature.segments;
   for (size_t k = 0; k < segs.size(); ++k) {
-    if (segs[k].tangent) rates.push_back(RateAtTangentEnd(model, propagator, orbit, k));
+    if (segs[k].tangent) {
+      rates.push_back(RateAtTangentEnd(model, propagator, orbit, static_cast<int>(k)));
+    }
   }
   return rates;
 }
@@ -219,11 +224,12 @@ StatusOr<PeriodicOrbit> SolveTangentGrazing(const HybridModel& model, Propagator
   if (std::isnan(TangentEndRate(model, propagator, guess))) {
     return InvalidArgument("the guess has no tangent end");
   }
-  return SolveWithConditions(model, propagator, guess, {param},
-                             {ExtraCondition::OfOrbit([&](const PeriodicOrbit& o) {
-                               return TangentEndRate(model, propagator, o);
-                             })},
-                             tolerance, "tangency system");
+  return SolveWithConditions(
+      model, propagator, guess, {param},
+      {ExtraCondition::OfSegmentFlow(
+          TangentSegments(guess.signature).front(),
+          [&](const PeriodicOrbit& o) { return TangentEndRate(model, propagator, o); })},
+      tolerance, "tangency system");
 }
 
 ExtraCondition ExtraCondition::Duration(int segment, double length) {
@@ -253,6 +259,13 @@ ExtraCondition ExtraCondition::OfOrbit(std::function<double(const PeriodicOrbit&
   ExtraCondition c;
   c.kind = Kind::kOrbit;
   c.of_orbit = std::move(f);
+  return c;
+}
+
+ExtraCondition ExtraCondition::OfSegmentFlow(int segment,
+                                             std::function<double(const PeriodicOrbit&)> f) {
+  ExtraCondition c = OfOrbit(std::move(f));
+  c.segment = segment;
   return c;
 }
 
@@ -520,8 +533,14 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
   // moved orbits unpacked into one: no allocation per column.
   Eigen::VectorXd yq = y;
   PeriodicOrbit moved;
+  const int block = bvp.DurationIndex(0) + 1, only = condition.segment;
   for (int j = first; j < n; ++j) {
     const double h = Step(y[j]);
+    // (OfSegmentFlow: the unknowns that move its segment's flow, the rest exactly (c0 - c0).)
+    if (only >= 0 && j < m && j / block != only && !(j / block < only && j % block == block - 1)) {
+      (*row)[j] = (c0 - c0) / (2.0 * h);
+      continue;
+    }
     yq[j] = y[j] + h;
     UnpackWithParams(bvp, free, params, yq, &moved);
     const double cp = ConditionValue(model, propagator, moved, condition);

@@ -72,9 +72,14 @@ StatusOr<PeriodicOrbit> CrossingForm(const HybridModel& model, Propagator& propa
 // h' at the end of the orbit's tangent segment (the guard's rate where it touches zero); the
 // first tangent segment when there are several. NaN when the orbit has none.
 double TangentEndRate(const HybridModel& model, Propagator& propagator, const PeriodicOrbit& orbit);
+// h' at the end of segment k (the guard's rate where a tangent segment touches zero).
+double RateAtTangentEnd(const HybridModel& model, Propagator& propagator,
+                        const PeriodicOrbit& orbit, int k);
 // h' at the end of every tangent segment, in order.
 std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propagator,
                                     const PeriodicOrbit& orbit);
+// The tangent segments' indices, in order.
+std::vector<int> TangentSegments(const Signature& signature);
 
 // Newton on (G = 0, h' = 0 at the tangent end) for the tangent-form orbit and params[param],
 // from `guess` (in tangent form). Returns the solved orbit (in tangent form).
@@ -97,6 +102,11 @@ struct ExtraCondition {
   static ExtraCondition OfMonodromy(std::function<double(const Eigen::MatrixXd&)> f);
   // Any other function of the orbit.
   static ExtraCondition OfOrbit(std::function<double(const PeriodicOrbit&)> f);
+  // A function of segment `segment`'s flow alone (h' at a tangent end): of its start (its
+  // components in X, its phase through the earlier durations), its duration and the parameters.
+  // Its row is differenced in those unknowns only: any other moved gives the flow the same inputs
+  // and so the condition the same bits, an entry (c - c) / 2h without the evaluations.
+  static ExtraCondition OfSegmentFlow(int segment, std::function<double(const PeriodicOrbit&)> f);
   // sigma of the shifted monodromy of `kind` (fold, period doubling, Neimark-Sacker; not
   // kGrazing), bordered at `at`'s (bordered_sigma.h): the defining condition of a bifurcation
   // of that kind near `at`.
@@ -104,8 +114,8 @@ struct ExtraCondition {
                               const PeriodicOrbit& at, CurveKind kind);
 
   Kind kind = Kind::kOrbit;
-  int segment = -1;                                            // kDuration: the held segment
-  double length = 0.0;                                         // kDuration: its length
+  int segment = -1;     // kDuration: the held segment; kOrbit: the one whose flow it reads, or -1
+  double length = 0.0;  // kDuration: its length
   std::function<double(const Eigen::MatrixXd&)> of_monodromy;  // kMonodromy: the function
   std::function<double(const PeriodicOrbit&)> of_orbit;        // kOrbit: the function
 };
