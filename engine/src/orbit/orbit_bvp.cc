@@ -71,10 +71,12 @@ void OrbitBvp::Unpack(const Eigen::Ref<const Eigen::VectorXd>& x, const Params& 
   for (int i = 0; i < segments(); ++i) {
     StateVector& s = orbit->starts[i];
     s.resize(d_ + 1);
-    for (int j = 0, r = 0; j <= d_; ++j) {
-      s[j] = (j == ps_) ? omega * elapsed : x[i * (d_ + 1) + r++];
-    }
-    orbit->durations[i] = x[i * (d_ + 1) + d_];
+    // Segment i's unknowns: its start without the phase, then its duration.
+    const double* xi = x.data() + i * (d_ + 1);
+    for (int j = 0; j < ps_; ++j) s[j] = xi[j];
+    s[ps_] = omega * elapsed;
+    for (int j = ps_ + 1; j <= d_; ++j) s[j] = xi[j - 1];
+    orbit->durations[i] = xi[d_];
     elapsed += orbit->durations[i];
   }
 }
