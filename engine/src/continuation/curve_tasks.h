@@ -5,11 +5,13 @@
 // queues its tasks (a curve from one start; the candidates at one codimension-2 point; the
 // step-offs and the curve of one candidate) in the order the trace would compute them one after
 // the other, and applies each result in that order on the calling thread: the check against the
-// curves known so far, the append, the notes. A task reads only its own inputs, never the
-// curves traced so far, so the result is the same whatever the number of threads and the
-// schedule. A task queued while an earlier one runs may turn out to be a duplicate of that one's
-// curve when it is applied: it is dropped then (its work wasted, the result unchanged); with one
-// thread each task is queued after the one before was applied, so nothing is wasted.
+// curves known so far, the append, the notes. What a task computes depends only on its own
+// inputs; a switching task may leave out a run whose curve it finds traced already (applied, or
+// by an earlier task's run), which the application computes itself if the curve is still not
+// known then. So the result is the same whatever the number of threads and the schedule. A task
+// queued while an earlier one runs may turn out to be a duplicate of that one's curve when it is
+// applied: it is dropped then (its work wasted, the result unchanged); with one thread each task
+// is queued after the one before was applied, so nothing is wasted.
 #ifndef DRILLBIF_CONTINUATION_CURVE_TASKS_H_
 #define DRILLBIF_CONTINUATION_CURVE_TASKS_H_
 
@@ -87,8 +89,8 @@ class TaskStage {
   // How many tasks may be queued and not applied: one with one thread (each task queued after
   // the one before was applied, as a plain loop computes them), else eight per worker, so that a
   // long task at the front does not leave the other workers idle (the reference box on two
-  // threads: 13.8 s with two per worker, 13.2 s with four, 12.5 s with eight, one run each; the
-  // tasks dropped as duplicates cost ~13% more CPU time than one thread's 20 s either way).
+  // threads: 13.8 s with two per worker, 13.2 s with four, 12.5 s with eight, one run each; what
+  // the tasks dropped as duplicates cost: docs/performance.md, "where two threads lose").
   size_t window() const { return workers_.threads() == 1 ? 1 : 8 * workers_.threads(); }
 
  private:
