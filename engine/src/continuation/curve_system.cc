@@ -138,22 +138,15 @@ bool CurveSystem::EvaluateInto(const Vec& y, Vec* f, Eigen::Ref<Mat>* jac) const
     (*jac)(m(), bvp1_.DurationIndex(corner_)) = 1.0;
   } else if (kind_ == CurveKind::kGrazing) {
     // The condition, h' at the end of the first tangent segment, is a function of that segment's
-    // flow alone: of its start (its components in X, its phase through the earlier durations),
-    // its duration and the parameters. Any other unknown moved gives the flow the same inputs and
-    // so the condition the same bits, sigma0: its entry is (sigma0 - sigma0) / h without the
-    // evaluation.
-    const auto& segments = bvp1_.signature().segments;
-    int tangent = -1;
-    for (int i = 0; i < static_cast<int>(segments.size()) && tangent < 0; ++i) {
-      if (segments[i].tangent) tangent = i;
-    }
+    // flow alone: an unknown that does not move it (MovesSegmentFlow) gives the condition the
+    // same bits, sigma0, and its entry is (sigma0 - sigma0) / h without the evaluation.
+    const std::vector<int> tangents = TangentSegments(bvp1_.signature());
+    const int tangent = tangents.empty() ? -1 : tangents.front();
     const int block = Block();
     moved_y_ = y;  // moved one entry at a time and restored: the same bits as a fresh copy
     for (int j = 0; j < n(); ++j) {
       const double h = ForwardStep(y[j]);
-      const bool moves_end = tangent < 0 || j >= m() || j / block == tangent ||
-                             (j / block < tangent && j % block == block - 1);
-      if (!moves_end) {
+      if (!MovesSegmentFlow(j, tangent, block, m())) {
         (*jac)(m(), j) = (sigma0 - sigma0) / h;
         continue;
       }

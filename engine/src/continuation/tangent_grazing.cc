@@ -537,7 +537,7 @@ double ConditionRow(const HybridModel& model, Propagator& propagator, const Orbi
   for (int j = first; j < n; ++j) {
     const double h = Step(y[j]);
     // (OfSegmentFlow: the unknowns that move its segment's flow, the rest exactly (c0 - c0).)
-    if (only >= 0 && j < m && j / block != only && !(j / block < only && j % block == block - 1)) {
+    if (!MovesSegmentFlow(j, only, block, m)) {
       (*row)[j] = (c0 - c0) / (2.0 * h);
       continue;
     }

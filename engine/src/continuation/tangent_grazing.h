@@ -80,6 +80,14 @@ std::vector<double> TangentEndRates(const HybridModel& model, Propagator& propag
                                     const PeriodicOrbit& orbit);
 // The tangent segments' indices, in order.
 std::vector<int> TangentSegments(const Signature& signature);
+// Whether unknown j moves segment `segment`'s flow (any unknown where segment < 0): the unknowns
+// of a shooting system with `block` per segment (its start without the phase, then its duration)
+// and m in all, then the parameters. Its own start and duration do, an earlier duration (through
+// its phase) and a parameter do; the others leave the flow's inputs, and so its bits, as they are.
+inline bool MovesSegmentFlow(int j, int segment, int block, int m) {
+  return segment < 0 || j >= m || j / block == segment ||
+         (j / block < segment && j % block == block - 1);
+}
 
 // Newton on (G = 0, h' = 0 at the tangent end) for the tangent-form orbit and params[param],
 // from `guess` (in tangent form). Returns the solved orbit (in tangent form).
