@@ -3,6 +3,8 @@
 #include <cmath>
 #include <vector>
 
+#include "orbit/column_sum.h"
+
 namespace drillbif::internal {
 namespace {
 
@@ -31,7 +33,8 @@ double Sign(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
 // rows are zero in the earlier starts' columns (a shooting system's: a segment's end moves with
 // its own start and, through its phase, the earlier durations). Summed over the nonzero columns
 // only, the earlier durations' then the own start's, each entry from +0 in the columns' order, as
-// Eigen's product of the whole rows sums: the zeros left out change no bit but a zero's sign.
+// Eigen's product of the whole rows sums (ColumnSum): the zeros left out change no bit but a
+// zero's sign.
 // False (nothing written) where the rows are not zero there. N: n known at compile time (0: not,
 // n <= kMaxBlock), so that the rows, innermost, are unrolled.
 constexpr int kMaxBlock = 64;
@@ -49,15 +52,10 @@ bool ShootingBlockProduct(const Eigen::MatrixXd& a, const Eigen::MatrixXd& e, in
     }
   }
   for (int col = 0; col < r; ++col) {
-    double acc[N > 0 ? N : kMaxBlock] = {};
-    auto add = [&](int p) {
-      const double* q = &a(row, p);
-      const double x = e(p, col);
-      for (int j = 0; j < n; ++j) acc[j] = q[j] * x + acc[j];
-    };
-    for (int s = 0; s < i; ++s) add(s * n + d);
-    for (int p = i * n; p < i * n + d; ++p) add(p);
-    for (int j = 0; j < n; ++j) (*known)(j, col) = acc[j];
+    ColumnSum<N, (N > 0 ? N : kMaxBlock)> sum(n);
+    for (int s = 0; s < i; ++s) sum.Add(&a(row, s * n + d), e(s * n + d, col));
+    for (int p = i * n; p < i * n + d; ++p) sum.Add(&a(row, p), e(p, col));
+    sum.StoreTo(&(*known)(0, col));
   }
   return true;
 }

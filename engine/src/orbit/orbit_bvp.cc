@@ -1,20 +1,17 @@
 #include "orbit/orbit_bvp.h"
 
+#include "orbit/column_sum.h"
+
 namespace drillbif::internal {
 
 namespace {
 
-// out = a * b for an n x n column-major `a` (leading dimension lda) and an n-vector b, each entry
-// summed from +0 in the depth's order; N: n known at compile time (0: not), so that the rows,
-// innermost, are unrolled and vectorized.
+// out = a * b for an n x n column-major `a` (leading dimension lda) and an n-vector b.
 template <int N>
-void ColumnProduct(int n, const double* a, int lda, const double* b, double* out) {
-  if constexpr (N > 0) n = N;
-  double acc[N > 0 ? N : 8] = {};
-  for (int p = 0; p < n; ++p) {
-    for (int i = 0; i < n; ++i) acc[i] = a[p * lda + i] * b[p] + acc[i];
-  }
-  for (int i = 0; i < n; ++i) out[i] = acc[i];
+void ColumnOf(int n, const double* a, int lda, const double* b, double* out) {
+  ColumnSum<N, (N > 0 ? N : kMaxStateDim)> sum(n);
+  for (int p = 0; p < n; ++p) sum.Add(a + p * lda, b[p]);
+  sum.StoreTo(out);
 }
 
 }  // namespace
@@ -32,9 +29,9 @@ void ProductOnColumns(const StateMatrix& a, const Eigen::MatrixXd& b, std::span<
   const int lda = static_cast<int>(a.outerStride());
   for (const int c : columns) {
     if (n == 4) {
-      ColumnProduct<4>(n, a.data(), lda, &b(0, c), &(*out)(0, c));
+      ColumnOf<4>(n, a.data(), lda, &b(0, c), &(*out)(0, c));
     } else {
-      ColumnProduct<0>(n, a.data(), lda, &b(0, c), &(*out)(0, c));
+      ColumnOf<0>(n, a.data(), lda, &b(0, c), &(*out)(0, c));
     }
   }
 }
