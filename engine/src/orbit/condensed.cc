@@ -93,13 +93,15 @@ bool CondensedLu::Condense(const Eigen::MatrixXd& a) {
   }
   a_ = a;
   const int most = q + d + k_;  // reduced unknowns when every duration is kept
-  // xi = (parameters, first start, kept durations in segment order, the last one last).
+  // xi = (parameters, first start, kept durations in segment order, the last one last); e_'s
+  // columns from xi's size on stay zero.
   e_.setZero(size, most);
   for (int j = 0; j < q; ++j) e_(m + j, j) = 1.0;
   for (int j = 0; j < d; ++j) e_(j, q + j) = 1.0;
   int r = q + d;
   pivot_.setZero(k_);
-  Eigen::MatrixXd reduced = Eigen::MatrixXd::Zero(most, most);
+  Eigen::MatrixXd& reduced = reduced_;
+  reduced.setZero(most, most);
   int rows = 0;
   // The permutations [eliminated rows / unknowns in elimination order, then the reduced ones in
   // xi's order] for det(a)'s sign: there a is [[M_w, M_xi], [N_w, N_xi]] with M_w block lower
@@ -107,11 +109,15 @@ bool CondensedLu::Condense(const Eigen::MatrixXd& a) {
   // reduced matrix is the Schur complement N_xi - N_w M_w^-1 M_xi.
   std::vector<int>& row_order = row_order_;
   std::vector<int>& col_order = col_order_;
-  std::vector<int> kept_rows, kept_cols;
+  std::vector<int>& kept_rows = kept_rows_;
+  std::vector<int>& kept_cols = kept_cols_;
   row_order.clear();
   col_order.clear();
+  kept_rows.clear();
+  kept_cols.clear();
   double sign = 1.0;
-  Eigen::MatrixXd known(n_, most);
+  Eigen::MatrixXd& known = known_;
+  known.resize(n_, most);
   for (int i = 0; i + 1 < k_; ++i) {
     const int row = i * n_, c = i * n_ + d;  // c: this segment's duration column
     // The block's rows applied to the unknowns already expressed in xi (columns before c, the
@@ -162,7 +168,6 @@ bool CondensedLu::Condense(const Eigen::MatrixXd& a) {
   if (rows != r) return false;
   growth_ = e_.topLeftCorner(m, r).cwiseAbs().rowwise().sum().maxCoeff();
   if (!std::isfinite(growth_) || !reduced.topLeftCorner(r, r).allFinite()) return false;
-  e_.conservativeResize(size, r);
   reduced_lu_.compute(reduced.topLeftCorner(r, r));
   row_order.insert(row_order.end(), kept_rows.begin(), kept_rows.end());
   for (int j = 0; j < q; ++j) col_order.push_back(m + j);
@@ -195,7 +200,7 @@ Eigen::VectorXd CondensedLu::Solve(const Eigen::VectorXd& b) const {
   rhs.segment(rows, n_ + q).noalias() =
       b.segment(last, n_ + q) - a_.block(last, 0, n_ + q, m) * v.head(m);
   const Eigen::VectorXd xi = reduced_lu_.solve(rhs);
-  v.noalias() += e_ * xi;
+  v.noalias() += e_.leftCols(r) * xi;
   return v;
 }
 

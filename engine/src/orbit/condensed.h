@@ -77,8 +77,13 @@ class CondensedLu {
   bool condensed_ = false;
   double growth_ = 0.0;
   Eigen::MatrixXd a_;      // the factorized matrix (Solve's forward pass)
-  Eigen::MatrixXd e_;      // unknowns = e_ xi + (right-hand side part)
+  Eigen::MatrixXd e_;      // unknowns = e_ xi + (right-hand side part), in the first
+                           // reduced_size() columns
   Eigen::VectorXd pivot_;  // event row i's own-duration entry; 0: duration kept
+  // Condense's workspace, kept between calls: the reduced matrix, a block's rows applied to the
+  // unknowns expressed so far, the kept event rows and durations.
+  Eigen::MatrixXd reduced_, known_;
+  std::vector<int> kept_rows_, kept_cols_;
   Eigen::PartialPivLU<Eigen::MatrixXd> reduced_lu_;
   Eigen::PartialPivLU<Eigen::MatrixXd> dense_lu_;
   // det(a)'s sign but the permutations' (the eliminated pivots' and the reduced LU's), and the
