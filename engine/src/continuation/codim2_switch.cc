@@ -18,6 +18,7 @@
 #include "continuation/curve_tasks.h"
 #include "continuation/grazing_end.h"
 #include "continuation/runner_tasks.h"
+#include "continuation/runs_ahead.h"
 #include "continuation/signature_switch.h"
 #include "continuation/tangent_grazing.h"
 #include "continuation/trace_internal.h"
@@ -32,46 +33,6 @@ constexpr std::array<double, 4> kLastResortStepOffs = {1e-6, 3e-7, 1e-7, 3e-8};
 // applied meanwhile (SwitchAtCodim2): above it (a max_switched_curves far beyond any box's need),
 // the runs are computed when applied, on the calling thread.
 constexpr size_t kMaxReservedCurves = 100000;
-
-// The curves traced by the runs of a switching round's tasks whose items are not applied yet,
-// each with its item's place in the queue. A task skips a candidate whose curve an earlier item's
-// run traced already: when applied, that candidate is known (the earlier curve appended), or its
-// run is computed then, on the calling thread; either way the result is the same as a plain
-// loop's. In the reference box on two threads this skips ~70 of the ~100 runs that were traced
-// twice, once from either end of a curve (the run from the later end is dropped when applied).
-class RunsAhead {
- public:
-  // The curves a run of item `item` traced (its tries that did not fail).
-  void Add(size_t item, const CandidateRun& run) {
-    for (const auto& [seed, curve] : run.tries) {
-      if (curve.summary.termination == Termination::kFailed || curve.points.empty()) continue;
-      TracedCurve outline;  // what known_in reads: the kind, outline and codimension-2 points
-      outline.curve.kind = curve.kind;
-      outline.curve.codim2 = curve.codim2;
-      outline.outline = OutlineOf(curve);
-      std::lock_guard<std::mutex> lock(mutex_);
-      curves_.emplace_back(item, std::move(outline));
-    }
-  }
-  // Whether `known` holds for a curve of an item before `item`.
-  template <class Known>
-  bool AnyBefore(size_t item, const Known& known) const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return std::any_of(curves_.begin(), curves_.end(),
-                       [&](const auto& c) { return c.first < item && known(c.second); });
-  }
-  // Forgets the curves of the items up to `item`, applied now.
-  void Applied(size_t item) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    curves_.erase(std::remove_if(curves_.begin(), curves_.end(),
-                                 [&](const auto& c) { return c.first <= item; }),
-                  curves_.end());
-  }
-
- private:
-  mutable std::mutex mutex_;
-  std::vector<std::pair<size_t, TracedCurve>> curves_;
-};
 
 }  // namespace
 
