@@ -7,7 +7,6 @@
 #include <deque>
 #include <iterator>
 #include <limits>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <utility>
