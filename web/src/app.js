@@ -132,13 +132,15 @@ function follow(job) {
 }
 
 // Follows the live jobs, the running and newest first, up to MAX_WATCHES streams; the others
-// are updated by reloading the list every REFRESH_MS while they last.
+// are updated by reloading the list every REFRESH_MS while they last. A stream counts until its
+// follow() ends, also after its job turned final (its last message came, the stream may not have
+// closed yet).
 let refreshTimer = null;
 function followSome() {
   const state = (job) => metadataOf(job.operation).state;
   const live = [...jobs.values()].reverse().filter((job) => !FINAL.has(state(job)));
   live.sort((p, q) => (state(q) === 'RUNNING') - (state(p) === 'RUNNING'));
-  let open = live.filter((job) => job.watch).length;
+  let open = [...jobs.values()].filter((job) => job.watch).length;
   for (const job of live) {
     if (job.watch || open >= MAX_WATCHES) continue;
     follow(job);
