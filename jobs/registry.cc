@@ -201,8 +201,8 @@ std::unique_ptr<Message> JobKindSpec::NewResult() const {
 
 int64_t JobKindSpec::ItemsOf(const Message& result) const {
   int64_t items = 0;
-  for (const std::string& name : paged_fields) {
-    const FieldDescriptor* field = result.GetDescriptor()->FindFieldByName(name);
+  for (const std::string& field_name : paged_fields) {
+    const FieldDescriptor* field = result.GetDescriptor()->FindFieldByName(field_name);
     items += result.GetReflection()->FieldSize(result, field);
   }
   return items;

@@ -43,9 +43,9 @@ class ResultSink {
 struct RunContext {
   // Called from the running thread with the fraction done in [0, 1]; returning false stops the
   // run (its result is then CANCELLED, with what was computed until then).
-  ProgressCallback progress;
+  ProgressCallback progress = nullptr;
   // The current parameter value (sweep, continue).
-  ValueCallback on_value;
+  ValueCallback on_value = nullptr;
   // Curves and regions of earlier trace and optimum runs (jobs/optimum_cache.h); runs of those
   // kinds use and fill it.
   OptimumCache* optimum_cache = nullptr;

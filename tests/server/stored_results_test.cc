@@ -291,7 +291,9 @@ TEST_F(StoredResultsTest, InterleavedItemsArePagedFieldByField) {
     v1::GetResultResponse page;
     ASSERT_TRUE(ReadResultPage(*store_, simulate, job.id, 7, token, PageOptions(), &page).ok());
     // Once events appear, no sample comes any more.
-    if (events_started) EXPECT_EQ(page.simulate().poincare_size(), 0);
+    if (events_started) {
+      EXPECT_EQ(page.simulate().poincare_size(), 0);
+    }
     events_started = events_started || page.simulate().events_size() > 0;
     for (const auto& p : page.simulate().poincare()) *merged.add_poincare() = p;
     for (const auto& e : page.simulate().events()) *merged.add_events() = e;
