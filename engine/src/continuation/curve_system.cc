@@ -36,6 +36,8 @@ CurveSystem::CurveSystem(const HybridModel& model, Propagator& propagator,
   if (std::isfinite(options.width2())) w2_ = options.width2();
   if (kind_ == CurveKind::kGrazing) {
     corner_ = CornerSegment(model_, start);
+    const std::vector<int> tangents = TangentSegments(start.signature);
+    if (!tangents.empty()) tangent_ = tangents.front();
     return;
   }
   SetBorders(OrbitStability(model_, propagator_, Unpack(Pack(start))).monodromy);
@@ -140,13 +142,11 @@ bool CurveSystem::EvaluateInto(const Vec& y, Vec* f, Eigen::Ref<Mat>* jac) const
     // The condition, h' at the end of the first tangent segment, is a function of that segment's
     // flow alone: an unknown that does not move it (MovesSegmentFlow) gives the condition the
     // same bits, sigma0, and its entry is (sigma0 - sigma0) / h without the evaluation.
-    const std::vector<int> tangents = TangentSegments(bvp1_.signature());
-    const int tangent = tangents.empty() ? -1 : tangents.front();
     const int block = Block();
     moved_y_ = y;  // moved one entry at a time and restored: the same bits as a fresh copy
     for (int j = 0; j < n(); ++j) {
       const double h = ForwardStep(y[j]);
-      if (!MovesSegmentFlow(j, tangent, block, m())) {
+      if (!MovesSegmentFlow(j, tangent_, block, m())) {
         (*jac)(m(), j) = (sigma0 - sigma0) / h;
         continue;
       }

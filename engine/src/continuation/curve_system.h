@@ -141,6 +141,9 @@ class CurveSystem : public CorrectorSystem {
   // A grazing curve of a corner (internal::CornerSegment): the segment held at zero length, its
   // duration the curve's condition; -1 for a grazing curve of a touch (a tangent end).
   int corner_ = -1;
+  // A grazing curve of a touch: its first tangent segment, whose end's rate is the condition (-1:
+  // none, or not a grazing curve).
+  int tangent_ = -1;
   // Evaluate's workspace (G and its derivatives, the unpacked orbit, the segments' flows and
   // monodromy factors), kept between calls: a system is used by one thread (its propagator's).
   mutable Vec g_, gp1_, gp2_;
