@@ -6,10 +6,12 @@
 // so no root lies in [t, t + tau_safe) where tau_safe is the positive root of L. Where h' < 0,
 // h is strictly decreasing on [t, t + |h'|/M], so a sign change there brackets the unique root.
 // Each step goes as far as every guard allows; a crossing is polished by safeguarded Halley on h
-// (cubic convergence, secant fallback); an approach seen at a step end to turn back within the
-// tolerance band is a tangential (grazing) event located at the extremum by Newton on h'. No
-// crossing, however shallow, can be stepped over (the parabola stays positive inside each step);
-// a touch that stays within (0, tolerance] strictly inside a step may go unreported.
+// (cubic convergence, secant fallback). A minimum of h inside the tolerance band is a
+// tangential (grazing) event, located by Newton on h': wherever h' turns from negative to positive
+// within a step, unless a lower bound on h over the step (TurnLowerBound) keeps it above the band,
+// so that where the steps end does not decide whether a touch is seen. No crossing, however
+// shallow, can be stepped over (the parabola stays positive inside each step); a touch within
+// (0, tolerance] goes unreported only where h' turns twice inside one step.
 //
 // Start of a segment (the state may sit on a surface after a jump): a guard with h <= tolerance is
 // "into" (fires at once, duration 0) when its local parabola h + h' tau + h'' tau^2/2 does not
@@ -43,6 +45,25 @@ inline double SafeStep(double h, double dh, double m) {
   const double root = std::sqrt(dh * dh + 2.0 * m * h);
   if (dh >= 0.0) return (dh + root) / m;
   return root - dh > 0.0 ? 2.0 * h / (root - dh) : std::numeric_limits<double>::infinity();
+}
+
+// A lower bound on h over a step of length tau where h' turns from negative (d0 at its start) to
+// positive (d1 at its end), |h''| <= m: h stays above both ends' parabolas, h0 + d0 s - m s^2 / 2
+// and h1 - d1 (tau - s) - m (tau - s)^2 / 2, whose difference is linear in s. The minimum of the
+// larger of two concave functions lies at an end of the step or where they meet.
+inline double TurnLowerBound(const GuardValue& g0, const GuardValue& g1, double tau, double m) {
+  auto from_start = [&](double s) { return g0.h + g0.dh * s - 0.5 * m * s * s; };
+  auto from_end = [&](double s) {
+    const double r = tau - s;
+    return g1.h - g1.dh * r - 0.5 * m * r * r;
+  };
+  double bound = std::min(std::max(g0.h, from_end(0.0)), std::max(from_start(tau), g1.h));
+  const double slope = g0.dh - g1.dh - m * tau;  // d/ds of from_start - from_end
+  if (slope != 0.0) {
+    const double s = -(g0.h - g1.h + g1.dh * tau + 0.5 * m * tau * tau) / slope;
+    if (s > 0.0 && s < tau) bound = std::min(bound, from_start(s));
+  }
+  return bound;
 }
 
 // Whether a guard starting at h <= tol fires at once: below the band the state is outside the
@@ -164,12 +185,14 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
             &out.evaluations);
       } else if (crossed) {
         ti = t;  // a departing guard fell through the band within one step: fire at its start
-      } else if (!departing[i] && gn[i].h <= tol && gn[i].dh >= 0.0) {
-        // Turned back inside the band: a tangential contact at the minimum, where h' = 0 (the
-        // root of -h', falling through zero in [t, tn]; without a sign change, tn itself).
-        tangential = true;
+      } else if (!departing[i] && gn[i].dh >= 0.0 &&
+                 (gn[i].h <= tol ||
+                  (g[i].dh < 0.0 && TurnLowerBound(g[i], gn[i], tn - t, cur->bounds[i]) <= tol))) {
+        // Turned back: a tangential contact at the minimum, where h' = 0 (the root of -h', falling
+        // through zero in [t, tn]; without a sign change, tn itself), if the minimum lies in the
+        // band. Wherever the step ends, the minimum is found: the step's end does not decide.
         if (g[i].dh < 0.0) {
-          ti = PolishRoot(
+          const double t_min = PolishRoot(
               t, -g[i].dh, tn, -gn[i].dh, opt.time_rtol,
               [&](double tk, double* v, double* dv, double* ddv) {
                 eval(tk, &probe);
@@ -177,8 +200,9 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
                 *ddv = 0.0;  // h''' is not known: Newton steps
               },
               &out.evaluations);
+          if (probe.guards[i].h <= tol) ti = t_min, tangential = true;
         } else {
-          ti = tn;
+          ti = tn, tangential = true;
         }
       }
       if (ti >= 0.0 && ti < best_t) best = i, best_t = ti, best_tangential = tangential;

@@ -69,8 +69,9 @@ struct AdvanceResult {
 struct EventOptions {
   // Grazing resolution (absolute, in the guard's units; the drifting oscillator's guards are O(1)):
   // every crossing (h reaching 0) is found, however shallow; an approach that turns back with
-  // 0 < h <= tolerance at a step end fires as a tangential event at the extremum, one that turns
-  // back inside a step may not; an approach that turns back at h > tolerance never fires.
+  // 0 < h <= tolerance fires as a tangential event at the extremum, wherever the steps end (the
+  // exact propagator may miss one only where h' turns twice within one step); an approach that
+  // turns back at h > tolerance never fires.
   double tolerance = 1e-12;
   // Relative accuracy of event times (Newton polish stops below this times max(1, t)).
   double time_rtol = 1e-14;
