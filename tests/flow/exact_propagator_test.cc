@@ -266,6 +266,48 @@ TEST(EventLocation, PlacesAnImpactToMachinePrecision) {
   EXPECT_NEAR(r.x[DO::kS], 1.16088, 1e-5);
 }
 
+// A free flight that leaves Pi tangentially (h = h' = 0, h'' = 3e-3, as just after a separation
+// next to a grazing) and falls back onto it (h''' = -4.5): it rises to ~9e-10, above the 1e-12
+// tolerance band, and its curvature bound (0.9) is 300 times the curvature it has, so that
+// stepping on that bound alone takes steps of ~1e-6 at first, growing by ~6% each. With the
+// closed form's third-derivative bound the steps span the flight: the same impact, located to the
+// polishing's tolerance either way, at a fraction of the evaluations; and none where the window
+// ends before the impact.
+TEST(EventLocation, ShortFreeFlightAfterATangentialDepartureTakesFewSteps) {
+  DO model;
+  const Params prm = model.DefaultParams();
+  const double xi = prm[DO::kXi], theta = 0.0;
+  const double q = 4 * xi * xi * (prm[DO::kA] * std::cos(theta) + prm[DO::kB] + 3e-3);
+  StateVector x0(4);
+  x0[DO::kQ] = q, x0[DO::kY] = -q / (2 * xi), x0[DO::kP] = q + prm[DO::kG];
+  x0[DO::kS] = theta - prm[DO::kPhi0];
+  const GuardValue g = model.Guard(DO::kNoContact, DO::kImpact, x0, prm);
+  ASSERT_NEAR(g.h, 0.0, 1e-15);
+  ASSERT_NEAR(g.dh, 0.0, 1e-15);
+  ASSERT_NEAR(g.ddh, 3e-3, 1e-12);
+  // h ~ h'' t^2 / 2 + h''' t^3 / 6 returns to 0 at t ~ 3 h'' / |h'''|, h''' = -q / (8 xi^3).
+  const double back = 9e-3 / (q / (8 * xi * xi * xi));
+  ExactOptions by_expm;
+  by_expm.use_closed_form = false;
+  ExactPropagator closed(model), expm(model, by_expm);
+  AdvanceRequest req;
+  req.mode = DO::kNoContact, req.x0 = x0, req.t_max = 2 * back;
+  const AdvanceResult fast = closed.Advance(req, prm), slow = expm.Advance(req, prm);
+  ASSERT_EQ(fast.end, AdvanceEnd::kEvent);
+  ASSERT_EQ(slow.end, AdvanceEnd::kEvent);
+  EXPECT_EQ(fast.guard, DO::kImpact);
+  // Each is polished to 1e-14, but h = q + g - p is known only to rounding, ~8 eps (q + g) (as in
+  // the test above), and there h' ~ -3e-6: the root is known to 8 eps (q + g) / |h'| (~9e-11).
+  const double rate = std::abs(model.Guard(DO::kNoContact, DO::kImpact, fast.x, prm).dh);
+  EXPECT_NEAR(fast.duration, slow.duration, 8 * 2.2e-16 * (q + prm[DO::kG]) / rate);
+  EXPECT_NEAR(fast.duration, back, 0.1 * back);
+  EXPECT_LT(4 * fast.evaluations, slow.evaluations)
+      << fast.evaluations << " against " << slow.evaluations;
+  req.t_max = 0.5 * back;
+  const AdvanceResult before = closed.Advance(req, prm);
+  EXPECT_EQ(before.end, AdvanceEnd::kTimeLimit);
+}
+
 // On l2 (F = 2 xi y + q = 0, y = -q/(2 xi)) the separation guard's rate is
 // F' = 2 xi (a cos s + b) - q/(2 xi): at s = 0 it is 0.045 - 10 q, so q = 0.001 departs (F rises)
 // and q = 0.1 moves in (F falls).

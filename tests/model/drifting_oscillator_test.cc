@@ -164,6 +164,46 @@ TEST_P(ParameterSetTest, GuardCurvatureBoundHoldsAlongTheFlow) {
   }
 }
 
+// Free flight's bound on |d3h/dt3| (PreparedSegment's jerk_bounds) must hold along the whole future
+// flight, as the curvature bound: d3h/dt3 by central differences of d2h/dt2 along the closed-form
+// flow, dt = 1e-4 / rate. Their truncation error, dt^2 / 6 |h^(5)| with |h^(5)| <= rate^2 times
+// the bound, is below 2e-9 of the bound; their rounding, eps |h''| / dt, below 1e-11 rate times
+// the curvature bound. The margin, 1e-8 of the bound plus 1e-10 rate times the curvature bound,
+// covers both.
+TEST_P(ParameterSetTest, FreeFlightJerkBoundHoldsAlongTheFlow) {
+  DO model;
+  const Params& prm = GetParam().params;
+  const double rate = std::max({1.0, 1.0 / (2.0 * prm[DO::kXi]), prm[DO::kOmega]});
+  const double dt = 1e-4 / rate;
+  const double horizon = std::min(3 * kTwoPi / prm[DO::kOmega], 200.0);
+  std::mt19937 rng(9);
+  double largest = 0.0;  // the largest |d3h/dt3| over its bound seen
+  for (int trial = 0; trial < 8; ++trial) {
+    const StateVector x0 = RandomState(DO::kNoContact, prm, rng);
+    PreparedSegment seg;
+    model.PrepareSegment(DO::kNoContact, x0, prm, &seg);
+    SegmentPoint start, at, before, after;
+    model.EvaluateSegment(seg, 0.0, prm, true, &start);
+    const double bound = start.jerk_bounds[DO::kImpact];
+    ASSERT_TRUE(std::isfinite(bound) && bound > 0.0);
+    for (int k = 0; k <= 2000; ++k) {
+      const double t = dt + horizon * k / 2000.0;
+      model.EvaluateSegment(seg, t - dt, prm, true, &before);
+      model.EvaluateSegment(seg, t, prm, true, &at);
+      model.EvaluateSegment(seg, t + dt, prm, true, &after);
+      const double d3 = (after.guards[DO::kImpact].ddh - before.guards[DO::kImpact].ddh) / (2 * dt);
+      ASSERT_LE(std::abs(d3), bound * (1 + 1e-8) + 1e-10 * rate * start.bounds[DO::kImpact])
+          << "t " << t;
+      // A bound from a later state holds from there on: it can only be smaller.
+      ASSERT_LE(at.jerk_bounds[DO::kImpact], bound);
+      largest = std::max(largest, std::abs(d3) / bound);
+    }
+  }
+  // Tight where the flight starts with q of order 1: there -q/(8 xi^3) dominates h''' (a bound
+  // twice too large fails this).
+  EXPECT_GT(largest, 0.9);
+}
+
 // The impact jump places the state on Pi (p = q + g); its Jacobian against finite differences of
 // the jump map, at states on and off the surface (differences are exact here: the map is affine).
 TEST_P(ParameterSetTest, JumpJacobianMatchesFiniteDifferences) {

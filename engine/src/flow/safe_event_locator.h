@@ -5,8 +5,9 @@
 //     h(t + tau) >= h + h' tau - M tau^2 / 2 =: L(tau),
 // so no root lies in [t, t + tau_safe) where tau_safe is the positive root of L. Where h' < 0,
 // h is strictly decreasing on [t, t + |h'|/M], so a sign change there brackets the unique root.
-// Each step goes as far as every guard allows; a crossing is polished by safeguarded Halley on h
-// (cubic convergence, secant fallback). A minimum of h inside the tolerance band is a
+// Each step goes as far as every guard allows (with a bound on |h'''| where the flow gives one,
+// the curvature bound of the step's own window: WindowStep); a crossing is polished by safeguarded
+// Halley on h (cubic convergence, secant fallback). A minimum of h inside the tolerance band is a
 // tangential (grazing) event, located by Newton on h': wherever h' turns from negative to positive
 // within a step, unless a lower bound on h over the step (TurnLowerBound) keeps it above the band,
 // so that where the steps end does not decide whether a touch is seen. No crossing, however
@@ -45,6 +46,26 @@ inline double SafeStep(double h, double dh, double m) {
   const double root = std::sqrt(dh * dh + 2.0 * m * h);
   if (dh >= 0.0) return (dh + root) / m;
   return root - dh > 0.0 ? 2.0 * h / (root - dh) : std::numeric_limits<double>::infinity();
+}
+
+// With |h'''| <= m3 from t on, h'' >= h''(t) - m3 s over a window [t, t + s]: a curvature bound for
+// the parabola on that window, far below the mode's where a short window sees a guard's curvature
+// nearly as it is (a free flight just after separation, h ~ 1e-13, h'' ~ 1e-4 against a bound of
+// 0.5). The longest step within a window (the remaining time, then quarters of it) that its bound
+// allows, if longer than `floor`; else floor. For a departing guard, as its rule below: out of
+// the band first.
+inline double WindowStep(const GuardValue& g, double m3, bool departing, double tol,
+                         double remaining, double floor) {
+  double best = floor;
+  double window = remaining;
+  for (int k = 0; k < 8 && window > best; ++k, window *= 0.25) {
+    const double m = std::max(m3 * window - g.ddh, std::numeric_limits<double>::min());
+    const double safe =
+        departing ? std::max(SafeStep(std::max(g.h, 0.0), g.dh, m), std::sqrt(4.0 * tol / m))
+                  : SafeStep(g.h, g.dh, m);
+    best = std::max(best, std::min(window, safe));
+  }
+  return best;
 }
 
 // A lower bound on h over a step of length tau where h' turns from negative (d0 at its start) to
@@ -160,6 +181,9 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
           // past the Newton estimate so that a crossing is usually bracketed at the first try.
           tau = std::max(tau, std::min(-g[i].dh / m, 1.5 * g[i].h / -g[i].dh));
         }
+      }
+      if (cur->jerk_bounds[i] > 0.0) {
+        tau = WindowStep(g[i], cur->jerk_bounds[i], departing[i], tol, t_max - t, tau);
       }
       step = std::min(step, tau);
     }

@@ -328,6 +328,7 @@ void DriftingOscillator::EvaluateSegment(const PreparedSegment& seg, double t, c
   switch (seg.mode) {
     case kNoContact:
       point->bounds[0] = internal::NoContactBound(k.x[kQ], params);
+      point->jerk_bounds[0] = internal::NoContactJerkBound(k.x[kQ], params);
       break;
     case kContact:
       point->bounds[0] = point->bounds[1] = internal::ContactBound(GainOf(seg), k.dq, k.dy);

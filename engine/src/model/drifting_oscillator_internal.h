@@ -56,6 +56,13 @@ inline double NoContactBound(double q, const Params& prm) {
   return SafeBound(std::abs(q) / (4.0 * xi * xi) + prm[DO::kA] + prm[DO::kB]);
 }
 
+// NC: h''' = q'/(4 xi^2) + a w sin = -q/(8 xi^3) + a w sin, so |h'''| <= |q|/(8 xi^3) + a w while
+// |q| decays.
+inline double NoContactJerkBound(double q, const Params& prm) {
+  const double xi = prm[DO::kXi];
+  return SafeBound(std::abs(q) / (8.0 * xi * xi * xi) + std::abs(prm[DO::kA]) * prm[DO::kOmega]);
+}
+
 // CwP: |F''| <= 2 xi a w + |1 - q|/(4 xi^2), and |1 - q| decays monotonically in progression.
 inline double ProgressionBound(double q, const Params& prm) {
   const double xi = prm[DO::kXi];

@@ -178,10 +178,13 @@ inline constexpr int kMaxGuards = 8;
 
 // Everything event location needs at one time of a segment: the state, every guard of the mode
 // with its time derivatives, and every guard's curvature bound (HybridModel::GuardCurvatureBound).
+// A closed-form flow may add a bound on |d3h/dt3| valid from that time on in the segment (0: none
+// known), which lets event location take longer steps where the curvature bound is loose.
 struct SegmentPoint {
   StateVector x;
   GuardValue guards[kMaxGuards];
   double bounds[kMaxGuards];
+  double jerk_bounds[kMaxGuards] = {};
 };
 
 // Constants of one segment (a mode and a start state), computed once and reused for every time
