@@ -66,8 +66,10 @@ Status WorkerPoolOptions::Validate() const {
                            std::to_string(jobs::kMaxTraceTaskBatch) + ", got " +
                            std::to_string(trace_fan_out_batch));
   }
-  for (const auto& [name, limits] : limits) {
-    if (Status s = limits.Validate(); !s.ok()) return InvalidArgument(name + "." + s.message());
+  for (const auto& [name, kind_limits] : limits) {
+    if (Status s = kind_limits.Validate(); !s.ok()) {
+      return InvalidArgument(name + "." + s.message());
+    }
   }
   return Status::Ok();
 }
