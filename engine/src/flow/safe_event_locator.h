@@ -48,21 +48,24 @@ inline double SafeStep(double h, double dh, double m) {
   return root - dh > 0.0 ? 2.0 * h / (root - dh) : std::numeric_limits<double>::infinity();
 }
 
+// The step of a guard leaving the band (ignored until h > tol): out of the band first; in
+// sqrt(4 tol / m) it cannot fall more than 2 tol.
+inline double DepartingStep(const GuardValue& g, double m, double tol) {
+  return std::max(SafeStep(std::max(g.h, 0.0), g.dh, m), std::sqrt(4.0 * tol / m));
+}
+
 // With |h'''| <= m3 from t on, h'' >= h''(t) - m3 s over a window [t, t + s]: a curvature bound for
 // the parabola on that window, far below the mode's where a short window sees a guard's curvature
 // nearly as it is (a free flight just after separation, h ~ 1e-13, h'' ~ 1e-4 against a bound of
 // 0.5). The longest step within a window (the remaining time, then quarters of it) that its bound
-// allows, if longer than `floor`; else floor. For a departing guard, as its rule below: out of
-// the band first.
+// allows, if longer than `floor`; else floor. A departing guard takes DepartingStep.
 inline double WindowStep(const GuardValue& g, double m3, bool departing, double tol,
                          double remaining, double floor) {
   double best = floor;
   double window = remaining;
   for (int k = 0; k < 8 && window > best; ++k, window *= 0.25) {
     const double m = std::max(m3 * window - g.ddh, std::numeric_limits<double>::min());
-    const double safe =
-        departing ? std::max(SafeStep(std::max(g.h, 0.0), g.dh, m), std::sqrt(4.0 * tol / m))
-                  : SafeStep(g.h, g.dh, m);
+    const double safe = departing ? DepartingStep(g, m, tol) : SafeStep(g.h, g.dh, m);
     best = std::max(best, std::min(window, safe));
   }
   return best;
@@ -172,8 +175,7 @@ LocatedEvent LocateFirstEvent(const HybridModel& model, int mode, double t_max,
       const double m = cur->bounds[i];
       double tau;
       if (departing[i]) {
-        // Out of the band first; in sqrt(4 tol / m) the guard cannot fall more than 2 tol.
-        tau = std::max(SafeStep(std::max(g[i].h, 0.0), g[i].dh, m), std::sqrt(4.0 * tol / m));
+        tau = DepartingStep(g[i], m, tol);
       } else {
         tau = SafeStep(g[i].h, g[i].dh, m);
         if (g[i].dh < 0.0) {

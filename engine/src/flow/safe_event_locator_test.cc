@@ -16,7 +16,7 @@ namespace {
 using DO = DriftingOscillator;
 
 // The free-flight mode has one guard (the impact); its h here is c (t - 1)^2 + depth, a parabola
-// with its minimum `depth` at t = 1, and the exact curvature 2 c as its bound.
+// with its minimum `depth` at t = 1, and its curvature 2 c, `loose` times, as its bound.
 struct Parabola {
   double c = 1.0;
   double depth = 0.0;
