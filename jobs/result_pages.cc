@@ -12,7 +12,13 @@ namespace drillbif::jobs {
 using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
 
-std::string PageToken(int64_t offset) { return "o" + std::to_string(offset); }
+std::string PageToken(int64_t offset) {
+  // Appended rather than "o" + ...: GCC 12 warns (-Wrestrict) of an overlap that cannot happen
+  // in the inlined operator+.
+  std::string token = "o";
+  token += std::to_string(offset);
+  return token;
+}
 
 StatusOr<int64_t> ParsePageToken(std::string_view token) {
   if (token.empty()) return int64_t{0};
@@ -30,6 +36,21 @@ StatusOr<int64_t> ParsePageToken(std::string_view token) {
   return offset;
 }
 
+void KeepRepeatedRange(const FieldDescriptor* field, int64_t lo, int64_t hi, Message* message) {
+  // Reflection's element swaps and RemoveLast: each kept item moved to its place, the rest
+  // removed from the end.
+  const auto* reflection = message->GetReflection();
+  const int64_t n = reflection->FieldSize(*message, field);
+  hi = std::clamp<int64_t>(hi, 0, n);
+  lo = std::clamp<int64_t>(lo, 0, hi);
+  if (lo > 0) {
+    for (int64_t i = lo; i < hi; ++i) {
+      reflection->SwapElements(message, field, static_cast<int>(i - lo), static_cast<int>(i));
+    }
+  }
+  for (int64_t i = hi - lo; i < n; ++i) reflection->RemoveLast(message, field);
+}
+
 void KeepItems(const JobKindSpec& kind, int64_t begin, int64_t end, Message* result) {
   const auto* reflection = result->GetReflection();
   int64_t first = 0;  // index of the current field's first item in the sequence
@@ -39,9 +60,7 @@ void KeepItems(const JobKindSpec& kind, int64_t begin, int64_t end, Message* res
     // This field's items kept: [lo, hi) of its own indices.
     const int64_t lo = std::clamp<int64_t>(begin - first, 0, n);
     const int64_t hi = std::clamp<int64_t>(end - first, lo, n);
-    auto* items = reflection->MutableRepeatedPtrField<Message>(result, field);
-    if (hi < n) items->DeleteSubrange(static_cast<int>(hi), static_cast<int>(n - hi));
-    if (lo > 0) items->DeleteSubrange(0, static_cast<int>(lo));
+    KeepRepeatedRange(field, lo, hi, result);
     first += n;
   }
   if (begin > 0) {

@@ -24,6 +24,11 @@ std::string PageToken(int64_t offset);
 // offset beyond INT64_MAX.
 StatusOr<int64_t> ParsePageToken(std::string_view token);
 
+// Keeps the items [lo, hi) of the repeated message field `field` of `message`, in order (the
+// range clamped to the items there are).
+void KeepRepeatedRange(const google::protobuf::FieldDescriptor* field, int64_t lo, int64_t hi,
+                       google::protobuf::Message* message);
+
 // Keeps the items [begin, end) of `result` (a message of kind.result_type) and clears its
 // first-page-only fields unless begin is 0.
 void KeepItems(const JobKindSpec& kind, int64_t begin, int64_t end,

@@ -34,14 +34,6 @@ const FieldDescriptor* PagedField(const jobs::JobKindSpec& kind, int stream) {
   return kind.result_type->FindFieldByName(kind.paged_fields[static_cast<size_t>(stream)]);
 }
 
-// Keeps the items [lo, hi) of the one repeated field `field` of `part`.
-void KeepRange(const FieldDescriptor* field, int64_t lo, int64_t hi, Message* part) {
-  auto* items = part->GetReflection()->MutableRepeatedPtrField<Message>(part, field);
-  const int64_t n = items->size();
-  if (hi < n) items->DeleteSubrange(static_cast<int>(hi), static_cast<int>(n - hi));
-  if (lo > 0) items->DeleteSubrange(0, static_cast<int>(lo));
-}
-
 }  // namespace
 
 ResultWriter::ResultWriter(JobStore* store, const JobRecord& job, const jobs::JobKindSpec& kind,
@@ -194,7 +186,7 @@ Status ReadResultPage(JobStore& store, const jobs::JobKindSpec& kind, const std:
         const int64_t first = offset + chunk.first_item;  // in the page sequence
         const int64_t lo = std::max(reached, first) - first;
         const int64_t hi = std::min(end, first + chunk.item_count) - first;
-        KeepRange(field, lo, hi, part.get());
+        jobs::KeepRepeatedRange(field, lo, hi, part.get());
         result->MergeFrom(*part);
         reached = first + hi;
         budget -= static_cast<int64_t>(chunk.bytes.size());

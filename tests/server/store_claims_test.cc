@@ -267,7 +267,9 @@ TEST_P(StoreClaimsTest, ConcurrentClaimsTakeEachJobOnce) {
     EXPECT_EQ(times[ids[i]], 1) << i;
     EXPECT_EQ(job.attempts, 1) << i;
     EXPECT_EQ(job.run, 1) << i;
-    if (i % 10 == 0) EXPECT_TRUE(job.cancel_requested) << "claimed before its cancel: " << i;
+    if (i % 10 == 0) {
+      EXPECT_TRUE(job.cancel_requested) << "claimed before its cancel: " << i;
+    }
   }
   for (int k = 0; k < static_cast<int>(after_cancel.size()); ++k) {
     const JobRecord job = Must(store_->Get(ids[10 * k]));
