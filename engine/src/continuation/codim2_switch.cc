@@ -461,6 +461,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     Codim2Point point;
     std::optional<SwitchCandidate> candidate;  // the last round's deferred candidate
     size_t order = 0;                          // its place in the queue
+    bool task = true;                          // whether a task computes it (else: when applied)
   };
   // The runs of `w`'s candidates (item `order`) not known among the curves applied so far nor
   // among those the runs of earlier items traced (`speculate`). (Declared before the stage, as
@@ -508,13 +509,25 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   auto ended = [&] { return !propagator.stopped() && !sum.failed() && !sum.cancelled(); };
   std::deque<Item> items;
   size_t queued_items = 0;
+  size_t queued_tasks = 0;  // items queued with a task and not applied: the window's
   auto queue = [&](Item item, CurveKind from_kind) {
     item.order = queued_items++;
     if (remote) {
       const Status queued = remote->Queue(from_kind, item.point, item.candidate);
       items.push_back(std::move(item));
+      ++queued_tasks;
       return queued.ok() || fail(queued);
     }
+    // The last round's grazing candidates have no last-resort length (RunCandidate): nothing to
+    // run ahead, so no task, and no room taken in the window. (In the reference box 167 of the
+    // 194 deferred candidates. Counted in the window of 16, they kept the other worker idle while
+    // a long run, up to ~130 ms, held the front: the fold / PD runs after it were too far back.)
+    item.task = !(last_resort && item.candidate && item.candidate->kind == CurveKind::kGrazing);
+    if (!item.task) {
+      items.push_back(std::move(item));
+      return true;
+    }
+    ++queued_tasks;
     tasks.Push(
         [&, order = item.order, from_kind, point = item.point, fixed = item.candidate](int worker) {
           Propagator& p = workers.at(worker);
@@ -544,7 +557,10 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     const Item item = std::move(items.front());
     items.pop_front();
     Work w;
-    if (!remote) {
+    if (item.task) --queued_tasks;
+    if (!item.task) {
+      w.candidates = {*item.candidate};
+    } else if (!remote) {
       w = *tasks.TakeFront(wait);
     } else if (!take_remote(&w)) {
       return false;
@@ -581,7 +597,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     deferred.swap(tally->deferred);
     size_t next = 0;
     for (size_t k = 0; k < deferred.size(); ++k) {
-      for (; next < deferred.size() && items.size() < window; ++next) {
+      for (; next < deferred.size() && queued_tasks < window; ++next) {
         const DeferredStepOff& d = deferred[next];
         if (!queue({d.curve, d.codim2, d.point, d.candidate}, d.candidate.kind)) return false;
       }
@@ -597,7 +613,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
   // reaches).
   size_t c = first_curve, e = 0;
   auto queue_points = [&] {
-    while (c < result->curves.size() && items.size() < window) {
+    while (c < result->curves.size() && queued_tasks < window) {
       const CurveResult& curve = result->curves[c].curve;
       const size_t located = curve.codim2.size();
       if (e >= located + curve.unverified_ends.size()) {
