@@ -57,10 +57,8 @@ void KeepItems(const JobKindSpec& kind, int64_t begin, int64_t end, Message* res
   for (const std::string& name : kind.paged_fields) {
     const FieldDescriptor* field = result->GetDescriptor()->FindFieldByName(name);
     const int64_t n = reflection->FieldSize(*result, field);
-    // This field's items kept: [lo, hi) of its own indices.
-    const int64_t lo = std::clamp<int64_t>(begin - first, 0, n);
-    const int64_t hi = std::clamp<int64_t>(end - first, lo, n);
-    KeepRepeatedRange(field, lo, hi, result);
+    // This field's items kept: [begin, end) in its own indices, clamped to its items.
+    KeepRepeatedRange(field, begin - first, end - first, result);
     first += n;
   }
   if (begin > 0) {

@@ -557,13 +557,15 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     const Item item = std::move(items.front());
     items.pop_front();
     Work w;
-    if (item.task) --queued_tasks;
     if (!item.task) {
       w.candidates = {*item.candidate};
-    } else if (!remote) {
-      w = *tasks.TakeFront(wait);
-    } else if (!take_remote(&w)) {
-      return false;
+    } else {
+      --queued_tasks;
+      if (!remote) {
+        w = *tasks.TakeFront(wait);
+      } else if (!take_remote(&w)) {
+        return false;
+      }
     }
     if (propagator.stopped()) return false;  // the candidates are not to be trusted
     w.runs.resize(w.candidates.size());
