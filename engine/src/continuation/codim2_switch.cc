@@ -463,23 +463,41 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     size_t order = 0;                          // its place in the queue
     bool task = true;                          // whether a task computes it (else: when applied)
   };
-  // The runs of `w`'s candidates (item `order`) not known among the curves applied so far nor
-  // among those the runs of earlier items traced (`speculate`). (Declared before the stage, as
-  // is everything its tasks refer to: the stage's end waits for the tasks still running, e.g.
-  // after a stop.)
+  // The runs of `w`'s candidates (item `order`, on worker `worker`) not known among the curves
+  // applied so far nor among those the runs of earlier items traced (`speculate`). A run is also
+  // stopped, and left out, once its candidate becomes known so while it runs (mostly the same
+  // curve traced from its other end by an earlier item's run, finished meanwhile). (Declared
+  // before the stage, as is everything its tasks refer to: the stage's end waits for the tasks
+  // still running, e.g. after a stop.)
   RunsAhead ahead;
-  auto run_unknown = [&](Propagator& p, const Codim2Point& point, size_t order, Work* w) {
+  auto run_unknown = [&](int worker, const Codim2Point& point, size_t order, Work* w) {
+    Propagator& p = workers.at(worker);
     w->runs.resize(w->candidates.size());
     for (size_t i = 0; i < w->candidates.size() && !p.stopped(); ++i) {
       const SwitchCandidate& candidate = w->candidates[i];
-      if (!candidate.orbit.ok() ||
-          known_in(applied, published.load(std::memory_order_acquire), candidate) ||
-          ahead.AnyBefore(order,
-                          [&](const TracedCurve& t) { return known_in(&t, 1, candidate); })) {
+      if (!candidate.orbit.ok()) continue;
+      // Each look checks only the applied curves it has not seen, and the runs ahead only when
+      // one was recorded since the last look.
+      size_t seen_applied = 0, seen_ahead = 0;
+      auto known_now = [&] {
+        const size_t n = published.load(std::memory_order_acquire);
+        if (known_in(applied + seen_applied, n - seen_applied, candidate)) return true;
+        seen_applied = n;
+        const size_t a = ahead.added();
+        if (a == seen_ahead) return false;
+        seen_ahead = a;
+        return ahead.AnyBefore(order,
+                               [&](const TracedCurve& t) { return known_in(&t, 1, candidate); });
+      };
+      if (known_now()) continue;
+      std::optional<CandidateRun> run;
+      if (!workers.UnlessMoot(worker, known_now, [&] {
+            run = RunCandidate(model, p, options, co, i1, i2, point, candidate, last_resort);
+          })) {
         continue;
       }
-      w->runs[i] = RunCandidate(model, p, options, co, i1, i2, point, candidate, last_resort);
-      ahead.Add(order, *w->runs[i]);
+      ahead.Add(order, *run);
+      w->runs[i] = std::move(run);
     }
   };
   TaskStage<Work> stage(workers);
@@ -537,7 +555,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
           } else {
             w.candidates = CandidatesAt(model, p, from_kind, point);
           }
-          if (speculate) run_unknown(p, point, order, &w);
+          if (speculate) run_unknown(worker, point, order, &w);
           return w;
         });
     items.push_back(std::move(item));

@@ -16,7 +16,10 @@
 #define DRILLBIF_CONTINUATION_CURVE_TASKS_H_
 
 #include <atomic>
+#include <chrono>
+#include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "common/ordered_tasks.h"
@@ -28,7 +31,8 @@ namespace drillbif::internal {
 // With one thread, the trace's own propagator (tasks run on the calling thread, under its
 // throttle). With more, a clone of it per worker, each polling a throttle of its own that
 // Abandon() stops: so that a stop of the trace, or the end of a stage, ends the tasks running
-// within a poll interval (~5 ms).
+// within a poll interval (kPoll). A worker's computation can also be stopped on its own, once its
+// result is no longer needed (UnlessMoot).
 class WorkerPropagators {
  public:
   // `threads` (>= 1; the propagator's Clone() returning null means 1).
@@ -41,6 +45,8 @@ class WorkerPropagators {
       }
       clones_.push_back(std::move(clone));
     }
+    moot_.resize(clones_.size());
+    mooted_.assign(clones_.size(), 0);
     Resume();
   }
   WorkerPropagators(const WorkerPropagators&) = delete;
@@ -54,17 +60,57 @@ class WorkerPropagators {
   // Fresh throttles, not stopped, once no task runs.
   void Resume() {
     abandon_ = false;
-    throttles_.clear();
-    for (const std::unique_ptr<Propagator>& p : clones_) {
-      throttles_.push_back(std::make_unique<ProgressThrottle>(
-          [this](double) { return !abandon_.load(std::memory_order_relaxed); }));
-      p->set_progress(throttles_.back().get());
+    throttles_.resize(clones_.size());
+    for (size_t w = 0; w < clones_.size(); ++w) Renew(w);
+  }
+
+  // Runs `compute` (on worker `worker`'s thread, on its propagator), whose result is wanted only
+  // while `moot()` is false: the propagator's polls (every kPoll) also call `moot` and stop the
+  // computation once it holds. False when so stopped: the computation's result is then not to be
+  // used, and the propagator is ready for the next one (unless the workers were abandoned
+  // meanwhile). With one thread `moot` is never called (the propagator is the trace's own).
+  bool UnlessMoot(int worker, std::function<bool()> moot, const std::function<void()>& compute) {
+    if (clones_.empty()) {
+      compute();
+      return true;
     }
+    const size_t w = static_cast<size_t>(worker);
+    moot_[w] = std::move(moot);
+    mooted_[w] = 0;
+    compute();
+    moot_[w] = nullptr;
+    if (mooted_[w] == 0) return true;
+    if (!abandon_.load(std::memory_order_relaxed)) Renew(w);
+    return false;
   }
 
  private:
+  // The workers' poll interval: a run found moot (UnlessMoot) stops within it. A call costs a
+  // few atomic loads unless a curve was recorded meanwhile.
+  static constexpr std::chrono::milliseconds kPoll{1};
+
+  // Worker w's throttle, fresh (on w's thread, or on the calling thread once no task runs).
+  void Renew(size_t w) {
+    auto fresh = std::make_unique<ProgressThrottle>(
+        [this, w](double) {
+          if (abandon_.load(std::memory_order_relaxed)) return false;
+          if (moot_[w] && moot_[w]()) {
+            mooted_[w] = 1;
+            return false;
+          }
+          return true;
+        },
+        kPoll);
+    clones_[w]->set_progress(fresh.get());
+    throttles_[w] = std::move(fresh);
+  }
+
   Propagator& own_;
   std::atomic<bool> abandon_{false};
+  // Per worker, read and written on its thread only: the test of the computation running there
+  // (UnlessMoot), and whether it stopped it.
+  std::vector<std::function<bool()>> moot_;
+  std::vector<char> mooted_;
   // Declared before the clones, so destroyed after them: a clone never points to a freed one.
   std::vector<std::unique_ptr<ProgressThrottle>> throttles_;
   std::vector<std::unique_ptr<Propagator>> clones_;

@@ -4,6 +4,7 @@
 #define DRILLBIF_CONTINUATION_RUNS_AHEAD_H_
 
 #include <algorithm>
+#include <atomic>
 #include <cstddef>
 #include <mutex>
 #include <utility>
@@ -32,8 +33,11 @@ class RunsAhead {
       outline.outline = OutlineOf(curve);
       std::lock_guard<std::mutex> lock(mutex_);
       curves_.emplace_back(item, std::move(outline));
+      added_.fetch_add(1, std::memory_order_release);
     }
   }
+  // How many curves were recorded so far (a later look needs AnyBefore again only if this grew).
+  size_t added() const { return added_.load(std::memory_order_acquire); }
   // Whether `known` holds for a curve of an item before `item`.
   template <class Known>
   bool AnyBefore(size_t item, const Known& known) const {
@@ -52,6 +56,7 @@ class RunsAhead {
  private:
   mutable std::mutex mutex_;
   std::vector<std::pair<size_t, TracedCurve>> curves_;
+  std::atomic<size_t> added_{0};
 };
 
 }  // namespace drillbif::internal

@@ -53,6 +53,19 @@ TEST(RunsAhead, RecordsTheKindOutlineAndOnlyTriesThatTracedACurve) {
   }));
 }
 
+TEST(RunsAhead, CountsTheCurvesRecorded) {
+  RunsAhead ahead;
+  EXPECT_EQ(ahead.added(), 0u);
+  ahead.Add(1, RunOf(CurveKind::kFold, 0.5, /*failed=*/true));
+  EXPECT_EQ(ahead.added(), 0u);
+  CandidateRun two = RunOf(CurveKind::kFold, 0.5);
+  two.tries.push_back(RunOf(CurveKind::kFold, 0.75).tries.front());
+  ahead.Add(2, two);
+  EXPECT_EQ(ahead.added(), 2u);
+  ahead.Applied(2);  // forgetting is no recording: the count stays
+  EXPECT_EQ(ahead.added(), 2u);
+}
+
 TEST(RunsAhead, ForgetsTheItemsUpToTheOneApplied) {
   RunsAhead ahead;
   ahead.Add(1, RunOf(CurveKind::kFold, 0.5));
