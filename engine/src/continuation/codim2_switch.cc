@@ -538,7 +538,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     }
     // The last round's grazing candidates have no last-resort length (RunCandidate): nothing to
     // run ahead, so no task, and no room taken in the window. (In the reference box 167 of the
-    // 194 deferred candidates. Counted in the window of 16, they kept the other worker idle while
+    // 194 deferred candidates. Counted in the window, they kept the other worker idle while
     // a long run, up to ~130 ms, held the front: the fold / PD runs after it were too far back.)
     item.task = !(last_resort && item.candidate && item.candidate->kind == CurveKind::kGrazing);
     if (!item.task) {

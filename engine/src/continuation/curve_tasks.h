@@ -133,11 +133,12 @@ class TaskStage {
 
   OrderedTasks<Result>& tasks() { return *tasks_; }
   // How many tasks may be queued and not applied: one with one thread (each task queued after
-  // the one before was applied, as a plain loop computes them), else eight per worker, so that a
-  // long task at the front does not leave the other workers idle (the reference box on two
-  // threads: 13.8 s with two per worker, 13.2 s with four, 12.5 s with eight, one run each; what
-  // the tasks dropped as duplicates cost: docs/performance.md, "where two threads lose").
-  size_t window() const { return workers_.threads() == 1 ? 1 : 8 * workers_.threads(); }
+  // the one before was applied, as a plain loop computes them), else sixteen per worker, so that
+  // a long task at the front does not leave the other workers idle. Tasks queued further ahead
+  // may find more of their work done by earlier ones, dropped when applied; switching stops such
+  // runs early (WorkerPropagators::UnlessMoot). Measured in docs/performance.md, "where two
+  // threads lose".
+  size_t window() const { return workers_.threads() == 1 ? 1 : 16 * workers_.threads(); }
 
  private:
   WorkerPropagators& workers_;
