@@ -12,6 +12,7 @@
 #include <tuple>
 #include <unordered_set>
 #include <utility>
+#include <variant>
 #include <vector>
 
 #include "common/phase_progress.h"
@@ -288,8 +289,9 @@ class CurveStream {
 };
 
 // One trace, in named stages: the seeds' attractors (Seeds), the branches through the start and
-// through them (StartBranches), the period-2n branches (DoubledBranches), the curves from their
-// located points (TraceStarts), switching at codimension-2 points (SwitchFrom), the edge rounds
+// through them (StartBranchJobs), the period-2n branches (DoubledBranchJobs), the curves from
+// their located points (TraceStarts; BranchesAndStarts runs these three), switching at
+// codimension-2 points (SwitchFrom), the edge rounds
 // (EdgeRounds), the last-resort step-offs (LastResortStepOffs) and the notes (Notes). Each stage
 // returns false when the trace was cancelled. The branches, curves and switching run as tasks on
 // the workers (continuation/curve_tasks.h), each applied on the calling thread in the order of a
@@ -326,10 +328,7 @@ class TraceDriver {
     // (AdvanceEdgeChains): with more than one thread, on threads of their own.
     prefetching_ =
         options_.edge_branches && options_.task_runner == nullptr && workers_->threads() > 1;
-    if (!Seeds() || !StartBranches() || !DoubledBranches()) return;
-    if (!TraceStarts(0, options_.max_period > 1 ? 0.2 : 0.1, 1.0) || !SwitchFrom(0) || Stopped()) {
-      return;
-    }
+    if (!Seeds() || !BranchesAndStarts() || !SwitchFrom(0) || Stopped()) return;
     if (!EdgeRounds() || !LastResortStepOffs()) return;
     Notes();
   }
@@ -441,13 +440,16 @@ class TraceDriver {
   Job<BranchRun> BranchJob(PeriodicOrbit orbit, int axis, double from, double to,
                            ContinuationDirection direction);
   Attractor SeedAttractor(double seed, Propagator& p) const;
-  bool StartBranches();
   bool Seeds();
-  bool DoubledBranches();
+  std::vector<Job<BranchRun>> StartBranchJobs();
+  std::vector<Job<BranchRun>> DoubledBranchJobs(int period, int level, int levels,
+                                                size_t* level_begin);
+  bool BranchesAndStarts();
   std::string WhereOf(const SpecialPoint& s) const;
   const TracedCurve* KnownCurve(const SpecialPoint& s) const;
   CurveResult CurveFrom(const SpecialPoint& s, int axis, Propagator& p) const;
-  bool TraceStarts(size_t first, double from, double to);
+  bool TraceStarts(size_t first, double from, double to,
+                   std::vector<Job<BranchRun>>* branches = nullptr);
   bool SwitchFrom(size_t first_curve);
   bool EdgeRounds();
   std::vector<EdgeEnd> EdgeEndsOf(size_t c) const;
@@ -475,7 +477,7 @@ class TraceDriver {
   std::optional<internal::WorkerPropagators> workers_;
   std::function<void()> wait_;
   std::vector<std::pair<int, SpecialPoint>> starts_;  // (axis, located point)
-  std::vector<Attractor> attractors_;                 // the seeds', from Seeds to StartBranches
+  std::vector<Attractor> attractors_;                 // the seeds', from Seeds to StartBranchJobs
   SwitchTally tally_;
   int edge_runs_ = 0;
   // The first edge round's branches computed ahead (AdvanceEdgeChains). Declared in this order:
@@ -708,7 +710,7 @@ TraceDriver::Attractor TraceDriver::SeedAttractor(double seed, Propagator& p) co
 
 bool TraceDriver::Seeds() {
   // The seeds' attractors (progress stays at the start meanwhile), their branches run with the
-  // start's (StartBranches).
+  // start's (StartBranchJobs).
   std::vector<Job<Attractor>> jobs(options_.seeds1.size());
   attractors_.resize(options_.seeds1.size());
   for (size_t k = 0; k < jobs.size(); ++k) {
@@ -724,9 +726,9 @@ bool TraceDriver::Seeds() {
   return InOrder(jobs);
 }
 
-bool TraceDriver::StartBranches() {
-  // The start's two branches, then each seed's (or the note why it has none), independent of
-  // each other: tasks on the workers, applied in this order.
+// The start's two branches, then each seed's (or the note why it has none), independent of each
+// other: tasks on the workers, applied in this order.
+std::vector<TraceDriver::Job<TraceDriver::BranchRun>> TraceDriver::StartBranchJobs() {
   std::vector<Job<BranchRun>> jobs;
   for (int axis = 0; axis < 2; ++axis) {
     jobs.push_back(
@@ -747,69 +749,78 @@ bool TraceDriver::StartBranches() {
     }
   }
   attractors_.clear();
-  return InOrder(jobs);
+  return jobs;
 }
 
-bool TraceDriver::DoubledBranches() {
-  // The period-2p branches born at the period-p branches' doublings, p = 1, 2, ... while
-  // 2p <= max_period; each level's doublings are those of the branches the level before added.
-  // A level's branches are independent of each other: tasks on the workers.
-  size_t level_begin = 0;
+// The period-2p branches born at the doublings of the period-p branches (p = `period`, level
+// `level` of `levels`) applied since *level_begin in starts_ (moved to the end): independent of
+// each other, tasks on the workers.
+std::vector<TraceDriver::Job<TraceDriver::BranchRun>> TraceDriver::DoubledBranchJobs(
+    int period, int level, int levels, size_t* level_begin) {
+  const std::vector<std::pair<int, SpecialPoint>> parents(starts_.begin() + *level_begin,
+                                                          starts_.end());
+  *level_begin = starts_.size();
+  std::vector<Job<BranchRun>> jobs;
+  for (size_t k = 0; k < parents.size(); ++k) {
+    const int axis = parents[k].first;
+    const SpecialPoint& s = parents[k].second;
+    if (s.kind != SpecialPointKind::kPeriodDoubling || s.point.orbit.signature.periods != period) {
+      continue;
+    }
+    Job<BranchRun>& job = jobs.emplace_back();
+    const double share = 0.1 / levels;
+    job.from = 0.1 + share * (level + static_cast<double>(k) / parents.size());
+    job.to = 0.1 + share * (level + static_cast<double>(k + 1) / parents.size());
+    job.compute = [this, s, axis, period](Propagator& p, const ContinuationCallback& report) {
+      // Algebraic switching finds sub- and supercritical branches; simulation is the fallback.
+      // From the algebraic switch's orbit (next to the branch point) the branch is continued
+      // away from the doubling only: towards it, it runs through the branch point (where its
+      // parameter turns, a spurious fold) onto the same orbits shifted by one period.
+      const int index = axes_[axis].index;
+      ContinuationDirection direction = options_.branch.direction;
+      StatusOr<PeriodicOrbit> doubled =
+          SwitchAtPeriodDoublingAlgebraic(model_, p, s.point.orbit, *axes_[axis].name);
+      if (doubled.ok()) {
+        direction = doubled->params[index] > s.point.orbit.params[index]
+                        ? ContinuationDirection::kIncreasing
+                        : ContinuationDirection::kDecreasing;
+      } else {
+        doubled = SwitchAtPeriodDoubling(model_, p, s, *axes_[axis].name);
+      }
+      if (!doubled.ok()) {
+        BranchRun none;
+        none.note = PeriodPrefix(period) + "PERIOD_DOUBLING at " + options_.param1 + " = " +
+                    std::to_string(s.point.orbit.params[i1_]) + ", " + options_.param2 + " = " +
+                    std::to_string(s.point.orbit.params[i2_]) + ": no period-" +
+                    std::to_string(2 * period) + " branch: " + doubled.status().message();
+        return none;
+      }
+      return ComputeBranch(*doubled, axis, direction, p, report);
+    };
+    job.apply = [this, axis](BranchRun* run) {
+      if (run->note.empty()) return ApplyBranch(*run, axis, "");
+      sum_.notes.push_back(run->note);
+      return true;
+    };
+  }
+  return jobs;
+}
+
+// The branches and the curves from their located points: the start's and the seeds' branches,
+// then the period-2p branches born at the period-p branches' doublings, p = 1, 2, ... while
+// 2p <= max_period (each level's doublings are those of the branches the level before added),
+// then the curves. The last level's branches share the curves' queue (TraceStarts): the curves
+// of the branches applied are traced while a longer branch still runs.
+bool TraceDriver::BranchesAndStarts() {
+  std::vector<Job<BranchRun>> branches = StartBranchJobs();
   int levels = 0;
   for (int p = 1; 2 * p <= options_.max_period; p *= 2) ++levels;
-  int level = 0;
-  for (int period = 1; 2 * period <= options_.max_period; period *= 2, ++level) {
-    const std::vector<std::pair<int, SpecialPoint>> parents(starts_.begin() + level_begin,
-                                                            starts_.end());
-    level_begin = starts_.size();
-    std::vector<Job<BranchRun>> jobs;
-    for (size_t k = 0; k < parents.size(); ++k) {
-      const int axis = parents[k].first;
-      const SpecialPoint& s = parents[k].second;
-      if (s.kind != SpecialPointKind::kPeriodDoubling ||
-          s.point.orbit.signature.periods != period) {
-        continue;
-      }
-      Job<BranchRun>& job = jobs.emplace_back();
-      const double share = 0.1 / levels;
-      job.from = 0.1 + share * (level + static_cast<double>(k) / parents.size());
-      job.to = 0.1 + share * (level + static_cast<double>(k + 1) / parents.size());
-      job.compute = [this, &s, axis, period](Propagator& p, const ContinuationCallback& report) {
-        // Algebraic switching finds sub- and supercritical branches; simulation is the
-        // fallback. From the algebraic switch's orbit (next to the branch point) the branch is
-        // continued away from the doubling only: towards it, it runs through the branch point
-        // (where its parameter turns, a spurious fold) onto the same orbits shifted by one
-        // period.
-        const int index = axes_[axis].index;
-        ContinuationDirection direction = options_.branch.direction;
-        StatusOr<PeriodicOrbit> doubled =
-            SwitchAtPeriodDoublingAlgebraic(model_, p, s.point.orbit, *axes_[axis].name);
-        if (doubled.ok()) {
-          direction = doubled->params[index] > s.point.orbit.params[index]
-                          ? ContinuationDirection::kIncreasing
-                          : ContinuationDirection::kDecreasing;
-        } else {
-          doubled = SwitchAtPeriodDoubling(model_, p, s, *axes_[axis].name);
-        }
-        if (!doubled.ok()) {
-          BranchRun none;
-          none.note = PeriodPrefix(period) + "PERIOD_DOUBLING at " + options_.param1 + " = " +
-                      std::to_string(s.point.orbit.params[i1_]) + ", " + options_.param2 + " = " +
-                      std::to_string(s.point.orbit.params[i2_]) + ": no period-" +
-                      std::to_string(2 * period) + " branch: " + doubled.status().message();
-          return none;
-        }
-        return ComputeBranch(*doubled, axis, direction, p, report);
-      };
-      job.apply = [this, axis](BranchRun* run) {
-        if (run->note.empty()) return ApplyBranch(*run, axis, "");
-        sum_.notes.push_back(run->note);
-        return true;
-      };
-    }
-    if (!InOrder(jobs)) return false;
+  size_t level_begin = 0;
+  for (int level = 0, period = 1; level < levels; ++level, period *= 2) {
+    if (!InOrder(branches)) return false;
+    branches = DoubledBranchJobs(period, level, levels, &level_begin);
   }
-  return true;
+  return TraceStarts(0, options_.max_period > 1 ? 0.2 : 0.1, 1.0, &branches);
 }
 
 std::string TraceDriver::WhereOf(const SpecialPoint& s) const {
@@ -840,22 +851,37 @@ CurveResult TraceDriver::CurveFrom(const SpecialPoint& s, int axis, Propagator& 
 // The curves through starts_[first..], progress from `from` to `to`. Each start's curve is a task
 // on the workers; each is applied in the order of the starts: a start on a curve traced already
 // (from an earlier start) is named in a note, its curve dropped if it was computed meanwhile.
-bool TraceDriver::TraceStarts(size_t first, double from, double to) {
-  internal::TaskStage<CurveResult> stage(*workers_);
-  internal::OrderedTasks<CurveResult>& tasks = stage.tasks();
-  // With a task runner (TraceOptions::task_runner) the tasks go there instead.
+// `branches` (null: none): jobs of branches that add starts (ApplyBranch), queued and applied
+// first, the starts' tasks queued behind them as they are added.
+bool TraceDriver::TraceStarts(size_t first, double from, double to,
+                              std::vector<Job<BranchRun>>* branches) {
+  // A branch's run or a start's curve.
+  using Computed = std::variant<BranchRun, CurveResult>;
+  internal::TaskStage<Computed> stage(*workers_);
+  internal::OrderedTasks<Computed>& tasks = stage.tasks();
+  // With a task runner (TraceOptions::task_runner) the curves' tasks go there instead.
   std::optional<internal::RunnerTickets> remote;
   if (options_.task_runner != nullptr) {
     remote.emplace(*options_.task_runner, [this] { return phase_.Continue(); });
   }
   const size_t window = remote ? remote->window() : stage.window();
-  std::deque<bool> queued;  // per start queued: whether a task computes its curve (false: it was
-                            // on a traced curve when queued)
+  const size_t jobs = branches != nullptr ? branches->size() : 0;
+  std::deque<bool> queued;  // per branch or start queued: whether a task computes it (a start:
+                            // false when it was on a traced curve when queued)
   std::deque<int64_t> tickets;  // the runner's, per start computed
-  size_t next = first;
-  for (size_t k = first; k < starts_.size(); ++k) {
-    // Queue the starts up to the window, each unless it is on a curve applied already.
-    for (; next < starts_.size() && queued.size() < window; ++next) {
+  size_t next_job = 0, next = first;
+  // Queues the branches, then the starts up to the window, each unless it is on a curve applied
+  // already. False on a runner's error.
+  auto queue_more = [&] {
+    for (; next_job < jobs && queued.size() < window; ++next_job) {
+      Job<BranchRun>* job = &(*branches)[next_job];
+      queued.push_back(static_cast<bool>(job->compute));
+      if (!job->compute) continue;
+      tasks.Push([this, job](int worker) -> Computed {
+        return job->compute(workers_->at(worker), ReportHere(job->from, job->to));
+      });
+    }
+    for (; next_job == jobs && next < starts_.size() && queued.size() < window; ++next) {
       const bool known = KnownCurve(starts_[next].second) != nullptr;
       queued.push_back(!known);
       if (known) continue;
@@ -866,10 +892,28 @@ bool TraceDriver::TraceStarts(size_t first, double from, double to) {
         tickets.push_back(*ticket);
         continue;
       }
-      tasks.Push([this, next](int worker) {
-        return CurveFrom(starts_[next].second, starts_[next].first, workers_->at(worker));
+      // A copy: the branches applied meanwhile append to starts_.
+      tasks.Push([this, start = starts_[next]](int worker) -> Computed {
+        return CurveFrom(start.second, start.first, workers_->at(worker));
       });
     }
+    return true;
+  };
+  for (size_t job = 0; job < jobs; ++job) {
+    if (!queue_more()) return false;
+    Job<BranchRun>& j = (*branches)[job];
+    if (!Report(j.from)) return false;
+    const bool computed = queued.front();
+    queued.pop_front();
+    std::optional<Computed> run;
+    if (computed) {
+      run = tasks.TakeFront(wait_);
+      if (Stopped()) return false;
+    }
+    if (!j.apply(run ? &std::get<BranchRun>(*run) : nullptr)) return false;
+  }
+  for (size_t k = first; k < starts_.size(); ++k) {
+    if (!queue_more()) return false;
     if (!Report(from + (to - from) * static_cast<double>(k - first) /
                            static_cast<double>(starts_.size() - first))) {
       return false;
@@ -893,7 +937,7 @@ bool TraceDriver::TraceStarts(size_t first, double from, double to) {
       if (!taken.ok()) return TaskFailed(taken.status());
       curve = *std::move(taken);
     } else {
-      curve = *tasks.TakeFront(wait_);
+      curve = std::get<CurveResult>(*tasks.TakeFront(wait_));
     }
     if (curve.summary.termination == Termination::kFailed) {
       sum_.notes.push_back(WhereOf(s) + ": not traced: " + curve.summary.message);
