@@ -134,14 +134,15 @@ class OrderedTasks {
       }
       lock.lock();
       slot->done = true;
-      done_.notify_all();
+      // Only the caller waits, and only for the front: a task behind it wakes no one.
+      if (!queue_.empty() && queue_.front() == slot) done_.notify_all();
     }
   }
 
   const int threads_;
   mutable std::mutex mutex_;
   std::condition_variable work_;  // a task was queued, or closing
-  std::condition_variable done_;  // a task is done
+  std::condition_variable done_;  // the front task is done
   std::deque<std::shared_ptr<Slot>> queue_;
   std::vector<std::thread> pool_;
   bool closing_ = false;

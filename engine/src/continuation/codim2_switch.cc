@@ -383,7 +383,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
       return true;
     }
     if (is_known) return true;
-    const CandidateRun run = take();
+    CandidateRun run = take();
     if (run.deferred) {
       tally->deferred.push_back({c, q, point, candidate});
       return true;
@@ -392,7 +392,7 @@ bool SwitchAtCodim2(const HybridModel& model, Propagator& propagator, WorkerProp
     bool started = false;
     for (size_t t = 0; t < run.tries.size() && !started; ++t) {
       const SpecialPoint& seed = run.tries[t].first;
-      CurveResult curve = run.tries[t].second;
+      CurveResult curve = std::move(run.tries[t].second);
       if (added == options.max_switched_curves) {
         tally->capped = true;
         return false;
