@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <tuple>
+#include <type_traits>
 #include <unordered_set>
 #include <utility>
 #include <variant>
@@ -430,6 +431,16 @@ class TraceDriver {
   };
   template <class Result>
   bool InOrder(std::vector<Job<Result>>& jobs);
+  // Queues `job` on `tasks` (whose results are Result, or a variant holding it): a task unless it
+  // computes nothing; `queued` records which.
+  template <class Result, class Computed>
+  void QueueJob(Job<Result>* job, std::deque<bool>* queued,
+                internal::OrderedTasks<Computed>* tasks);
+  // Applies `job`, the first of `queued`, with its result from `tasks` (its progress reported
+  // first). False when the trace was stopped.
+  template <class Result, class Computed>
+  bool ApplyJob(Job<Result>& job, std::deque<bool>* queued,
+                internal::OrderedTasks<Computed>* tasks);
   BranchRun ComputeBranch(const PeriodicOrbit& orbit, int axis, ContinuationDirection direction,
                           Propagator& p, const ContinuationCallback& report) const;
   static bool TurnOfDoubled(const ContinuationResult& r, const SpecialPoint& s);
@@ -660,30 +671,44 @@ TraceDriver::Job<TraceDriver::BranchRun> TraceDriver::BranchJob(PeriodicOrbit or
 template <class Result>
 bool TraceDriver::InOrder(std::vector<Job<Result>>& jobs) {
   internal::TaskStage<Result> stage(*workers_);
-  internal::OrderedTasks<Result>& tasks = stage.tasks();
   std::deque<bool> queued;  // per job queued and not applied: whether a task computes it
   size_t next = 0;
   for (size_t k = 0; k < jobs.size(); ++k) {
     for (; next < jobs.size() && queued.size() < stage.window(); ++next) {
-      Job<Result>* job = &jobs[next];
-      queued.push_back(static_cast<bool>(job->compute));
-      if (!job->compute) continue;
-      tasks.Push([this, job](int worker) {
-        return job->compute(workers_->at(worker), ReportHere(job->from, job->to));
-      });
+      QueueJob(&jobs[next], &queued, &stage.tasks());
     }
-    Job<Result>& job = jobs[k];
-    if (!Report(job.from)) return false;
-    const bool computed = queued.front();
-    queued.pop_front();
-    std::optional<Result> result;
-    if (computed) {
-      result = tasks.TakeFront(wait_);
-      if (Stopped()) return false;
-    }
-    if (!job.apply(result ? &*result : nullptr)) return false;
+    if (!ApplyJob(jobs[k], &queued, &stage.tasks())) return false;
   }
   return true;
+}
+
+template <class Result, class Computed>
+void TraceDriver::QueueJob(Job<Result>* job, std::deque<bool>* queued,
+                           internal::OrderedTasks<Computed>* tasks) {
+  queued->push_back(static_cast<bool>(job->compute));
+  if (!job->compute) return;
+  tasks->Push([this, job](int worker) -> Computed {
+    return job->compute(workers_->at(worker), ReportHere(job->from, job->to));
+  });
+}
+
+template <class Result, class Computed>
+bool TraceDriver::ApplyJob(Job<Result>& job, std::deque<bool>* queued,
+                           internal::OrderedTasks<Computed>* tasks) {
+  if (!Report(job.from)) return false;
+  const bool computed = queued->front();
+  queued->pop_front();
+  std::optional<Computed> result;
+  if (computed) {
+    result = tasks->TakeFront(wait_);
+    if (Stopped()) return false;
+  }
+  if (!result) return job.apply(nullptr);
+  if constexpr (std::is_same_v<Result, Computed>) {
+    return job.apply(&*result);
+  } else {
+    return job.apply(&std::get<Result>(*result));
+  }
 }
 
 // The seeds' attractor (on propagator `p`), or the note why there is none.
@@ -866,20 +891,16 @@ bool TraceDriver::TraceStarts(size_t first, double from, double to,
   }
   const size_t window = remote ? remote->window() : stage.window();
   const size_t jobs = branches != nullptr ? branches->size() : 0;
-  std::deque<bool> queued;  // per branch or start queued: whether a task computes it (a start:
-                            // false when it was on a traced curve when queued)
+  // Per branch or start queued: whether a task computes it (a start: false when it was on a
+  // traced curve when queued).
+  std::deque<bool> queued;
   std::deque<int64_t> tickets;  // the runner's, per start computed
   size_t next_job = 0, next = first;
   // Queues the branches, then the starts up to the window, each unless it is on a curve applied
   // already. False on a runner's error.
   auto queue_more = [&] {
     for (; next_job < jobs && queued.size() < window; ++next_job) {
-      Job<BranchRun>* job = &(*branches)[next_job];
-      queued.push_back(static_cast<bool>(job->compute));
-      if (!job->compute) continue;
-      tasks.Push([this, job](int worker) -> Computed {
-        return job->compute(workers_->at(worker), ReportHere(job->from, job->to));
-      });
+      QueueJob(&(*branches)[next_job], &queued, &tasks);
     }
     for (; next_job == jobs && next < starts_.size() && queued.size() < window; ++next) {
       const bool known = KnownCurve(starts_[next].second) != nullptr;
@@ -900,17 +921,7 @@ bool TraceDriver::TraceStarts(size_t first, double from, double to,
     return true;
   };
   for (size_t job = 0; job < jobs; ++job) {
-    if (!queue_more()) return false;
-    Job<BranchRun>& j = (*branches)[job];
-    if (!Report(j.from)) return false;
-    const bool computed = queued.front();
-    queued.pop_front();
-    std::optional<Computed> run;
-    if (computed) {
-      run = tasks.TakeFront(wait_);
-      if (Stopped()) return false;
-    }
-    if (!j.apply(run ? &std::get<BranchRun>(*run) : nullptr)) return false;
+    if (!queue_more() || !ApplyJob((*branches)[job], &queued, &tasks)) return false;
   }
   for (size_t k = first; k < starts_.size(); ++k) {
     if (!queue_more()) return false;
